@@ -1,9 +1,37 @@
 defmodule Neptunus.Application do
-  @moduledoc false
+  @moduledoc """
+  The node's supervision tree (DESIGN.md §2):
+
+      Neptunus.Application        one_for_one
+      ├── Neptunus.PubSub         :pg scope, topic fan-out
+      ├── Neptunus.Fleet          registry + one supervisor per vehicle
+      ├── NeptunusWeb.Presence    who watches which topic
+      └── NeptunusWeb.Endpoint    yaws: static files, HTTP API, WebSocket (last up, first down)
+  """
   use Application
+
+  require Logger
 
   @impl true
   def start(_type, _args) do
-    Supervisor.start_link([], strategy: :one_for_one, name: Neptunus.Supervisor)
+    endpoint = Application.fetch_env!(:neptunus, :endpoint)
+    vehicles = Application.fetch_env!(:neptunus, :vehicles)
+
+    children = [
+      Neptunus.PubSub,
+      {Neptunus.Fleet, vehicles},
+      NeptunusWeb.Presence,
+      {NeptunusWeb.Endpoint, endpoint}
+    ]
+
+    with {:ok, pid} <-
+           Supervisor.start_link(children, strategy: :one_for_one, name: Neptunus.Supervisor) do
+      Logger.info(
+        "Neptunus #{Application.spec(:neptunus, :vsn)} serving #{NeptunusWeb.Endpoint.url()} " <>
+          "with vehicles #{Enum.map_join(vehicles, ", ", &"#{&1.id} (#{&1.board})")}"
+      )
+
+      {:ok, pid}
+    end
   end
 end

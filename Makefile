@@ -1,0 +1,75 @@
+# Neptunus — the two commands that matter: `make run` and `make test`.
+# Everything else is what they depend on. `make setup` is idempotent.
+
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+
+APT_PACKAGES := elixir erlang-dev erlang-src erlang-yaws erlang-jiffy erlang-proper \
+                erlang-dialyzer socat chromium
+YAWS_DIR := $(firstword $(wildcard /usr/lib/yaws-*))
+ASSETS_STAMP := assets/node_modules/.package-lock.json
+
+.PHONY: help setup setup-apt setup-links setup-npm assets compile run test bench clean
+
+help:
+	@echo "make run    - install what is missing, build, start the server (http://127.0.0.1:4000)"
+	@echo "make test   - the whole test suite (ExUnit, vitest, Node protocol test, Playwright)"
+	@echo "make setup  - install Debian and npm dependencies (idempotent)"
+	@echo "make assets - build the browser code into priv/static"
+	@echo "make bench  - benchmarks (figures, not assertions)"
+	@echo "make clean  - remove build output"
+
+setup: setup-apt setup-links setup-npm
+
+# Debian packages: installed with apt when root, otherwise the exact command is printed.
+setup-apt:
+	@missing=$$(for p in $(APT_PACKAGES); do \
+	    dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || echo $$p; \
+	  done); \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ]; then \
+	    echo "Installing Debian packages:" $$missing; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
+	  else \
+	    echo "Missing Debian packages. Run:"; \
+	    echo "  sudo apt-get update && sudo apt-get install -y" $$missing; \
+	    exit 1; \
+	  fi; \
+	fi
+	@command -v node >/dev/null && command -v npm >/dev/null || { \
+	  if [ "$$(id -u)" = 0 ]; then apt-get install -y -qq nodejs npm >/dev/null; \
+	  else echo "Node.js and npm are missing. Run: sudo apt-get install -y nodejs npm"; exit 1; fi; }
+
+# yaws lives outside the Erlang lib dir; link it into the project (see STACK_NOTES.md).
+setup-links: setup-apt
+	@yaws=$$(ls -d /usr/lib/yaws-* 2>/dev/null | head -n1); \
+	test -n "$$yaws" || { echo "erlang-yaws is not installed"; exit 1; }; \
+	mkdir -p erl_libs; \
+	[ "$$(readlink erl_libs/$$(basename $$yaws))" = "$$yaws" ] || ln -sfn $$yaws erl_libs/$$(basename $$yaws)
+
+setup-npm: $(ASSETS_STAMP)
+
+$(ASSETS_STAMP): assets/package.json assets/package-lock.json
+	cd assets && npm ci --no-audit --no-fund --loglevel=error
+	@touch $@
+
+assets: setup-npm
+	cd assets && npm run --silent build
+
+compile: setup-links
+	mix compile --warnings-as-errors
+
+run: setup assets compile
+	mix run --no-halt
+
+test: setup assets
+	cd assets && npm run --silent typecheck && npm run --silent test
+	MIX_ENV=test mix compile --warnings-as-errors
+	mix test
+
+bench: setup assets
+	MIX_ENV=prod mix compile
+	bench/fanout
+
+clean:
+	rm -rf _build priv/static test/e2e/artifacts

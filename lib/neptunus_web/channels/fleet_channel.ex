@@ -1,0 +1,20 @@
+defmodule NeptunusWeb.Channels.FleetChannel do
+  @moduledoc """
+  Topic `fleet`: the vehicles of this node. Join reply `%{vehicles: [%{id, board}]}`.
+  No client events yet; any push is answered with an error naming the event.
+  """
+  @behaviour NeptunusWeb.Channel
+
+  @impl true
+  def join("fleet", _payload, socket), do: {:ok, %{vehicles: Neptunus.Fleet.list()}, socket}
+
+  @impl true
+  def handle_in(event, _payload, socket),
+    do: {:reply, {:error, %{reason: "unknown event on fleet: #{event}"}}, socket}
+
+  @impl true
+  def handle_info(_msg, socket), do: {:noreply, socket}
+
+  @impl true
+  def terminate(_reason, _socket), do: :ok
+end

@@ -1,0 +1,330 @@
+defmodule NeptunusWeb.Socket do
+  @moduledoc """
+  A Phoenix Channels v2 WebSocket connection, served by yaws (`/socket/websocket`): one
+  process per connection holding its joined channels (see `NeptunusWeb.Channel`).
+
+  Protocol (what the official `phoenix` JS client expects; details in `docs/API.md`):
+
+    * frames are JSON `[join_ref, ref, topic, event, payload]`;
+    * `phoenix`/`heartbeat` is answered `ok`; a connection silent for `@idle_timeout_ms`
+      is closed (the client heartbeats every 30 s);
+    * `phx_join` → `phx_reply` ok with the channel's join reply, or error with a reason;
+      joining a joined topic again replaces the old channel;
+    * `phx_leave` → `phx_reply` ok, then `phx_close` with the join ref;
+    * a push to a topic that is not joined (or with a stale join ref) → error
+      `unmatched topic`;
+    * a malformed frame → `phx_reply` error with a readable reason, addressed as well as
+      the frame allows; the connection stays up;
+    * a channel that raises → `phx_error` for its topic; the other channels stay.
+
+  Connection parameters (query string): `vsn` must be `2.x`; `name` is the display name
+  shown to others (trimmed to 40 characters; default `guest-XXXX`).
+  """
+  require Logger
+
+  import NeptunusWeb.Yaws
+
+  alias Neptunus.PubSub
+  alias NeptunusWeb.{Channel, Presence}
+  alias NeptunusWeb.Channels.{FleetChannel, VehicleChannel, Wire}
+
+  @idle_timeout_ms 60_000
+  @max_message_bytes 65_536
+
+  defmodule State do
+    @moduledoc false
+    @type joined :: %{module: module(), socket: NeptunusWeb.Channel.Socket.t()}
+    @type t :: %__MODULE__{
+            user: %{id: String.t(), name: String.t()},
+            channels: %{optional(String.t()) => joined()},
+            last_seen: integer()
+          }
+    @enforce_keys [:user, :last_seen]
+    defstruct [:user, :last_seen, channels: %{}]
+  end
+
+  # yaws appmod: upgrade /socket/websocket
+
+  @doc false
+  def out(arg) do
+    path = arg(arg, :server_path) |> to_string()
+    params = query_params(arg(arg, :querydata))
+
+    cond do
+      path != "/socket/websocket" ->
+        http_error(404, "no such socket endpoint: #{path}")
+
+      not String.starts_with?(Map.get(params, "vsn", ""), "2.") ->
+        http_error(400, "unsupported protocol version: use vsn=2.0.0")
+
+      true ->
+        opts = [
+          {:callback, {:basic, %{params: params}}},
+          {:max_frame_size, @max_message_bytes},
+          {:max_message_size, @max_message_bytes}
+        ]
+
+        {:websocket, __MODULE__, opts}
+    end
+  end
+
+  defp query_params(:undefined), do: %{}
+
+  defp query_params(query) do
+    URI.decode_query(to_string(query))
+  rescue
+    _ -> %{}
+  end
+
+  defp http_error(status, reason) do
+    [{:status, status}, {:content, ~c"application/json", Wire.encode_json(%{error: reason})}]
+  end
+
+  # yaws WebSocket callbacks (basic mode). yaws does not catch exceptions from handle_info
+  # and closes with 1011 without a log on exceptions from handle_message: every body is
+  # guarded.
+
+  @doc false
+  def init([_arg, %{params: params}]) do
+    :timer.send_interval(div(@idle_timeout_ms, 2), :check_idle)
+
+    {:ok,
+     %State{
+       user: %{id: random_id(), name: display_name(params["name"])},
+       last_seen: now_ms()
+     }}
+  end
+
+  @doc false
+  def handle_open(_ws_state, state), do: {:ok, state}
+
+  @doc false
+  def handle_message({:text, data}, state) do
+    guarded(state, fn -> handle_text(data, %{state | last_seen: now_ms()}) end)
+  end
+
+  def handle_message({:binary, _data}, state) do
+    frame =
+      Wire.encode_reply(nil, nil, "phoenix", :error, %{
+        reason: "binary frames are not supported: send JSON text"
+      })
+
+    {:reply, {:text, frame}, state}
+  end
+
+  def handle_message({:close, _code, _reason}, state), do: {:noreply, state}
+
+  @doc false
+  def handle_info({:pubsub_frame, _topic, frame}, state), do: {:reply, {:text, frame}, state}
+
+  def handle_info(msg, state), do: guarded(state, fn -> handle_other(msg, state) end)
+
+  @doc false
+  def terminate(reason, state) do
+    for {topic, joined} <- state.channels, do: leave_channel(topic, joined, {:shutdown, reason})
+    :ok
+  end
+
+  # Frames from the client
+
+  defp handle_text(data, state) do
+    case Wire.decode(data) do
+      {:ok, msg} ->
+        dispatch(msg, state)
+
+      {:error, reason, partial} ->
+        topic = partial.topic || "phoenix"
+
+        reply(state, [
+          Wire.encode_reply(partial.join_ref, partial.ref, topic, :error, %{reason: reason})
+        ])
+    end
+  end
+
+  defp dispatch(%Wire.Message{topic: "phoenix", event: "heartbeat"} = msg, state) do
+    reply(state, [Wire.encode_reply(nil, msg.ref, "phoenix", :ok, %{})])
+  end
+
+  defp dispatch(%Wire.Message{event: "phx_join"} = msg, state), do: join(msg, state)
+
+  defp dispatch(%Wire.Message{event: "phx_leave", topic: topic} = msg, state) do
+    case joined(state, msg) do
+      {:ok, joined} ->
+        leave_channel(topic, joined, {:shutdown, :left})
+        state = %{state | channels: Map.delete(state.channels, topic)}
+
+        reply(state, [
+          Wire.encode_reply(msg.join_ref, msg.ref, topic, :ok, %{}),
+          Wire.encode(msg.join_ref, msg.join_ref, topic, "phx_close", %{})
+        ])
+
+      :error ->
+        unmatched(msg, state)
+    end
+  end
+
+  defp dispatch(%Wire.Message{topic: topic} = msg, state) do
+    case joined(state, msg) do
+      {:ok, %{module: module, socket: socket} = joined} ->
+        in_channel(state, topic, joined, fn ->
+          {:reply, {status, response}, socket} = module.handle_in(msg.event, msg.payload, socket)
+          {[Wire.encode_reply(msg.join_ref, msg.ref, topic, status, response)], socket}
+        end)
+
+      :error ->
+        unmatched(msg, state)
+    end
+  end
+
+  defp join(%Wire.Message{topic: topic} = msg, state) do
+    state =
+      case Map.pop(state.channels, topic) do
+        {nil, _} ->
+          state
+
+        {old, channels} ->
+          leave_channel(topic, old, {:shutdown, :rejoin})
+          %{state | channels: channels}
+      end
+
+    case channel_module(topic) do
+      nil ->
+        reply(state, [error_reply(msg, "unmatched topic")])
+
+      module ->
+        socket = %Channel.Socket{
+          topic: topic,
+          join_ref: msg.join_ref,
+          user: state.user,
+          transport_pid: self()
+        }
+
+        case safe(fn -> module.join(topic, msg.payload, socket) end) do
+          {:ok, {:ok, response, socket}} ->
+            PubSub.subscribe_fastlane(topic)
+            joined = %{module: module, socket: socket}
+            state = %{state | channels: Map.put(state.channels, topic, joined)}
+            reply(state, [Wire.encode_reply(msg.join_ref, msg.ref, topic, :ok, response)])
+
+          {:ok, {:error, response}} ->
+            reply(state, [Wire.encode_reply(msg.join_ref, msg.ref, topic, :error, response)])
+
+          {:error, exception} ->
+            Logger.error("join #{topic} failed: #{exception}")
+            reply(state, [error_reply(msg, "join crashed")])
+        end
+    end
+  end
+
+  defp channel_module("fleet"), do: FleetChannel
+  defp channel_module("vehicle:" <> _id), do: VehicleChannel
+  defp channel_module(_topic), do: nil
+
+  # Messages to the connection process
+
+  defp handle_other({:channel_info, topic, msg}, state) do
+    case Map.fetch(state.channels, topic) do
+      {:ok, %{module: module, socket: socket} = joined} ->
+        in_channel(state, topic, joined, fn ->
+          case module.handle_info(msg, socket) do
+            {:noreply, socket} ->
+              {[], socket}
+
+            {:push, event, payload, socket} ->
+              {[Wire.encode(socket.join_ref, nil, topic, event, payload)], socket}
+          end
+        end)
+
+      :error ->
+        {:noreply, state}
+    end
+  end
+
+  defp handle_other(:check_idle, state) do
+    if now_ms() - state.last_seen > @idle_timeout_ms do
+      {:close, {1000, "heartbeat timeout"}, state}
+    else
+      {:noreply, state}
+    end
+  end
+
+  defp handle_other(msg, state) do
+    Logger.debug("socket ignored message #{inspect(msg)}")
+    {:noreply, state}
+  end
+
+  # Channel plumbing
+
+  defp joined(state, %Wire.Message{topic: topic, join_ref: join_ref}) do
+    case Map.fetch(state.channels, topic) do
+      {:ok, %{socket: %{join_ref: ^join_ref}} = joined} -> {:ok, joined}
+      {:ok, joined} when join_ref == nil -> {:ok, joined}
+      _ -> :error
+    end
+  end
+
+  # Runs a channel callback; on an exception the channel is dropped with phx_error.
+  defp in_channel(state, topic, joined, fun) do
+    case safe(fun) do
+      {:ok, {frames, socket}} ->
+        state = put_in(state.channels[topic], %{joined | socket: socket})
+        reply(state, frames)
+
+      {:error, exception} ->
+        Logger.error("channel #{topic} crashed: #{exception}")
+        PubSub.unsubscribe(topic)
+        Presence.untrack(self(), topic)
+        state = %{state | channels: Map.delete(state.channels, topic)}
+        join_ref = joined.socket.join_ref
+        reply(state, [Wire.encode(join_ref, join_ref, topic, "phx_error", %{})])
+    end
+  end
+
+  defp leave_channel(topic, %{module: module, socket: socket}, reason) do
+    PubSub.unsubscribe(topic)
+    safe(fn -> module.terminate(reason, socket) end)
+    Presence.untrack(self(), topic)
+  end
+
+  defp unmatched(msg, state), do: reply(state, [error_reply(msg, "unmatched topic")])
+
+  defp error_reply(msg, reason),
+    do: Wire.encode_reply(msg.join_ref, msg.ref, msg.topic, :error, %{reason: reason})
+
+  defp reply(state, []), do: {:noreply, state}
+  defp reply(state, frames), do: {:reply, Enum.map(frames, &{:text, &1}), state}
+
+  defp safe(fun) do
+    {:ok, fun.()}
+  rescue
+    exception -> {:error, Exception.format(:error, exception, __STACKTRACE__)}
+  catch
+    kind, value -> {:error, Exception.format(kind, value, __STACKTRACE__)}
+  end
+
+  defp guarded(state, fun) do
+    case safe(fun) do
+      {:ok, result} ->
+        result
+
+      {:error, formatted} ->
+        Logger.error("socket callback failed: #{formatted}")
+        {:noreply, state}
+    end
+  end
+
+  defp display_name(name) when is_binary(name) do
+    case name |> String.trim() |> String.slice(0, 40) do
+      "" -> guest_name()
+      trimmed -> trimmed
+    end
+  end
+
+  defp display_name(_), do: guest_name()
+
+  defp guest_name, do: "guest-" <> String.slice(random_id(), 0, 4)
+
+  defp random_id, do: Base.url_encode64(:crypto.strong_rand_bytes(9), padding: false)
+
+  defp now_ms, do: System.monotonic_time(:millisecond)
+end

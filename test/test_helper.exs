@@ -1,0 +1,7 @@
+# The application runs under test on its own port (config/test.exs): the wire, Node and
+# browser tests talk to it exactly as a browser would.
+#
+# Tags:
+#   :external — runs Node (protocol client, Playwright). Included by default; `make test`
+#               builds what they need first. Skip with `mix test --exclude external`.
+ExUnit.start()
