@@ -4,4 +4,5 @@
 # Tags:
 #   :external — runs Node (protocol client, Playwright). Included by default; `make test`
 #               builds what they need first. Skip with `mix test --exclude external`.
+{:ok, _} = Application.ensure_all_started(:inets)
 ExUnit.start()

@@ -59,11 +59,11 @@ defmodule Neptunus.Vehicle.Control do
   def stop(id, caller, reason), do: GenServer.call(via(id), {:stop, caller, reason})
 
   @doc """
-  Releases control if `caller` is the pilot: thrusters go neutral (`stopped` with reason
-  `pilot_left`). A no-op for anyone else.
+  Releases control if `caller` is the pilot: thrusters go neutral and `stopped` is broadcast
+  with `reason` (e.g. `pilot_left`, `pilot_disconnected`). A no-op for anyone else.
   """
-  @spec release(String.t(), caller()) :: :ok
-  def release(id, caller), do: GenServer.call(via(id), {:release, caller})
+  @spec release(String.t(), caller(), String.t()) :: :ok
+  def release(id, caller, reason), do: GenServer.call(via(id), {:release, caller, reason})
 
   @doc "Current control status: command, thrusters, gain and pilot (`%{name}` or nil)."
   @spec status(String.t()) :: map()
@@ -114,14 +114,14 @@ defmodule Neptunus.Vehicle.Control do
     end
   end
 
-  def handle_call({:release, %{pid: pid}}, _from, %State{pilot: %{pid: pid} = pilot} = state) do
-    Process.demonitor(pilot.monitor, [:flush])
-    state = safety_stop(%{state | pilot: nil}, "pilot_left")
+  def handle_call({:release, %{pid: pid}, reason}, _from, %State{pilot: %{pid: pid}} = state) do
+    Process.demonitor(state.pilot.monitor, [:flush])
+    state = safety_stop(%{state | pilot: nil}, reason)
     broadcast_pilot(state)
     {:reply, :ok, state}
   end
 
-  def handle_call({:release, _caller}, _from, state), do: {:reply, :ok, state}
+  def handle_call({:release, _caller, _reason}, _from, state), do: {:reply, :ok, state}
 
   def handle_call(:status, _from, state) do
     {:reply, Map.merge(output(state), %{gain: state.gain, pilot: public_pilot(state.pilot)}),

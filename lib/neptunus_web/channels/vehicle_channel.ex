@@ -58,9 +58,14 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   end
 
   @impl true
-  def terminate(_reason, socket) do
-    # A pilot who leaves the vehicle's channel stops it, as if disconnected.
-    if id = socket.assigns[:vehicle_id], do: Control.release(id, caller(socket))
+  def terminate(reason, socket) do
+    # A pilot who leaves the vehicle's topic or disconnects stops the vehicle.
+    why =
+      if reason in [{:shutdown, :left}, {:shutdown, :rejoin}],
+        do: "pilot_left",
+        else: "pilot_disconnected"
+
+    if id = socket.assigns[:vehicle_id], do: Control.release(id, caller(socket), why)
     :ok
   end
 

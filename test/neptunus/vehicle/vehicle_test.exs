@@ -101,9 +101,9 @@ defmodule Neptunus.VehicleTest do
 
   test "releasing control stops the vehicle; release by others is a no-op", %{id: id, me: me} do
     {:ok, _} = Control.thrust(id, me, motion(1, 0, 0))
-    assert :ok = Control.release(id, other_caller())
+    assert :ok = Control.release(id, other_caller(), "pilot_left")
     refute Board.Simulated.state(id).thrusters == Allocation.neutral()
-    assert :ok = Control.release(id, me)
+    assert :ok = Control.release(id, me, "pilot_left")
     assert_receive {:pubsub, _, "stopped", %{reason: "pilot_left"}}
     assert Board.Simulated.state(id).thrusters == Allocation.neutral()
     assert Control.status(id).pilot == nil

@@ -1,0 +1,295 @@
+defmodule NeptunusWeb.SocketTest do
+  # Wire-level tests against the running endpoint, with a real WebSocket client.
+  use ExUnit.Case, async: false
+
+  alias NeptunusWeb.Test.WSClient
+
+  @moduletag :capture_log
+
+  setup do
+    id = "wire-#{System.unique_integer([:positive])}"
+    {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated})
+    on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
+    {:ok, id: id, topic: "vehicle:" <> id}
+  end
+
+  defp port, do: Application.fetch_env!(:neptunus, :endpoint).port
+
+  defp connect!(name \\ "tester") do
+    {:ok, ws} = WSClient.connect(port(), "/socket/websocket?vsn=2.0.0&name=#{URI.encode(name)}")
+    ws
+  end
+
+  defp reply_to(ws, ref), do: WSClient.recv_until(ws, &match?([_, ^ref, _, "phx_reply", _], &1))
+
+  defp push_and_reply(ws, join_ref, topic, event, payload) do
+    ref = WSClient.unique_ref()
+    WSClient.push(ws, join_ref, ref, topic, event, payload)
+
+    [^join_ref, ^ref, ^topic, "phx_reply", %{"status" => status, "response" => response}] =
+      reply_to(ws, ref)
+
+    {status, response}
+  end
+
+  defp join!(ws, topic) do
+    join_ref = WSClient.unique_ref()
+    {:ok, response} = WSClient.join(ws, topic, %{}, join_ref)
+    {join_ref, response}
+  end
+
+  defp thrust(s), do: %{"mode" => "motion", "surge" => s, "heave" => 0, "yaw" => 0}
+
+  describe "upgrade" do
+    test "refuses a missing or wrong protocol version" do
+      assert {:error, {:http_status, 400, %{body: body}}} =
+               WSClient.connect(port(), "/socket/websocket")
+
+      assert body =~ "vsn=2.0.0"
+
+      assert {:error, {:http_status, 400, _}} =
+               WSClient.connect(port(), "/socket/websocket?vsn=1.0.0")
+    end
+
+    test "refuses other socket paths" do
+      assert {:error, {:http_status, 404, _}} =
+               WSClient.connect(port(), "/socket/longpoll?vsn=2.0.0")
+    end
+  end
+
+  test "heartbeat is answered with the same ref" do
+    ws = connect!()
+    WSClient.push(ws, nil, "hb1", "phoenix", "heartbeat", %{})
+
+    assert [nil, "hb1", "phoenix", "phx_reply", %{"status" => "ok", "response" => %{}}] =
+             WSClient.recv_frame(ws)
+  end
+
+  test "fleet lists the vehicles", %{id: id} do
+    ws = connect!()
+    {_, %{"vehicles" => vehicles}} = join!(ws, "fleet")
+    assert %{"id" => id, "board" => "simulated"} in vehicles
+    assert %{"id" => "neptunus-1", "board" => "simulated"} in vehicles
+  end
+
+  test "vehicle join: snapshot, then presence_state with ourselves, then telemetry", ctx do
+    ws = connect!("Ada")
+    {join_ref, snapshot} = join!(ws, ctx.topic)
+    assert %{"vehicle" => %{"id" => id}, "pilot" => nil, "control" => control} = snapshot
+    assert id == ctx.id
+    assert %{"gain" => 0.5, "command" => %{"surge" => +0.0}} = control
+    assert Map.has_key?(snapshot, "telemetry")
+
+    assert [^join_ref, nil, _, "presence_state", %{"Ada" => %{"metas" => [meta]}}] =
+             WSClient.recv_until(ws, &match?([_, _, _, "presence_state", _], &1))
+
+    assert is_binary(meta["phx_ref"])
+
+    assert [nil, nil, _, "telemetry", telemetry] =
+             WSClient.recv_until(ws, &match?([_, _, _, "telemetry", _], &1))
+
+    for key <- ~w(t sent_at measurement sim command thrusters),
+        do: assert(Map.has_key?(telemetry, key))
+  end
+
+  test "unknown topics and vehicles are refused with a reason" do
+    ws = connect!()
+    assert {:error, %{"reason" => "unmatched topic"}} = WSClient.join(ws, "room:lobby")
+    assert {:error, %{"reason" => "unknown vehicle: nope"}} = WSClient.join(ws, "vehicle:nope")
+  end
+
+  test "pushes to a topic not joined get unmatched topic", %{topic: topic} do
+    ws = connect!()
+
+    assert {"error", %{"reason" => "unmatched topic"}} =
+             push_and_reply(ws, "9", topic, "thrust", thrust(1))
+  end
+
+  test "malformed frames get a readable error and the connection stays up", %{topic: topic} do
+    ws = connect!()
+    WSClient.send_text(ws, "{not json")
+
+    assert [
+             nil,
+             nil,
+             "phoenix",
+             "phx_reply",
+             %{"status" => "error", "response" => %{"reason" => r1}}
+           ] = WSClient.recv_frame(ws)
+
+    assert r1 =~ "invalid JSON"
+
+    WSClient.send_text(ws, ~s(["1","2","#{topic}","thrust","fast"]))
+
+    assert [
+             "1",
+             "2",
+             ^topic,
+             "phx_reply",
+             %{"response" => %{"reason" => "payload must be a JSON object"}}
+           ] = WSClient.recv_frame(ws)
+
+    WSClient.send_text(ws, ~s([1,2,3]))
+    assert [_, _, "phoenix", "phx_reply", %{"status" => "error"}] = WSClient.recv_frame(ws)
+
+    WSClient.send_binary(ws, <<1, 2, 3>>)
+
+    assert [_, _, "phoenix", "phx_reply", %{"response" => %{"reason" => r2}}] =
+             WSClient.recv_frame(ws)
+
+    assert r2 =~ "binary frames are not supported"
+
+    WSClient.push(ws, nil, "alive", "phoenix", "heartbeat", %{})
+    assert [nil, "alive", "phoenix", "phx_reply", %{"status" => "ok"}] = WSClient.recv_frame(ws)
+  end
+
+  test "leave replies ok, closes the channel, and later pushes are unmatched", %{topic: topic} do
+    ws = connect!()
+    {join_ref, _} = join!(ws, topic)
+    assert {"ok", %{}} = push_and_reply(ws, join_ref, topic, "phx_leave", %{})
+
+    assert [^join_ref, ^join_ref, ^topic, "phx_close", %{}] =
+             WSClient.recv_until(ws, &match?([_, _, _, "phx_close", _], &1))
+
+    assert {"error", %{"reason" => "unmatched topic"}} =
+             push_and_reply(ws, join_ref, topic, "thrust", thrust(0))
+  end
+
+  test "a rejoin replaces the old join; its join_ref goes stale", %{topic: topic} do
+    ws = connect!()
+    {old_ref, _} = join!(ws, topic)
+    {new_ref, _} = join!(ws, topic)
+
+    assert {"error", %{"reason" => "unmatched topic"}} =
+             push_and_reply(ws, old_ref, topic, "thrust", thrust(0))
+
+    assert {"ok", _} = push_and_reply(ws, new_ref, topic, "thrust", thrust(0))
+  end
+
+  test "broadcasts are the same bytes for every subscriber (encoded once)", %{topic: topic} do
+    [a, b] = for name <- ["a", "b"], do: connect!(name)
+    for ws <- [a, b], do: join!(ws, topic)
+    frame_a = raw_telemetry(a)
+    t = :jiffy.decode(frame_a, [:return_maps]) |> Enum.at(4) |> Map.fetch!("t")
+    frame_b = raw_telemetry_at(b, t)
+    assert frame_a == frame_b
+  end
+
+  test "presence: joins and leaves reach the others", %{topic: topic} do
+    a = connect!("Ada")
+    join!(a, topic)
+    b = connect!("Bob")
+    join!(b, topic)
+
+    assert [nil, nil, ^topic, "presence_diff", %{"joins" => %{"Bob" => _}, "leaves" => %{}}] =
+             WSClient.recv_until(
+               a,
+               &match?([_, _, _, "presence_diff", %{"joins" => %{"Bob" => _}}], &1)
+             )
+
+    WSClient.close(b)
+
+    assert [_, _, _, "presence_diff", %{"leaves" => %{"Bob" => %{"metas" => [_]}}}] =
+             WSClient.recv_until(
+               a,
+               &match?([_, _, _, "presence_diff", %{"leaves" => %{"Bob" => _}}], &1)
+             )
+  end
+
+  test "one pilot: others are refused; the pilot's disconnect stops the vehicle", %{topic: topic} do
+    pilot = connect!("Ada")
+    {pj, _} = join!(pilot, topic)
+    other = connect!("Bob")
+    {oj, _} = join!(other, topic)
+
+    assert {"ok", %{"thrusters" => %{"port" => 0.5, "starboard" => 0.5}}} =
+             push_and_reply(pilot, pj, topic, "thrust", thrust(1))
+
+    assert [_, _, _, "pilot", %{"pilot" => %{"name" => "Ada"}}] =
+             WSClient.recv_until(other, &match?([_, _, _, "pilot", _], &1))
+
+    assert {"error", %{"reason" => "not_in_control"}} =
+             push_and_reply(other, oj, topic, "thrust", thrust(-1))
+
+    assert {"error", %{"reason" => "not_in_control"}} =
+             push_and_reply(other, oj, topic, "stop", %{})
+
+    assert {"error", %{"reason" => reason}} =
+             push_and_reply(pilot, pj, topic, "thrust", thrust(7))
+
+    assert reason =~ "surge must be a number in [-1, 1]"
+
+    assert {"error", %{"reason" => "unknown event: warp"}} =
+             push_and_reply(pilot, pj, topic, "warp", %{})
+
+    WSClient.close(pilot)
+
+    assert [_, _, _, "stopped", %{"reason" => "pilot_disconnected"}] =
+             WSClient.recv_until(other, &match?([_, _, _, "stopped", _], &1))
+
+    assert [_, _, _, "telemetry", %{"thrusters" => %{"port" => +0.0}}] =
+             WSClient.recv_until(
+               other,
+               &match?([_, _, _, "telemetry", %{"thrusters" => %{"port" => +0.0}}], &1)
+             )
+
+    # control is free again
+    assert {"ok", _} = push_and_reply(other, oj, topic, "thrust", thrust(0))
+  end
+
+  test "stop with a reason is broadcast", %{topic: topic} do
+    ws = connect!()
+    {jr, _} = join!(ws, topic)
+    {"ok", _} = push_and_reply(ws, jr, topic, "thrust", thrust(1))
+
+    assert {"ok", %{"thrusters" => %{"port" => +0.0}}} =
+             push_and_reply(ws, jr, topic, "stop", %{"reason" => "window_blur"})
+
+    assert [_, _, _, "stopped", %{"reason" => "window_blur"}] =
+             WSClient.recv_until(ws, &match?([_, _, _, "stopped", _], &1))
+  end
+
+  test "a failing channel sends phx_error for its topic only", %{id: id, topic: topic} do
+    ws = connect!()
+    {jr, _} = join!(ws, topic)
+    join!(ws, "fleet")
+    :ok = Neptunus.Fleet.stop_vehicle(id)
+    WSClient.push(ws, jr, "x", topic, "thrust", thrust(0))
+
+    assert [^jr, ^jr, ^topic, "phx_error", %{}] =
+             WSClient.recv_until(ws, &match?([_, _, _, "phx_error", _], &1))
+
+    WSClient.push(ws, nil, "hb", "phoenix", "heartbeat", %{})
+    assert [nil, "hb", _, "phx_reply", %{"status" => "ok"}] = reply_to(ws, "hb")
+  end
+
+  test "GET /api/health" do
+    {:ok, {{_, 200, _}, headers, body}} =
+      :httpc.request(~c"http://127.0.0.1:#{port()}/api/health")
+
+    assert {~c"content-type", ~c"application/json"} in headers
+
+    assert %{"status" => "ok", "version" => _, "vehicles" => [_ | _]} =
+             :jiffy.decode(body, [:return_maps])
+
+    {:ok, {{_, 404, _}, _, body}} = :httpc.request(~c"http://127.0.0.1:#{port()}/api/nope")
+    assert :jiffy.decode(body, [:return_maps]) == %{"error" => "no such API endpoint: /api/nope"}
+  end
+
+  defp raw_telemetry(ws) do
+    receive do
+      {:ws, ^ws, {:text, text}} ->
+        if text =~ ~s("telemetry"), do: text, else: raw_telemetry(ws)
+    after
+      1000 -> flunk("no telemetry")
+    end
+  end
+
+  defp raw_telemetry_at(ws, t) do
+    text = raw_telemetry(ws)
+
+    if :jiffy.decode(text, [:return_maps]) |> Enum.at(4) |> Map.fetch!("t") == t,
+      do: text,
+      else: raw_telemetry_at(ws, t)
+  end
+end
