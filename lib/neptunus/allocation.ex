@@ -117,6 +117,24 @@ defmodule Neptunus.Allocation do
   end
 
   @doc """
+  The thruster values with their pulse widths beside them, as published on the wire.
+
+      iex> Neptunus.Allocation.with_us(%{port: 1.0, vertical: 0.0, starboard: -0.5})
+      %{port: 1.0, vertical: 0.0, starboard: -0.5, port_us: 2000, vertical_us: 1500, starboard_us: 1250}
+  """
+  @spec with_us(thrusters()) :: %{
+          port: float(),
+          vertical: float(),
+          starboard: float(),
+          port_us: 1000..2000,
+          vertical_us: 1000..2000,
+          starboard_us: 1000..2000
+        }
+  def with_us(%{port: p, vertical: v, starboard: s} = thrusters) do
+    Map.merge(thrusters, %{port_us: to_us(p), vertical_us: to_us(v), starboard_us: to_us(s)})
+  end
+
+  @doc """
   Validates an untrusted motion command decoded from JSON.
 
   The map must have exactly the string keys `"surge"`, `"heave"` and `"yaw"`

@@ -171,7 +171,8 @@ defmodule Neptunus.Vehicle.Control do
     PubSub.broadcast(state.topic, "pilot", %{pilot: public_pilot(state.pilot)})
   end
 
-  defp output(state), do: %{command: state.command, thrusters: state.thrusters}
+  defp output(state),
+    do: %{command: state.command, thrusters: Allocation.with_us(state.thrusters)}
 
   defp public_pilot(nil), do: nil
   defp public_pilot(%{name: name}), do: %{name: name}

@@ -72,7 +72,7 @@ defmodule Neptunus.Vehicle.Telemetry do
       period: period,
       next: System.monotonic_time() + period,
       command: %{surge: 0.0, heave: 0.0, yaw: 0.0},
-      thrusters: with_us(Allocation.neutral())
+      thrusters: Allocation.with_us(Allocation.neutral())
     }
 
     {:ok, schedule(state)}
@@ -82,7 +82,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   def handle_cast({:sample, sample}, state), do: {:noreply, %{state | sample: sample}}
 
   def handle_cast({:control, command, thrusters}, state) do
-    {:noreply, %{state | command: command, thrusters: with_us(thrusters)}}
+    {:noreply, %{state | command: command, thrusters: Allocation.with_us(thrusters)}}
   end
 
   @impl true
@@ -118,15 +118,5 @@ defmodule Neptunus.Vehicle.Telemetry do
       command: state.command,
       thrusters: state.thrusters
     }
-  end
-
-  defp with_us(thrusters) do
-    us = Allocation.thrusters_to_us(thrusters)
-
-    Map.merge(thrusters, %{
-      port_us: us.port,
-      vertical_us: us.vertical,
-      starboard_us: us.starboard
-    })
   end
 end

@@ -40,11 +40,12 @@ defmodule Neptunus.VehicleTest do
     assert {:ok, %{command: cmd, thrusters: thr}} = Control.thrust(id, me, motion(1, 0, 0.5))
     assert cmd == %{surge: 1.0, heave: 0.0, yaw: 0.5}
     # gain 0.5: port sat(0.5*(1+0.5)) = 0.75, starboard 0.5*(1-0.5) = 0.25
-    assert thr == Allocation.motion(cmd, 0.5)
+    assert thr == Allocation.with_us(Allocation.motion(cmd, 0.5))
+    assert %{port_us: 1875, vertical_us: 1500, starboard_us: 1625} = thr
     assert_in_delta thr.port, 0.75, 1.0e-12
     assert_in_delta thr.starboard, 0.25, 1.0e-12
     assert_receive {:pubsub, _, "pilot", %{pilot: %{name: "tester"}}}
-    assert Board.Simulated.state(id).thrusters == thr
+    assert Board.Simulated.state(id).thrusters == Map.take(thr, [:port, :vertical, :starboard])
     assert %{pilot: %{name: "tester"}, gain: 0.5} = Control.status(id)
   end
 
@@ -53,7 +54,9 @@ defmodule Neptunus.VehicleTest do
     other = other_caller()
     assert Control.thrust(id, other, motion(-1, 0, 0)) == {:error, "not_in_control"}
     assert Control.stop(id, other, "meddling") == {:error, "not_in_control"}
-    assert Board.Simulated.state(id).thrusters == before.thrusters
+
+    assert Board.Simulated.state(id).thrusters ==
+             Map.take(before.thrusters, [:port, :vertical, :starboard])
   end
 
   test "bad commands are refused with a reason and change nothing", %{id: id, me: me} do
@@ -71,13 +74,14 @@ defmodule Neptunus.VehicleTest do
       assert message =~ reason
     end
 
-    assert Board.Simulated.state(id).thrusters == before.thrusters
+    assert Board.Simulated.state(id).thrusters ==
+             Map.take(before.thrusters, [:port, :vertical, :starboard])
   end
 
   test "stop goes neutral and tells everyone why", %{id: id, me: me} do
     {:ok, _} = Control.thrust(id, me, motion(1, 1, 1))
     assert {:ok, %{thrusters: thr}} = Control.stop(id, me, "window_blur")
-    assert thr == Allocation.neutral()
+    assert thr == Allocation.with_us(Allocation.neutral())
     assert_receive {:pubsub, _, "stopped", %{reason: "window_blur"}}
     assert Board.Simulated.state(id).thrusters == Allocation.neutral()
   end
