@@ -50,7 +50,9 @@ setup-links: setup-apt
 setup-npm: $(ASSETS_STAMP)
 
 $(ASSETS_STAMP): assets/package.json assets/package-lock.json
-	cd assets && npm ci --no-audit --no-fund --loglevel=error
+	# `npm install`, not `npm ci`: the registry mirror lacks some other-platform optional
+	# packages, so the lock omits them and `npm ci` would refuse it (see assets/README.md).
+	cd assets && npm install --no-audit --no-fund --loglevel=error
 	@touch $@
 
 assets: setup-npm

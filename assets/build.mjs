@@ -1,0 +1,56 @@
+// Builds the browser assets into ../priv/static (served by the Neptunus endpoint):
+//   src/operator/main.ts → priv/static/assets/app.js (+ .map), bundled, minified, es2020
+//   static/index.html    → priv/static/index.html
+//   static/app.css       → priv/static/assets/app.css
+// Usage: node build.mjs [--watch]     (npm run build)
+import { copyFile, mkdir } from "node:fs/promises";
+import { dirname, join } from "node:path";
+import { fileURLToPath } from "node:url";
+import * as esbuild from "esbuild";
+
+const here = dirname(fileURLToPath(import.meta.url));
+const outRoot = join(here, "..", "priv", "static");
+const outAssets = join(outRoot, "assets");
+const watch = process.argv.includes("--watch");
+
+const copies = [
+  [join(here, "static", "index.html"), join(outRoot, "index.html")],
+  [join(here, "static", "app.css"), join(outAssets, "app.css")],
+];
+
+async function copyStatic() {
+  await mkdir(outAssets, { recursive: true });
+  await Promise.all(copies.map(([from, to]) => copyFile(from, to)));
+}
+
+/** @type {import("esbuild").BuildOptions} */
+const options = {
+  absWorkingDir: here,
+  entryPoints: [join(here, "src", "operator", "main.ts")],
+  outfile: join(outAssets, "app.js"),
+  bundle: true,
+  format: "iife",
+  platform: "browser",
+  target: "es2020",
+  minify: true,
+  sourcemap: true,
+  logLevel: "info",
+};
+
+try {
+  await copyStatic();
+  if (watch) {
+    const ctx = await esbuild.context({
+      ...options,
+      plugins: [{ name: "copy-static", setup: (b) => b.onEnd(() => copyStatic()) }],
+    });
+    await ctx.watch();
+    console.log("watching src/ (static/ is copied on every rebuild)");
+  } else {
+    await esbuild.build(options);
+  }
+} catch (err) {
+  // esbuild has already printed the errors it found
+  if (!(err && typeof err === "object" && "errors" in err)) console.error(err);
+  process.exitCode = 1;
+}

@@ -1,0 +1,8 @@
+export interface FakeServer {
+  /** e.g. "http://127.0.0.1:4199" */
+  readonly url: string;
+  close(): Promise<void>;
+}
+
+/** Starts the stand-in server on 127.0.0.1 (port 0: any free port). */
+export function startFakeServer(port?: number): Promise<FakeServer>;
