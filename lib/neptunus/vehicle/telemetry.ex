@@ -17,7 +17,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   """
   use GenServer
 
-  alias Neptunus.{Allocation, PubSub}
+  alias Neptunus.{Allocation, Periodic, PubSub}
   alias Neptunus.Vehicle.Board
 
   defmodule State do
@@ -25,14 +25,13 @@ defmodule Neptunus.Vehicle.Telemetry do
     @type t :: %__MODULE__{
             id: String.t(),
             topic: String.t(),
-            period: pos_integer(),
-            next: integer(),
+            periodic: Periodic.t(),
             sample: Board.sample() | nil,
             command: Allocation.motion(),
             thrusters: map()
           }
-    @enforce_keys [:id, :topic, :period, :next, :command, :thrusters]
-    defstruct [:id, :topic, :period, :next, :sample, :command, :thrusters]
+    @enforce_keys [:id, :topic, :periodic, :command, :thrusters]
+    defstruct [:id, :topic, :periodic, :sample, :command, :thrusters]
   end
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -64,18 +63,17 @@ defmodule Neptunus.Vehicle.Telemetry do
   def init(opts) do
     id = Keyword.fetch!(opts, :id)
     hz = Keyword.get(opts, :hz, Application.get_env(:neptunus, :telemetry_hz, 20))
-    period = div(System.convert_time_unit(1, :second, :native), hz)
 
     state = %State{
       id: id,
       topic: topic(id),
-      period: period,
-      next: System.monotonic_time() + period,
+      periodic: Periodic.new(hz),
       command: %{surge: 0.0, heave: 0.0, yaw: 0.0},
       thrusters: Allocation.with_us(Allocation.neutral())
     }
 
-    {:ok, schedule(state)}
+    Periodic.arm(state.periodic, :tick)
+    {:ok, state}
   end
 
   @impl true
@@ -95,16 +93,10 @@ defmodule Neptunus.Vehicle.Telemetry do
       payload -> PubSub.broadcast(state.topic, "telemetry", payload)
     end
 
-    # next deadline after now, skipping ticks missed during a stall
-    now = System.monotonic_time()
-    missed = max(div(now - state.next, state.period), 0)
-    {:noreply, schedule(%{state | next: state.next + (missed + 1) * state.period})}
-  end
-
-  defp schedule(state) do
-    deadline = System.convert_time_unit(state.next, :native, :millisecond)
-    Process.send_after(self(), :tick, deadline, abs: true)
-    state
+    # one broadcast per tick; ticks missed during a stall are skipped, not replayed
+    {_due, periodic} = Periodic.advance(state.periodic, System.monotonic_time())
+    Periodic.arm(periodic, :tick)
+    {:noreply, %{state | periodic: periodic}}
   end
 
   defp payload(%State{sample: nil}), do: nil

@@ -16,7 +16,7 @@ defmodule Neptunus.Vehicle.Board.Simulated do
   """
   use GenServer
 
-  alias Neptunus.{Allocation, Dynamics}
+  alias Neptunus.{Allocation, Dynamics, Periodic}
   alias Neptunus.Vehicle.{Board, Telemetry}
 
   @behaviour Board
@@ -25,20 +25,18 @@ defmodule Neptunus.Vehicle.Board.Simulated do
 
   defmodule State do
     @moduledoc false
-    @typedoc "period, start and next are in native monotonic time units"
     @type t :: %__MODULE__{
             id: String.t(),
             params: Dynamics.Params.t(),
             dyn: Dynamics.State.t(),
             thrusters: Allocation.thrusters(),
             dt: float(),
-            period: pos_integer(),
-            next: integer(),
+            periodic: Periodic.t(),
             steps: non_neg_integer(),
             skipped_steps: non_neg_integer()
           }
-    @enforce_keys [:id, :params, :dyn, :thrusters, :dt, :period, :next]
-    defstruct [:id, :params, :dyn, :thrusters, :dt, :period, :next, steps: 0, skipped_steps: 0]
+    @enforce_keys [:id, :params, :dyn, :thrusters, :dt, :periodic]
+    defstruct [:id, :params, :dyn, :thrusters, :dt, :periodic, steps: 0, skipped_steps: 0]
   end
 
   @doc """
@@ -61,7 +59,6 @@ defmodule Neptunus.Vehicle.Board.Simulated do
   @impl true
   def init(opts) do
     hz = Keyword.get(opts, :hz, Application.get_env(:neptunus, :sim_hz, 100))
-    period = div(System.convert_time_unit(1, :second, :native), hz)
 
     state = %State{
       id: Keyword.fetch!(opts, :id),
@@ -69,11 +66,11 @@ defmodule Neptunus.Vehicle.Board.Simulated do
       dyn: struct(Dynamics.State, Keyword.get(opts, :initial, z: 1.0)),
       thrusters: Allocation.neutral(),
       dt: 1.0 / hz,
-      period: period,
-      next: System.monotonic_time() + period
+      periodic: Periodic.new(hz)
     }
 
-    {:ok, schedule(state)}
+    Periodic.arm(state.periodic, :tick)
+    {:ok, state}
   end
 
   @impl true
@@ -84,7 +81,7 @@ defmodule Neptunus.Vehicle.Board.Simulated do
 
   @impl true
   def handle_info(:tick, state) do
-    due = max(div(System.monotonic_time() - state.next, state.period) + 1, 1)
+    {due, periodic} = Periodic.advance(state.periodic, System.monotonic_time())
     steps = min(due, @max_catch_up)
     tau = Dynamics.tau_from_thrusters(state.thrusters, state.params)
 
@@ -98,17 +95,12 @@ defmodule Neptunus.Vehicle.Board.Simulated do
       | dyn: dyn,
         steps: state.steps + steps,
         skipped_steps: state.skipped_steps + (due - steps),
-        next: state.next + due * state.period
+        periodic: periodic
     }
 
     Telemetry.sample(state.id, sample(state))
-    {:noreply, schedule(state)}
-  end
-
-  defp schedule(state) do
-    deadline = System.convert_time_unit(state.next, :native, :millisecond)
-    Process.send_after(self(), :tick, deadline, abs: true)
-    state
+    Periodic.arm(periodic, :tick)
+    {:noreply, state}
   end
 
   # The hull floats at the surface instead of flying: clamp z at 0 and stop rising there.
