@@ -6,8 +6,9 @@ defmodule NeptunusWeb.Socket do
   Protocol (what the official `phoenix` JS client expects; details in `docs/API.md`):
 
     * frames are JSON `[join_ref, ref, topic, event, payload]`;
-    * `phoenix`/`heartbeat` is answered `ok`; a connection silent for `@idle_timeout_ms`
-      is closed (the client heartbeats every 30 s);
+    * `phoenix`/`heartbeat` is answered `ok`; a connection silent for 60 s (config
+      `:socket_idle_timeout_ms`) is closed with 1000 "heartbeat timeout" (the client
+      heartbeats every 30 s);
     * `phx_join` → `phx_reply` ok with the channel's join reply, or error with a reason;
       joining a joined topic again replaces the old channel;
     * `phx_leave` → `phx_reply` ok, then `phx_close` with the join ref;
@@ -28,7 +29,7 @@ defmodule NeptunusWeb.Socket do
   alias NeptunusWeb.{Channel, Presence}
   alias NeptunusWeb.Channels.{FleetChannel, VehicleChannel, Wire}
 
-  @idle_timeout_ms 60_000
+  @default_idle_timeout_ms 60_000
   @max_message_bytes 65_536
 
   defmodule State do
@@ -37,10 +38,11 @@ defmodule NeptunusWeb.Socket do
     @type t :: %__MODULE__{
             user: %{id: String.t(), name: String.t()},
             channels: %{optional(String.t()) => joined()},
-            last_seen: integer()
+            last_seen: integer(),
+            idle_timeout: pos_integer()
           }
-    @enforce_keys [:user, :last_seen]
-    defstruct [:user, :last_seen, channels: %{}]
+    @enforce_keys [:user, :last_seen, :idle_timeout]
+    defstruct [:user, :last_seen, :idle_timeout, channels: %{}]
   end
 
   # yaws appmod: upgrade /socket/websocket
@@ -86,12 +88,16 @@ defmodule NeptunusWeb.Socket do
 
   @doc false
   def init([_arg, %{params: params}]) do
-    :timer.send_interval(div(@idle_timeout_ms, 2), :check_idle)
+    idle_timeout =
+      Application.get_env(:neptunus, :socket_idle_timeout_ms, @default_idle_timeout_ms)
+
+    :timer.send_interval(max(div(idle_timeout, 4), 10), :check_idle)
 
     {:ok,
      %State{
        user: %{id: random_id(), name: display_name(params["name"])},
-       last_seen: now_ms()
+       last_seen: now_ms(),
+       idle_timeout: idle_timeout
      }}
   end
 
@@ -241,7 +247,7 @@ defmodule NeptunusWeb.Socket do
   end
 
   defp handle_other(:check_idle, state) do
-    if now_ms() - state.last_seen > @idle_timeout_ms do
+    if now_ms() - state.last_seen > state.idle_timeout do
       {:close, {1000, "heartbeat timeout"}, state}
     else
       {:noreply, state}

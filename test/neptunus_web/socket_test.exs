@@ -65,6 +65,21 @@ defmodule NeptunusWeb.SocketTest do
              WSClient.recv_frame(ws)
   end
 
+  test "a silent connection is closed; heartbeats keep it open" do
+    Application.put_env(:neptunus, :socket_idle_timeout_ms, 300)
+    on_exit(fn -> Application.delete_env(:neptunus, :socket_idle_timeout_ms) end)
+    silent = connect!()
+    lively = connect!()
+
+    for i <- 1..8 do
+      WSClient.push(lively, nil, "hb#{i}", "phoenix", "heartbeat", %{})
+      Process.sleep(100)
+    end
+
+    assert_received {:ws, ^silent, {:close, 1000, "heartbeat timeout"}}
+    refute_received {:ws, ^lively, {:close, _, _}}
+  end
+
   test "fleet lists the vehicles", %{id: id} do
     ws = connect!()
     {_, %{"vehicles" => vehicles}} = join!(ws, "fleet")
