@@ -3,8 +3,11 @@ defmodule NeptunusWeb.Presence do
   Who is watching which topic, in the Phoenix Presence wire format.
 
   One server per node keeps the presences of its own connections (ETS, monitored: a
-  connection that dies leaves). `track/4` and `untrack/2` broadcast `presence_diff`
-  `%{joins: %{key => %{metas: [meta]}}, leaves: %{...}}` on the topic to every node;
+  connection that dies leaves). Joins and leaves are broadcast as `presence_diff`
+  `%{joins: %{key => %{metas: [meta]}}, leaves: %{...}}` on the topic to every node,
+  **batched**: one diff per topic per `@batch_ms` ms at most, with a meta that joined and left
+  within the same batch dropped from both. Without batching, N observers joining cost N²
+  frames (every join to everyone) and the join storm of a crowd starved the server;
   `list/1` merges the presences of every node's server (found through the PubSub `:pg`
   scope) into `%{key => %{metas: [meta, ...]}}`, the `presence_state` payload.
 
@@ -16,6 +19,7 @@ defmodule NeptunusWeb.Presence do
 
   @table __MODULE__
   @group {__MODULE__, :servers}
+  @batch_ms 100
 
   @type key :: String.t()
   @type meta :: map()
@@ -68,7 +72,8 @@ defmodule NeptunusWeb.Presence do
   def init(nil) do
     :ets.new(@table, [:named_table, :set, :protected, read_concurrency: true])
     :pg.join(Neptunus.PubSub, @group, self())
-    {:ok, %{monitors: %{}}}
+    # pending: topic => [{:join | :leave, key, meta}], newest first, flushed every @batch_ms
+    {:ok, %{monitors: %{}, pending: %{}, flush: nil}}
   end
 
   @impl true
@@ -79,8 +84,8 @@ defmodule NeptunusWeb.Presence do
       Map.put(meta, :phx_ref, Base.url_encode64(:crypto.strong_rand_bytes(8), padding: false))
 
     :ets.insert(@table, {{topic, pid}, key, meta})
-    diff(topic, %{key => %{metas: [meta]}}, %{})
-    {:reply, {:ok, meta}, monitor(state, pid)}
+    state = state |> pend(topic, {:join, key, meta}) |> monitor(pid)
+    {:reply, {:ok, meta}, state}
   end
 
   def handle_call({:untrack, pid, topic}, _from, state) do
@@ -89,12 +94,57 @@ defmodule NeptunusWeb.Presence do
 
   @impl true
   def handle_info({:DOWN, _ref, :process, pid, _reason}, state) do
-    for [topic] <- :ets.match(@table, {{:"$1", pid}, :_, :_}), do: leave(topic, pid)
+    state =
+      Enum.reduce(:ets.match(@table, {{:"$1", pid}, :_, :_}), state, fn [topic], state ->
+        leave(state, topic, pid)
+      end)
+
     {:noreply, %{state | monitors: Map.delete(state.monitors, pid)}}
   end
 
+  def handle_info(:flush, state) do
+    for {topic, events} <- state.pending do
+      {joins, leaves} = fold_events(Enum.reverse(events))
+      if joins != %{} or leaves != %{}, do: diff(topic, joins, leaves)
+    end
+
+    {:noreply, %{state | pending: %{}, flush: nil}}
+  end
+
+  @doc false
+  # Folds a batch of events (oldest first) into a diff, dropping metas that joined and left
+  # within the batch.
+  @spec fold_events([{:join | :leave, key(), meta()}]) :: {presences(), presences()}
+  def fold_events(events) do
+    refs = fn kind -> for {^kind, _, %{phx_ref: ref}} <- events, into: MapSet.new(), do: ref end
+    transient = MapSet.intersection(refs.(:join), refs.(:leave))
+
+    events
+    |> Enum.reject(fn {_, _, %{phx_ref: ref}} -> MapSet.member?(transient, ref) end)
+    |> Enum.reduce({%{}, %{}}, fn
+      {:join, key, meta}, {joins, leaves} -> {add_meta(joins, key, meta), leaves}
+      {:leave, key, meta}, {joins, leaves} -> {joins, add_meta(leaves, key, meta)}
+    end)
+  end
+
+  defp add_meta(presences, key, meta) do
+    Map.update(presences, key, %{metas: [meta]}, fn %{metas: metas} ->
+      %{metas: metas ++ [meta]}
+    end)
+  end
+
+  defp pend(state, topic, event) do
+    state =
+      update_in(state.pending, &Map.update(&1, topic, [event], fn list -> [event | list] end))
+
+    case state.flush do
+      nil -> %{state | flush: Process.send_after(self(), :flush, @batch_ms)}
+      _ -> state
+    end
+  end
+
   defp untrack_entry(state, pid, topic) do
-    leave(topic, pid)
+    state = leave(state, topic, pid)
 
     if :ets.match(@table, {{:_, pid}, :_, :_}) == [] do
       case Map.pop(state.monitors, pid) do
@@ -106,10 +156,10 @@ defmodule NeptunusWeb.Presence do
     end
   end
 
-  defp leave(topic, pid) do
+  defp leave(state, topic, pid) do
     case :ets.take(@table, {topic, pid}) do
-      [{_, key, meta}] -> diff(topic, %{}, %{key => %{metas: [meta]}})
-      [] -> :ok
+      [{_, key, meta}] -> pend(state, topic, {:leave, key, meta})
+      [] -> state
     end
   end
 

@@ -102,7 +102,11 @@ defmodule NeptunusWeb.Socket do
   end
 
   @doc false
-  def handle_open(_ws_state, state), do: {:ok, state}
+  def handle_open(_ws_state, state) do
+    # The upgrade leaves garbage behind; collecting it now keeps an idle connection small.
+    send(self(), :gc)
+    {:ok, state}
+  end
 
   @doc false
   def handle_message({:text, data}, state) do
@@ -118,7 +122,11 @@ defmodule NeptunusWeb.Socket do
     {:reply, {:text, frame}, state}
   end
 
-  def handle_message({:close, _code, _reason}, state), do: {:noreply, state}
+  # Echo the client's close (RFC 6455 §5.5.1); yaws then ends the connection.
+  def handle_message({:close, code, _reason}, state) when code in [1005, 1006],
+    do: {:close, 1000, state}
+
+  def handle_message({:close, code, _reason}, state), do: {:close, code, state}
 
   @doc false
   def handle_info({:pubsub_frame, _topic, frame}, state), do: {:reply, {:text, frame}, state}
@@ -208,6 +216,8 @@ defmodule NeptunusWeb.Socket do
         case safe(fn -> module.join(topic, msg.payload, socket) end) do
           {:ok, {:ok, response, socket}} ->
             PubSub.subscribe_fastlane(topic)
+            # a join builds large replies (snapshot, presence_state): collect afterwards
+            send(self(), :gc)
             joined = %{module: module, socket: socket}
             state = %{state | channels: Map.put(state.channels, topic, joined)}
             reply(state, [Wire.encode_reply(msg.join_ref, msg.ref, topic, :ok, response)])
@@ -252,6 +262,11 @@ defmodule NeptunusWeb.Socket do
     else
       {:noreply, state}
     end
+  end
+
+  defp handle_other(:gc, state) do
+    :erlang.garbage_collect()
+    {:noreply, state}
   end
 
   defp handle_other(msg, state) do

@@ -80,6 +80,13 @@ defmodule NeptunusWeb.SocketTest do
     refute_received {:ws, ^lively, {:close, _, _}}
   end
 
+  test "a client's close is echoed (clean close, not 1006)" do
+    ws = connect!()
+    WSClient.close(ws, 1001, "going away")
+    assert_receive {:ws, ^ws, {:close, 1001, _}}, 1000
+    assert_receive {:ws, ^ws, :closed}, 1000
+  end
+
   test "fleet lists the vehicles", %{id: id} do
     ws = connect!()
     {_, %{"vehicles" => vehicles}} = join!(ws, "fleet")
