@@ -45,7 +45,10 @@ defmodule Neptunus.VehicleTest do
     assert_in_delta thr.port, 0.75, 1.0e-12
     assert_in_delta thr.starboard, 0.25, 1.0e-12
     assert_receive {:pubsub, _, "pilot", %{pilot: %{name: "tester"}}}
-    assert Board.Simulated.state(id).thrusters == Map.take(thr, [:port, :vertical, :starboard])
+
+    assert Board.Simulated.state(id).sim.thrusters ==
+             Map.take(thr, [:port, :vertical, :starboard])
+
     assert %{pilot: %{name: "tester"}, gain: 0.5} = Control.status(id)
   end
 
@@ -55,7 +58,7 @@ defmodule Neptunus.VehicleTest do
     assert Control.thrust(id, other, motion(-1, 0, 0)) == {:error, "not_in_control"}
     assert Control.stop(id, other, "meddling") == {:error, "not_in_control"}
 
-    assert Board.Simulated.state(id).thrusters ==
+    assert Board.Simulated.state(id).sim.thrusters ==
              Map.take(before.thrusters, [:port, :vertical, :starboard])
   end
 
@@ -74,7 +77,7 @@ defmodule Neptunus.VehicleTest do
       assert message =~ reason
     end
 
-    assert Board.Simulated.state(id).thrusters ==
+    assert Board.Simulated.state(id).sim.thrusters ==
              Map.take(before.thrusters, [:port, :vertical, :starboard])
   end
 
@@ -83,7 +86,7 @@ defmodule Neptunus.VehicleTest do
     assert {:ok, %{thrusters: thr}} = Control.stop(id, me, "window_blur")
     assert thr == Allocation.with_us(Allocation.neutral())
     assert_receive {:pubsub, _, "stopped", %{reason: "window_blur"}}
-    assert Board.Simulated.state(id).thrusters == Allocation.neutral()
+    assert Board.Simulated.state(id).sim.thrusters == Allocation.neutral()
   end
 
   test "the pilot's death stops the vehicle and frees control", %{id: id} do
@@ -99,17 +102,17 @@ defmodule Neptunus.VehicleTest do
     send(pilot, :die)
     assert_receive {:pubsub, _, "stopped", %{reason: "pilot_disconnected"}}
     assert_receive {:pubsub, _, "pilot", %{pilot: nil}}
-    assert Board.Simulated.state(id).thrusters == Allocation.neutral()
+    assert Board.Simulated.state(id).sim.thrusters == Allocation.neutral()
     assert {:ok, _} = Control.thrust(id, other_caller(), motion(0, 0, 0))
   end
 
   test "releasing control stops the vehicle; release by others is a no-op", %{id: id, me: me} do
     {:ok, _} = Control.thrust(id, me, motion(1, 0, 0))
     assert :ok = Control.release(id, other_caller(), "pilot_left")
-    refute Board.Simulated.state(id).thrusters == Allocation.neutral()
+    refute Board.Simulated.state(id).sim.thrusters == Allocation.neutral()
     assert :ok = Control.release(id, me, "pilot_left")
     assert_receive {:pubsub, _, "stopped", %{reason: "pilot_left"}}
-    assert Board.Simulated.state(id).thrusters == Allocation.neutral()
+    assert Board.Simulated.state(id).sim.thrusters == Allocation.neutral()
     assert Control.status(id).pilot == nil
   end
 
@@ -122,15 +125,15 @@ defmodule Neptunus.VehicleTest do
     wait_until(fn -> Fleet.whereis(Control, id) not in [nil, old] end)
     # Control's handle_continue sends neutral before it answers anything
     assert Control.status(id).pilot == nil
-    assert Board.Simulated.state(id).thrusters == Allocation.neutral()
+    assert Board.Simulated.state(id).sim.thrusters == Allocation.neutral()
   end
 
   test "the simulated vehicle moves forward under surge and dives under heave", ctx do
     %{id: id, me: me} = ctx
-    start = Board.Simulated.state(id).dyn
+    start = Board.Simulated.state(id).sim.dyn
     {:ok, _} = Control.thrust(id, me, motion(1, 1, 0))
     Process.sleep(600)
-    now = Board.Simulated.state(id).dyn
+    now = Board.Simulated.state(id).sim.dyn
     assert now.u > 0.2
     assert now.x > start.x
     assert now.z > start.z
