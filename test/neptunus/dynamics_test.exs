@@ -2,13 +2,15 @@ defmodule Neptunus.DynamicsTest do
   use ExUnit.Case, async: true
 
   alias Neptunus.{Allocation, Dynamics}
-  alias Neptunus.Dynamics.{Params, State}
+  alias Neptunus.Dynamics.{Linear, Params, State}
 
   doctest Neptunus.Dynamics
 
   @params Dynamics.params(:thesis_4dof)
   @dt 0.01
   @pi :math.pi()
+  # the free DOFs of the 4-DOF model in ν = [u v w p q r]
+  @free [0, 1, 2, 5]
 
   defp run(state, tau, seconds, dt \\ @dt) do
     steps = round(seconds / dt)
@@ -24,11 +26,14 @@ defmodule Neptunus.DynamicsTest do
   end
 
   describe "params(:thesis_4dof)" do
-    test "holds the thesis coefficients" do
-      assert %Params{thruster_force: 12.0, yaw_arm: 0.045} = @params
-      assert @params.d_l == [2.2907, 4.9804, 15.1897, 0.2605]
-      assert @params.d_q == [4.008, 35.216, 10.304, 0.320]
-      assert @params.g == [0.0, 0.0, 0.0234, 0.0]
+    test "holds the thesis coefficients (eqs. 12.7-12.13)" do
+      assert %Params{name: "thesis-4dof", dof: 4, coriolis: :none} = @params
+      assert @params.d_l == [2.2907, 4.9804, 15.1897, 0.0, 0.0, 0.2605]
+      assert @params.d_q == [4.008, 35.216, 10.304, 0.0, 0.0, 0.320]
+      # g = [0, 0, 0.0234, 0]: W − B = −0.0234 N, no CG/CB offset
+      assert @params.net_buoyancy == 0.0234
+      assert @params.r_g == [0.0, 0.0, 0.0] and @params.r_b == [0.0, 0.0, 0.0]
+      assert @params.tether.length == 0.0
 
       expected_mass = [
         [5.515, 0.0, 0.0, 0.0],
@@ -37,28 +42,36 @@ defmodule Neptunus.DynamicsTest do
         [0.0, -0.8926, 0.0, 0.5488]
       ]
 
-      for {row, expected_row} <- Enum.zip(@params.mass, expected_mass),
+      for {row, expected_row} <- Enum.zip(Linear.take(@params.mass_matrix, @free), expected_mass),
           {value, expected} <- Enum.zip(row, expected_row) do
         assert_in_delta value, expected, 1.0e-12
       end
     end
 
-    test "mass_inv is the inverse of mass" do
-      for {row, i} <- Enum.with_index(@params.mass), j <- 0..3 do
-        column = Enum.map(@params.mass_inv, &Enum.at(&1, j))
+    test "mass_inv is the inverse of mass on [u v w r] and zero on roll and pitch" do
+      free_inv = Linear.take(@params.mass_inv, @free)
+
+      for {row, i} <- Enum.with_index(Linear.take(@params.mass_matrix, @free)), j <- 0..3 do
+        column = Enum.map(free_inv, &Enum.at(&1, j))
         product = row |> Enum.zip_with(column, &(&1 * &2)) |> Enum.sum()
         assert_in_delta product, if(i == j, do: 1.0, else: 0.0), 1.0e-12
+      end
+
+      for i <- [3, 4], j <- 0..5 do
+        assert Enum.at(Enum.at(@params.mass_inv, i), j) == 0.0
+        assert Enum.at(Enum.at(@params.mass_inv, j), i) == 0.0
       end
     end
 
     test "sway-yaw block matches the analytic 2x2 inverse" do
       [a, b, d] = [18.0633, -0.8926, 0.5488]
       det = a * d - b * b
-      assert_in_delta Enum.at(Enum.at(@params.mass_inv, 1), 1), d / det, 1.0e-12
-      assert_in_delta Enum.at(Enum.at(@params.mass_inv, 1), 3), -b / det, 1.0e-12
-      assert_in_delta Enum.at(Enum.at(@params.mass_inv, 3), 3), a / det, 1.0e-12
-      assert_in_delta Enum.at(Enum.at(@params.mass_inv, 0), 0), 1 / 5.515, 1.0e-12
-      assert_in_delta Enum.at(Enum.at(@params.mass_inv, 2), 2), 1 / 5.7895, 1.0e-12
+      inv = fn i, j -> @params.mass_inv |> Enum.at(i) |> Enum.at(j) end
+      assert_in_delta inv.(1, 1), d / det, 1.0e-12
+      assert_in_delta inv.(1, 5), -b / det, 1.0e-12
+      assert_in_delta inv.(5, 5), a / det, 1.0e-12
+      assert_in_delta inv.(0, 0), 1 / 5.515, 1.0e-12
+      assert_in_delta inv.(2, 2), 1 / 5.7895, 1.0e-12
     end
   end
 
@@ -240,10 +253,18 @@ defmodule Neptunus.DynamicsTest do
 
       # M ν̇ must give back the right-hand side
       nu_dot = [d.u, d.v, d.w, d.r]
+      assert d.p == 0.0 and d.q == 0.0
 
-      for {row, expected} <- Enum.zip(@params.mass, rhs) do
+      for {row, expected} <- Enum.zip(Linear.take(@params.mass_matrix, @free), rhs) do
         assert_in_delta row |> Enum.zip_with(nu_dot, &(&1 * &2)) |> Enum.sum(), expected, 1.0e-12
       end
+    end
+
+    test "the 4-tuple {X, Y, Z, N} is the 6-tuple with K = M = 0" do
+      s = %State{u: 0.5, v: -0.2, w: 0.3, r: -0.4, psi: 1.0}
+
+      assert Dynamics.derivative(s, {6.0, 1.0, -3.0, 0.5}, @params) ==
+               Dynamics.derivative(s, {6.0, 1.0, -3.0, 0.0, 0.0, 0.5}, @params)
     end
   end
 
@@ -283,10 +304,10 @@ defmodule Neptunus.DynamicsTest do
           m <- [-0.5, -0.1, 0.0, 0.25, 0.5],
           k <- [0.0, 0.3, 0.5, 1.0] do
         thrusters = Allocation.motion(%{surge: x, heave: z, yaw: m}, k)
-        {tx, ty, tz, tn} = Dynamics.tau_from_thrusters(thrusters, @params)
+        {tx, ty, tz, tk, tm, tn} = Dynamics.tau_from_thrusters(thrusters, @params)
 
         assert_in_delta tx, f * k * x, 1.0e-12
-        assert ty == 0.0
+        assert ty == 0.0 and tk == 0.0 and tm == 0.0
         assert_in_delta tz, f * k * z, 1.0e-12
         assert_in_delta tn, 2 * f * k * l * m, 1.0e-12
       end
@@ -298,7 +319,7 @@ defmodule Neptunus.DynamicsTest do
 
       property =
         :proper.forall(gen, fn {x, z, m, k} ->
-          {tx, ty, tz, tn} =
+          {tx, ty, tz, _k, _m, tn} =
             Dynamics.tau_from_thrusters(
               Allocation.motion(%{surge: x, heave: z, yaw: m}, k),
               @params
@@ -312,25 +333,28 @@ defmodule Neptunus.DynamicsTest do
     end
 
     test "signs: port harder turns to starboard (+N), vertical positive pushes down (+Z)" do
-      assert {0.0, 0.0, 0.0, 0.0} = Dynamics.tau_from_thrusters(Allocation.neutral(), @params)
+      assert {0.0, 0.0, 0.0, 0.0, 0.0, 0.0} =
+               Dynamics.tau_from_thrusters(Allocation.neutral(), @params)
 
-      {_, _, _, n} =
+      {_, _, _, _, _, n} =
         Dynamics.tau_from_thrusters(%{port: 1.0, vertical: 0.0, starboard: -1.0}, @params)
 
       assert_in_delta n, 2 * 12.0 * 0.045, 1.0e-12
 
-      assert {0.0, 0.0, 12.0, 0.0} ==
+      assert {0.0, 0.0, 12.0, 0.0, 0.0, 0.0} ==
                Dynamics.tau_from_thrusters(%{port: 0.0, vertical: 1.0, starboard: 0.0}, @params)
     end
 
     test "saturated allocation gives less than the unsaturated eq. 12.6 force" do
       thrusters = Allocation.motion(%{surge: 1.0, heave: 0.0, yaw: 1.0}, 1.0)
-      assert Dynamics.tau_from_thrusters(thrusters, @params) == {6.0, 0.0, 0.0, 12.0 * 0.045}
+      {x, 0.0, 0.0, 0.0, 0.0, n} = Dynamics.tau_from_thrusters(thrusters, @params)
+      assert x == 6.0
+      assert_in_delta n, 12.0 * 0.045, 1.0e-15
     end
 
     test "out-of-range commands are clamped to full thrust" do
       assert Dynamics.tau_from_thrusters(%{port: 2.0, vertical: -3.0, starboard: 2.0}, @params) ==
-               {12.0, 0.0, -12.0, 0.0}
+               {12.0, 0.0, -12.0, 0.0, 0.0, 0.0}
     end
 
     test "a full-surge allocation drives the vehicle to the steady speed of (a)" do
@@ -340,7 +364,7 @@ defmodule Neptunus.DynamicsTest do
           @params
         )
 
-      assert tau == {12.0, 0.0, 0.0, 0.0}
+      assert tau == {12.0, 0.0, 0.0, 0.0, 0.0, 0.0}
       final = run(%State{}, tau, 30.0)
       assert_rel(final.u, steady(2.2907, 4.008, 12.0), 0.005)
     end

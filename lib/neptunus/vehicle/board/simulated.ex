@@ -4,18 +4,29 @@ defmodule Neptunus.Vehicle.Board.Simulated do
   (default 100 Hz) on absolute deadlines of the monotonic clock (`Neptunus.Periodic`),
   applies the last thruster command, and reports each tick as a board sample.
 
+  By default it simulates the `neptunus` parameter set (6 DOF, thruster dynamics, tether)
+  with realistic sensors (noise, bias, wild points, field mix-ups) from a random seed; the
+  `:sim` option overrides any `Neptunus.Sim.new/1` option.
+
   Every tick runs all steps whose deadline has passed, so simulated time keeps pace with the
   wall clock when a timer fires late, at most #{20} at a time; after a longer stall of the VM
   the missing time is skipped and counted in `skipped_steps`, not replayed in a burst.
+
+  While paused (`command/2` `{:set, %{paused: true}}`) ticks keep coming but the simulation
+  does not step: the last sample is reported again, with the same `t`.
+
+  With `stats: true` each tick records its lateness — wall-clock time of the tick minus the
+  deadline it was scheduled for, in µs — and how long the tick's work took (`stats/1`).
   """
   use GenServer
 
   alias Neptunus.{Periodic, Sim}
-  alias Neptunus.Vehicle.{Board, Telemetry}
+  alias Neptunus.Vehicle.{Board, Navigation}
 
   @behaviour Board
 
   @max_catch_up 20
+  @max_stats 100_000
 
   defmodule State do
     @moduledoc false
@@ -23,15 +34,22 @@ defmodule Neptunus.Vehicle.Board.Simulated do
             id: String.t(),
             sim: Neptunus.Sim.t(),
             periodic: Neptunus.Periodic.t(),
-            skipped_steps: non_neg_integer()
+            paused: boolean(),
+            skipped_steps: non_neg_integer(),
+            stats: nil | %{lateness: [integer()], work: [integer()], count: non_neg_integer()}
           }
     @enforce_keys [:id, :sim, :periodic]
-    defstruct [:id, :sim, :periodic, skipped_steps: 0]
+    defstruct [:id, :sim, :periodic, :stats, paused: false, skipped_steps: 0]
   end
+
+  @typedoc "A command from `Neptunus.Sim.Live` (validated there)."
+  @type command :: :reset | {:set, %{optional(:paused | :current | :tether_length) => term()}}
 
   @doc """
   Options: `:id` (required), `:hz` (integration rate, default from config `:sim_hz`),
-  `:initial` (keyword of `Dynamics.State` fields, see `Neptunus.Sim.new/1`).
+  `:initial` (keyword of `Dynamics.State` fields), `:sim` (keyword of `Neptunus.Sim.new/1`
+  options; defaults `vehicle: "neptunus"`, `noise: true`, a random `seed`), `:stats`
+  (record tick lateness, default false).
   """
   @impl Board
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -44,16 +62,39 @@ defmodule Neptunus.Vehicle.Board.Simulated do
   @spec state(String.t()) :: State.t()
   def state(id), do: GenServer.call(Board.via(id), :state)
 
+  @doc """
+  Resets the simulation (`:reset`) or changes it (`{:set, changes}`: `paused` boolean,
+  `current` `{n, e, d}` m/s NED, `tether_length` m). Replies with `Neptunus.Sim.status/1`
+  plus `paused`. Callers go through `Neptunus.Sim.Live`, which validates and authorises.
+  """
+  @spec command(String.t(), command()) :: {:ok, map()}
+  def command(id, command), do: GenServer.call(Board.via(id), {:sim, command})
+
+  @doc """
+  Tick statistics since start (or since the last call with `reset: true`): `lateness` and
+  `work` in µs, most recent first, at most #{@max_stats}; nil unless started with
+  `stats: true`.
+  """
+  @spec stats(String.t(), keyword()) :: nil | %{lateness: [integer()], work: [integer()]}
+  def stats(id, opts \\ []), do: GenServer.call(Board.via(id), {:stats, opts})
+
   # Callbacks
 
   @impl true
   def init(opts) do
     hz = Keyword.get(opts, :hz, Application.get_env(:neptunus, :sim_hz, 100))
 
+    sim_opts =
+      [vehicle: "neptunus", noise: true, seed: :erlang.unique_integer([:positive])]
+      |> Keyword.merge(Keyword.take(opts, [:initial]))
+      |> Keyword.merge(Keyword.get(opts, :sim, []))
+      |> Keyword.put(:dt, 1.0 / hz)
+
     state = %State{
       id: Keyword.fetch!(opts, :id),
-      sim: Sim.new(Keyword.take(opts, [:initial]) ++ [dt: 1.0 / hz]),
-      periodic: Periodic.new(hz)
+      sim: Sim.new(sim_opts),
+      periodic: Periodic.new(hz),
+      stats: if(Keyword.get(opts, :stats, false), do: %{lateness: [], work: [], count: 0})
     }
 
     Periodic.arm(state.periodic, :tick)
@@ -67,15 +108,70 @@ defmodule Neptunus.Vehicle.Board.Simulated do
   @impl true
   def handle_call(:state, _from, state), do: {:reply, state, state}
 
+  def handle_call({:sim, :reset}, _from, state) do
+    # the thruster command survives a reset: Control decides thrust, not the simulator
+    sim = state.sim |> Sim.reset() |> Sim.command(state.sim.thrusters)
+    state = %{state | sim: sim}
+    Navigation.sample(state.id, Sim.sample(sim))
+    {:reply, {:ok, status(state)}, state}
+  end
+
+  def handle_call({:sim, {:set, changes}}, _from, state) do
+    state =
+      Enum.reduce(changes, state, fn
+        {:paused, paused}, state -> %{state | paused: paused}
+        {:current, current}, state -> %{state | sim: Sim.set_current(state.sim, current)}
+        {:tether_length, l}, state -> %{state | sim: Sim.set_tether_length(state.sim, l)}
+      end)
+
+    {:reply, {:ok, status(state)}, state}
+  end
+
+  def handle_call({:stats, _opts}, _from, %State{stats: nil} = state),
+    do: {:reply, nil, state}
+
+  def handle_call({:stats, opts}, _from, %State{stats: stats} = state) do
+    reply = Map.take(stats, [:lateness, :work])
+
+    if Keyword.get(opts, :reset, false),
+      do: {:reply, reply, %{state | stats: %{lateness: [], work: [], count: 0}}},
+      else: {:reply, reply, state}
+  end
+
   @impl true
   def handle_info(:tick, state) do
-    {due, periodic} = Periodic.advance(state.periodic, System.monotonic_time())
+    now = System.monotonic_time()
+    deadline = state.periodic.next
+    {due, periodic} = Periodic.advance(state.periodic, now)
     steps = min(due, @max_catch_up)
-    sim = Sim.step(state.sim, steps)
-    Telemetry.sample(state.id, Sim.sample(sim))
+    sim = if state.paused, do: state.sim, else: Sim.step(state.sim, steps)
+    Navigation.sample(state.id, Sim.sample(sim))
     Periodic.arm(periodic, :tick)
 
-    {:noreply,
-     %{state | sim: sim, periodic: periodic, skipped_steps: state.skipped_steps + due - steps}}
+    state = %{
+      state
+      | sim: sim,
+        periodic: periodic,
+        skipped_steps: state.skipped_steps + due - steps
+    }
+
+    {:noreply, record(state, now, deadline)}
   end
+
+  defp record(%State{stats: nil} = state, _now, _deadline), do: state
+
+  defp record(%State{stats: %{count: count} = stats} = state, now, deadline)
+       when count < @max_stats do
+    late = System.convert_time_unit(now - deadline, :native, :microsecond)
+    work = System.convert_time_unit(System.monotonic_time() - now, :native, :microsecond)
+
+    %{
+      state
+      | stats: %{lateness: [late | stats.lateness], work: [work | stats.work], count: count + 1}
+    }
+  end
+
+  defp record(state, _now, _deadline), do: state
+
+  defp status(state), do: Map.put(Sim.status(state.sim), :paused, state.paused)
 end

@@ -1,0 +1,57 @@
+defmodule NeptunusWeb.SimWireTest do
+  # sim_reset and sim_set over the wire: pilot only, refused with a reason otherwise.
+  use ExUnit.Case, async: false
+
+  import NeptunusWeb.Test.Wire
+
+  @moduletag :capture_log
+
+  setup do
+    id = "simwire-#{System.unique_integer([:positive])}"
+    {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated})
+    on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
+    {:ok, id: id, topic: "vehicle:" <> id}
+  end
+
+  defp client(topic, name) do
+    ws = connect!(%{"name" => name})
+    {jr, _snapshot} = join!(ws, topic)
+    %{ws: ws, jr: jr, topic: topic}
+  end
+
+  defp push(c, event, payload \\ %{}), do: push_and_reply(c.ws, c.jr, c.topic, event, payload)
+
+  test "only the pilot resets or changes the simulation", %{topic: topic} do
+    ada = client(topic, "Ada")
+    bob = client(topic, "Bob")
+
+    # nobody pilots yet: refused like any command
+    assert {"error", %{"reason" => "not_in_control"}} = push(ada, "sim_set", %{"paused" => true})
+
+    assert {"ok", %{"status" => "granted"}} = push(ada, "request_control")
+
+    assert {"ok",
+            %{
+              "sim" => %{
+                "paused" => true,
+                "vehicle" => "neptunus",
+                "current" => [+0.0, +0.0, +0.0]
+              }
+            }} = push(ada, "sim_set", %{"paused" => true})
+
+    assert {"ok", %{"sim" => %{"current" => [0.1, -0.1, +0.0], "paused" => true}}} =
+             push(ada, "sim_set", %{"current" => [0.1, -0.1, 0]})
+
+    assert {"error", %{"reason" => "not_in_control"}} = push(bob, "sim_reset")
+    assert {"error", %{"reason" => "not_in_control"}} = push(bob, "sim_set", %{"paused" => false})
+
+    assert {"ok", %{"sim" => %{"t" => +0.0}}} = push(ada, "sim_reset")
+    assert %{"reason" => "sim_reset"} = event!(bob.ws, "stopped", &(&1["reason"] == "sim_reset"))
+
+    assert {"error", %{"reason" => "current[0] must be a number in [-5, 5], got 7"}} =
+             push(ada, "sim_set", %{"current" => [7, 0, 0]})
+
+    assert {"error", %{"reason" => "unknown field: seed (no fields expected)"}} =
+             push(ada, "sim_reset", %{"seed" => 1})
+  end
+end
