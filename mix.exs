@@ -1,3 +1,80 @@
+defmodule Mix.Tasks.Compile.PortPrograms do
+  @shortdoc "Builds the C port programs in c_src/ into priv/"
+  @moduledoc """
+  Builds every `c_src/NAME.c` into `priv/NAME` with the system C compiler (`$CC`, else `cc`,
+  else `gcc`; `make setup` installs gcc) and `-Wall -Wextra -Werror -O2`. A program is rebuilt
+  when it is missing or any file in `c_src/` is at least as new as it (mtimes have 1 s
+  resolution, so "as new" rebuilds rather than misses a change made in the same second).
+  The binary is written to a temporary name and renamed into place, so builds from several
+  `_build` directories at once never leave a half-written program. Binaries are git-ignored.
+  """
+  use Mix.Task.Compiler
+
+  @cflags ~w(-std=c99 -Wall -Wextra -Werror -O2)
+
+  @impl true
+  def run(_args) do
+    File.mkdir_p!("priv")
+    sources = Path.wildcard("c_src/*.c")
+    newest = "c_src/*" |> Path.wildcard() |> Enum.map(&mtime/1) |> Enum.max(fn -> 0 end)
+
+    results =
+      for source <- sources, stale?(target(source), newest), do: build(source, target(source))
+
+    cond do
+      results == [] -> {:noop, []}
+      Enum.all?(results, &(&1 == :ok)) -> {:ok, []}
+      true -> {:error, for({:error, diagnostic} <- results, do: diagnostic)}
+    end
+  end
+
+  @impl true
+  def clean, do: Enum.each(Path.wildcard("c_src/*.c"), &File.rm(target(&1)))
+
+  defp target(source), do: Path.join("priv", Path.basename(source, ".c"))
+
+  defp stale?(target, newest), do: not File.exists?(target) or mtime(target) <= newest
+
+  defp mtime(path) do
+    case File.stat(path, time: :posix) do
+      {:ok, %File.Stat{mtime: mtime}} -> mtime
+      {:error, _} -> 0
+    end
+  end
+
+  defp build(source, target) do
+    cc = System.get_env("CC") || System.find_executable("cc") || System.find_executable("gcc")
+    tmp = "#{target}.#{System.unique_integer([:positive])}.tmp"
+
+    with cc when is_binary(cc) <- cc,
+         {_output, 0} <- System.cmd(cc, @cflags ++ ["-o", tmp, source], stderr_to_stdout: true) do
+      File.rename!(tmp, target)
+      Mix.shell().info("Compiled #{source} -> #{target}")
+      :ok
+    else
+      nil ->
+        failure(source, "no C compiler found: install gcc (`make setup`)")
+
+      {output, _status} ->
+        _ = File.rm(tmp)
+        failure(source, output)
+    end
+  end
+
+  defp failure(source, message) do
+    Mix.shell().error("could not build #{source}:\n#{message}")
+
+    {:error,
+     %Mix.Task.Compiler.Diagnostic{
+       compiler_name: "port_programs",
+       file: Path.absname(source),
+       message: message,
+       position: nil,
+       severity: :error
+     }}
+  end
+end
+
 defmodule Neptunus.MixProject do
   use Mix.Project
 
@@ -23,6 +100,8 @@ defmodule Neptunus.MixProject do
       elixir: "~> 1.14",
       start_permanent: Mix.env() == :prod,
       elixirc_paths: elixirc_paths(Mix.env()),
+      # c_src/neptunus_uart.c → priv/neptunus_uart (the serial port program), see above
+      compilers: Mix.compilers() ++ [:port_programs],
       deps: [],
       aliases: aliases(),
       releases: releases()
@@ -32,7 +111,7 @@ defmodule Neptunus.MixProject do
   def application do
     [
       mod: {Neptunus.Application, []},
-      extra_applications: [:logger, :crypto, :jiffy] ++ extra_apps(Mix.env()),
+      extra_applications: [:logger, :crypto, :ssl, :jiffy] ++ extra_apps(Mix.env()),
       included_applications: [:yaws]
     ]
   end

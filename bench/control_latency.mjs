@@ -1,0 +1,253 @@
+// Control latency benchmark client: pilot command over the WebSocket → go(...) bytes read on
+// the far side of the board's serial line (a pty). Prints figures, asserts nothing.
+// Started by bench/control_latency (which starts socat and the server); can run alone:
+//
+//   LAT_URL=ws://127.0.0.1:4211 LAT_PTY=/tmp/x/a node bench/control_latency.mjs [OBSERVERS] [SAMPLES]
+//
+// OBSERVERS is a comma-separated list of observer counts, measured in turn (default "0,1000");
+// SAMPLES is the number of commands per measurement (default 1000).
+//
+// This process is the board on the other end of the pty: it sends telemetry lines like an
+// OpenROV board (navigation data at 50 Hz, status at 10 Hz) so the vehicle publishes telemetry
+// to every observer at 20 Hz while we measure, and it reads the go(...) commands the server
+// writes. The pilot's socket and the pty live in the main thread; the observers' sockets in a
+// worker thread, so their 20 000 messages/s do not delay the main thread's event loop.
+//
+// Environment: LAT_URL (ws://127.0.0.1:4211), LAT_PTY (required), LAT_VEHICLE (rov),
+// LAT_SERVER_PID (for CPU figures), LAT_CLK_TCK (100), LAT_WINDOW (100 joins in flight).
+
+import { createRequire } from 'node:module';
+import { Worker, isMainThread, parentPort, workerData } from 'node:worker_threads';
+import { openSync, readFileSync, writeSync } from 'node:fs';
+import tty from 'node:tty';
+import { fileURLToPath } from 'node:url';
+import { performance, monitorEventLoopDelay } from 'node:perf_hooks';
+
+const require = createRequire(new URL('../assets/package.json', import.meta.url));
+const WebSocket = require('ws');
+
+const URL_BASE = process.env.LAT_URL ?? 'ws://127.0.0.1:4211';
+const VEHICLE = process.env.LAT_VEHICLE ?? 'rov';
+const TOPIC = `vehicle:${VEHICLE}`;
+const wsUrl = (name) => `${URL_BASE}/socket/websocket?vsn=2.0.0&name=${encodeURIComponent(name)}`;
+
+if (isMainThread) {
+  await main();
+} else {
+  await observers(workerData);
+}
+
+// ---------------------------------------------------------------------------------------
+
+async function main() {
+  const counts = (process.argv[2] ?? process.env.LAT_OBSERVERS ?? '0,1000').split(',').map(Number);
+  const SAMPLES = Number(process.argv[3] ?? process.env.LAT_SAMPLES ?? 1000);
+  const PTY = process.env.LAT_PTY;
+  const SERVER_PID = Number(process.env.LAT_SERVER_PID ?? 0);
+  const CLK_TCK = Number(process.env.LAT_CLK_TCK ?? 100);
+  if (!PTY) throw new Error('LAT_PTY (the far end of the board pty) is required');
+
+  const out = (label, value) => console.log(`${(label + ':').padEnd(46)} ${value}`);
+  const cpuTicks = () => {
+    if (!SERVER_PID) return null;
+    try {
+      const s = readFileSync(`/proc/${SERVER_PID}/stat`, 'utf8');
+      const f = s.slice(s.lastIndexOf(')') + 2).split(' ');
+      return Number(f[11]) + Number(f[12]);
+    } catch { return null; }
+  };
+
+  // The board's end of the line: read with a tty stream (raw), write with a second descriptor.
+  const readFd = openSync(PTY, 'r+');
+  const writeFd = openSync(PTY, 'r+');
+  const line = new tty.ReadStream(readFd);
+  line.setRawMode(true);
+  let rx = '';
+  let waiter = null; // {expect, resolve}
+  let goLines = 0;
+  line.on('data', (chunk) => {
+    const now = performance.now();
+    rx += chunk.toString('latin1');
+    let i;
+    while ((i = rx.indexOf(';')) >= 0) {
+      const cmd = rx.slice(0, i + 1);
+      rx = rx.slice(i + 1);
+      if (cmd.startsWith('go(')) {
+        goLines++;
+        if (waiter && cmd === waiter.expect) { const w = waiter; waiter = null; w.resolve(now); }
+      }
+    }
+  });
+
+  // Telemetry like an OpenROV board.
+  let tick = 0;
+  const board = setInterval(() => {
+    tick++;
+    const hdg = (tick * 0.5) % 360;
+    let text = `hdgd:${hdg.toFixed(2)};deap:1.000;pitc:0.00;roll:0.00;yaw:0.00;fthr:0;\r\n`;
+    if (tick % 5 === 0) text += 'vout:12.10;iout:0.50;time:1000;pres:1113.80;temp:10.0;\r\n';
+    try { writeSync(writeFd, text); } catch { /* the server's end may be reopening */ }
+  }, 20);
+
+  // The pilot.
+  const pilot = await connect('pilot');
+  const join = await pilot.push(TOPIC, 'phx_join', {});
+  if (join.status !== 'ok') throw new Error(`join failed: ${JSON.stringify(join.response)}`);
+  const grant = await pilot.push(TOPIC, 'request_control', {});
+  if (grant.status !== 'ok' || grant.response.status !== 'granted') {
+    throw new Error(`request_control: ${JSON.stringify(grant)}`);
+  }
+  let epoch = grant.response.grant.epoch;
+  pilot.onEvent = (event, payload) => {
+    if (event === 'control_granted' && payload.epoch != null) epoch = payload.epoch;
+  };
+  const heartbeat = setInterval(() => pilot.push(TOPIC, 'heartbeat', {}).catch(() => {}), 100);
+
+  const worker = new Worker(fileURLToPath(import.meta.url), { workerData: {} });
+  const fromWorker = (type) => new Promise((resolve) => {
+    const h = (m) => { if (m.type === type) { worker.off('message', h); resolve(m); } };
+    worker.on('message', h);
+  });
+  let observing = 0;
+
+  console.log(`# control latency: pilot thrust over the WebSocket -> go(...) bytes on the pty (${PTY})`);
+  console.log(`# ${SAMPLES} commands per run, vehicle ${VEHICLE}, server ${URL_BASE}`);
+
+  for (const n of counts) {
+    if (n > observing) {
+      worker.postMessage({ type: 'open', count: n - observing });
+      const m = await fromWorker('opened');
+      observing = m.joined;
+      await sleep(2000); // let the presence traffic of the joins settle
+    }
+
+    worker.postMessage({ type: 'count' });
+    const before = await fromWorker('counted');
+    const cpu0 = cpuTicks();
+    const t0 = performance.now();
+    const loop = monitorEventLoopDelay({ resolution: 1 });
+    loop.enable();
+
+    const toGo = [], toReply = [];
+    let timeouts = 0, errors = 0, lastError = '';
+    for (let i = 0; i < SAMPLES; i++) {
+      const s = ((i % 40) + 1) / 50; // 0.02 .. 0.80, consecutive commands always differ
+      const portUs = Math.round(1500 - 250 * s); // gain 0.5, port reversed (thesis wiring)
+      const stbdUs = Math.round(1500 + 250 * s);
+      const expect = `go(${portUs},1500,${stbdUs},1);`;
+      const arrived = new Promise((resolve) => { waiter = { expect, resolve }; });
+      const sent = performance.now();
+      const reply = pilot.push(TOPIC, 'thrust', { mode: 'motion', surge: s, heave: 0, yaw: 0, epoch })
+        .then((r) => {
+          if (r.status !== 'ok') { errors++; lastError = JSON.stringify(r.response); }
+          toReply.push(performance.now() - sent);
+        });
+      const got = await Promise.race([arrived, sleep(1000).then(() => null)]);
+      if (got == null) { timeouts++; waiter = null; } else toGo.push(got - sent);
+      await reply;
+      await sleep(5 + Math.random() * 10);
+    }
+
+    loop.disable();
+    const secs = (performance.now() - t0) / 1000;
+    const cpu1 = cpuTicks();
+    worker.postMessage({ type: 'count' });
+    const after = await fromWorker('counted');
+
+    console.log(`\n## ${observing} observers`);
+    out('observers joined', observing);
+    out('commands / go lines matched / timeouts', `${SAMPLES} / ${toGo.length} / ${timeouts}`);
+    out('command errors', errors ? `${errors} (last: ${lastError})` : 0);
+    out('command -> go bytes  p50 / p90 / p99 / max', stats(toGo));
+    out('command -> reply     p50 / p90 / p99 / max', stats(toReply));
+    out('client event-loop delay p50 / p99', `${(loop.percentile(50) / 1e6).toFixed(2)} / ${(loop.percentile(99) / 1e6).toFixed(2)} ms`);
+    out('telemetry received by observers', `${after.messages - before.messages} (${((after.messages - before.messages) / secs).toFixed(0)}/s)`);
+    if (cpu0 != null && cpu1 != null) {
+      out('server CPU', `${((cpu1 - cpu0) / CLK_TCK / secs * 100).toFixed(1)} % of one core`);
+    }
+  }
+
+  clearInterval(heartbeat);
+  clearInterval(board);
+  worker.postMessage({ type: 'close' });
+  await fromWorker('closed');
+  pilot.close();
+  line.destroy();
+  process.exit(0);
+}
+
+function stats(xs) {
+  if (xs.length === 0) return 'n/a';
+  const s = [...xs].sort((a, b) => a - b);
+  const p = (q) => s[Math.min(s.length - 1, Math.floor(q * s.length))];
+  return `${p(0.5).toFixed(3)} / ${p(0.9).toFixed(3)} / ${p(0.99).toFixed(3)} / ${s[s.length - 1].toFixed(3)} ms`;
+}
+
+function sleep(ms) { return new Promise((r) => setTimeout(r, ms)); }
+
+// A raw Phoenix Channels v2 socket: push() resolves with the phx_reply payload.
+function connect(name) {
+  return new Promise((resolve, reject) => {
+    const ws = new WebSocket(wsUrl(name), { perMessageDeflate: false });
+    let ref = 0;
+    const pending = new Map();
+    const client = {
+      ws,
+      onEvent: null,
+      push(topic, event, payload) {
+        const r = String(++ref);
+        ws.send(JSON.stringify([event === 'phx_join' ? r : '1', r, topic, event, payload]));
+        return new Promise((res) => pending.set(r, res));
+      },
+      close() { ws.close(1000); },
+    };
+    ws.on('message', (data) => {
+      const [, r, , event, payload] = JSON.parse(data.toString());
+      if (event === 'phx_reply' && pending.has(r)) { pending.get(r)(payload); pending.delete(r); }
+      else if (client.onEvent) client.onEvent(event, payload);
+    });
+    ws.once('open', () => resolve(client));
+    ws.once('error', reject);
+  });
+}
+
+// ---------------------------------------------------------------------------------------
+// Worker: the observers.
+
+async function observers() {
+  const sockets = [];
+  let messages = 0;
+  const WINDOW = Number(process.env.LAT_WINDOW ?? 100);
+
+  const openOne = (k) => new Promise((resolve) => {
+    const ws = new WebSocket(wsUrl(`obs${k}`), { perMessageDeflate: false });
+    const done = (ok) => { resolve(ok); };
+    const telemetry = `[null,null,${JSON.stringify(TOPIC)},"telemetry"`;
+    ws.on('message', (data) => {
+      const text = data.toString();
+      if (text.startsWith(telemetry)) messages++;
+      else if (text.startsWith('["j","j"')) done(text.includes('"status":"ok"'));
+    });
+    ws.once('open', () => ws.send(JSON.stringify(['j', 'j', TOPIC, 'phx_join', {}])));
+    ws.once('error', () => done(false));
+    sockets.push(ws);
+    setInterval(() => { if (ws.readyState === 1) ws.send(JSON.stringify([null, 'hb', 'phoenix', 'heartbeat', {}])); }, 30000).unref();
+  });
+
+  parentPort.on('message', async (m) => {
+    if (m.type === 'open') {
+      let next = 0, joined = 0;
+      const total = m.count, base = sockets.length;
+      await Promise.all(Array.from({ length: Math.min(WINDOW, total) }, async () => {
+        while (next < total) { const k = base + next++; if (await openOne(k)) joined++; }
+      }));
+      parentPort.postMessage({ type: 'opened', joined: base + joined });
+    } else if (m.type === 'count') {
+      parentPort.postMessage({ type: 'counted', messages });
+    } else if (m.type === 'close') {
+      for (const ws of sockets) ws.close(1000);
+      await sleep(500);
+      parentPort.postMessage({ type: 'closed' });
+    }
+  });
+}

@@ -1,0 +1,475 @@
+defmodule Neptunus.Protocol.OpenROV do
+  @moduledoc """
+  The OpenROV serial protocol between the server and the vehicle's board (115200 8N1),
+  thesis ch. 8.4 and appendix A.8, DESIGN.md §3. Pure: no I/O, never raises on input from the
+  line.
+
+  ## Commands (server → board)
+
+  `;`-terminated, no newline: `go(port,vertical,starboard,smoothing);` with each motor in
+  1000..2000 µs (1500 neutral) in the order the motors are wired (see `Neptunus.Wiring`),
+  `ligt(0..255);`, `claser(0..255);`, `tilt(µs);`, `ping(n);`, `stop();`. The encoders take
+  values already in range and raise `FunctionClauseError` otherwise: validating a pilot's
+  input is the caller's job, a bad value here is a bug. `parse_command/1` is the board's
+  side (used by the SITL board and the tests).
+
+  ## Telemetry (board → server)
+
+  Newline-terminated lines of `key:value;` fields, e.g.
+  `hdgd:123.4;deap:0.52;pitc:1.2;roll:-0.3;yaw:12.0;fthr:0;` and
+  `vout:12.1;iout:0.5;time:12345;pres:1065.3;temp:11.2;`. `parse_line/1` returns the fields
+  it accepts and the ones it rejects:
+
+  | key    | field             | board unit        | accepted raw range | SI value           |
+  |--------|-------------------|-------------------|--------------------|--------------------|
+  | `hdgd` | `:heading`        | degree            | 0 .. 360           | rad in [0, 2π)     |
+  | `deap` | `:depth`          | m                 | -10 .. 200         | m                  |
+  | `pitc` | `:pitch`          | degree            | -90 .. 90          | rad                |
+  | `roll` | `:roll`           | degree            | -180 .. 180        | rad                |
+  | `yaw`  | `:yaw`            | degree            | -180 .. 360        | rad                |
+  | `fthr` | `:forward_thrust` | % of full thrust  | -100 .. 100        | fraction in [-1, 1]|
+  | `vout` | `:voltage`        | V                 | 5 .. 20            | V                  |
+  | `iout` | `:current`        | A                 | 0 .. 10            | A                  |
+  | `temp` | `:temperature`    | °C                | -40 .. 85          | °C                 |
+  | `pres` | `:pressure`       | mbar              | 0 .. 25 000        | Pa                 |
+  | `time` | `:board_time`     | ms since boot     | 0 .. 2³² − 1       | s                  |
+
+  The ranges are what the sensors can physically report (the IMU's Euler angles, the
+  depth-sensor's 0..14 bar plus margin down to the thesis' 200 m, the 20 V and 10 A ADC scales;
+  a board that reports its own supply below 5 V would not be running). The thesis' filter
+  (ch. 8.3) used narrower limits — voltage 10..13 V, current 0.01..4 A, angles 0..360° —
+  that reject real readings such as a flat battery; the rate-of-change check belongs to
+  navigation.
+
+  Unknown keys (`cmd`, `log`, `motors`, `pong`, `fmem`, …) are kept with their raw string
+  value under the key as a string. Known keys become atoms with numbers in SI units.
+
+  Rejected fields, each `{reason, key, raw}` (`key` nil when there is none, `raw` at most
+  #{32} bytes):
+
+    * `:malformed` — not `key:value` (no colon, empty or invalid key: a key is a letter
+      followed by up to 15 letters, digits or `_`);
+    * `:not_a_number` — a known key whose value is not a plain decimal number
+      (`nan`, `ovf`, `12.3.4`, …);
+    * `:out_of_range` — a known key whose value is outside its range above;
+    * `:key_as_value` — a field whose value is the name of a known key (the thesis saw
+      `hdgd:pitc`, ch. 8.3): the line is misaligned and the field cannot be trusted.
+
+  The last three are **wild points** (`wild_point?/1`); they are counted by the board and
+  never passed on. Empty fields (`;;`) and surrounding spaces are ignored. When a key repeats
+  on a line, the last accepted value wins.
+  """
+
+  import Bitwise, only: [<<<: 2]
+
+  @typedoc "Motor pulse widths in µs, in `go()` order."
+  @type us :: 1000..2000
+  @type field_key :: atom() | String.t()
+  @type fields :: %{optional(field_key()) => number() | String.t()}
+  @type reject_reason :: :malformed | :not_a_number | :out_of_range | :key_as_value
+  @type reject :: {reject_reason(), String.t() | nil, binary()}
+  @type command ::
+          {:go, us(), us(), us(), 0 | 1}
+          | {:ligt, 0..255}
+          | {:claser, 0..255}
+          | {:tilt, us()}
+          | {:ping, non_neg_integer()}
+          | :stop
+
+  @max_raw 32
+  @max_number 24
+  @max_ping (1 <<< 31) - 1
+  @deg :math.pi() / 180
+
+  # key => {field, min, max, conversion}
+  @known %{
+    "hdgd" => {:heading, 0, 360, :heading},
+    "deap" => {:depth, -10, 200, :identity},
+    "pitc" => {:pitch, -90, 90, :deg},
+    "roll" => {:roll, -180, 180, :deg},
+    "yaw" => {:yaw, -180, 360, :deg},
+    "fthr" => {:forward_thrust, -100, 100, :percent},
+    "vout" => {:voltage, 5, 20, :identity},
+    "iout" => {:current, 0, 10, :identity},
+    "temp" => {:temperature, -40, 85, :identity},
+    "pres" => {:pressure, 0, 25_000, :mbar},
+    "time" => {:board_time, 0, 4_294_967_295, :ms}
+  }
+
+  # the raw ranges above in SI units (the same conversions as convert/2 below)
+  @si_ranges Map.new(@known, fn {_key, {field, min, max, conversion}} ->
+               range =
+                 case conversion do
+                   # 360° is accepted and wraps to 0
+                   :heading -> {0.0, 2 * :math.pi()}
+                   :identity -> {min * 1.0, max * 1.0}
+                   :deg -> {min * @deg, max * @deg}
+                   :percent -> {min / 100, max / 100}
+                   :mbar -> {min * 100.0, max * 100.0}
+                   :ms -> {min / 1000, max / 1000}
+                 end
+
+               {field, range}
+             end)
+
+  @doc "The known telemetry keys and their field name, raw range and conversion (see the table above)."
+  @spec known() :: %{String.t() => {atom(), number(), number(), atom()}}
+  def known, do: @known
+
+  @doc """
+  The SI range of each known field: what `parse_line/1` can return for it.
+
+      iex> Neptunus.Protocol.OpenROV.si_range(:depth)
+      {-10.0, 200.0}
+  """
+  @spec si_range(atom()) :: {float(), float()}
+  def si_range(field), do: Map.fetch!(@si_ranges, field)
+
+  # Commands ------------------------------------------------------------------------------
+
+  @doc """
+  `go(port,vertical,starboard,smoothing);` with the motors' pulse widths in `go()` order.
+
+      iex> Neptunus.Protocol.OpenROV.go({1500, 1750, 1000}, true)
+      "go(1500,1750,1000,1);"
+  """
+  @spec go({us(), us(), us()}, boolean()) :: binary()
+  def go({a, b, c}, smoothing)
+      when a in 1000..2000 and b in 1000..2000 and c in 1000..2000 and is_boolean(smoothing) do
+    "go(#{a},#{b},#{c},#{if smoothing, do: 1, else: 0});"
+  end
+
+  @doc """
+  Lights, 0..255.
+
+      iex> Neptunus.Protocol.OpenROV.lights(255)
+      "ligt(255);"
+  """
+  @spec lights(0..255) :: binary()
+  def lights(n) when n in 0..255, do: "ligt(#{n});"
+
+  @doc """
+  Laser, 0..255.
+
+      iex> Neptunus.Protocol.OpenROV.laser(0)
+      "claser(0);"
+  """
+  @spec laser(0..255) :: binary()
+  def laser(n) when n in 0..255, do: "claser(#{n});"
+
+  @doc """
+  Camera tilt servo pulse width, 1000..2000 µs.
+
+      iex> Neptunus.Protocol.OpenROV.tilt(1500)
+      "tilt(1500);"
+  """
+  @spec tilt(us()) :: binary()
+  def tilt(us) when us in 1000..2000, do: "tilt(#{us});"
+
+  @doc """
+  Deadman ping number `n` (0..2³¹ − 1; the board answers `pong:n;`).
+
+      iex> Neptunus.Protocol.OpenROV.ping(7)
+      "ping(7);"
+  """
+  @spec ping(non_neg_integer()) :: binary()
+  def ping(n) when is_integer(n) and n >= 0 and n <= @max_ping, do: "ping(#{n});"
+
+  @doc """
+  Stops (and detaches) the motors.
+
+      iex> Neptunus.Protocol.OpenROV.stop()
+      "stop();"
+  """
+  @spec stop() :: binary()
+  def stop, do: "stop();"
+
+  @doc """
+  The board's side: parses one command (with or without its `;`) into a term, checking every
+  argument's range like the firmware does ("ignore corrupt data").
+
+      iex> Neptunus.Protocol.OpenROV.parse_command("go(1500,1600,1400,1);")
+      {:ok, {:go, 1500, 1600, 1400, 1}}
+      iex> Neptunus.Protocol.OpenROV.parse_command("go(900,1500,1500,0)")
+      {:error, "go: motor values must be 1000..2000 and smoothing 0 or 1"}
+  """
+  @spec parse_command(binary()) :: {:ok, command()} | {:error, String.t()}
+  def parse_command(text) when is_binary(text) do
+    text = text |> String.trim() |> String.trim_trailing(";")
+
+    with {:ok, name, args} <- split_call(text),
+         {:ok, ints} <- int_args(args) do
+      command(name, ints)
+    end
+  end
+
+  @doc """
+  Splits a stream of command bytes into complete `;`-terminated commands and the incomplete
+  rest (to prepend to the next chunk). Whitespace (a stray newline) around commands is removed.
+
+      iex> Neptunus.Protocol.OpenROV.split_commands("ping(1);go(1500,1500,1500,1);sto")
+      {["ping(1)", "go(1500,1500,1500,1)"], "sto"}
+  """
+  @spec split_commands(binary()) :: {[binary()], binary()}
+  def split_commands(bytes) do
+    {commands, [rest]} = bytes |> :binary.split(";", [:global]) |> Enum.split(-1)
+    {commands |> Enum.map(&String.trim/1) |> Enum.reject(&(&1 == "")), rest}
+  end
+
+  defp split_call(text) do
+    case Regex.run(~r/\A([a-z]+)\(([^()]*)\)\z/, text) do
+      [_, name, args] -> {:ok, name, args}
+      nil -> {:error, "not a command: #{inspect(truncate(text))}"}
+    end
+  end
+
+  defp int_args(""), do: {:ok, []}
+
+  defp int_args(args) do
+    args
+    |> String.split(",")
+    |> Enum.reduce_while({:ok, []}, fn arg, {:ok, acc} ->
+      case Integer.parse(String.trim(arg)) do
+        {n, ""} -> {:cont, {:ok, [n | acc]}}
+        _ -> {:halt, {:error, "bad argument #{inspect(truncate(arg))}"}}
+      end
+    end)
+    |> case do
+      {:ok, ints} -> {:ok, Enum.reverse(ints)}
+      error -> error
+    end
+  end
+
+  defp command("go", [a, b, c, s])
+       when a in 1000..2000 and b in 1000..2000 and c in 1000..2000 and s in [0, 1],
+       do: {:ok, {:go, a, b, c, s}}
+
+  defp command("go", _), do: {:error, "go: motor values must be 1000..2000 and smoothing 0 or 1"}
+  defp command("ligt", [n]) when n in 0..255, do: {:ok, {:ligt, n}}
+  defp command("claser", [n]) when n in 0..255, do: {:ok, {:claser, n}}
+  defp command("tilt", [n]) when n in 1000..2000, do: {:ok, {:tilt, n}}
+  defp command("ping", [n]) when n >= 0 and n <= @max_ping, do: {:ok, {:ping, n}}
+  defp command("stop", []), do: {:ok, :stop}
+  defp command(name, _), do: {:error, "#{name}: unknown command or bad arguments"}
+
+  # Telemetry -----------------------------------------------------------------------------
+
+  @doc """
+  Parses one telemetry line (without its newline) into `{fields, rejects}`; never raises.
+
+      iex> Neptunus.Protocol.OpenROV.parse_line("deap:1.5;vout:12.1;hdgd:pitc;fmem:1234;x")
+      {%{:depth => 1.5, :voltage => 12.1, "fmem" => "1234"},
+       [{:key_as_value, "hdgd", "pitc"}, {:malformed, nil, "x"}]}
+
+      iex> Neptunus.Protocol.OpenROV.parse_line("iout:40;temp:nan")
+      {%{}, [{:out_of_range, "iout", "40"}, {:not_a_number, "temp", "nan"}]}
+  """
+  @spec parse_line(binary()) :: {fields(), [reject()]}
+  def parse_line(line) when is_binary(line) do
+    {fields, rejects} =
+      line
+      |> :binary.split(";", [:global])
+      |> Enum.reduce({%{}, []}, &parse_field/2)
+
+    {fields, Enum.reverse(rejects)}
+  end
+
+  @doc """
+  Whether a rejected field is a wild point (counted as such) rather than a malformed field.
+
+      iex> Neptunus.Protocol.OpenROV.wild_point?({:out_of_range, "deap", "2000"})
+      true
+  """
+  @spec wild_point?(reject()) :: boolean()
+  def wild_point?({reason, _key, _raw}), do: reason != :malformed
+
+  @doc """
+  Formats fields as a telemetry line (no newline) in board units: the inverse of
+  `parse_line/1` for known fields, used by the SITL board. Numbers get `decimals` decimals.
+
+      iex> Neptunus.Protocol.OpenROV.format_line([depth: 1.5, heading: :math.pi()], 2)
+      "deap:1.50;hdgd:180.00;"
+  """
+  @spec format_line([{atom(), number()}], non_neg_integer()) :: binary()
+  def format_line(fields, decimals) do
+    IO.iodata_to_binary(
+      for {field, value} <- fields do
+        {key, conversion} = key_of(field)
+        raw = unconvert(value, conversion)
+        [key, ?:, :erlang.float_to_binary(raw * 1.0, decimals: decimals), ?;]
+      end
+    )
+  end
+
+  for {key, {field, _min, _max, conversion}} <- @known do
+    defp key_of(unquote(field)), do: {unquote(key), unquote(conversion)}
+  end
+
+  defp parse_field(segment, {fields, rejects} = acc) do
+    case :binary.split(segment, ":") do
+      [key, value] ->
+        key = trim(key)
+        value = trim(value)
+
+        if valid_key?(key),
+          do: classify(key, value, acc),
+          else: {fields, [{:malformed, nil, truncate(segment)} | rejects]}
+
+      [other] ->
+        case trim(other) do
+          "" -> acc
+          _ -> {fields, [{:malformed, nil, truncate(segment)} | rejects]}
+        end
+    end
+  end
+
+  defp classify(key, value, {fields, rejects}) when is_map_key(@known, value) do
+    {fields, [{:key_as_value, key, value} | rejects]}
+  end
+
+  defp classify(key, value, {fields, rejects}) do
+    case Map.fetch(@known, key) do
+      :error ->
+        {Map.put(fields, key, value), rejects}
+
+      {:ok, {field, min, max, conversion}} ->
+        case number(value) do
+          :error ->
+            {fields, [{:not_a_number, key, truncate(value)} | rejects]}
+
+          {:ok, n} when n >= min and n <= max ->
+            {Map.put(fields, field, convert(n, conversion)), rejects}
+
+          {:ok, _} ->
+            {fields, [{:out_of_range, key, truncate(value)} | rejects]}
+        end
+    end
+  end
+
+  defp convert(n, :identity), do: n * 1.0
+  defp convert(n, :deg), do: n * @deg
+  defp convert(n, :percent), do: n / 100
+  defp convert(n, :mbar), do: n * 100.0
+  defp convert(n, :ms), do: n / 1000
+
+  defp convert(n, :heading) do
+    rad = n * @deg
+    if rad >= 2 * :math.pi(), do: 0.0, else: rad
+  end
+
+  defp unconvert(v, :identity), do: v
+  defp unconvert(v, :deg), do: v / @deg
+  defp unconvert(v, :heading), do: v / @deg
+  defp unconvert(v, :percent), do: v * 100
+  defp unconvert(v, :mbar), do: v / 100
+  defp unconvert(v, :ms), do: v * 1000
+
+  # A plain decimal number as the Arduino prints it: optional sign, digits, optional
+  # fraction, optional short exponent. Anything else (nan, inf, ovf, 1.2.3, 0x10) is not one.
+  defp number(value) when byte_size(value) > @max_number, do: :error
+
+  # A byte scanner (no regex: this runs for every field of every line): sign, integer digits,
+  # fraction digits, exponent of at most two digits; at least one digit before the exponent.
+  # Fast path for what boards print ("12.34", "-0.5", "7"); anything else goes to the scanner.
+  defp number(<<c, _::binary>> = value) when c in ?0..?9 or c == ?- do
+    if :binary.match(value, ["e", "E"]) == :nomatch do
+      try do
+        {:ok, :erlang.binary_to_float(value) + 0.0}
+      rescue
+        ArgumentError ->
+          try do
+            {:ok, :erlang.binary_to_integer(value) + 0.0}
+          rescue
+            ArgumentError -> scan_number(value)
+          end
+      end
+    else
+      scan_number(value)
+    end
+  end
+
+  defp number(value), do: scan_number(value)
+
+  defp scan_number(<<?-, rest::binary>>), do: digits(rest, "-", "")
+  defp scan_number(<<?+, rest::binary>>), do: digits(rest, "", "")
+  defp scan_number(value), do: digits(value, "", "")
+
+  defp digits(<<d, rest::binary>>, sign, int) when d in ?0..?9,
+    do: digits(rest, sign, <<int::binary, d>>)
+
+  defp digits(<<?., rest::binary>>, sign, int), do: fraction(rest, sign, int, "")
+  defp digits(rest, sign, int), do: exponent(rest, sign, int, "")
+
+  defp fraction(<<d, rest::binary>>, sign, int, frac) when d in ?0..?9,
+    do: fraction(rest, sign, int, <<frac::binary, d>>)
+
+  defp fraction(rest, sign, int, frac), do: exponent(rest, sign, int, frac)
+
+  defp exponent(_rest, _sign, "", ""), do: :error
+  defp exponent("", sign, int, frac), do: to_float(sign, int, frac, "0")
+
+  defp exponent(<<e, rest::binary>>, sign, int, frac) when e in [?e, ?E] do
+    case rest do
+      <<s, d1, d2>> when s in [?+, ?-] and d1 in ?0..?9 and d2 in ?0..?9 ->
+        to_float(sign, int, frac, <<s, d1, d2>>)
+
+      <<s, d1>> when s in [?+, ?-] and d1 in ?0..?9 ->
+        to_float(sign, int, frac, <<s, d1>>)
+
+      <<d1, d2>> when d1 in ?0..?9 and d2 in ?0..?9 ->
+        to_float(sign, int, frac, <<d1, d2>>)
+
+      <<d1>> when d1 in ?0..?9 ->
+        to_float(sign, int, frac, <<d1>>)
+
+      _ ->
+        :error
+    end
+  end
+
+  defp exponent(_rest, _sign, _int, _frac), do: :error
+
+  defp to_float(sign, int, frac, exp) do
+    text =
+      <<sign::binary, zero_if_empty(int)::binary, ?., zero_if_empty(frac)::binary, ?e,
+        exp::binary>>
+
+    {:ok, :erlang.binary_to_float(text) + 0.0}
+  rescue
+    # beyond the float range (cannot happen with a two-digit exponent; kept as a guard)
+    ArgumentError -> :error
+  end
+
+  defp zero_if_empty(""), do: "0"
+  defp zero_if_empty(digits), do: digits
+
+  defp valid_key?(<<first, rest::binary>>)
+       when (first in ?a..?z or first in ?A..?Z) and byte_size(rest) <= 15,
+       do: key_rest?(rest)
+
+  defp valid_key?(_), do: false
+
+  defp key_rest?(<<c, rest::binary>>)
+       when c in ?a..?z or c in ?A..?Z or c in ?0..?9 or c == ?_,
+       do: key_rest?(rest)
+
+  defp key_rest?(<<>>), do: true
+  defp key_rest?(_), do: false
+
+  defp trim(s), do: s |> trim_leading() |> trim_trailing(byte_size(s))
+
+  defp trim_leading(<<c, rest::binary>>) when c in [?\s, ?\t], do: trim_leading(rest)
+  defp trim_leading(s), do: s
+
+  defp trim_trailing(s, _) when s == "", do: s
+
+  defp trim_trailing(s, _) do
+    case :binary.last(s) do
+      c when c in [?\s, ?\t] -> trim_trailing(binary_part(s, 0, byte_size(s) - 1), 0)
+      _ -> s
+    end
+  end
+
+  defp truncate(s) when byte_size(s) <= @max_raw, do: s
+  defp truncate(s), do: binary_part(s, 0, @max_raw)
+end

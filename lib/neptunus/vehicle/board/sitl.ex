@@ -1,0 +1,64 @@
+defmodule Neptunus.Vehicle.Board.SITL do
+  @moduledoc """
+  Software in the loop: the simulator behind a pseudo-terminal speaking the OpenROV serial
+  protocol, driven by the real board link. `NEPTUNUS_VEHICLES=rov=sitl`.
+
+  This is the board of a SITL vehicle — a supervisor (`:one_for_one`) with
+
+    1. `Neptunus.Vehicle.Board.SITL.Device` — the simulated board: a `Neptunus.Sim`, the
+       OpenROV firmware behaviour, and the master end of a pty pair (created by the port
+       program, `neptunus_uart pty LINK`);
+    2. `Neptunus.Vehicle.Board.UART` — the same board link a real vehicle uses, on the pty's
+       slave end (`LINK`), registered as the vehicle's board (`Board.via(id)`).
+
+  So everything from `Vehicle.Control` down — wiring, `go()` bytes, the port program, line
+  framing, parsing, wild-point rejection, link handling, deadman pings — runs exactly as with
+  hardware. `:one_for_one`: if the device dies it comes back with a new pty at the same path
+  and the board link sees a hangup and reopens, as with a board that resets.
+
+  `LINK` is `<tmp>/neptunus-<os pid>/sitl-<id>.tty` unless given as `:link` (per OS process,
+  so several nodes or test runs on one machine never share a pty).
+
+  Options: those of `Board.UART` (`:wiring`, `:ping_interval`, …) and of `SITL.Device`
+  (`:hz`, `:telemetry_hz`, `:deadman_ms`, `:initial`, `:sim`); `:link`.
+  """
+  use Supervisor
+
+  alias Neptunus.Vehicle.Board
+  alias Neptunus.Vehicle.Board.UART
+
+  @behaviour Board
+
+  @device_opts [:wiring, :hz, :telemetry_hz, :deadman_ms, :initial, :sim]
+  @uart_opts [:wiring, :ping_interval, :keepalive_timeout, :reopen_min, :reopen_max, :max_line]
+
+  @impl Board
+  @spec start_link(keyword()) :: Supervisor.on_start()
+  def start_link(opts), do: Supervisor.start_link(__MODULE__, opts)
+
+  @doc "The default pty link path of vehicle `id`."
+  @spec link_path(String.t()) :: String.t()
+  def link_path(id),
+    do: Path.join([System.tmp_dir!(), "neptunus-#{System.pid()}", "sitl-#{id}.tty"])
+
+  @impl Board
+  @spec keepalive(String.t()) :: :ok
+  def keepalive(id), do: UART.keepalive(id)
+
+  @impl Board
+  @spec link_status(String.t()) :: map()
+  def link_status(id), do: UART.link_status(id)
+
+  @impl true
+  def init(opts) do
+    id = Keyword.fetch!(opts, :id)
+    link = Keyword.get(opts, :link) || link_path(id)
+
+    children = [
+      {Board.SITL.Device, [id: id, link: link] ++ Keyword.take(opts, @device_opts)},
+      {UART, [id: id, device: link, baud: 115_200] ++ Keyword.take(opts, @uart_opts)}
+    ]
+
+    Supervisor.init(children, strategy: :one_for_one, max_restarts: 10, max_seconds: 10)
+  end
+end

@@ -1,0 +1,360 @@
+defmodule Neptunus.Vehicle.Board.UART do
+  @moduledoc """
+  A real board on a serial port, speaking the OpenROV protocol (`Neptunus.Protocol.OpenROV`)
+  through our port program `priv/neptunus_uart` (`c_src/neptunus_uart.c`): the program owns
+  the file descriptor and its `poll()` loop, so nothing in the VM ever blocks on the tty.
+
+  ## What it does
+
+    * **Link.** Opens the device at the configured baud (raw 8N1). The link is *up* once the
+      program reports the device open; it is *down* when opening fails, the device hangs up
+      or is unplugged, or the program exits for any reason (`{port, {:exit_status, n}}`).
+      Then it reopens after a backoff (`Neptunus.Vehicle.Board.Backoff`: `reopen_min` doubling
+      to `reopen_max`). Every change of `{up, reason}` is broadcast as event `link`
+      `%{up: boolean, reason: String.t()}` on `"vehicle:<id>"` and logged; `link_status/1`
+      returns it with the counters.
+    * **Neutral on every (re)open**: the first bytes written on a new link are a neutral `go()`.
+    * **Commands.** `go` casts become `go(...)` with the vehicle's `Neptunus.Wiring` (order,
+      reversed motors, smoothing). Commands while the link is down are dropped (counted), never
+      queued: the next link starts neutral. Writes never block: when the program's input is
+      busy the command is dropped and counted.
+    * **Deadman.** Every `ping_interval` (1 s) it sends `ping(n);` — but only while the link is
+      up *and* the vehicle's control was heard (`go` or `keepalive/1`, which
+      `Neptunus.Vehicle.Control` calls every second) within `keepalive_timeout` (2 s). If
+      control dies or hangs, pings stop and the board's own deadman stops the motors.
+    * **Telemetry.** Lines are framed, parsed and checked in `Neptunus.Vehicle.Board.Readings`;
+      samples (`sim: nil`, plus the board's other fields under `board`) go to
+      `Neptunus.Vehicle.Navigation.sample/2`. Garbage and wild points are counted, never passed on.
+    * **Shutdown.** It traps exits; on an orderly shutdown it writes a neutral `go()` before the
+      port closes (the program flushes it before exiting). After a brutal kill the port
+      program sees stdin close and exits; the board's deadman covers the rest.
+
+  `t` of a sample is the time since this process started (s, monotonic).
+  """
+  use GenServer
+
+  require Logger
+
+  alias Neptunus.{Allocation, PubSub, Wiring}
+  alias Neptunus.Protocol.OpenROV
+  alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
+  alias Neptunus.Vehicle.Board.{Backoff, Readings}
+
+  @behaviour Board
+
+  @default_baud 115_200
+
+  defmodule State do
+    @moduledoc false
+    @type t :: %__MODULE__{
+            id: String.t(),
+            topic: String.t(),
+            device: String.t(),
+            baud: pos_integer(),
+            wiring: Neptunus.Wiring.t(),
+            program: String.t(),
+            port: port() | nil,
+            link: :down | :opening | :up,
+            reason: String.t(),
+            announced: {boolean(), String.t()} | nil,
+            since: integer(),
+            program_error: String.t() | nil,
+            backoff: Neptunus.Vehicle.Board.Backoff.t(),
+            readings: Neptunus.Vehicle.Board.Readings.t(),
+            started_at: integer(),
+            heard_at: integer() | nil,
+            ping_interval: pos_integer(),
+            keepalive_timeout: pos_integer(),
+            ping_n: non_neg_integer(),
+            counters: %{atom() => non_neg_integer()}
+          }
+    @enforce_keys [:id, :topic, :device, :baud, :wiring, :program, :backoff, :readings]
+    defstruct [
+      :id,
+      :topic,
+      :device,
+      :baud,
+      :wiring,
+      :program,
+      :backoff,
+      :readings,
+      :port,
+      :announced,
+      :program_error,
+      :heard_at,
+      link: :down,
+      reason: "not opened yet",
+      since: 0,
+      started_at: 0,
+      ping_interval: 1_000,
+      keepalive_timeout: 2_000,
+      ping_n: 0,
+      counters: %{
+        opens: 0,
+        downs: 0,
+        commands: 0,
+        dropped_commands: 0,
+        dropped_bytes: 0,
+        pings: 0,
+        pings_withheld: 0
+      }
+    ]
+  end
+
+  @doc """
+  Starts the board link of vehicle `opts[:id]`, registered as `Board.via(id)`.
+
+  Options:
+    * `:id` (required)
+    * `:device` (required) — e.g. `"/dev/ttyO1"`
+    * `:baud` — #{@default_baud} (1200 … 921600, standard rates)
+    * `:wiring` — a `Neptunus.Wiring`, default `Neptunus.Wiring.default/0`
+    * `:ping_interval` — ms between deadman pings, default 1000
+    * `:keepalive_timeout` — ms since control was last heard after which pings stop, default 2000
+    * `:reopen_min`, `:reopen_max` — reopen backoff in ms, default 100 and 5000
+    * `:max_line` — longest telemetry line kept, bytes, default 512
+    * `:program` — path of the port program, default `priv/neptunus_uart`
+  """
+  @impl Board
+  @spec start_link(keyword()) :: GenServer.on_start()
+  def start_link(opts) do
+    id = Keyword.fetch!(opts, :id)
+    GenServer.start_link(__MODULE__, opts, name: Board.via(id))
+  end
+
+  @doc "Control is alive: keeps the deadman pings going (see the moduledoc)."
+  @impl Board
+  @spec keepalive(String.t()) :: :ok
+  def keepalive(id), do: GenServer.cast(Board.via(id), :keepalive)
+
+  @doc """
+  The link's state: `%{up, reason, device, baud, since_ms, counters}` where `since_ms` is how
+  long the link has been in its current state and `counters` merges the link's counters
+  (`opens downs commands dropped_commands dropped_bytes pings pings_withheld`) with the
+  readings' (`lines samples overlong malformed out_of_range not_a_number key_as_value`).
+  """
+  @impl Board
+  @spec link_status(String.t()) :: map()
+  def link_status(id), do: GenServer.call(Board.via(id), :link_status)
+
+  @doc "The latest raw values of unknown telemetry keys (`fmem`, `pong`, `cmd`, …)."
+  @spec raw(String.t()) :: %{String.t() => String.t()}
+  def raw(id), do: GenServer.call(Board.via(id), :raw)
+
+  @doc "Path of the port program."
+  @spec program() :: String.t()
+  def program, do: Application.app_dir(:neptunus, "priv/neptunus_uart")
+
+  # Callbacks
+
+  @impl true
+  def init(opts) do
+    Process.flag(:trap_exit, true)
+    id = Keyword.fetch!(opts, :id)
+    now = now_ms()
+
+    state = %State{
+      id: id,
+      topic: Telemetry.topic(id),
+      device: Keyword.fetch!(opts, :device),
+      baud: Keyword.get(opts, :baud, @default_baud),
+      wiring: Keyword.get(opts, :wiring) || Wiring.default(),
+      program: Keyword.get(opts, :program, program()),
+      backoff:
+        Backoff.new(Keyword.get(opts, :reopen_min, 100), Keyword.get(opts, :reopen_max, 5_000)),
+      readings: Readings.new(Keyword.get(opts, :max_line, 512)),
+      ping_interval: Keyword.get(opts, :ping_interval, 1_000),
+      keepalive_timeout: Keyword.get(opts, :keepalive_timeout, 2_000),
+      started_at: now,
+      since: now
+    }
+
+    Process.send_after(self(), :ping, state.ping_interval)
+    {:ok, state, {:continue, :open}}
+  end
+
+  @impl true
+  def handle_continue(:open, state), do: {:noreply, open(state)}
+
+  @impl true
+  def handle_cast({:go, thrusters}, state) do
+    state = %{state | heard_at: now_ms()}
+
+    case state.link do
+      :up ->
+        state = bump(state, :commands)
+        {:noreply, write(state, Wiring.go_command(state.wiring, thrusters))}
+
+      _ ->
+        {:noreply, bump(state, :dropped_commands)}
+    end
+  end
+
+  def handle_cast(:keepalive, state), do: {:noreply, %{state | heard_at: now_ms()}}
+
+  @impl true
+  def handle_call(:link_status, _from, state) do
+    status = %{
+      up: state.link == :up,
+      reason: state.reason,
+      device: state.device,
+      baud: state.baud,
+      since_ms: now_ms() - state.since,
+      counters: Map.merge(state.counters, state.readings.counters)
+    }
+
+    {:reply, status, state}
+  end
+
+  def handle_call(:raw, _from, state), do: {:reply, state.readings.raw, state}
+
+  @impl true
+  def handle_info({port, {:data, <<tag, data::binary>>}}, %State{port: port} = state) do
+    {:noreply, program_message(tag, data, state)}
+  end
+
+  def handle_info({port, {:exit_status, status}}, %State{port: port} = state) do
+    reason = state.program_error || "port program exited with status #{status}"
+    {:noreply, down(%{state | port: nil}, reason)}
+  end
+
+  def handle_info(:reopen, %State{port: nil} = state), do: {:noreply, open(state)}
+  def handle_info(:reopen, state), do: {:noreply, state}
+
+  def handle_info(:ping, state) do
+    Process.send_after(self(), :ping, state.ping_interval)
+    {:noreply, ping(state)}
+  end
+
+  # The port is linked to us (we trap exits); its exit_status message does the work.
+  def handle_info({:EXIT, port, _reason}, state) when is_port(port), do: {:noreply, state}
+  def handle_info({:EXIT, _pid, reason}, state), do: {:stop, reason, state}
+
+  # Messages from a port we already gave up on.
+  def handle_info({port, _}, state) when is_port(port), do: {:noreply, state}
+
+  @impl true
+  def terminate(_reason, %State{link: :up} = state) do
+    # Orderly shutdown: neutral first; the program writes it before it exits on stdin close.
+    write(state, Wiring.go_command(state.wiring, Allocation.neutral()))
+    Port.close(state.port)
+  catch
+    _, _ -> :ok
+  end
+
+  def terminate(_reason, _state), do: :ok
+
+  # Link ----------------------------------------------------------------------------------
+
+  defp open(state) do
+    args = ["tty", state.device, Integer.to_string(state.baud)]
+
+    port =
+      Port.open({:spawn_executable, state.program}, [
+        :binary,
+        {:packet, 2},
+        :exit_status,
+        :use_stdio,
+        args: args
+      ])
+
+    %{state | port: port, link: :opening, program_error: nil}
+  rescue
+    error ->
+      down(state, "cannot start #{state.program}: #{Exception.message(error)}")
+  end
+
+  defp program_message(?o, _path, state) do
+    state =
+      %{state | link: :up, since: now_ms(), readings: Readings.reset(state.readings)}
+      |> bump(:opens)
+      |> announce(true, "open")
+
+    write(state, Wiring.go_command(state.wiring, Allocation.neutral()))
+  end
+
+  defp program_message(?r, bytes, state) do
+    t = (now_ms() - state.started_at) / 1000
+    {readings, samples} = Readings.feed(state.readings, bytes, t)
+    Enum.each(samples, &Navigation.sample(state.id, &1))
+    %{state | readings: readings}
+  end
+
+  defp program_message(?e, text, state), do: %{state | program_error: text}
+
+  defp program_message(?d, count, state) do
+    case Integer.parse(count) do
+      {n, ""} -> bump(state, :dropped_bytes, n)
+      _ -> state
+    end
+  end
+
+  defp program_message(_tag, _data, state), do: state
+
+  defp down(state, reason) do
+    now = now_ms()
+    was_up = state.link == :up
+    backoff = if was_up, do: Backoff.up_for(state.backoff, now - state.since), else: state.backoff
+    {delay, backoff} = Backoff.next(backoff)
+    Process.send_after(self(), :reopen, delay)
+
+    state = %{
+      state
+      | link: :down,
+        backoff: backoff,
+        since: if(was_up, do: now, else: state.since)
+    }
+
+    state = if was_up, do: bump(state, :downs), else: state
+    announce(state, false, reason)
+  end
+
+  # Broadcasts and logs a change of {up, reason}; repeated failures for the same reason are
+  # announced once.
+  defp announce(state, up, reason) do
+    state = %{state | reason: reason}
+
+    if state.announced == {up, reason} do
+      state
+    else
+      if up,
+        do: Logger.info("vehicle #{state.id}: board link up on #{state.device} @ #{state.baud}"),
+        else: Logger.warning("vehicle #{state.id}: board link down on #{state.device}: #{reason}")
+
+      PubSub.broadcast(state.topic, "link", %{up: up, reason: reason})
+      %{state | announced: {up, reason}}
+    end
+  end
+
+  # Deadman ---------------------------------------------------------------------------------
+
+  defp ping(%State{link: :up} = state) do
+    if state.heard_at != nil and now_ms() - state.heard_at <= state.keepalive_timeout do
+      n = state.ping_n
+      state = %{state | ping_n: rem(n + 1, 2_147_483_647)}
+      state |> bump(:pings) |> write(OpenROV.ping(n))
+    else
+      bump(state, :pings_withheld)
+    end
+  end
+
+  defp ping(state), do: state
+
+  # I/O ------------------------------------------------------------------------------------
+
+  # Never blocks: a busy port program means the command is dropped (and counted).
+  defp write(%State{port: port} = state, bytes) when is_port(port) do
+    if :erlang.port_command(port, ["w", bytes], [:nosuspend]),
+      do: state,
+      else: bump(state, :dropped_commands)
+  catch
+    :error, :badarg -> bump(state, :dropped_commands)
+  end
+
+  defp write(state, _bytes), do: bump(state, :dropped_commands)
+
+  defp bump(state, key, n \\ 1),
+    do: %{state | counters: Map.update!(state.counters, key, &(&1 + n))}
+
+  defp now_ms, do: System.monotonic_time(:millisecond)
+end

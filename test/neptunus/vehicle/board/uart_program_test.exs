@@ -1,0 +1,143 @@
+defmodule Neptunus.Vehicle.Board.UARTProgramTest do
+  # The C port program (c_src/neptunus_uart.c) over socat pseudo-terminal pairs.
+  use ExUnit.Case, async: true
+
+  @moduletag :uart
+
+  import Neptunus.Test.Pty
+
+  alias Neptunus.Vehicle.Board.UART
+
+  defp spawn_program(args) do
+    Port.open({:spawn_executable, UART.program()}, [
+      :binary,
+      {:packet, 2},
+      :exit_status,
+      args: args
+    ])
+  end
+
+  defp exit_status(port) do
+    receive do
+      {^port, {:exit_status, status}} -> status
+    after
+      5_000 -> flunk("the program did not exit")
+    end
+  end
+
+  defp error_text(port) do
+    receive do
+      {^port, {:data, "e" <> text}} -> text
+    after
+      5_000 -> flunk("no error message")
+    end
+  end
+
+  test "bytes go both ways, unchanged, all 256 values (raw mode)" do
+    pair = socat_pair!()
+    a = open!(pair.a)
+    b = open!(pair.b)
+    all = for(byte <- 0..255, into: "", do: <<byte>>)
+
+    write(a, "go(1500,1500,1500,1);")
+    assert recv_until(b, &(&1 == "go(1500,1500,1500,1);")) == "go(1500,1500,1500,1);"
+
+    write(b, all)
+    assert recv_until(a, &(byte_size(&1) >= 256)) == all
+  end
+
+  test "writes bigger than the pty buffer are queued and all arrive, in order" do
+    pair = socat_pair!()
+    a = open!(pair.a)
+    b = open!(pair.b)
+    chunks = for i <- 1..20, do: :binary.copy(<<rem(i, 256)>>, 2_000)
+    Enum.each(chunks, &write(a, &1))
+    assert recv_until(b, &(byte_size(&1) >= 40_000), 10_000) == IO.iodata_to_binary(chunks)
+  end
+
+  test "counters on request" do
+    pair = socat_pair!()
+    a = open!(pair.a)
+    b = open!(pair.b)
+    write(a, "hello")
+    recv_until(b, &(&1 == "hello"))
+    Port.command(a, "s")
+    assert_receive {^a, {:data, "s" <> stats}}, 2_000
+    assert stats =~ ~r/^rx=0 tx=5 dropped=0 queued=0$/
+  end
+
+  test "hangup (socat dies): the program says why and exits 67" do
+    pair = socat_pair!()
+    a = open!(pair.a)
+    hang_up!(pair)
+    assert error_text(a) =~ "hangup"
+    assert exit_status(a) == 67
+  end
+
+  test "a device that does not exist: exit 66 with the reason" do
+    port = spawn_program(["tty", "/nonexistent/ttyX", "115200"])
+    assert error_text(port) == "open /nonexistent/ttyX: No such file or directory"
+    assert exit_status(port) == 66
+  end
+
+  test "not a terminal: exit 66" do
+    port = spawn_program(["tty", "/dev/null", "115200"])
+    assert error_text(port) == "/dev/null is not a terminal device"
+    assert exit_status(port) == 66
+  end
+
+  test "unsupported baud rate: exit 65; usage: exit 64" do
+    port = spawn_program(["tty", "/dev/null", "115201"])
+    assert error_text(port) =~ "unsupported baud rate 115201"
+    assert exit_status(port) == 65
+
+    port = spawn_program(["bogus"])
+    assert error_text(port) =~ "usage"
+    assert exit_status(port) == 64
+  end
+
+  test "an unknown tag from the VM: exit 69" do
+    pair = socat_pair!()
+    a = open!(pair.a)
+    Port.command(a, "?")
+    assert error_text(a) =~ "unknown tag 0x3f"
+    assert exit_status(a) == 69
+  end
+
+  test "the program exits when the VM closes the port (stdin EOF)" do
+    pair = socat_pair!()
+    a = open!(pair.a)
+    {:os_pid, os_pid} = Port.info(a, :os_pid)
+    Port.close(a)
+    wait_until(fn -> not File.exists?("/proc/#{os_pid}") end, "program exit")
+  end
+
+  test "pty mode: a pair whose slave is linked at the path, removed on exit" do
+    dir = Path.join(System.tmp_dir!(), "neptunus-test-#{System.unique_integer([:positive])}")
+    File.mkdir_p!(dir)
+    on_exit(fn -> File.rm_rf(dir) end)
+    link = Path.join(dir, "tty")
+
+    master = spawn_program(["pty", link])
+    assert_receive {^master, {:data, "o/dev/pts/" <> _}}, 5_000
+    assert {:ok, "/dev/pts/" <> _} = File.read_link(link)
+
+    slave = open!(link)
+    Port.command(master, ["w", "from master\n"])
+    assert recv_until(slave, &(&1 == "from master\n")) == "from master\n"
+    write(slave, "ping(1);")
+    assert_receive {^master, {:data, "rping(1);"}}, 2_000
+
+    # the board side closes and reopens its end: no hangup on the master side
+    Port.close(slave)
+    slave = open!(link)
+    write(slave, "again")
+    assert_receive {^master, {:data, "ragain"}}, 2_000
+
+    # the master side goes: the slave hangs up, the link is removed
+    Port.close(master)
+    assert error_text(slave) =~ "hangup"
+    assert exit_status(slave) == 67
+    wait_until(fn -> not File.exists?(link) end, "link removed")
+  end
+end

@@ -1,0 +1,217 @@
+defmodule Neptunus.Vehicle.Board.UARTTest do
+  # Board.UART against a fake board on the other end of a socat pty pair. The test process is
+  # the fake board (its end opened with the port program) and stands in for the vehicle's
+  # navigation process (registered under its name), so it sees exactly what the board link
+  # reports. Intervals are shortened through options; nothing here measures performance.
+  use ExUnit.Case, async: true
+
+  @moduletag :uart
+  @moduletag :capture_log
+
+  import Neptunus.Test.Pty
+
+  alias Neptunus.{PubSub, Wiring}
+  alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
+  alias Neptunus.Vehicle.Board.UART
+
+  @neutral "go(1500,1500,1500,1);"
+  @nav "hdgd:180;deap:2.5;pitc:1;roll:-1;yaw:180;fthr:0;\r\n"
+  @status "vout:12.2;iout:0.4;time:5000;pres:1264;temp:9.5;\r\n"
+
+  setup do
+    id = "uart-#{System.unique_integer([:positive])}"
+    pair = socat_pair!()
+    board = open!(pair.a)
+    {:ok, _} = Registry.register(Neptunus.Fleet.Registry, {Navigation, id}, nil)
+    PubSub.subscribe(Telemetry.topic(id))
+    {:ok, id: id, pair: pair, board: board}
+  end
+
+  defp start_uart(ctx, opts \\ []) do
+    defaults = [
+      id: ctx.id,
+      device: ctx.pair.b,
+      ping_interval: 50,
+      keepalive_timeout: 300,
+      reopen_min: 20,
+      reopen_max: 200
+    ]
+
+    start_supervised!({UART, Keyword.merge(defaults, opts)})
+  end
+
+  defp link_event(up) do
+    assert_receive {:pubsub, _, "link", %{up: ^up, reason: reason}}, 5_000
+    reason
+  end
+
+  test "neutral on open, then go commands with the vehicle's wiring", ctx do
+    start_uart(ctx)
+    assert link_event(true) == "open"
+    assert recv_until(ctx.board, &(&1 == @neutral)) == @neutral
+
+    Board.go(ctx.id, %{port: 0.5, vertical: -0.2, starboard: 1.0})
+    # default wiring: port reversed
+    assert recv_until(ctx.board, &String.ends_with?(&1, ";")) == "go(1250,1400,2000,1);"
+
+    assert %{up: true, reason: "open", device: device, baud: 115_200, counters: c} =
+             UART.link_status(ctx.id)
+
+    assert device == ctx.pair.b
+    assert c.opens == 1 and c.commands == 1
+  end
+
+  test "another wiring: order, directions and smoothing as configured", ctx do
+    wiring = %Wiring{
+      order: [:starboard, :vertical, :port],
+      reversed: [:vertical],
+      smoothing: false
+    }
+
+    start_uart(ctx, wiring: wiring)
+    assert recv_until(ctx.board, &(&1 == "go(1500,1500,1500,0);")) == "go(1500,1500,1500,0);"
+    Board.go(ctx.id, %{port: 1.0, vertical: 1.0, starboard: 0.0})
+    assert recv_until(ctx.board, &String.ends_with?(&1, ";")) == "go(1500,1000,2000,0);"
+  end
+
+  test "deadman pings only while control is heard from", ctx do
+    start_uart(ctx, keepalive_timeout: 200)
+    recv_until(ctx.board, &(&1 == @neutral))
+
+    # control not heard yet: no pings
+    assert drain(ctx.board, 200) == ""
+    assert UART.link_status(ctx.id).counters.pings_withheld > 0
+
+    # keepalives keep the pings coming, numbered
+    for _ <- 1..4 do
+      UART.keepalive(ctx.id)
+      Process.sleep(40)
+    end
+
+    pings = recv_until(ctx.board, &String.contains?(&1, "ping(2);"))
+    assert pings =~ ~r/\Aping\(0\);ping\(1\);ping\(2\);/
+
+    # control silent: pings stop within keepalive_timeout + one interval
+    Process.sleep(300)
+    drain(ctx.board, 0)
+    assert drain(ctx.board, 200) == ""
+
+    # a go counts as hearing from control
+    Board.neutral(ctx.id)
+    assert recv_until(ctx.board, &String.contains?(&1, "ping(")) =~ @neutral
+  end
+
+  test "telemetry lines become samples in SI units, sim: nil", ctx do
+    start_uart(ctx)
+    recv_until(ctx.board, &(&1 == @neutral))
+    write(ctx.board, @nav <> @status <> @nav)
+
+    assert_receive {:"$gen_cast", {:sample, s1}}, 2_000
+    assert_receive {:"$gen_cast", {:sample, s2}}, 2_000
+    assert %{sim: nil, t: t, measurement: m, board: extra} = s1
+    assert is_float(t) and s2.t >= t
+    assert m.depth == 2.5 and m.voltage == 12.2 and m.current == 0.4
+    assert_in_delta m.heading, :math.pi(), 1.0e-12
+    assert_in_delta m.pitch, :math.pi() / 180, 1.0e-12
+    assert extra.temperature == 9.5 and extra.board_time == 5.0
+    assert_in_delta extra.pressure, 126_400.0, 1.0e-6
+    refute_receive {:"$gen_cast", {:sample, _}}, 100
+  end
+
+  test "garbage, wild points and overlong lines are counted, never crash, never reach samples",
+       ctx do
+    pid = start_uart(ctx, max_line: 128)
+    recv_until(ctx.board, &(&1 == @neutral))
+    write(ctx.board, @nav <> @status)
+    assert_receive {:"$gen_cast", {:sample, _}}, 2_000
+
+    garbage = [
+      "hdgd:pitc;deap:2000;vout:1.2;iout:nan;\n",
+      :binary.copy("x", 1_000) <> "\n",
+      <<0, 255, 254, 10, 13, 10>>,
+      "no fields here\n",
+      for(_ <- 1..200, into: "", do: <<:rand.uniform(256) - 1>>) <> "\n"
+    ]
+
+    Enum.each(garbage, &write(ctx.board, &1))
+    write(ctx.board, "deap:3.0;\n")
+    assert_receive {:"$gen_cast", {:sample, %{measurement: m}}}, 2_000
+    assert m.depth == 3.0 and m.voltage == 12.2 and m.heading > 3.0
+
+    c = UART.link_status(ctx.id).counters
+    assert c.key_as_value >= 1 and c.out_of_range >= 2 and c.not_a_number >= 1
+    assert c.overlong >= 1 and c.malformed >= 1
+    assert Process.alive?(pid)
+  end
+
+  test "hangup → link down → reopen with backoff → neutral again", ctx do
+    start_uart(ctx)
+    link_event(true)
+    recv_until(ctx.board, &(&1 == @neutral))
+    Board.go(ctx.id, %{port: 1.0, vertical: 1.0, starboard: 1.0})
+    recv_until(ctx.board, &String.ends_with?(&1, "1);"))
+
+    hang_up!(ctx.pair)
+    assert link_event(false) =~ "hangup"
+    # while down: reopen attempts fail (the device is gone), commands are dropped
+    wait_until(
+      fn -> UART.link_status(ctx.id).reason =~ "No such file or directory" end,
+      "reopen attempts"
+    )
+
+    Board.go(ctx.id, %{port: 1.0, vertical: 1.0, starboard: 1.0})
+
+    assert %{up: false, counters: %{downs: 1, dropped_commands: dropped}} =
+             UART.link_status(ctx.id)
+
+    assert dropped >= 1
+
+    # the board comes back: open its end first, then put the server's end in place
+    pair = socat_pair!(dir: ctx.pair.dir, a: "a", b: "b-new")
+    board = open!(pair.a)
+    File.rename!(pair.b, ctx.pair.b)
+
+    wait_until(fn -> UART.link_status(ctx.id).up end, "the link back up")
+    assert recv_until(board, &(&1 == @neutral)) == @neutral
+    assert %{up: true, counters: %{opens: opens}} = UART.link_status(ctx.id)
+    assert opens >= 2
+  end
+
+  test "the port program dying is a link down too ({:exit_status, n}), then it reopens", ctx do
+    start_uart(ctx)
+    link_event(true)
+    recv_until(ctx.board, &(&1 == @neutral))
+
+    {:os_pid, os_pid} = Port.info(:sys.get_state(Board.via(ctx.id)).port, :os_pid)
+    System.cmd("kill", ["-KILL", Integer.to_string(os_pid)])
+
+    assert link_event(false) == "port program exited with status 137"
+    assert link_event(true) == "open"
+    assert recv_until(ctx.board, &(&1 == @neutral)) == @neutral
+  end
+
+  test "a device that does not exist: down with the reason, retried with backoff", ctx do
+    start_uart(ctx, device: "/nonexistent/ttyO1", reopen_min: 10, reopen_max: 40)
+    assert link_event(false) == "open /nonexistent/ttyO1: No such file or directory"
+    # announced once, however many times it is retried
+    refute_receive {:pubsub, _, "link", _}, 200
+    assert %{up: false, counters: %{opens: 0}} = UART.link_status(ctx.id)
+  end
+
+  test "a missing port program is a link down with a reason, not a crash", ctx do
+    pid = start_uart(ctx, program: "/nonexistent/neptunus_uart")
+    assert link_event(false) =~ "cannot start /nonexistent/neptunus_uart"
+    Board.go(ctx.id, %{port: 1.0, vertical: 0.0, starboard: 0.0})
+    assert %{up: false, counters: %{dropped_commands: 1}} = UART.link_status(ctx.id)
+    assert Process.alive?(pid)
+  end
+
+  test "an orderly shutdown writes neutral before the port closes", ctx do
+    start_uart(ctx)
+    recv_until(ctx.board, &(&1 == @neutral))
+    Board.go(ctx.id, %{port: 1.0, vertical: 0.0, starboard: 1.0})
+    recv_until(ctx.board, &String.ends_with?(&1, ";"))
+    stop_supervised!(UART)
+    assert recv_until(ctx.board, &(&1 == @neutral)) == @neutral
+  end
+end

@@ -1,0 +1,135 @@
+defmodule Neptunus.Vehicle.SITLTest do
+  # End to end without hardware: a `sitl` vehicle started under the fleet — Control → wiring →
+  # go() bytes → port program → pty → simulated OpenROV board → telemetry lines → port program
+  # → parser → samples → telemetry broadcast.
+  use ExUnit.Case, async: true
+
+  @moduletag :uart
+  @moduletag :capture_log
+
+  import Neptunus.Test.Pty, only: [wait_until: 2, wait_until: 3]
+
+  alias Neptunus.{Allocation, Fleet, PubSub, Wiring}
+  alias Neptunus.Vehicle.{Board, Control, Telemetry}
+  alias Neptunus.Vehicle.Board.SITL
+
+  defp start_sitl(extra \\ %{}) do
+    id = "sitl-#{System.unique_integer([:positive])}"
+    PubSub.subscribe(Telemetry.topic(id))
+    # ideal sensors unless a test asks for noise: comparisons with the truth stay exact
+    vehicle =
+      Map.merge(%{id: id, board: :sitl, wiring: Wiring.default(), sim: [noise: false]}, extra)
+
+    {:ok, _} = Fleet.start_vehicle(vehicle)
+    on_exit(fn -> Fleet.stop_vehicle(id) end)
+    assert_receive {:pubsub, _, "link", %{up: true}}, 5_000
+    id
+  end
+
+  defp motion(s, h, y), do: %{"mode" => "motion", "surge" => s, "heave" => h, "yaw" => y}
+  defp truth(id), do: SITL.Device.state(id).sim.dyn
+
+  test "the vehicle moves when control commands it; telemetry comes back over the pty" do
+    id = start_sitl()
+    assert %{board: :sitl} = Enum.find(Fleet.list(), &(&1.id == id))
+
+    # telemetry through the real board path: measurements, no simulator truth
+    assert_receive {:pubsub, _, "telemetry", %{sim: nil, measurement: m}}, 2_000
+    assert_in_delta m.depth, 1.0, 0.01
+
+    start = truth(id)
+    assert {:ok, %{thrusters: thr}} = Control.thrust(id, motion(1, 1, 0))
+
+    # the simulated board decoded the go() bytes with the same wiring: physical values again
+    wait_until(
+      fn ->
+        SITL.Device.state(id).firmware.thrusters == Map.take(thr, [:port, :vertical, :starboard])
+      end,
+      "the board to apply the command"
+    )
+
+    Process.sleep(700)
+    now = truth(id)
+    assert now.u > 0.1
+    assert now.x > start.x
+    assert now.z > start.z
+
+    # what the pilot sees is the simulator's truth, through the serial protocol
+    wait_until(
+      fn -> Telemetry.latest(id).measurement.depth > start.z + 0.01 end,
+      "depth telemetry"
+    )
+
+    assert_in_delta Telemetry.latest(id).measurement.depth, truth(id).z, 0.05
+
+    # control is alive, so the board's deadman is fed
+    wait_until(fn -> SITL.Device.state(id).firmware.last_ping != nil end, "a ping", 3_000)
+    assert %{up: true, counters: %{pings: pings}} = Board.link_status(id)
+    assert pings >= 1
+
+    assert {:ok, _} = Control.stop(id, "test")
+
+    wait_until(
+      fn -> SITL.Device.state(id).firmware.thrusters == Allocation.neutral() end,
+      "neutral"
+    )
+  end
+
+  test "the simulated board resets: the link goes down, reopens, and starts neutral" do
+    id = start_sitl(%{reopen_min: 20})
+    {:ok, _} = Control.thrust(id, motion(1, 0, 0))
+    wait_until(fn -> SITL.Device.state(id).firmware.thrusters.starboard > 0 end, "thrust")
+
+    old = Fleet.whereis(SITL.Device, id)
+    Process.exit(old, :kill)
+    assert_receive {:pubsub, _, "link", %{up: false, reason: reason}}, 5_000
+    assert reason =~ "hangup"
+    assert_receive {:pubsub, _, "link", %{up: true}}, 5_000
+    assert Fleet.whereis(SITL.Device, id) not in [nil, old]
+
+    # a new board, neutral, and commands reach it again
+    assert SITL.Device.state(id).firmware.thrusters == Allocation.neutral()
+    {:ok, _} = Control.thrust(id, motion(0, 1, 0))
+    wait_until(fn -> SITL.Device.state(id).firmware.thrusters.vertical > 0 end, "thrust again")
+  end
+
+  test "wild points from the simulated sensors cross the line and are rejected by the parser" do
+    id = start_sitl(%{sim: [noise: true, seed: 7, sensors: %{wild_rate: 0.2}]})
+
+    wait_until(
+      fn -> Board.link_status(id).counters.out_of_range > 0 end,
+      "wild points counted",
+      5_000
+    )
+
+    # and nothing out of range reached the telemetry
+    assert_receive {:pubsub, _, "telemetry", %{measurement: m}}, 2_000
+    assert m.voltage >= 5.0 and m.voltage <= 20.0
+    assert m.depth >= -10.0 and m.depth <= 200.0
+  end
+
+  test "a hung control stops the pings, and the board's deadman stops the motors" do
+    id = start_sitl(%{ping_interval: 100, keepalive_timeout: 1_500, deadman_ms: 800})
+
+    {:ok, _} = Control.thrust(id, motion(0, 1, 0))
+    wait_until(fn -> SITL.Device.state(id).firmware.thrusters.vertical > 0 end, "thrust")
+
+    # healthy: well past the deadman time, the motors still run
+    Process.sleep(1_200)
+    refute SITL.Device.state(id).firmware.tripped
+
+    control = Fleet.whereis(Control, id)
+    :sys.suspend(control)
+
+    try do
+      wait_until(fn -> SITL.Device.state(id).firmware.tripped end, "the deadman", 5_000)
+      assert SITL.Device.state(id).firmware.thrusters == Allocation.neutral()
+      assert Board.link_status(id).counters.pings_withheld > 0
+    after
+      :sys.resume(control)
+    end
+
+    # control is back: pings resume and the board takes commands again
+    wait_until(fn -> not SITL.Device.state(id).firmware.tripped end, "recovery", 5_000)
+  end
+end

@@ -1,0 +1,76 @@
+defmodule Neptunus.WiringTest do
+  use ExUnit.Case, async: true
+  doctest Neptunus.Wiring
+
+  import Neptunus.Test.Properties
+
+  alias Neptunus.Wiring
+
+  test "the thesis' Neptunus: go(1700,1700,1700) pushed port backwards, so port is reversed" do
+    w = Wiring.default()
+    assert Wiring.to_us(w, %{port: 0.4, vertical: 0.4, starboard: 0.4}) == {1300, 1700, 1700}
+    assert Wiring.from_us(w, {1700, 1700, 1700}) == %{port: -0.4, vertical: 0.4, starboard: 0.4}
+
+    assert Wiring.go_command(w, %{port: 0.0, vertical: 0.0, starboard: 0.0}) ==
+             "go(1500,1500,1500,1);"
+  end
+
+  test "order and smoothing" do
+    w = %Wiring{order: [:vertical, :starboard, :port], reversed: [:starboard], smoothing: false}
+
+    assert Wiring.go_command(w, %{port: 1.0, vertical: -1.0, starboard: 0.5}) ==
+             "go(1000,1250,2000,0);"
+  end
+
+  test "parse and to_string" do
+    for text <- [
+          "-port/vertical/starboard/smooth",
+          "port/vertical/starboard/nosmooth",
+          "-starboard/-port/-vertical/smooth"
+        ] do
+      assert {:ok, w} = Wiring.parse(text)
+      assert Wiring.to_string(w) == text
+    end
+
+    assert Wiring.parse(" -port / vertical / starboard ") == {:ok, Wiring.default()}
+
+    for {bad, message} <- [
+          {"", ~r/three motors/},
+          {"port/vertical", ~r/three motors/},
+          {"port/vertical/starboard/fast", ~r/smooth or nosmooth/},
+          {"port/vertical/bow", ~r/exactly once/},
+          {"port/vertical/vertical", ~r/exactly once/},
+          {"+port/vertical/starboard", ~r/exactly once/}
+        ] do
+      assert {:error, reason} = Wiring.parse(bad)
+      assert reason =~ message, bad
+    end
+  end
+
+  test "property: from_us inverts to_us to within the 1/500 quantisation, any wiring" do
+    motors = [:port, :vertical, :starboard]
+    value = bind(:proper_types.integer(-1000, 1000), &(&1 / 1000))
+
+    wiring =
+      bind(
+        {:proper_types.elements(permutations(motors)),
+         :proper_types.list(:proper_types.elements(motors)), :proper_types.bool()},
+        fn {order, reversed, smoothing} ->
+          %Wiring{order: order, reversed: Enum.uniq(reversed), smoothing: smoothing}
+        end
+      )
+
+    check(
+      {wiring, value, value, value},
+      fn {w, p, v, s} ->
+        thrusters = %{port: p, vertical: v, starboard: s}
+        back = Wiring.from_us(w, Wiring.to_us(w, thrusters))
+        Enum.all?(motors, &(abs(back[&1] - thrusters[&1]) <= 0.001 + 1.0e-12))
+      end,
+      1_000
+    )
+  end
+
+  defp permutations([]), do: [[]]
+  defp permutations(list), do: for(x <- list, rest <- permutations(list -- [x]), do: [x | rest])
+end

@@ -1,0 +1,81 @@
+defmodule Neptunus.Vehicle.Board.Test do
+  @moduledoc """
+  A board for tests that reports everything it is told to the test process (STYLE item 11):
+  use `board: Neptunus.Vehicle.Board.Test` in a vehicle map and `report_to: self()`.
+
+      start_supervised!({Neptunus.Vehicle.Supervisor,
+                         %{id: id, board: Neptunus.Vehicle.Board.Test, report_to: self()}})
+
+  Messages to `report_to` (required):
+
+    * `{:board, id, {:started, thrusters}}` — the board (re)started, thrusters neutral
+    * `{:board, id, {:go, thrusters}}` — every `go` cast, as received
+    * `{:board, id, :keepalive}` — every keepalive from control
+
+  `sample/2` makes it report a sample to the vehicle's navigation as a real board would, and
+  `set_link/3` sets what `link_status/1` answers.
+  """
+  use GenServer
+
+  alias Neptunus.Allocation
+  alias Neptunus.Vehicle.{Board, Navigation}
+
+  @behaviour Board
+
+  @impl Board
+  def start_link(opts) do
+    id = Keyword.fetch!(opts, :id)
+    GenServer.start_link(__MODULE__, opts, name: Board.via(id))
+  end
+
+  @impl Board
+  def keepalive(id), do: GenServer.cast(Board.via(id), :keepalive)
+
+  @impl Board
+  def link_status(id), do: GenServer.call(Board.via(id), :link_status)
+
+  @doc "Reports `sample` (a `Board.sample()`) to vehicle `id`'s navigation."
+  @spec sample(String.t(), Board.sample()) :: :ok
+  def sample(id, sample), do: GenServer.call(Board.via(id), {:sample, sample})
+
+  @doc "Sets the link state `link_status/1` reports."
+  @spec set_link(String.t(), boolean(), String.t()) :: :ok
+  def set_link(id, up, reason), do: GenServer.call(Board.via(id), {:set_link, up, reason})
+
+  @impl true
+  def init(opts) do
+    state = %{
+      id: Keyword.fetch!(opts, :id),
+      report_to: Keyword.fetch!(opts, :report_to),
+      thrusters: Allocation.neutral(),
+      link: %{up: true, reason: "test"}
+    }
+
+    report(state, {:started, state.thrusters})
+    {:ok, state}
+  end
+
+  @impl true
+  def handle_cast({:go, thrusters}, state) do
+    report(state, {:go, thrusters})
+    {:noreply, %{state | thrusters: thrusters}}
+  end
+
+  def handle_cast(:keepalive, state) do
+    report(state, :keepalive)
+    {:noreply, state}
+  end
+
+  @impl true
+  def handle_call({:sample, sample}, _from, state) do
+    Navigation.sample(state.id, sample)
+    {:reply, :ok, state}
+  end
+
+  def handle_call({:set_link, up, reason}, _from, state),
+    do: {:reply, :ok, %{state | link: %{up: up, reason: reason}}}
+
+  def handle_call(:link_status, _from, state), do: {:reply, state.link, state}
+
+  defp report(state, event), do: send(state.report_to, {:board, state.id, event})
+end
