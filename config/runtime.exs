@@ -6,8 +6,22 @@ import Config
 #   NEPTUNUS_PORT      HTTP/WebSocket port            (default 4000; 4102 under `mix test`)
 #   NEPTUNUS_BIND      address to listen on           (default 127.0.0.1)
 #   NEPTUNUS_VEHICLES  id=board[,id=board...]         (default neptunus-1=simulated)
+#
+# Security (Neptunus.Config.auth!/2, tls!/1): NEPTUNUS_SECRET, NEPTUNUS_USERS_FILE,
+# NEPTUNUS_USERS, NEPTUNUS_ANONYMOUS_OBSERVERS, NEPTUNUS_ORIGINS, NEPTUNUS_TOKEN_TTL_S,
+# NEPTUNUS_LOGIN_ATTEMPTS, NEPTUNUS_TLS_CERT, NEPTUNUS_TLS_KEY. Bound to anything but
+# loopback without a secret and users, the node refuses to start.
+# Helm (Neptunus.Config.helm!/1): NEPTUNUS_DEADMAN_MS, NEPTUNUS_REQUEST_TIMEOUT_MS,
+# NEPTUNUS_TAKEOVER_MS.
 env = System.get_env()
 
+endpoint =
+  env
+  |> Neptunus.Config.endpoint!(Application.get_env(:neptunus, :default_port, 4000))
+  |> Map.put(:tls, Neptunus.Config.tls!(env))
+
 config :neptunus,
-  endpoint: Neptunus.Config.endpoint!(env, Application.get_env(:neptunus, :default_port, 4000)),
-  vehicles: Neptunus.Config.vehicles!(env)
+  endpoint: endpoint,
+  vehicles: Neptunus.Config.vehicles!(env),
+  auth: Neptunus.Config.auth!(env, endpoint),
+  helm: Neptunus.Config.helm!(env)

@@ -11,15 +11,53 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_PORT`     | TCP port for HTTP and WebSocket          | 4000                   |
   | `NEPTUNUS_BIND`     | IPv4/IPv6 address to listen on           | `127.0.0.1`            |
   | `NEPTUNUS_VEHICLES` | comma-separated `id=board` pairs         | `neptunus-1=simulated` |
+  | `NEPTUNUS_WIRING`   | comma-separated `id=wiring` pairs        | thesis wiring          |
 
-  Boards known today: `simulated`. Vehicle ids are 1..32 characters of `a-z A-Z 0-9 _ -`.
+  Boards: `simulated` (the built-in simulator), `sitl` (the simulator behind a pseudo-terminal
+  speaking the OpenROV protocol, through the real board link), `uart:DEVICE[@BAUD]` (a real
+  board, e.g. `uart:/dev/ttyO1@115200`; baud 1200 … 921600, default 115200). Vehicle ids are
+  1..32 characters of `a-z A-Z 0-9 _ -`.
+
+  Wiring (`sitl` and `uart` vehicles, see `Neptunus.Wiring`): the motors in `go()` order
+  separated by `/`, `-` before a reversed one, optionally `/smooth` or `/nosmooth`; default
+  `-port/vertical/starboard/smooth` (the thesis' Neptunus). Example:
+  `NEPTUNUS_WIRING=rov=port/vertical/-starboard/nosmooth`.
+
+  Security (`auth!/2`, `tls!/1`) and helm timing (`helm!/1`):
+
+  | variable                       | meaning                                             | default        |
+  |--------------------------------|-----------------------------------------------------|----------------|
+  | `NEPTUNUS_SECRET`              | token signing secret, ≥ 32 characters               | none: local mode on loopback |
+  | `NEPTUNUS_USERS_FILE`          | users file, lines `name role hash`                  | none           |
+  | `NEPTUNUS_USERS`               | users inline, `name:role:hash,...`                  | none           |
+  | `NEPTUNUS_ANONYMOUS_OBSERVERS` | connections without login may watch                 | `false`        |
+  | `NEPTUNUS_ORIGINS`             | allowed browser origins, comma-separated            | same origin    |
+  | `NEPTUNUS_TOKEN_TTL_S`         | login token lifetime (s)                            | 43200          |
+  | `NEPTUNUS_LOGIN_ATTEMPTS`      | login attempts per minute per address               | 10             |
+  | `NEPTUNUS_TLS_CERT`, `NEPTUNUS_TLS_KEY` | PEM certificate and key: serve HTTPS/WSS   | none (HTTP)    |
+  | `NEPTUNUS_DEADMAN_MS`          | pilot silence that stops the vehicle (ms)           | 500            |
+  | `NEPTUNUS_REQUEST_TIMEOUT_MS`  | how long a control request waits for the pilot (ms) | 10000          |
+  | `NEPTUNUS_TAKEOVER_MS`         | main station takeover warning countdown (ms)        | 3000           |
+
+  Roles: `pilot`, `observer`, `main_station` (at most one). A bind address other than
+  loopback without a secret and users stops the node with a message saying what to set.
   """
 
   @type endpoint :: %{port: :inet.port_number(), bind: :inet.ip_address()}
-  @type vehicle :: %{id: String.t(), board: :simulated}
+  @type vehicle ::
+          %{id: String.t(), board: :simulated}
+          | %{id: String.t(), board: :sitl, wiring: Neptunus.Wiring.t()}
+          | %{
+              id: String.t(),
+              board: :uart,
+              device: String.t(),
+              baud: pos_integer(),
+              wiring: Neptunus.Wiring.t()
+            }
 
   @default_vehicles "neptunus-1=simulated"
-  @boards %{"simulated" => :simulated}
+  @boards %{"simulated" => :simulated, "sitl" => :sitl}
+  @bauds [1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 921_600]
 
   @doc """
   Endpoint settings from the environment map.
@@ -39,10 +77,14 @@ defmodule Neptunus.Config do
   end
 
   @doc """
-  Vehicles from `NEPTUNUS_VEHICLES`.
+  Vehicles from `NEPTUNUS_VEHICLES` (and their wiring from `NEPTUNUS_WIRING`).
 
       iex> Neptunus.Config.vehicles!(%{"NEPTUNUS_VEHICLES" => "a=simulated, b=simulated"})
       [%{id: "a", board: :simulated}, %{id: "b", board: :simulated}]
+
+      iex> [rov] = Neptunus.Config.vehicles!(%{"NEPTUNUS_VEHICLES" => "rov=uart:/dev/ttyO1@57600"})
+      iex> Map.take(rov, [:id, :board, :device, :baud])
+      %{id: "rov", board: :uart, device: "/dev/ttyO1", baud: 57600}
   """
   @spec vehicles!(%{optional(String.t()) => String.t()}) :: [vehicle()]
   def vehicles!(env) do
@@ -61,17 +103,59 @@ defmodule Neptunus.Config do
     ids = Enum.map(vehicles, & &1.id)
 
     case ids -- Enum.uniq(ids) do
-      [] -> vehicles
+      [] -> wiring!(vehicles, Map.get(env, "NEPTUNUS_WIRING", ""))
       [dup | _] -> bad!("NEPTUNUS_VEHICLES", spec, "unique vehicle ids (#{inspect(dup)} repeats)")
     end
+  end
+
+  # Every sitl/uart vehicle gets a wiring: the configured one or the default.
+  defp wiring!(vehicles, spec) do
+    configured =
+      spec
+      |> String.split(",", trim: true)
+      |> Enum.map(&String.trim/1)
+      |> Enum.reject(&(&1 == ""))
+      |> Map.new(fn pair ->
+        with [id, text] <- String.split(pair, "=", parts: 2),
+             id = String.trim(id),
+             %{board: board} <- Enum.find(vehicles, &(&1.id == id)) || {:unknown, id},
+             true <- board in [:sitl, :uart] || {:no_wiring, id, board},
+             {:ok, wiring} <- Neptunus.Wiring.parse(text) do
+          {id, wiring}
+        else
+          {:unknown, id} ->
+            bad!(
+              "NEPTUNUS_WIRING",
+              spec,
+              "ids of configured vehicles (no vehicle #{inspect(id)})"
+            )
+
+          {:no_wiring, id, board} ->
+            bad!("NEPTUNUS_WIRING", spec, "sitl or uart vehicles (#{id} is #{board})")
+
+          {:error, reason} ->
+            bad!("NEPTUNUS_WIRING", spec, "#{reason} in #{inspect(pair)}")
+
+          _ ->
+            bad!("NEPTUNUS_WIRING", spec, "id=wiring pairs, e.g. rov=-port/vertical/starboard")
+        end
+      end)
+
+    Enum.map(vehicles, fn
+      %{board: board, id: id} = vehicle when board in [:sitl, :uart] ->
+        Map.put(vehicle, :wiring, Map.get(configured, id, Neptunus.Wiring.default()))
+
+      vehicle ->
+        vehicle
+    end)
   end
 
   defp vehicle!(pair, spec) do
     with [id, board] <- String.split(pair, "=", parts: 2),
          id = String.trim(id),
          true <- Regex.match?(~r/^[A-Za-z0-9_-]{1,32}$/, id) || {:bad_id, id},
-         {:ok, board} <- Map.fetch(@boards, String.trim(board)) do
-      %{id: id, board: board}
+         {:ok, board} <- board(String.trim(board)) do
+      Map.put(board, :id, id)
     else
       {:bad_id, id} ->
         bad!(
@@ -80,15 +164,291 @@ defmodule Neptunus.Config do
           "vehicle ids of 1..32 characters a-z A-Z 0-9 _ - (got #{inspect(id)})"
         )
 
+      {:bad_uart, why} ->
+        bad!("NEPTUNUS_VEHICLES", spec, "uart:DEVICE[@BAUD] in #{inspect(pair)}: #{why}")
+
       :error ->
         bad!(
           "NEPTUNUS_VEHICLES",
           spec,
-          "a known board in #{inspect(pair)}: one of #{Enum.join(Map.keys(@boards), ", ")}"
+          "a known board in #{inspect(pair)}: one of " <>
+            "#{Enum.join(Map.keys(@boards), ", ")}, uart:DEVICE[@BAUD]"
         )
 
       _ ->
         bad!("NEPTUNUS_VEHICLES", spec, "id=board pairs separated by commas, e.g. rov=simulated")
+    end
+  end
+
+  defp board("uart:" <> device_baud) do
+    {device, baud} =
+      case String.split(device_baud, "@") do
+        [device] -> {device, "115200"}
+        [device, baud] -> {device, baud}
+        _ -> {"", ""}
+      end
+
+    cond do
+      not String.starts_with?(device, "/") ->
+        {:bad_uart, "the device must be an absolute path such as /dev/ttyO1"}
+
+      not match?({_, ""}, Integer.parse(baud)) or elem(Integer.parse(baud), 0) not in @bauds ->
+        {:bad_uart, "the baud rate must be one of #{Enum.join(@bauds, ", ")}"}
+
+      true ->
+        {:ok, %{board: :uart, device: device, baud: String.to_integer(baud)}}
+    end
+  end
+
+  defp board(name) do
+    with {:ok, board} <- Map.fetch(@boards, name), do: {:ok, %{board: board}}
+  end
+
+  @doc """
+  Login and connection security (`config :neptunus, :auth`, see `NeptunusWeb.Auth`) from the
+  environment, for the `endpoint` it protects.
+
+  Secure by default: bound to a loopback address with neither `NEPTUNUS_SECRET` nor users,
+  the node runs in *local mode* (no logins; anyone on this computer may pilot). Any other
+  bind address needs a secret and users, and so does a configuration that has one of them.
+
+      iex> Neptunus.Config.auth!(%{}, %{bind: {127, 0, 0, 1}}).mode
+      :local
+  """
+  @spec auth!(%{optional(String.t()) => String.t()}, %{bind: :inet.ip_address()}) :: map()
+  def auth!(env, %{bind: bind}) do
+    secret = secret!(Map.get(env, "NEPTUNUS_SECRET"))
+    users = users!(env)
+
+    settings = %{
+      secret: secret,
+      users: users,
+      anonymous_observers: env_boolean!(env, "NEPTUNUS_ANONYMOUS_OBSERVERS", false),
+      origins: origins!(Map.get(env, "NEPTUNUS_ORIGINS", "")),
+      token_ttl_s: env_integer!(env, "NEPTUNUS_TOKEN_TTL_S", 43_200, 60..2_592_000),
+      login_attempts_per_minute: env_integer!(env, "NEPTUNUS_LOGIN_ATTEMPTS", 10, 1..1000)
+    }
+
+    cond do
+      secret == nil and users == %{} and loopback?(bind) ->
+        Map.put(settings, :mode, :local)
+
+      secret == nil and users == %{} ->
+        raise ArgumentError,
+              "NEPTUNUS_BIND=#{:inet.ntoa(bind)} serves beyond this computer, and Neptunus " <>
+                "lets nobody on a network pilot without logging in. Set NEPTUNUS_SECRET " <>
+                "(at least 32 characters, e.g. the output of `openssl rand -base64 48`) and " <>
+                "the users: NEPTUNUS_USERS_FILE=/path/to/users (lines `name role hash`) or " <>
+                "NEPTUNUS_USERS=name:role:hash,... with roles pilot, observer, main_station " <>
+                "(at most one) and hashes from `mix neptunus.passwd NAME ROLE`. " <>
+                "Or set NEPTUNUS_BIND=127.0.0.1 for local mode."
+
+      secret == nil ->
+        raise ArgumentError,
+              "users are configured (NEPTUNUS_USERS / NEPTUNUS_USERS_FILE) but NEPTUNUS_SECRET " <>
+                "is not set: set it to at least 32 random characters (e.g. the output of " <>
+                "`openssl rand -base64 48`) to sign login tokens"
+
+      users == %{} ->
+        raise ArgumentError,
+              "NEPTUNUS_SECRET is set but there are no users, so nobody could log in: set " <>
+                "NEPTUNUS_USERS_FILE (lines `name role hash`) or NEPTUNUS_USERS " <>
+                "(name:role:hash,...); hashes from `mix neptunus.passwd NAME ROLE`"
+
+      true ->
+        Map.put(settings, :mode, :secure)
+    end
+  end
+
+  @doc """
+  TLS from `NEPTUNUS_TLS_CERT` and `NEPTUNUS_TLS_KEY` (PEM files, both or neither): nil or
+  `%{certfile, keyfile}`.
+
+      iex> Neptunus.Config.tls!(%{})
+      nil
+  """
+  @spec tls!(%{optional(String.t()) => String.t()}) ::
+          %{certfile: String.t(), keyfile: String.t()} | nil
+  def tls!(env) do
+    case {Map.get(env, "NEPTUNUS_TLS_CERT", ""), Map.get(env, "NEPTUNUS_TLS_KEY", "")} do
+      {"", ""} ->
+        nil
+
+      {cert, ""} ->
+        bad!(
+          "NEPTUNUS_TLS_KEY",
+          "",
+          "the private key (PEM) that goes with NEPTUNUS_TLS_CERT=#{cert}"
+        )
+
+      {"", key} ->
+        bad!(
+          "NEPTUNUS_TLS_CERT",
+          "",
+          "the certificate (PEM) that goes with NEPTUNUS_TLS_KEY=#{key}"
+        )
+
+      {cert, key} ->
+        for {variable, path} <- [{"NEPTUNUS_TLS_CERT", cert}, {"NEPTUNUS_TLS_KEY", key}],
+            not File.regular?(path),
+            do: bad!(variable, path, "a readable PEM file (no such file)")
+
+        %{certfile: Path.expand(cert), keyfile: Path.expand(key)}
+    end
+  end
+
+  @doc """
+  Helm timing (`config :neptunus, :helm`, see `Neptunus.Vehicle.Helm`).
+
+      iex> Neptunus.Config.helm!(%{})
+      [deadman_ms: 500, request_timeout_ms: 10000, takeover_ms: 3000]
+  """
+  @spec helm!(%{optional(String.t()) => String.t()}) :: keyword(pos_integer())
+  def helm!(env) do
+    [
+      deadman_ms: env_integer!(env, "NEPTUNUS_DEADMAN_MS", 500, 100..10_000),
+      request_timeout_ms: env_integer!(env, "NEPTUNUS_REQUEST_TIMEOUT_MS", 10_000, 1000..120_000),
+      takeover_ms: env_integer!(env, "NEPTUNUS_TAKEOVER_MS", 3_000, 0..30_000)
+    ]
+  end
+
+  defp loopback?({127, _, _, _}), do: true
+  defp loopback?({0, 0, 0, 0, 0, 0, 0, 1}), do: true
+  defp loopback?(_), do: false
+
+  defp secret!(nil), do: nil
+  defp secret!(""), do: nil
+
+  defp secret!(secret) do
+    if byte_size(secret) >= 32,
+      do: secret,
+      else:
+        bad!(
+          "NEPTUNUS_SECRET",
+          "(#{byte_size(secret)} characters)",
+          "at least 32 characters, e.g. the output of `openssl rand -base64 48`"
+        )
+  end
+
+  defp users!(env) do
+    from_file =
+      case Map.get(env, "NEPTUNUS_USERS_FILE", "") do
+        "" ->
+          []
+
+        path ->
+          case File.read(path) do
+            {:ok, text} ->
+              text
+              |> String.split("\n")
+              |> Enum.with_index(1)
+              |> Enum.map(fn {line, n} ->
+                {line |> String.split("#") |> hd() |> String.trim(), n}
+              end)
+              |> Enum.reject(fn {line, _} -> line == "" end)
+              |> Enum.map(fn {line, n} ->
+                user!(String.split(line), "NEPTUNUS_USERS_FILE", "#{path}, line #{n}")
+              end)
+
+            {:error, reason} ->
+              bad!("NEPTUNUS_USERS_FILE", path, "a readable file (#{:file.format_error(reason)})")
+          end
+      end
+
+    inline =
+      env
+      |> Map.get("NEPTUNUS_USERS", "")
+      |> String.split(",", trim: true)
+      |> Enum.map(&String.trim/1)
+      |> Enum.reject(&(&1 == ""))
+      |> Enum.map(&user!(String.split(&1, ":"), "NEPTUNUS_USERS", &1))
+
+    users = from_file ++ inline
+    names = Enum.map(users, & &1.name)
+
+    case names -- Enum.uniq(names) do
+      [] -> :ok
+      [dup | _] -> bad!("NEPTUNUS_USERS", dup, "unique user names (#{dup} is defined twice)")
+    end
+
+    case Enum.filter(users, &(&1.role == :main_station)) do
+      [_, _ | _] = mains ->
+        bad!("NEPTUNUS_USERS", Enum.map_join(mains, ",", & &1.name), "at most one main_station")
+
+      _ ->
+        :ok
+    end
+
+    Map.new(users, &{&1.name, &1})
+  end
+
+  @roles %{"pilot" => :pilot, "observer" => :observer, "main_station" => :main_station}
+
+  defp user!([name, role, hash], variable, where) do
+    cond do
+      not Regex.match?(~r/^[A-Za-z0-9_.@-]{1,40}$/, name) ->
+        bad!(variable, where, "user names of 1..40 characters a-z A-Z 0-9 _ . @ -")
+
+      not Map.has_key?(@roles, role) ->
+        bad!(variable, where, "a role: pilot, observer or main_station (got #{inspect(role)})")
+
+      match?({:error, _}, NeptunusWeb.Auth.Password.parse(hash)) ->
+        bad!(variable, where, "a password hash from `mix neptunus.passwd NAME ROLE`")
+
+      true ->
+        %{name: name, role: Map.fetch!(@roles, role), hash: hash}
+    end
+  end
+
+  defp user!(_fields, "NEPTUNUS_USERS", where),
+    do: bad!("NEPTUNUS_USERS", where, "name:role:hash entries separated by commas")
+
+  defp user!(_fields, variable, where),
+    do: bad!(variable, where, "lines `name role hash`")
+
+  defp origins!(spec) do
+    spec
+    |> String.split(",", trim: true)
+    |> Enum.map(&String.trim/1)
+    |> Enum.reject(&(&1 == ""))
+    |> Enum.map(fn origin ->
+      case URI.parse(origin) do
+        %URI{scheme: scheme, host: host, path: path, query: nil}
+        when scheme in ["http", "https"] and is_binary(host) and host != "" and path in [nil, "/"] ->
+          origin |> String.trim_trailing("/") |> String.downcase()
+
+        _ ->
+          bad!(
+            "NEPTUNUS_ORIGINS",
+            spec,
+            "origins like https://rov.example.org or http://10.0.0.2:4000"
+          )
+      end
+    end)
+  end
+
+  defp env_boolean!(env, variable, default) do
+    case env |> Map.get(variable, "") |> String.trim() |> String.downcase() do
+      "" -> default
+      v when v in ["true", "1", "yes"] -> true
+      v when v in ["false", "0", "no"] -> false
+      v -> bad!(variable, v, "true or false")
+    end
+  end
+
+  defp env_integer!(env, variable, default, range) do
+    case Map.get(env, variable) do
+      nil ->
+        default
+
+      value ->
+        case Integer.parse(String.trim(value)) do
+          {n, ""} ->
+            if n in range, do: n, else: bad!(variable, value, "an integer in #{inspect(range)}")
+
+          _ ->
+            bad!(variable, value, "an integer in #{inspect(range)}")
+        end
     end
   end
 

@@ -18,7 +18,7 @@ defmodule NeptunusWeb.Channel do
     @type t :: %__MODULE__{
             topic: String.t(),
             join_ref: String.t() | nil,
-            user: %{id: String.t(), name: String.t()},
+            user: NeptunusWeb.Auth.user(),
             transport_pid: pid(),
             assigns: map()
           }

@@ -18,16 +18,21 @@ defmodule NeptunusWeb.Socket do
       the frame allows; the connection stays up;
     * a channel that raises → `phx_error` for its topic; the other channels stay.
 
-  Connection parameters (query string): `vsn` must be `2.x`; `name` is the display name
-  shown to others (trimmed to 40 characters; default `guest-XXXX`).
+  Connection parameters (query string): `vsn` must be `2.x`; `token` is the login token
+  (`POST /api/login`; required in secure mode unless anonymous observers are allowed);
+  `name` is the display name in local mode (trimmed to 40 characters; default
+  `guest-XXXX`). The upgrade is refused with HTTP 403 `{"error": reason}` for an `Origin`
+  (or, in local mode, a `Host`) that is not allowed and with 401 for a missing, invalid or
+  expired token (see `NeptunusWeb.Auth`). A refused upgrade is the only refusal that closes
+  anything: who may *command* is decided per command by the vehicle's helm.
   """
   require Logger
 
   import NeptunusWeb.Yaws
 
   alias Neptunus.PubSub
-  alias NeptunusWeb.{Channel, Presence}
-  alias NeptunusWeb.Channels.{FleetChannel, VehicleChannel, Wire}
+  alias NeptunusWeb.{Auth, Channel, Presence}
+  alias NeptunusWeb.Channels.{FleetChannel, LogChannel, VehicleChannel, Wire}
 
   @default_idle_timeout_ms 60_000
   @max_message_bytes 65_536
@@ -36,7 +41,7 @@ defmodule NeptunusWeb.Socket do
     @moduledoc false
     @type joined :: %{module: module(), socket: NeptunusWeb.Channel.Socket.t()}
     @type t :: %__MODULE__{
-            user: %{id: String.t(), name: String.t()},
+            user: NeptunusWeb.Auth.user(),
             channels: %{optional(String.t()) => joined()},
             last_seen: integer(),
             idle_timeout: pos_integer()
@@ -60,15 +65,50 @@ defmodule NeptunusWeb.Socket do
         http_error(400, "unsupported protocol version: use vsn=2.0.0")
 
       true ->
+        upgrade(arg, params)
+    end
+  end
+
+  defp upgrade(arg, params) do
+    headers = arg(arg, :headers)
+
+    request = %{
+      origin: header(headers, "origin"),
+      host: charlist_or_nil(headers(headers, :host)),
+      token: params["token"],
+      name: params["name"]
+    }
+
+    case Auth.connect(request) do
+      {:ok, user} ->
         opts = [
-          {:callback, {:basic, %{params: params}}},
+          {:callback, {:basic, %{user: user}}},
           {:max_frame_size, @max_message_bytes},
           {:max_message_size, @max_message_bytes}
         ]
 
         {:websocket, __MODULE__, opts}
+
+      {:error, status, reason} ->
+        http_error(status, reason)
     end
   end
+
+  @doc false
+  # A header yaws does not parse into a field of its #headers{} record, or nil.
+  def header(headers, name) do
+    Enum.find_value(headers(headers, :other), fn
+      {:http_header, _, key, _, value} ->
+        if String.downcase(to_string(key)) == name, do: to_string(value)
+
+      _ ->
+        nil
+    end)
+  end
+
+  defp charlist_or_nil(:undefined), do: nil
+  defp charlist_or_nil(value) when is_list(value), do: to_string(value)
+  defp charlist_or_nil(_), do: nil
 
   defp query_params(:undefined), do: %{}
 
@@ -87,18 +127,12 @@ defmodule NeptunusWeb.Socket do
   # guarded.
 
   @doc false
-  def init([_arg, %{params: params}]) do
+  def init([_arg, %{user: user}]) do
     idle_timeout =
       Application.get_env(:neptunus, :socket_idle_timeout_ms, @default_idle_timeout_ms)
 
     :timer.send_interval(max(div(idle_timeout, 4), 10), :check_idle)
-
-    {:ok,
-     %State{
-       user: %{id: random_id(), name: display_name(params["name"])},
-       last_seen: now_ms(),
-       idle_timeout: idle_timeout
-     }}
+    {:ok, %State{user: user, last_seen: now_ms(), idle_timeout: idle_timeout}}
   end
 
   @doc false
@@ -234,6 +268,7 @@ defmodule NeptunusWeb.Socket do
 
   defp channel_module("fleet"), do: FleetChannel
   defp channel_module("vehicle:" <> _id), do: VehicleChannel
+  defp channel_module("log:" <> _id), do: LogChannel
   defp channel_module(_topic), do: nil
 
   # Messages to the connection process
@@ -293,8 +328,8 @@ defmodule NeptunusWeb.Socket do
 
       {:error, exception} ->
         Logger.error("channel #{topic} crashed: #{exception}")
-        PubSub.unsubscribe(topic)
-        Presence.untrack(self(), topic)
+        # the channel is gone: let it clean up (a pilot's channel gives the helm up)
+        leave_channel(topic, joined, {:error, :crashed})
         state = %{state | channels: Map.delete(state.channels, topic)}
         join_ref = joined.socket.join_ref
         reply(state, [Wire.encode(join_ref, join_ref, topic, "phx_error", %{})])
@@ -333,19 +368,6 @@ defmodule NeptunusWeb.Socket do
         {:noreply, state}
     end
   end
-
-  defp display_name(name) when is_binary(name) do
-    case name |> String.trim() |> String.slice(0, 40) do
-      "" -> guest_name()
-      trimmed -> trimmed
-    end
-  end
-
-  defp display_name(_), do: guest_name()
-
-  defp guest_name, do: "guest-" <> String.slice(random_id(), 0, 4)
-
-  defp random_id, do: Base.url_encode64(:crypto.strong_rand_bytes(9), padding: false)
 
   defp now_ms, do: System.monotonic_time(:millisecond)
 end

@@ -55,4 +55,57 @@ defmodule Neptunus.ConfigTest do
       end
     end
   end
+
+  describe "vehicles!/1 boards: sitl and uart, with wiring" do
+    alias Neptunus.Wiring
+
+    test "sitl and uart vehicles get the thesis wiring by default" do
+      assert Config.vehicles!(%{"NEPTUNUS_VEHICLES" => "s=sitl,u=uart:/dev/ttyO1,m=simulated"}) ==
+               [
+                 %{id: "s", board: :sitl, wiring: Wiring.default()},
+                 %{
+                   id: "u",
+                   board: :uart,
+                   device: "/dev/ttyO1",
+                   baud: 115_200,
+                   wiring: Wiring.default()
+                 },
+                 %{id: "m", board: :simulated}
+               ]
+    end
+
+    test "baud rate and wiring as configured" do
+      env = %{
+        "NEPTUNUS_VEHICLES" => "a=uart:/dev/ttyUSB0@57600,b=sitl",
+        "NEPTUNUS_WIRING" => " a=starboard/-vertical/port/nosmooth , b=port/vertical/starboard"
+      }
+
+      assert [%{baud: 57_600, wiring: wa}, %{wiring: wb}] = Config.vehicles!(env)
+      assert Wiring.to_string(wa) == "starboard/-vertical/port/nosmooth"
+      assert Wiring.to_string(wb) == "port/vertical/starboard/smooth"
+    end
+
+    for {vehicles, wiring, message} <- [
+          {"a=uart:ttyO1", "",
+           ~r/uart:DEVICE\[@BAUD\] in "a=uart:ttyO1": the device must be an absolute path/},
+          {"a=uart:/dev/ttyO1@115201", "", ~r/baud rate must be one of .*115200/},
+          {"a=uart:/dev/ttyO1@fast", "", ~r/baud rate must be one of/},
+          {"a=uart:/dev/tty@1@2", "", ~r/uart:DEVICE\[@BAUD\]/},
+          {"a=uart", "", ~r/known board.*uart:DEVICE\[@BAUD\]/},
+          {"a=sitl", "b=-port/vertical/starboard", ~r/NEPTUNUS_WIRING=.*no vehicle "b"/},
+          {"a=simulated", "a=-port/vertical/starboard",
+           ~r/sitl or uart vehicles \(a is simulated\)/},
+          {"a=sitl", "a=port/port/starboard", ~r/exactly once/},
+          {"a=sitl", "a", ~r/id=wiring pairs/}
+        ] do
+      test "refuses #{inspect(vehicles)} with wiring #{inspect(wiring)}" do
+        assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
+          Config.vehicles!(%{
+            "NEPTUNUS_VEHICLES" => unquote(vehicles),
+            "NEPTUNUS_WIRING" => unquote(wiring)
+          })
+        end
+      end
+    end
+  end
 end

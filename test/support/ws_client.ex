@@ -72,7 +72,8 @@ defmodule NeptunusWeb.Test.WSClient do
 
   Options:
     * `:host` — default `"127.0.0.1"`
-    * `:headers` — extra request headers, a list of `{name, value}`
+    * `:headers` — extra request headers, a list of `{name, value}` (a `Host` here
+      replaces the default `host:port`)
     * `:owner` — process that receives the reports, default `self()`
     * `:timeout` — for connect and handshake, ms, default 5000
 
@@ -423,14 +424,19 @@ defmodule NeptunusWeb.Test.WSClient do
   defp handshake(socket, host, port, path, opts, deadline) do
     key = Base.encode64(:crypto.strong_rand_bytes(16))
 
+    extra = Keyword.get(opts, :headers, [])
+
+    host_header? =
+      Enum.any?(extra, fn {name, _} -> String.downcase(to_string(name)) == "host" end)
+
     headers =
-      [
-        {"Host", "#{host}:#{port}"},
-        {"Upgrade", "websocket"},
-        {"Connection", "Upgrade"},
-        {"Sec-WebSocket-Key", key},
-        {"Sec-WebSocket-Version", "13"}
-      ] ++ Keyword.get(opts, :headers, [])
+      if(host_header?, do: [], else: [{"Host", "#{host}:#{port}"}]) ++
+        [
+          {"Upgrade", "websocket"},
+          {"Connection", "Upgrade"},
+          {"Sec-WebSocket-Key", key},
+          {"Sec-WebSocket-Version", "13"}
+        ] ++ extra
 
     request = [
       "GET #{path} HTTP/1.1\r\n",

@@ -1,0 +1,124 @@
+defmodule NeptunusWeb.Test.Wire do
+  @moduledoc """
+  Phoenix Channels helpers over `NeptunusWeb.Test.WSClient` for the wire tests against the
+  running endpoint: connect (with query parameters and headers), join, push and wait for
+  the reply, wait for an event. They run in the test process (the client's owner) and fail
+  the test on timeouts.
+  """
+  import ExUnit.Assertions
+
+  alias NeptunusWeb.Test.WSClient
+
+  @doc "The endpoint's port."
+  @spec port() :: :inet.port_number()
+  def port, do: Application.fetch_env!(:neptunus, :endpoint).port
+
+  @doc "Connects with `params` (vsn added) and `headers`; `{:ok, ws}` or the client's error."
+  @spec connect(map() | keyword(), keyword()) :: {:ok, pid()} | {:error, term()}
+  def connect(params \\ %{}, headers \\ []) do
+    query = params |> Map.new() |> Map.put("vsn", "2.0.0") |> URI.encode_query()
+    WSClient.connect(port(), "/socket/websocket?" <> query, headers: headers)
+  end
+
+  @doc "Connects or fails."
+  @spec connect!(map() | keyword(), keyword()) :: pid()
+  def connect!(params \\ %{}, headers \\ []) do
+    {:ok, ws} = connect(params, headers)
+    ws
+  end
+
+  @doc "Joins `topic`; returns `{join_ref, reply}`."
+  @spec join!(pid(), String.t()) :: {String.t(), map()}
+  def join!(ws, topic) do
+    join_ref = WSClient.unique_ref()
+    assert {:ok, response} = WSClient.join(ws, topic, %{}, join_ref)
+    {join_ref, response}
+  end
+
+  @doc "Pushes `event` and returns `{status, response}` of its reply (other frames skipped)."
+  @spec push_and_reply(pid(), String.t(), String.t(), String.t(), map()) :: {String.t(), map()}
+  def push_and_reply(ws, join_ref, topic, event, payload) do
+    ref = WSClient.unique_ref()
+    WSClient.push(ws, join_ref, ref, topic, event, payload)
+
+    [^join_ref, ^ref, ^topic, "phx_reply", %{"status" => status, "response" => response}] =
+      WSClient.recv_until(ws, &match?([_, ^ref, _, "phx_reply", _], &1), 2_000)
+
+    {status, response}
+  end
+
+  @doc "Waits for `event` whose payload satisfies `pred`; returns the payload."
+  @spec event!(pid(), String.t(), (map() -> as_boolean(term())), timeout()) :: map()
+  def event!(ws, event, pred \\ fn _ -> true end, timeout \\ 2_000) do
+    [_, _, _, ^event, payload] =
+      WSClient.recv_until(
+        ws,
+        &(match?([_, _, _, ^event, _], &1) and pred.(Enum.at(&1, 4))),
+        timeout
+      )
+
+    payload
+  end
+
+  @doc """
+  Waits until each of `events` has arrived (in any order, other frames skipped); returns
+  `%{event => payload}` with the first payload of each. An entry may be `{event, pred}` to
+  wait for a payload satisfying `pred`.
+  """
+  @spec collect!(pid(), [String.t() | {String.t(), (map() -> as_boolean(term()))}], timeout()) ::
+          %{String.t() => map()}
+  def collect!(ws, events, timeout \\ 2_000) do
+    deadline = System.monotonic_time(:millisecond) + timeout
+
+    wanted =
+      Map.new(events, fn
+        {event, pred} -> {event, pred}
+        event -> {event, fn _ -> true end}
+      end)
+
+    collect_until(ws, wanted, %{}, deadline)
+  end
+
+  defp collect_until(_ws, wanted, seen, _deadline) when map_size(wanted) == 0, do: seen
+
+  defp collect_until(ws, wanted, seen, deadline) do
+    remaining = max(deadline - System.monotonic_time(:millisecond), 1)
+
+    match? = fn [_, _, _, event, payload] ->
+      case Map.fetch(wanted, event) do
+        {:ok, pred} -> pred.(payload)
+        :error -> false
+      end
+    end
+
+    [_, _, _, event, payload] = WSClient.recv_until(ws, match?, remaining)
+    collect_until(ws, Map.delete(wanted, event), Map.put(seen, event, payload), deadline)
+  end
+
+  @doc "No `event` arrives within `ms` (frames received meanwhile are consumed)."
+  @spec no_event!(pid(), String.t(), non_neg_integer()) :: :ok
+  def no_event!(ws, event, ms) do
+    deadline = System.monotonic_time(:millisecond) + ms
+    no_event_until(ws, event, deadline)
+  end
+
+  defp no_event_until(ws, event, deadline) do
+    remaining = deadline - System.monotonic_time(:millisecond)
+
+    receive do
+      {:ws, ^ws, {:text, text}} ->
+        frame = :jiffy.decode(text, [:return_maps, {:null_term, nil}])
+        refute match?([_, _, _, ^event, _], frame), "unexpected #{event}: #{text}"
+        no_event_until(ws, event, deadline)
+    after
+      max(remaining, 0) -> :ok
+    end
+  end
+
+  @doc "A motion thrust payload, stamped with `epoch` unless it is nil."
+  @spec thrust(number(), integer() | nil) :: map()
+  def thrust(surge, epoch \\ nil) do
+    payload = %{"mode" => "motion", "surge" => surge, "heave" => 0, "yaw" => 0}
+    if epoch, do: Map.put(payload, "epoch", epoch), else: payload
+  end
+end
