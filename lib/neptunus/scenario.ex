@@ -22,7 +22,10 @@ defmodule Neptunus.Scenario do
           {"t": 10, "gain": 1.0},
           {"t": 20, "thrust": {"mode": "manual", "port": 0.2, "vertical": -0.5, "starboard": 0.2}},
           {"t": 30, "tau": [0, 0, 0, 0, 0, 0.5]},
-          {"t": 40, "current": [0, 0.2, 0]}
+          {"t": 40, "current": [0, 0.2, 0]},
+          {"t": 45, "thrust": {"mode": "motion", "surge": 0, "heave": 0, "yaw": 0},
+                    "autopilot": {"depth": "hold", "heading": 90}},
+          {"t": 50, "control_mode": "dp"}
         ]
       }
 
@@ -35,7 +38,22 @@ defmodule Neptunus.Scenario do
     * `tau` — `[X, Y, Z, K, M, N]` (N, N·m, body frame): an external generalised force added
       to the thrusters' (which are neutral unless commanded), until the next `tau`.
     * `current` — a new mean current `[n, e, d]` (m/s NED).
-    * `autopilot` — reserved for depth/heading set-points; refused until autopilots exist.
+    * `autopilot` — `{"depth": m | "hold" | null, "heading": deg | "hold" | null}` (either
+      or both): a number engages that autopilot at that setpoint (depth in [0, 200] m,
+      heading in degrees, [-360, 360]), `"hold"` at the current estimated value, null
+      disengages it (see `Neptunus.Control.Core`: pilot thrust on the held axis overrides
+      it and it re-captures on release, exactly as on a live vehicle).
+    * `control_mode` — `"motion"`, `"manual"` or `"dp"` (position hold at the current
+      position; the simulator's truth is the position source). A `thrust` in another mode
+      than the current one first switches to its mode, as the pilot's page does.
+
+  The control — modes, gain, allocation, autopilots, DP — is `Neptunus.Control.Core`, the
+  same as a live vehicle's, with its control loop at #{50} Hz of simulated time and
+  `Neptunus.Estimator` (navigation's filter) as its estimate. Like a live vehicle, a change
+  of control mode stops the thrusters first, entering manual mode disengages the autopilots
+  (an `autopilot` event in manual mode is refused), and DP holds depth and heading (an
+  `autopilot` event that disengages either in DP is refused). Within an event the actions
+  apply in the order `control_mode`, `gain`, `thrust`, `autopilot`, `tau`, `current`.
 
   `parse/1` and `validate/1` never raise; errors name the field
   (see `Neptunus.Sim.Validate`), e.g. `events[2].thrust.surge must be a number in [-1, 1], got 2`.
@@ -76,8 +94,13 @@ defmodule Neptunus.Scenario do
           thrust: thrust() | nil,
           gain: float() | nil,
           tau: Neptunus.Dynamics.tau() | nil,
-          current: {float(), float(), float()} | nil
+          current: {float(), float(), float()} | nil,
+          control_mode: :motion | :manual | :dp | nil,
+          autopilot: %{depth: setpoint(), heading: setpoint()} | nil
         }
+
+  @typedoc "An autopilot setpoint of an `autopilot` event (heading in rad)."
+  @type setpoint :: :unchanged | :hold | nil | float()
 
   @type t :: %__MODULE__{
           vehicle: String.t(),
@@ -100,7 +123,8 @@ defmodule Neptunus.Scenario do
   @top_optional ~w(description dt seed noise current current_variation tether_length sensors
                    initial gain events)
   @channels ~w(depth heading roll pitch voltage current)
-  @actions ~w(thrust gain tau current autopilot)
+  @actions ~w(thrust gain tau current autopilot control_mode)
+  @control_modes %{"motion" => :motion, "manual" => :manual, "dp" => :dp}
 
   @doc "Parses and validates a scenario from JSON text."
   @spec parse(binary()) :: {:ok, t()} | {:error, String.t()}
@@ -292,7 +316,7 @@ defmodule Neptunus.Scenario do
       end
     end)
     |> case do
-      {:ok, acc, _} -> {:ok, Enum.reverse(acc)}
+      {:ok, acc, _} -> modes(Enum.reverse(acc), path)
       error -> error
     end
   end
@@ -304,12 +328,98 @@ defmodule Neptunus.Scenario do
     with :ok <- V.object(map, path, ["t"], @actions),
          :ok <- some_action(map, path),
          {:ok, t} <- V.required(map, path, "t", &V.number(&1, &2, min: 0, max: duration)),
-         :ok <- no_autopilot(map, path),
          {:ok, thrust} <- V.optional(map, path, "thrust", nil, &thrust/2),
          {:ok, gain} <- V.optional(map, path, "gain", nil, &V.number(&1, &2, min: 0, max: 1)),
          {:ok, tau} <- V.optional(map, path, "tau", nil, &tau/2),
-         {:ok, current} <- V.optional(map, path, "current", nil, &current/2) do
-      {:ok, %{t: t, thrust: thrust, gain: gain, tau: tau, current: current}}
+         {:ok, current} <- V.optional(map, path, "current", nil, &current/2),
+         {:ok, mode} <- V.optional(map, path, "control_mode", nil, &control_mode/2),
+         {:ok, autopilot} <- V.optional(map, path, "autopilot", nil, &autopilot/2),
+         :ok <- same_mode(mode, thrust, path) do
+      {:ok,
+       %{
+         t: t,
+         thrust: thrust,
+         gain: gain,
+         tau: tau,
+         current: current,
+         control_mode: mode,
+         autopilot: autopilot
+       }}
+    end
+  end
+
+  defp control_mode(value, path) do
+    case Map.fetch(@control_modes, value) do
+      {:ok, mode} -> {:ok, mode}
+      :error -> {:error, ~s(#{path} must be "motion", "manual" or "dp", got #{V.show(value)})}
+    end
+  end
+
+  defp same_mode(mode, {thrust_mode, _}, path) when mode != nil and mode != thrust_mode,
+    do:
+      {:error,
+       "#{path}.thrust.mode must be the event's control_mode (#{mode}), got #{thrust_mode}"}
+
+  defp same_mode(_mode, _thrust, _path), do: :ok
+
+  defp autopilot(map, path) do
+    with :ok <- V.object(map, path, [], ["depth", "heading"]),
+         :ok <- some_axis(map, path),
+         {:ok, depth} <- setpoint(map, path, "depth", &V.number(&1, &2, min: 0, max: 200)),
+         {:ok, heading} <- setpoint(map, path, "heading", &degrees/2) do
+      {:ok, %{depth: depth, heading: heading}}
+    end
+  end
+
+  defp some_axis(map, path) do
+    if map_size(map) > 0,
+      do: :ok,
+      else: {:error, "#{path} needs depth and/or heading (a setpoint, \"hold\" or null)"}
+  end
+
+  defp setpoint(map, path, key, check) do
+    case Map.fetch(map, key) do
+      :error -> {:ok, :unchanged}
+      {:ok, nil} -> {:ok, nil}
+      {:ok, "hold"} -> {:ok, :hold}
+      {:ok, value} -> check.(value, V.join(path, key))
+    end
+  end
+
+  defp degrees(value, path) do
+    with {:ok, deg} <- V.number(value, path, min: -360, max: 360),
+         do: {:ok, Neptunus.PID.wrap_2pi(deg * :math.pi() / 180)}
+  end
+
+  # the control mode along the events (a thrust switches to its mode): autopilots are
+  # refused in manual mode, and DP holds depth and heading
+  defp modes(events, path) do
+    events
+    |> Enum.with_index()
+    |> Enum.reduce_while(:motion, fn {event, i}, mode ->
+      mode = event.control_mode || mode
+      mode = if event.thrust, do: elem(event.thrust, 0), else: mode
+      epath = V.join(V.join(path, i), "autopilot")
+
+      case {event.autopilot, mode} do
+        {nil, _} ->
+          {:cont, mode}
+
+        {_, :manual} ->
+          {:halt, {:error, "#{epath}: autopilots are not available in manual mode"}}
+
+        {%{depth: d, heading: h}, :dp} when is_nil(d) or is_nil(h) ->
+          {:halt,
+           {:error,
+            "#{epath}: dp holds depth and heading (switch control_mode to motion to release them)"}}
+
+        _ ->
+          {:cont, mode}
+      end
+    end)
+    |> case do
+      {:error, _} = error -> error
+      _mode -> {:ok, events}
     end
   end
 
@@ -318,16 +428,7 @@ defmodule Neptunus.Scenario do
       do: :ok,
       else:
         {:error,
-         "#{path} must have at least one of: #{@actions |> List.delete("autopilot") |> Enum.sort() |> Enum.join(", ")}"}
-  end
-
-  defp no_autopilot(map, path) do
-    if Map.has_key?(map, "autopilot"),
-      do:
-        {:error,
-         "#{path}.autopilot: autopilots are not available yet " <>
-           "(they arrive with the vehicle core); use thrust or tau"},
-      else: :ok
+         "#{path} must have at least one of: #{@actions |> Enum.sort() |> Enum.join(", ")}"}
   end
 
   defp tau(value, path) do

@@ -11,14 +11,16 @@ defmodule Neptunus.Vehicle.Board.Test do
     * `{:board, id, {:started, thrusters}}` — the board (re)started, thrusters neutral
     * `{:board, id, {:go, thrusters}}` — every `go` cast, as received
     * `{:board, id, :keepalive}` — every keepalive from control
+    * `{:board, id, {:lights | :laser | :tilt, value}}` — every lights, laser, tilt command
 
-  `sample/2` makes it report a sample to the vehicle's navigation as a real board would, and
+  `sample/2` makes it report a sample to the vehicle's navigation as a real board would
+  (through `Board.sample/3`), and
   `set_link/3` sets what `link_status/1` answers.
   """
   use GenServer
 
   alias Neptunus.Allocation
-  alias Neptunus.Vehicle.{Board, Navigation}
+  alias Neptunus.Vehicle.Board
 
   @behaviour Board
 
@@ -34,9 +36,24 @@ defmodule Neptunus.Vehicle.Board.Test do
   @impl Board
   def link_status(id), do: GenServer.call(Board.via(id), :link_status)
 
+  @impl Board
+  def lights(id, n), do: GenServer.cast(Board.via(id), {:lights, n})
+
+  @impl Board
+  def laser(id, n), do: GenServer.cast(Board.via(id), {:laser, n})
+
+  @impl Board
+  def tilt(id, rad), do: GenServer.cast(Board.via(id), {:tilt, rad})
+
   @doc "Reports `sample` (a `Board.sample()`) to vehicle `id`'s navigation."
   @spec sample(String.t(), Board.sample()) :: :ok
-  def sample(id, sample), do: GenServer.call(Board.via(id), {:sample, sample})
+  def sample(id, sample) do
+    :ok = GenServer.call(Board.via(id), {:sample, sample})
+    # navigation passes samples on asynchronously: a call after the board's cast returns once
+    # it has, so the caller sees the sample in telemetry right away
+    _ = Neptunus.Vehicle.Navigation.status(id)
+    :ok
+  end
 
   @doc "Sets the link state `link_status/1` reports."
   @spec set_link(String.t(), boolean(), String.t()) :: :ok
@@ -61,6 +78,11 @@ defmodule Neptunus.Vehicle.Board.Test do
     {:noreply, %{state | thrusters: thrusters}}
   end
 
+  def handle_cast({device, value}, state) when device in [:lights, :laser, :tilt] do
+    report(state, {device, value})
+    {:noreply, state}
+  end
+
   def handle_cast(:keepalive, state) do
     report(state, :keepalive)
     {:noreply, state}
@@ -68,7 +90,7 @@ defmodule Neptunus.Vehicle.Board.Test do
 
   @impl true
   def handle_call({:sample, sample}, _from, state) do
-    Navigation.sample(state.id, sample)
+    Board.sample(state.id, sample)
     {:reply, :ok, state}
   end
 

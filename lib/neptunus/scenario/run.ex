@@ -12,19 +12,30 @@ defmodule Neptunus.Scenario.Run do
       depth_meas, heading_meas, roll_meas, pitch_meas,        what the sensors report
       voltage_meas, current_meas                              (true values unless noise)
       depth_est, depth_rate_est, heading_est, yaw_rate_est    navigation's estimate
+      depth_setpoint, heading_setpoint                        autopilot setpoints (m, rad;
+                                                              empty while disengaged)
       port, vertical, starboard                               thruster commands in [-1, 1]
 
   The estimate is `Neptunus.Estimator` — the same filter as a live vehicle's
   `Neptunus.Vehicle.Navigation` — run on every step's measurements (wild points and all) and
   told every thruster command, with the scenario's vehicle as its model. An estimate that does
   not exist (no plausible reading yet) is an empty field.
+
+  The control is `Neptunus.Control.Core` — the live vehicle's — fed with that estimate (and
+  the simulator's truth as the position source for DP): scenario events are its commands,
+  and its control loop ticks every #{0.02} s of simulated time (the tick due at a step runs
+  after that step's events, before its row).
   """
 
-  alias Neptunus.{Allocation, Estimator, Scenario, Sim}
+  alias Neptunus.{Estimator, Scenario, Sim}
+  alias Neptunus.Control.Core
+
+  @control_period 0.02
 
   @state_columns ~w(x y z phi theta psi u v w p q r)a
   @meas_columns ~w(depth heading roll pitch voltage current)a
   @est_columns ~w(depth depth_rate heading yaw_rate)a
+  @setpoint_columns ~w(depth heading)a
   @thruster_columns ~w(port vertical starboard)a
 
   @doc "The CSV columns, in order."
@@ -33,7 +44,9 @@ defmodule Neptunus.Scenario.Run do
     ["t"] ++
       Enum.map(@state_columns, &Atom.to_string/1) ++
       Enum.map(@meas_columns, &"#{&1}_meas") ++
-      Enum.map(@est_columns, &"#{&1}_est") ++ Enum.map(@thruster_columns, &Atom.to_string/1)
+      Enum.map(@est_columns, &"#{&1}_est") ++
+      Enum.map(@setpoint_columns, &"#{&1}_setpoint") ++
+      Enum.map(@thruster_columns, &Atom.to_string/1)
   end
 
   @doc "The rows as lists of floats (nil for a missing estimate) in the order of `columns/0` (every `every`-th step)."
@@ -41,8 +54,8 @@ defmodule Neptunus.Scenario.Run do
   def rows(%Scenario{} = scenario, every \\ 1) when is_integer(every) and every >= 1 do
     last = Scenario.steps(scenario)
     sim = Sim.new(Scenario.sim_options(scenario))
-    control = %{gain: scenario.gain, thrust: {:motion, %{surge: 0.0, heave: 0.0, yaw: 0.0}}}
     est = [vehicle: scenario.params] |> Estimator.new() |> observe(sim)
+    control = %{core: Core.new(gain: scenario.gain), next_tick: 0} |> estimate(est, sim)
 
     Stream.unfold({0, sim, scenario.events, control, est}, fn
       {k, _sim, _events, _control, _est} when k > last ->
@@ -50,7 +63,7 @@ defmodule Neptunus.Scenario.Run do
 
       {k, sim, events, control, est} ->
         {sim, events, control} = apply_due(sim, events, control, k)
-        row = row(sim, est, k)
+        row = row(sim, est, control, k)
         next = min(k + every, last)
 
         if next > k do
@@ -68,6 +81,18 @@ defmodule Neptunus.Scenario.Run do
     Estimator.update(est, t, m)
   end
 
+  # control gets navigation's estimate when it has depth and heading, with the truth's position
+  defp estimate(control, est, %Sim{dyn: dyn} = sim) do
+    case Estimator.estimate(est) do
+      %{depth: d, heading: h} = e when is_number(d) and is_number(h) ->
+        e = Map.put(e, :position, %{x: dyn.x, y: dyn.y})
+        %{control | core: Core.estimate(control.core, e, Sim.time(sim))}
+
+      _ ->
+        control
+    end
+  end
+
   # from step j to step `target`, applying the events due at each step on the way (those
   # due at `target` itself are applied when its row is produced)
   defp advance(sim, events, control, est, j, target) when j == target,
@@ -77,6 +102,7 @@ defmodule Neptunus.Scenario.Run do
     est = Estimator.command(est, sim.thrusters)
     sim = Sim.step(sim)
     est = observe(est, sim)
+    control = estimate(control, est, sim)
 
     {sim, events, control} =
       if j + 1 < target,
@@ -99,21 +125,27 @@ defmodule Neptunus.Scenario.Run do
     [format_t(t) | Enum.map(rest, &[?, | format(&1)])] ++ ["\n"]
   end
 
-  defp row(%Sim{} = sim, est, k) do
+  defp row(%Sim{} = sim, est, control, k) do
     %{measurement: m, sim: truth} = Sim.sample(sim)
     thr = sim.thrusters
     e = Estimator.estimate(est)
+    setpoints = Core.control(control.core).autopilot
 
     [k * sim.dt] ++
       Enum.map(@state_columns, &Map.fetch!(truth, &1)) ++
       Enum.map(@meas_columns, &Map.fetch!(m, &1)) ++
       Enum.map(@est_columns, &Map.fetch!(e, &1)) ++
+      Enum.map(@setpoint_columns, &Map.fetch!(setpoints, &1)) ++
       Enum.map(@thruster_columns, &(Map.get(thr, &1, 0.0) * 1.0))
   end
 
-  # events with t_event ≤ k·dt, within half a step
-  defp apply_due(sim, events, control, k),
-    do: apply_until(sim, events, control, (k + 0.5) * sim.dt)
+  # events with t_event ≤ k·dt, within half a step, then the control ticks due by then
+  defp apply_due(sim, events, control, k) do
+    until = (k + 0.5) * sim.dt
+    {sim, events, control} = apply_until(sim, events, control, until)
+    {sim, control} = tick(sim, control, until)
+    {sim, events, control}
+  end
 
   defp apply_until(sim, [%{t: t} = event | rest], control, until) when t <= until do
     {sim, control} = apply_event(sim, event, control)
@@ -123,21 +155,51 @@ defmodule Neptunus.Scenario.Run do
   defp apply_until(sim, events, control, _until), do: {sim, events, control}
 
   defp apply_event(sim, event, control) do
-    control = if event.gain, do: %{control | gain: event.gain}, else: control
-    control = if event.thrust, do: %{control | thrust: event.thrust}, else: control
-    sim = if event.gain || event.thrust, do: Sim.command(sim, thrusters(control)), else: sim
+    t = Sim.time(sim)
+
+    {sim, control} =
+      [
+        event.control_mode && {:set_control_mode, event.control_mode},
+        event.gain && {:set_gain, event.gain},
+        event.thrust && {:set_control_mode, elem(event.thrust, 0)},
+        event.thrust && {:thrust, elem(event.thrust, 0), elem(event.thrust, 1)},
+        event.autopilot && {:autopilot, event.autopilot}
+      ]
+      |> Enum.reject(&(&1 in [nil, false]))
+      |> Enum.reduce({sim, control}, fn command, {sim, control} ->
+        case Core.command(control.core, command, t) do
+          {:ok, core, actions} ->
+            {carry_out(sim, actions), %{control | core: core}}
+
+          {:error, reason} ->
+            raise ArgumentError, "scenario event at t = #{event.t} s: #{reason}"
+        end
+      end)
+
     sim = if event.tau, do: Sim.external_force(sim, event.tau), else: sim
     sim = if event.current, do: Sim.set_current(sim, event.current), else: sim
     {sim, control}
   end
 
-  defp thrusters(%{gain: k, thrust: {:motion, motion}}), do: Allocation.motion(motion, k)
+  # the control loop's ticks due by `until` (s): one tick per step at most, over the periods
+  # elapsed (a step longer than the period runs the loop once over the whole of it)
+  defp tick(sim, %{next_tick: n} = control, until) do
+    due = floor(until / @control_period) - n + 1
 
-  defp thrusters(%{gain: k, thrust: {:manual, m}}) do
-    %{port: sat(k * m.port), vertical: sat(k * m.vertical), starboard: sat(k * m.starboard)}
+    if due >= 1 do
+      {core, actions} = Core.tick(control.core, due * @control_period, Sim.time(sim))
+      {carry_out(sim, actions), %{control | core: core, next_tick: n + due}}
+    else
+      {sim, control}
+    end
   end
 
-  defp sat(x), do: x |> max(-1.0) |> min(1.0) |> Kernel.+(0.0)
+  defp carry_out(sim, actions) do
+    Enum.reduce(actions, sim, fn
+      {:go, thrusters}, sim -> Sim.command(sim, thrusters)
+      _other, sim -> sim
+    end)
+  end
 
   # t on a fixed grid: at most 9 decimals, no binary noise (0.30000000000000004 → 0.3)
   defp format_t(t), do: :erlang.float_to_binary(t * 1.0, [{:decimals, 9}, :compact])

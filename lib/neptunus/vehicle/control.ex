@@ -1,28 +1,47 @@
 defmodule Neptunus.Vehicle.Control do
   @moduledoc """
-  A vehicle's control: takes the pilot's `thrust` and `stop` commands, runs the motion-mode
-  thrust allocation (`Neptunus.Allocation`, thesis eq. 9.3) and commands the board.
+  A vehicle's control: control modes (motion, manual, DP), gain, lights, laser, camera tilt,
+  run mode (normal ↔ simulator), the depth and heading autopilots and DP, and the thruster
+  commands to the board. Every decision is `Neptunus.Control.Core`'s (pure; the same core runs
+  headless in `mix neptunus.simulate`); this process validates commands
+  (`Neptunus.Control.Command`), carries out the core's actions, and runs the control loop.
 
-  Safety: it drives the thrusters neutral when it starts (so a restart after any crash in
-  the vehicle's tree leaves the thrusters neutral) and when the pilot's connection dies.
+  It decides nothing about *who* may command: `Neptunus.Vehicle.Helm` authorises every
+  command and is the only caller of `thrust/2`, `command/3` and `stop/2` (tests aside).
 
-  Who is the pilot: until the helm (request/acknowledge handover) lands, the first client to
-  send a command becomes the pilot; commands from anyone else are refused with
-  `"not_in_control"` and change nothing. The pilot is released when its process exits.
+  * **Estimates** come from `Neptunus.Vehicle.Navigation` (`estimate/2`, a cast, on every
+    accepted sample): `%{t, depth, depth_rate, heading, yaw_rate, position}`. Autopilots and DP
+    act on the latest; one older than a second counts as none (see `Neptunus.Control.Core`).
+  * **Control loop**: while an autopilot or DP is engaged it runs at `control_hz` (default
+    #{50} Hz) on absolute deadlines of the monotonic clock (`Neptunus.Periodic`): each tick
+    steps the PIDs by the time elapsed and commands the board when the output changes.
+  * **Run mode `simulator`** (vehicles with a real board): the thrusters stop, and a
+    `Neptunus.Vehicle.Board.Simulated` is started beside the real board, seeded with the
+    current estimated depth and heading. Commands, lights, laser and tilt go to it, and its
+    samples — not the real board's — go to navigation (`Neptunus.Vehicle.Board.sample/3`), so
+    telemetry, estimates and autopilots follow the simulated vehicle. The real board is kept
+    neutral and its deadman fed (`Board.keepalive/1` goes on). Back to `normal`: thrusters
+    stop, the simulator is stopped, the real board's samples count again. The simulator is
+    linked to this process: if either dies, the vehicle restarts in run mode normal.
 
-  Events broadcast on `"vehicle:<id>"`: `pilot` `%{pilot: %{name: name} | nil}` and
-  `stopped` `%{reason: reason}`.
+  Safety: it drives the thrusters neutral when it starts, so a restart after any crash in the
+  vehicle's tree leaves the thrusters neutral. Every stop is broadcast with its reason:
+  `stopped` `%{reason: reason}` on `"vehicle:<id>"`, and a `safety` entry on `"log:<id>"`.
   """
   use GenServer
 
-  alias Neptunus.{Allocation, PubSub}
-  alias Neptunus.Vehicle.{Board, Telemetry}
+  require Logger
+
+  alias Neptunus.{Allocation, Fleet, Periodic, PID, PubSub}
+  alias Neptunus.Control.{Command, Core}
+  alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
 
   @default_gain 0.5
+  @default_hz 50
+  @max_catch_up 5
+  # how often control tells the board it is alive (Board.keepalive/1: deadman pings)
+  @board_keepalive_ms 1_000
 
-  @typedoc "Who sends a command: the connection's process and the display name of its user."
-  @type caller :: %{pid: pid(), name: String.t()}
-  @type pilot :: %{pid: pid(), name: String.t(), monitor: reference()}
   @type reply :: {:ok, map()} | {:error, String.t()}
 
   defmodule State do
@@ -30,152 +49,292 @@ defmodule Neptunus.Vehicle.Control do
     @type t :: %__MODULE__{
             id: String.t(),
             topic: String.t(),
-            gain: float(),
-            command: Neptunus.Allocation.motion(),
-            thrusters: Neptunus.Allocation.thrusters(),
-            pilot: Neptunus.Vehicle.Control.pilot() | nil
+            core: Neptunus.Control.Core.t(),
+            periodic: Neptunus.Periodic.t(),
+            simulator: pid() | nil,
+            simulator_opts: keyword()
           }
-    @enforce_keys [:id, :topic, :gain, :command, :thrusters]
-    defstruct [:id, :topic, :gain, :command, :thrusters, :pilot]
+    @enforce_keys [:id, :topic, :core, :periodic]
+    defstruct [:id, :topic, :core, :periodic, :simulator, simulator_opts: []]
   end
 
-  @doc "Options: `:id` (required), `:gain` (k in [0, 1], default #{@default_gain})."
+  @doc """
+  Options: `:id` (required), `:gain` (k in [0, 1], default #{@default_gain}), `:control` —
+  keyword of `hz` (control loop rate, default from config `:control_hz`, #{@default_hz}),
+  `gains`, `stale_after`, `deadband`, `dp` (see `Neptunus.Control.Core.new/1`) and
+  `simulator` (options of the run-mode simulator, `Board.Simulated.start_link/1`).
+  """
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts) do
     GenServer.start_link(__MODULE__, opts, name: via(Keyword.fetch!(opts, :id)))
   end
 
   @doc """
-  Thrust command from `caller`: `params` is the untrusted JSON object
-  `%{"mode" => "motion", "surge" => s, "heave" => h, "yaw" => y}`, values in [-1, 1].
+  Thrust command: `params` is the untrusted JSON object `%{"mode" => "motion", "surge",
+  "heave", "yaw"}` or `%{"mode" => "manual", "port", "vertical", "starboard"}`, values in
+  [-1, 1]; the mode must be the control mode.
 
-  Replies `{:ok, %{command: ..., thrusters: ...}}` or `{:error, reason}` (nothing changed).
+  Replies `{:ok, %{command, thrusters, control}}` or `{:error, reason}` (nothing changed).
   """
-  @spec thrust(String.t(), caller(), map()) :: reply()
-  def thrust(id, caller, params), do: GenServer.call(via(id), {:thrust, caller, params})
-
-  @doc "Stops the thrusters (neutral). `reason` is shown to everyone watching."
-  @spec stop(String.t(), caller(), String.t()) :: reply()
-  def stop(id, caller, reason), do: GenServer.call(via(id), {:stop, caller, reason})
+  @spec thrust(String.t(), map()) :: reply()
+  def thrust(id, params), do: GenServer.call(via(id), {:command, "thrust", params})
 
   @doc """
-  Releases control if `caller` is the pilot: thrusters go neutral and `stopped` is broadcast
-  with `reason` (e.g. `pilot_left`, `pilot_disconnected`). A no-op for anyone else.
+  A control command other than thrust — `set_control_mode`, `set_gain`, `set_lights`,
+  `set_laser`, `set_tilt`, `autopilot`, `set_run_mode` (`events/0`) — with its untrusted JSON
+  payload (`Neptunus.Control.Command`). Replies `{:ok, %{control: status}}` with the new
+  control state (`status/1`) or `{:error, reason}` (nothing changed).
   """
-  @spec release(String.t(), caller(), String.t()) :: :ok
-  def release(id, caller, reason), do: GenServer.call(via(id), {:release, caller, reason})
+  @spec command(String.t(), String.t(), term()) :: reply()
+  def command(id, event, payload), do: GenServer.call(via(id), {:command, event, payload})
 
-  @doc "Current control status: command, thrusters, gain and pilot (`%{name}` or nil)."
+  @doc "The events `command/3` takes."
+  @spec events() :: [String.t()]
+  def events, do: List.delete(Command.events(), "thrust")
+
+  @doc """
+  Drives the thrusters neutral and broadcasts `stopped` with `reason` (shown to everyone
+  watching); see `Neptunus.Control.Core` for what it does to the autopilots (a handover keeps
+  them, any other stop disengages them). Replies `{:ok, %{command, thrusters, control}}`.
+  """
+  @spec stop(String.t(), String.t()) :: {:ok, map()}
+  def stop(id, reason), do: GenServer.call(via(id), {:stop, reason})
+
+  @doc """
+  Control state — what a new pilot picks up (`Vehicle.Helm` sends it with every grant):
+  `%{mode, gain, lights, laser, tilt, run_mode, autopilot: %{depth, heading, position},
+  command, thrusters}` (`Neptunus.Control.Core.status/1`).
+  """
   @spec status(String.t()) :: map()
   def status(id), do: GenServer.call(via(id), :status)
 
-  defp via(id), do: Neptunus.Fleet.via(__MODULE__, id)
+  @doc """
+  The latest navigation estimate (asynchronous; from `Neptunus.Vehicle.Navigation`):
+  `%{t, depth, depth_rate, heading, yaw_rate, position: %{x, y} | nil}`, SI, heading in
+  [0, 2π).
+  """
+  @spec estimate(String.t(), map()) :: :ok
+  def estimate(id, estimate), do: GenServer.cast(via(id), {:estimate, estimate})
+
+  @doc """
+  Where vehicle `id`'s samples come from now: `:board`, or `:simulator` while in run mode
+  simulator (see `Neptunus.Vehicle.Board.sample/3`). `:board` when control is not running.
+  """
+  @spec sample_source(String.t()) :: :board | :simulator
+  def sample_source(id) do
+    case Registry.lookup(Fleet.Registry, {__MODULE__, id}) do
+      [{_pid, :simulator}] -> :simulator
+      _ -> :board
+    end
+  end
+
+  @doc "The run-mode simulator's pid, or nil (for tests and diagnostics)."
+  @spec simulator(String.t()) :: pid() | nil
+  def simulator(id), do: GenServer.call(via(id), :simulator)
+
+  @doc "The topic of vehicle `id`'s log entries (the developer logger)."
+  @spec log_topic(String.t()) :: String.t()
+  def log_topic(id), do: "log:" <> id
+
+  defp via(id), do: Fleet.via(__MODULE__, id)
 
   # Callbacks
 
   @impl true
   def init(opts) do
     id = Keyword.fetch!(opts, :id)
+    control = Keyword.get(opts, :control, [])
+    hz = Keyword.get(control, :hz, Application.get_env(:neptunus, :control_hz, @default_hz))
+
+    run_modes =
+      case Board.type(id) do
+        nil -> [:normal]
+        :simulated -> [:normal]
+        _real -> [:normal, :simulator]
+      end
+
+    core =
+      control
+      |> Keyword.take([:gains, :stale_after, :deadband, :dp])
+      |> Keyword.merge(gain: Keyword.get(opts, :gain, @default_gain), run_modes: run_modes)
+      |> Core.new()
 
     state = %State{
       id: id,
       topic: Telemetry.topic(id),
-      gain: Keyword.get(opts, :gain, @default_gain),
-      command: zero_command(),
-      thrusters: Allocation.neutral()
+      core: core,
+      periodic: Periodic.new(hz),
+      simulator_opts: Keyword.get(control, :simulator, [])
     }
 
+    send(self(), :board_keepalive)
+    Periodic.arm(state.periodic, :tick)
     {:ok, state, {:continue, :neutral}}
   end
 
   @impl true
-  def handle_continue(:neutral, state), do: {:noreply, apply_command(state, zero_command())}
+  def handle_continue(:neutral, state) do
+    Board.go(state.id, Allocation.neutral())
+    {:noreply, publish(state)}
+  end
 
   @impl true
-  def handle_call({:thrust, caller, params}, _from, state) do
-    with {:ok, state} <- authorize(state, caller),
-         :ok <- motion_mode(params),
-         {:ok, command} <- Allocation.validate_motion(params) do
-      state = apply_command(state, command)
-      {:reply, {:ok, output(state)}, state}
+  def handle_call({:command, event, payload}, _from, state) do
+    with {:ok, command} <- Command.validate(event, payload),
+         {:ok, core, actions} <- Core.command(state.core, command, now()) do
+      state = state |> Map.put(:core, core) |> perform(actions) |> publish()
+      {:reply, {:ok, reply(event, state)}, state}
     else
       {:error, reason} -> {:reply, {:error, reason}, state}
     end
   end
 
-  def handle_call({:stop, caller, reason}, _from, state) do
-    case authorize(state, caller) do
-      {:ok, state} ->
-        state = safety_stop(state, reason)
-        {:reply, {:ok, output(state)}, state}
-
-      {:error, reason} ->
-        {:reply, {:error, reason}, state}
-    end
+  def handle_call({:stop, reason}, _from, state) do
+    {core, actions} = Core.stop(state.core, reason)
+    state = %{state | core: core} |> perform(actions) |> publish()
+    {:reply, {:ok, reply("thrust", state)}, state}
   end
 
-  def handle_call({:release, %{pid: pid}, reason}, _from, %State{pilot: %{pid: pid}} = state) do
-    Process.demonitor(state.pilot.monitor, [:flush])
-    state = safety_stop(%{state | pilot: nil}, reason)
-    broadcast_pilot(state)
-    {:reply, :ok, state}
-  end
-
-  def handle_call({:release, _caller, _reason}, _from, state), do: {:reply, :ok, state}
-
-  def handle_call(:status, _from, state) do
-    {:reply, Map.merge(output(state), %{gain: state.gain, pilot: public_pilot(state.pilot)}),
-     state}
-  end
+  def handle_call(:status, _from, state), do: {:reply, Core.status(state.core), state}
+  def handle_call(:simulator, _from, state), do: {:reply, state.simulator, state}
 
   @impl true
-  def handle_info({:DOWN, ref, :process, _pid, _reason}, %State{pilot: %{monitor: ref}} = state) do
-    state = safety_stop(%{state | pilot: nil}, "pilot_disconnected")
-    broadcast_pilot(state)
+  def handle_cast({:estimate, estimate}, state),
+    do: {:noreply, %{state | core: Core.estimate(state.core, estimate, now())}}
+
+  # The board feeds its deadman (ping) only while this keeps coming: if control dies or hangs,
+  # the board's own deadman stops the motors (Board.keepalive/1). It goes on in run mode
+  # simulator: the real board is kept neutral and alive.
+  @impl true
+  def handle_info(:board_keepalive, state) do
+    Board.keepalive(state.id)
+    Process.send_after(self(), :board_keepalive, @board_keepalive_ms)
     {:noreply, state}
   end
 
-  def handle_info({:DOWN, _ref, :process, _pid, _reason}, state), do: {:noreply, state}
+  def handle_info(:tick, state) do
+    {due, periodic} = Periodic.advance(state.periodic, System.monotonic_time())
+    Periodic.arm(periodic, :tick)
+    state = %{state | periodic: periodic}
 
-  # The first caller becomes the pilot; afterwards only the pilot may command.
-  defp authorize(%State{pilot: nil} = state, %{pid: pid, name: name}) do
-    state = %{state | pilot: %{pid: pid, name: name, monitor: Process.monitor(pid)}}
-    broadcast_pilot(state)
-    {:ok, state}
+    if Core.active?(state.core) do
+      # after a stall of the VM the loop runs once over at most @max_catch_up periods, so
+      # the integrators do not take one huge step
+      periods = min(due, @max_catch_up)
+      dt = periods * System.convert_time_unit(periodic.period, :native, :microsecond) / 1.0e6
+      {core, actions} = Core.tick(state.core, dt, now())
+      {:noreply, %{state | core: core} |> perform(actions) |> publish()}
+    else
+      {:noreply, state}
+    end
   end
 
-  defp authorize(%State{pilot: %{pid: pid}} = state, %{pid: pid}), do: {:ok, state}
-  defp authorize(_state, _caller), do: {:error, "not_in_control"}
+  # --- actions -----------------------------------------------------------------------------
 
-  defp motion_mode(%{"mode" => "motion"}), do: :ok
+  defp perform(state, actions), do: Enum.reduce(actions, state, &act/2)
 
-  defp motion_mode(%{"mode" => mode}) when is_binary(mode),
-    do: {:error, "control mode #{inspect(mode)} is not available: use \"motion\""}
-
-  defp motion_mode(_), do: {:error, "mode must be \"motion\""}
-
-  defp safety_stop(state, reason) do
-    state = apply_command(state, zero_command())
-    PubSub.broadcast(state.topic, "stopped", %{reason: reason})
+  defp act({:go, thrusters}, %State{simulator: nil} = state) do
+    Board.go(state.id, thrusters)
     state
   end
 
-  defp apply_command(state, command) do
-    thrusters = Allocation.motion(command, state.gain)
-    Board.go(state.id, thrusters)
-    Telemetry.control(state.id, command, thrusters)
-    %{state | command: command, thrusters: thrusters}
+  defp act({:go, thrusters}, %State{simulator: sim} = state) do
+    # navigation's model follows the vehicle it estimates: the simulated one
+    Navigation.command(state.id, thrusters)
+    GenServer.cast(sim, {:go, thrusters})
+    state
   end
 
-  defp broadcast_pilot(state) do
-    PubSub.broadcast(state.topic, "pilot", %{pilot: public_pilot(state.pilot)})
+  defp act({:stopped, reason}, state) do
+    PubSub.broadcast(state.topic, "stopped", %{reason: reason})
+
+    PubSub.broadcast(log_topic(state.id), "log", %{
+      category: "safety",
+      level: "warning",
+      message: "stopped: #{reason}",
+      reason: reason,
+      at: System.os_time(:millisecond)
+    })
+
+    Logger.info("vehicle #{state.id} stopped: #{reason}")
+    state
   end
 
-  defp output(state),
-    do: %{command: state.command, thrusters: Allocation.with_us(state.thrusters)}
+  defp act({kind, value}, state) when kind in [:lights, :laser, :tilt] do
+    case state.simulator do
+      nil -> apply(Board, kind, [state.id, value])
+      sim -> GenServer.cast(sim, {kind, value})
+    end
 
-  defp public_pilot(nil), do: nil
-  defp public_pilot(%{name: name}), do: %{name: name}
+    state
+  end
 
-  defp zero_command, do: %{surge: 0.0, heave: 0.0, yaw: 0.0}
+  defp act({:run_mode, :simulator, seed}, %State{simulator: nil} = state) do
+    opts =
+      [vehicle: "neptunus", noise: true, seed: :erlang.unique_integer([:positive])]
+      |> Keyword.merge(Keyword.get(state.simulator_opts, :sim, []))
+
+    initial =
+      case seed do
+        %{depth: depth, heading: heading} -> [z: max(depth, 0.0), psi: PID.wrap_pi(heading)]
+        nil -> [z: 0.0]
+      end
+
+    {:ok, sim} =
+      Board.Simulated.start_link(
+        [
+          id: state.id,
+          name: Fleet.via(Board.Simulated, state.id),
+          source: :simulator,
+          initial: initial,
+          sim: opts
+        ] ++ Keyword.take(state.simulator_opts, [:hz])
+      )
+
+    set_source(state.id, :simulator)
+    Board.neutral(state.id)
+    Logger.info("vehicle #{state.id}: run mode simulator (seeded #{inspect(initial)})")
+    %{state | simulator: sim}
+  end
+
+  defp act({:run_mode, :normal, _seed}, %State{simulator: sim} = state) when is_pid(sim) do
+    set_source(state.id, :board)
+    GenServer.stop(sim, :normal)
+    Board.neutral(state.id)
+    Logger.info("vehicle #{state.id}: run mode normal")
+    %{state | simulator: nil}
+  end
+
+  defp act({:run_mode, _mode, _seed}, state), do: state
+
+  # the sample source is the value of this process' registration (Board.sample/3 reads it)
+  defp set_source(id, source) do
+    {_, _} = Registry.update_value(Fleet.Registry, {__MODULE__, id}, fn _ -> source end)
+    :ok
+  end
+
+  defp publish(%State{core: core} = state) do
+    Telemetry.control(state.id, %{
+      command: core.pilot,
+      thrusters: core.thrusters,
+      control: Core.control(core),
+      autopilot: Core.autopilot(core)
+    })
+
+    state
+  end
+
+  defp reply("thrust", %State{core: core}) do
+    status = Core.status(core)
+
+    %{
+      command: status.command,
+      thrusters: status.thrusters,
+      control: status
+    }
+  end
+
+  defp reply(_event, %State{core: core}), do: %{control: Core.status(core)}
+
+  defp now, do: System.monotonic_time(:microsecond) / 1.0e6
 end

@@ -1,33 +1,40 @@
 defmodule NeptunusWeb.Channels.VehicleChannel do
   @moduledoc """
-  Topic `vehicle:<id>`: one vehicle's telemetry, state changes, presence and the pilot's
-  commands. The channel decides nothing: it hands commands to the vehicle's processes and
-  relays their answers (see `docs/API.md` for payloads and error reasons).
+  Topic `vehicle:<id>`: one vehicle's telemetry, helm, presence and the pilot's commands.
+  The channel decides nothing: it hands every command to the vehicle's
+  `Neptunus.Vehicle.Helm` (which checks that the sender is the pilot and carries the
+  command out) and relays the answers. Payloads and error reasons: `docs/API.md`.
 
-  Join reply (state snapshot):
-  `%{vehicle: %{id, board}, telemetry: payload | nil, pilot: %{name} | nil, control: %{...}}`,
-  followed by `presence_state` pushed to the joiner. Events pushed by the server:
-  `telemetry`, `pilot`, `stopped`, `presence_diff`.
+  Join reply (state snapshot): `%{vehicle, telemetry, helm, pilot, control, session}`,
+  followed by `presence_state`. Joining never depends on control: observers join like
+  pilots, and being refused control is an event, never a closed channel.
 
-  Client events: `thrust`, `stop`. Anything else is refused with a reason.
+  Client events: `thrust`, `stop`, `heartbeat`, `request_control`, `answer_request`,
+  `take_control`, `release_control`, `sim_reset`, `sim_set`, and the control commands
+  `set_control_mode`, `set_gain`, `set_lights`, `set_laser`, `set_tilt`, `autopilot`,
+  `set_run_mode` (`Neptunus.Vehicle.Control.command/3`). Server events: `telemetry`, `helm`, `stopped`,
+  `presence_diff` (broadcast), and to one connection only `control_request`,
+  `control_granted`, `control_lost`, `request_denied`.
+
+  Presence: keyed by user name, one meta per connection:
+  `%{name, role, since, pilot, conn, node, online_at}`; `pilot` is updated on every grant and
+  loss of control.
   """
   @behaviour NeptunusWeb.Channel
 
   alias Neptunus.Fleet
-  alias Neptunus.Vehicle.{Control, Telemetry}
-  alias NeptunusWeb.{Channel, Presence}
+  alias Neptunus.Vehicle.{Control, Helm, Telemetry}
+  alias NeptunusWeb.{Auth, Channel, Presence}
+
+  @control_events ~w(set_control_mode set_gain set_lights set_laser set_tilt autopilot set_run_mode)
 
   @impl true
-  def join("vehicle:" <> id = topic, _payload, socket) do
+  def join("vehicle:" <> id, _payload, socket) do
     if Fleet.exists?(id) do
-      {:ok, _meta} =
-        Presence.track(socket.transport_pid, topic, socket.user.name, %{
-          online_at: System.os_time(:millisecond),
-          node: Atom.to_string(node())
-        })
-
+      socket = Channel.assign(socket, vehicle_id: id, since: System.os_time(:millisecond))
+      track(socket, false)
       Channel.send_self(socket, :after_join)
-      {:ok, snapshot(id), Channel.assign(socket, vehicle_id: id)}
+      {:ok, snapshot(id, socket), socket}
     else
       {:error, %{reason: "unknown vehicle: #{id}"}}
     end
@@ -35,7 +42,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
 
   @impl true
   def handle_in("thrust", payload, socket) do
-    socket.assigns.vehicle_id |> Control.thrust(caller(socket), payload) |> reply(socket)
+    socket |> id() |> Helm.thrust(party(socket), payload) |> reply(socket)
   end
 
   def handle_in("stop", payload, socket) do
@@ -45,7 +52,51 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
         _ -> "pilot_stop"
       end
 
-    socket.assigns.vehicle_id |> Control.stop(caller(socket), reason) |> reply(socket)
+    socket |> id() |> Helm.stop(party(socket), reason) |> reply(socket)
+  end
+
+  def handle_in("heartbeat", _payload, socket) do
+    socket |> id() |> Helm.heartbeat(party(socket)) |> reply(socket)
+  end
+
+  def handle_in("request_control", _payload, socket) do
+    socket |> id() |> Helm.request_control(party(socket)) |> reply(socket)
+  end
+
+  def handle_in("answer_request", %{"accept" => accept}, socket) when is_boolean(accept) do
+    socket |> id() |> Helm.answer_request(party(socket), accept) |> reply(socket)
+  end
+
+  def handle_in("answer_request", _payload, socket) do
+    {:reply, {:error, %{reason: "accept must be true or false"}}, socket}
+  end
+
+  def handle_in("take_control", _payload, socket) do
+    socket |> id() |> Helm.take_control(party(socket)) |> reply(socket)
+  end
+
+  def handle_in("release_control", _payload, socket) do
+    socket |> id() |> Helm.release_control(party(socket)) |> reply(socket)
+  end
+
+  # Control commands (Neptunus.Vehicle.Control.command/3): pilot only, through the helm like
+  # every command, so no handover can come between the check and the command.
+  def handle_in(event, payload, socket) when event in @control_events do
+    id = id(socket)
+
+    id
+    |> Helm.command(party(socket), :none, fn -> Control.command(id, event, payload) end)
+    |> reply(socket)
+  end
+
+  # Simulator controls `sim_reset`, `sim_set` (Neptunus.Sim.Live): pilot only, through the
+  # helm like every command; refused on a board that is not the built-in simulator.
+  def handle_in(event, payload, socket) when event in ["sim_reset", "sim_set"] do
+    id = id(socket)
+
+    id
+    |> Helm.command(party(socket), :none, fn -> Neptunus.Sim.Live.command(id, event, payload) end)
+    |> reply(socket)
   end
 
   def handle_in(event, _payload, socket) do
@@ -57,31 +108,78 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     {:push, "presence_state", Presence.list(socket.topic), socket}
   end
 
+  # Targeted events from the helm (see `party/1`).
+  def handle_info({:helm, "control_granted" = event, payload}, socket) do
+    track(socket, true)
+    {:push, event, payload, socket}
+  end
+
+  def handle_info({:helm, "control_lost" = event, payload}, socket) do
+    track(socket, false)
+    {:push, event, payload, socket}
+  end
+
+  def handle_info({:helm, event, payload}, socket), do: {:push, event, payload, socket}
+
   @impl true
   def terminate(reason, socket) do
-    # A pilot who leaves the vehicle's topic or disconnects stops the vehicle.
+    # Leaving the vehicle's topic or disconnecting gives the helm up (and stops the vehicle).
     why =
       if reason in [{:shutdown, :left}, {:shutdown, :rejoin}],
         do: "pilot_left",
         else: "pilot_disconnected"
 
-    if id = socket.assigns[:vehicle_id], do: Control.release(id, caller(socket), why)
+    if id = socket.assigns[:vehicle_id], do: Helm.leave(id, socket.user.id, why)
     :ok
   end
 
-  defp snapshot(id) do
-    status = Control.status(id)
+  defp snapshot(id, socket) do
+    helm = Helm.status(id)
     [vehicle] = Enum.filter(Fleet.list(), &(&1.id == id))
 
     %{
       vehicle: vehicle,
       telemetry: Telemetry.latest(id),
-      pilot: status.pilot,
-      control: Map.take(status, [:command, :thrusters, :gain])
+      helm: helm,
+      pilot: helm.pilot && %{name: helm.pilot.name},
+      control: Control.status(id),
+      session: %{
+        id: socket.user.id,
+        name: socket.user.name,
+        role: Atom.to_string(socket.user.role),
+        mode: Atom.to_string(Auth.mode())
+      }
     }
   end
 
-  defp caller(socket), do: %{pid: socket.transport_pid, name: socket.user.name}
+  # This connection as the helm sees it; the helm's targeted events come back to this
+  # channel's handle_info/2 as {:helm, event, payload}.
+  defp party(socket) do
+    %{
+      id: socket.user.id,
+      name: socket.user.name,
+      role: socket.user.role,
+      pid: socket.transport_pid,
+      notify: fn event, payload -> Channel.send_self(socket, {:helm, event, payload}) end
+    }
+  end
+
+  defp track(socket, pilot?) do
+    {:ok, _meta} =
+      Presence.track(socket.transport_pid, socket.topic, socket.user.name, %{
+        name: socket.user.name,
+        role: Atom.to_string(socket.user.role),
+        since: socket.assigns.since,
+        online_at: socket.assigns.since,
+        pilot: pilot?,
+        conn: socket.user.id,
+        node: Atom.to_string(node())
+      })
+
+    :ok
+  end
+
+  defp id(socket), do: socket.assigns.vehicle_id
 
   defp reply({:ok, response}, socket), do: {:reply, {:ok, response}, socket}
   defp reply({:error, reason}, socket), do: {:reply, {:error, %{reason: reason}}, socket}

@@ -17,11 +17,18 @@ defmodule Neptunus.Vehicle.Board.Simulated do
 
   With `stats: true` each tick records its lateness — wall-clock time of the tick minus the
   deadline it was scheduled for, in µs — and how long the tick's work took (`stats/1`).
+
+  Lights, laser and camera tilt (`Board.lights/2`, `laser/2`, `tilt/2`) are recorded and
+  reported in every sample as `board: %{lights, laser, tilt}`.
+
+  `Neptunus.Vehicle.Control` also starts one beside a real board for run mode simulator:
+  options `name:` (instead of `Board.via(id)`) and `source: :simulator` (its samples go
+  through `Board.sample/3` as the simulator's).
   """
   use GenServer
 
   alias Neptunus.{Periodic, Sim}
-  alias Neptunus.Vehicle.{Board, Navigation}
+  alias Neptunus.Vehicle.Board
 
   @behaviour Board
 
@@ -36,10 +43,21 @@ defmodule Neptunus.Vehicle.Board.Simulated do
             periodic: Neptunus.Periodic.t(),
             paused: boolean(),
             skipped_steps: non_neg_integer(),
+            source: :board | :simulator,
+            devices: %{lights: 0..255, laser: 0..255, tilt: float()},
             stats: nil | %{lateness: [integer()], work: [integer()], count: non_neg_integer()}
           }
     @enforce_keys [:id, :sim, :periodic]
-    defstruct [:id, :sim, :periodic, :stats, paused: false, skipped_steps: 0]
+    defstruct [
+      :id,
+      :sim,
+      :periodic,
+      :stats,
+      paused: false,
+      skipped_steps: 0,
+      source: :board,
+      devices: %{lights: 0, laser: 0, tilt: 0.0}
+    ]
   end
 
   @typedoc "A command from `Neptunus.Sim.Live` (validated there)."
@@ -49,14 +67,27 @@ defmodule Neptunus.Vehicle.Board.Simulated do
   Options: `:id` (required), `:hz` (integration rate, default from config `:sim_hz`),
   `:initial` (keyword of `Dynamics.State` fields), `:sim` (keyword of `Neptunus.Sim.new/1`
   options; defaults `vehicle: "neptunus"`, `noise: true`, a random `seed`), `:stats`
-  (record tick lateness, default false).
+  (record tick lateness, default false), `:name` (default `Board.via(id)`), `:source`
+  (`:board`, or `:simulator` for the run-mode simulator).
   """
   @impl Board
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts) do
     id = Keyword.fetch!(opts, :id)
-    GenServer.start_link(__MODULE__, opts, name: Board.via(id))
+    GenServer.start_link(__MODULE__, opts, name: Keyword.get(opts, :name, Board.via(id)))
   end
+
+  @impl Board
+  @spec lights(String.t(), 0..255) :: :ok
+  def lights(id, n), do: GenServer.cast(Board.via(id), {:lights, n})
+
+  @impl Board
+  @spec laser(String.t(), 0..255) :: :ok
+  def laser(id, n), do: GenServer.cast(Board.via(id), {:laser, n})
+
+  @impl Board
+  @spec tilt(String.t(), float()) :: :ok
+  def tilt(id, rad), do: GenServer.cast(Board.via(id), {:tilt, rad})
 
   @doc "Current simulator state (for tests and diagnostics)."
   @spec state(String.t()) :: State.t()
@@ -94,6 +125,7 @@ defmodule Neptunus.Vehicle.Board.Simulated do
       id: Keyword.fetch!(opts, :id),
       sim: Sim.new(sim_opts),
       periodic: Periodic.new(hz),
+      source: Keyword.get(opts, :source, :board),
       stats: if(Keyword.get(opts, :stats, false), do: %{lateness: [], work: [], count: 0})
     }
 
@@ -105,6 +137,9 @@ defmodule Neptunus.Vehicle.Board.Simulated do
   def handle_cast({:go, thrusters}, state),
     do: {:noreply, %{state | sim: Sim.command(state.sim, thrusters)}}
 
+  def handle_cast({device, value}, state) when device in [:lights, :laser, :tilt],
+    do: {:noreply, %{state | devices: Map.put(state.devices, device, value)}}
+
   @impl true
   def handle_call(:state, _from, state), do: {:reply, state, state}
 
@@ -112,7 +147,7 @@ defmodule Neptunus.Vehicle.Board.Simulated do
     # the thruster command survives a reset: Control decides thrust, not the simulator
     sim = state.sim |> Sim.reset() |> Sim.command(state.sim.thrusters)
     state = %{state | sim: sim}
-    Navigation.sample(state.id, Sim.sample(sim))
+    report(state, sim)
     {:reply, {:ok, status(state)}, state}
   end
 
@@ -145,7 +180,7 @@ defmodule Neptunus.Vehicle.Board.Simulated do
     {due, periodic} = Periodic.advance(state.periodic, now)
     steps = min(due, @max_catch_up)
     sim = if state.paused, do: state.sim, else: Sim.step(state.sim, steps)
-    Navigation.sample(state.id, Sim.sample(sim))
+    report(state, sim)
     Periodic.arm(periodic, :tick)
 
     state = %{
@@ -157,6 +192,9 @@ defmodule Neptunus.Vehicle.Board.Simulated do
 
     {:noreply, record(state, now, deadline)}
   end
+
+  defp report(state, sim),
+    do: Board.sample(state.id, Map.put(Sim.sample(sim), :board, state.devices), state.source)
 
   defp record(%State{stats: nil} = state, _now, _deadline), do: state
 

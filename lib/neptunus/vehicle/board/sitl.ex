@@ -49,6 +49,18 @@ defmodule Neptunus.Vehicle.Board.SITL do
   @spec link_status(String.t()) :: map()
   def link_status(id), do: UART.link_status(id)
 
+  @impl Board
+  @spec lights(String.t(), 0..255) :: :ok
+  def lights(id, n), do: UART.lights(id, n)
+
+  @impl Board
+  @spec laser(String.t(), 0..255) :: :ok
+  def laser(id, n), do: UART.laser(id, n)
+
+  @impl Board
+  @spec tilt(String.t(), number()) :: :ok
+  def tilt(id, rad), do: UART.tilt(id, rad)
+
   @impl true
   def init(opts) do
     id = Keyword.fetch!(opts, :id)

@@ -24,7 +24,8 @@ defmodule Neptunus.Vehicle.Board.UART do
       control dies or hangs, pings stop and the board's own deadman stops the motors.
     * **Telemetry.** Lines are framed, parsed and checked in `Neptunus.Vehicle.Board.Readings`;
       samples (`sim: nil`, plus the board's other fields under `board`) go to
-      `Neptunus.Vehicle.Navigation.sample/2`. Garbage and wild points are counted, never passed on.
+      navigation (`Neptunus.Vehicle.Board.sample/3`). Garbage and wild points are counted, never
+      passed on.
     * **Shutdown.** It traps exits; on an orderly shutdown it writes a neutral `go()` before the
       port closes (the program flushes it before exiting). After a brutal kill the port
       program sees stdin close and exits; the board's deadman covers the rest.
@@ -37,7 +38,7 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   alias Neptunus.{Allocation, PubSub, Wiring}
   alias Neptunus.Protocol.OpenROV
-  alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
+  alias Neptunus.Vehicle.{Board, Telemetry}
   alias Neptunus.Vehicle.Board.{Backoff, Readings}
 
   @behaviour Board
@@ -66,6 +67,7 @@ defmodule Neptunus.Vehicle.Board.UART do
             ping_interval: pos_integer(),
             keepalive_timeout: pos_integer(),
             ping_n: non_neg_integer(),
+            devices: %{optional(:lights | :laser | :tilt) => number()},
             counters: %{atom() => non_neg_integer()}
           }
     @enforce_keys [:id, :topic, :device, :baud, :wiring, :program, :backoff, :readings]
@@ -89,6 +91,7 @@ defmodule Neptunus.Vehicle.Board.UART do
       ping_interval: 1_000,
       keepalive_timeout: 2_000,
       ping_n: 0,
+      devices: %{},
       counters: %{
         opens: 0,
         downs: 0,
@@ -141,6 +144,21 @@ defmodule Neptunus.Vehicle.Board.UART do
   @spec raw(String.t()) :: %{String.t() => String.t()}
   def raw(id), do: GenServer.call(Board.via(id), :raw)
 
+  @doc "Sets the lights (0..255): `ligt(n);`. Kept and re-sent after every (re)open."
+  @impl Board
+  @spec lights(String.t(), 0..255) :: :ok
+  def lights(id, n), do: GenServer.cast(Board.via(id), {:device, :lights, n})
+
+  @doc "Sets the laser (0..255): `claser(n);`. Kept and re-sent after every (re)open."
+  @impl Board
+  @spec laser(String.t(), 0..255) :: :ok
+  def laser(id, n), do: GenServer.cast(Board.via(id), {:device, :laser, n})
+
+  @doc "Tilts the camera to `rad` (see `Board.tilt_us/1`): `tilt(µs);`. Re-sent after (re)open."
+  @impl Board
+  @spec tilt(String.t(), number()) :: :ok
+  def tilt(id, rad), do: GenServer.cast(Board.via(id), {:device, :tilt, rad})
+
   @doc "Path of the port program."
   @spec program() :: String.t()
   def program, do: Application.app_dir(:neptunus, "priv/neptunus_uart")
@@ -191,6 +209,17 @@ defmodule Neptunus.Vehicle.Board.UART do
   end
 
   def handle_cast(:keepalive, state), do: {:noreply, %{state | heard_at: now_ms()}}
+
+  # Lights, laser and tilt are sent at once, independent of thrust (thesis §13.1), and kept
+  # so a reopened link gets them back; while the link is down they are only kept.
+  def handle_cast({:device, device, value}, state) do
+    state = %{state | devices: Map.put(state.devices, device, value)}
+
+    case state.link do
+      :up -> {:noreply, state |> bump(:commands) |> write(device_command(device, value))}
+      _ -> {:noreply, bump(state, :dropped_commands)}
+    end
+  end
 
   @impl true
   def handle_call(:link_status, _from, state) do
@@ -246,6 +275,10 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   # Link ----------------------------------------------------------------------------------
 
+  defp device_command(:lights, n), do: OpenROV.lights(n)
+  defp device_command(:laser, n), do: OpenROV.laser(n)
+  defp device_command(:tilt, rad), do: OpenROV.tilt(Board.tilt_us(rad))
+
   defp open(state) do
     args = ["tty", state.device, Integer.to_string(state.baud)]
 
@@ -270,13 +303,17 @@ defmodule Neptunus.Vehicle.Board.UART do
       |> bump(:opens)
       |> announce(true, "open")
 
-    write(state, Wiring.go_command(state.wiring, Allocation.neutral()))
+    state = write(state, Wiring.go_command(state.wiring, Allocation.neutral()))
+
+    Enum.reduce(state.devices, state, fn {device, value}, state ->
+      write(state, device_command(device, value))
+    end)
   end
 
   defp program_message(?r, bytes, state) do
     t = (now_ms() - state.started_at) / 1000
     {readings, samples} = Readings.feed(state.readings, bytes, t)
-    Enum.each(samples, &Navigation.sample(state.id, &1))
+    Enum.each(samples, &Board.sample(state.id, &1))
     %{state | readings: readings}
   end
 

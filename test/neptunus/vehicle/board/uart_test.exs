@@ -177,6 +177,33 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     assert opens >= 2
   end
 
+  test "lights, laser and tilt go out at once, are kept while down, and return after a reopen",
+       ctx do
+    start_uart(ctx)
+    link_event(true)
+    recv_until(ctx.board, &(&1 == @neutral))
+
+    UART.lights(ctx.id, 200)
+    assert recv_until(ctx.board, &String.ends_with?(&1, ";")) == "ligt(200);"
+    UART.tilt(ctx.id, :math.pi() / 4)
+    assert recv_until(ctx.board, &String.ends_with?(&1, ";")) == "tilt(2000);"
+
+    hang_up!(ctx.pair)
+    link_event(false)
+    UART.laser(ctx.id, 9)
+    wait_until(fn -> UART.link_status(ctx.id).counters.dropped_commands >= 1 end, "dropped")
+
+    pair = socat_pair!(dir: ctx.pair.dir, a: "a", b: "b-new")
+    board = open!(pair.a)
+    File.rename!(pair.b, ctx.pair.b)
+    wait_until(fn -> UART.link_status(ctx.id).up end, "the link back up")
+
+    # neutral first, then the kept device settings (in whatever chunks the pty delivers them)
+    bytes = recv_until(board, &(&1 |> String.split(";", trim: true) |> length() >= 4))
+    assert [@neutral | resent] = bytes |> String.split(";", trim: true) |> Enum.map(&(&1 <> ";"))
+    assert Enum.sort(resent) == ["claser(9);", "ligt(200);", "tilt(2000);"]
+  end
+
   test "the port program dying is a link down too ({:exit_status, n}), then it reopens", ctx do
     start_uart(ctx)
     link_event(true)

@@ -1,0 +1,565 @@
+defmodule Neptunus.Control.Core do
+  @moduledoc """
+  A vehicle's control as a pure value: control mode, gain, lights, laser, camera tilt, run
+  mode, the pilot's command, the depth and heading autopilots, DP, and the thruster output
+  they make together. `Neptunus.Vehicle.Control` runs it live (commands from the helm,
+  estimates from navigation, a 50 Hz tick) and `Neptunus.Scenario.Run` runs it headless on
+  simulated time — the same decisions either way.
+
+  Every function returns the new value and **actions** for the caller to carry out, in order:
+
+    * `{:go, thrusters}` — command the thrusters (`%{port, vertical, starboard}` in [-1, 1]);
+    * `{:stopped, reason}` — a stop happened: tell everyone (and log it);
+    * `{:lights, 0..255}`, `{:laser, 0..255}`, `{:tilt, rad}` — set them on the board now
+      (never coupled to thrust: the thesis' lights waited for the next thrust command, §13.1);
+    * `{:run_mode, :simulator | :normal, seed}` — move commands and telemetry to a simulator
+      seeded with `seed` (`%{depth, heading}` or nil), or back to the real board.
+
+  ## Control modes
+
+    * `:motion` — the pilot commands surge, heave and yaw in [-1, 1]; the thesis' allocation
+      (eq. 9.3) makes the thruster commands. The gain `k` scales the pilot's axes. An engaged
+      autopilot drives its axis (heave for depth, yaw for heading) with its own output, which
+      the gain does not scale (a PID keeps its tuning whatever the pilot's sensitivity); while
+      the heading autopilot drives yaw, surge gives way to it (`|surge| ≤ 1 − |yaw|`) so the
+      heading is held at full speed.
+    * `:manual` — the pilot commands each thruster in [-1, 1], scaled by `k`. No autopilots:
+      entering manual disengages them (thesis §7.1) and engaging one is refused.
+    * `:dp` — position hold (`Neptunus.Control.DP`) with depth and heading held. Needs a
+      position source (an estimate with a `position`); the pilot sends no thrust in DP.
+      Entering DP engages depth and heading hold at their current values unless they are
+      engaged already (then their setpoints are kept), and holds the current position.
+
+  ## Stops
+
+  Every stop zeroes the pilot's command and tells everyone (`{:stopped, reason}`). What
+  happens to the autopilots depends on why:
+
+    * a **handover** (`control_transferred`, `main_station_takeover`) keeps the autopilots and
+      DP holding: the new pilot picks their setpoints up from the grant, and the pilot's
+      thrust is neutral;
+    * a **control-mode change** (`control_mode_changed`) sends neutral thrust first, then
+      applies the new mode's rules above;
+    * **every other stop** — deadman, pilot left or disconnected, released, the pilot's own
+      stop, helm restarted, simulator reset, run-mode change — is a safety stop: the
+      autopilots and DP are disengaged (control mode `dp` falls back to `motion`) and the
+      thrusters go neutral.
+
+  ## Estimates
+
+  `estimate/3` gives the latest estimate `%{t, depth, depth_rate, heading, yaw_rate,
+  position}` (SI, heading in [0, 2π), `position` `%{x, y}` or nil) and the time it arrived.
+  Engaging an autopilot or DP needs an estimate no older than `stale_after` (default 1 s);
+  while the estimate is older than that, the autopilots' outputs are zero (their setpoints
+  and trims are kept) until estimates come again.
+  """
+
+  alias Neptunus.Allocation
+  alias Neptunus.Control.{Autopilot, Command, DP}
+
+  @handover_reasons ["control_transferred", "main_station_takeover"]
+  @deadband_ramp 0.02
+
+  @default_gains %{
+    depth: [kp: 3.0, ki: 0.1, kd: 1.5],
+    heading: [kp: 4.0, ki: 0.3, kd: 2.0],
+    surge: [kp: 0.4, ki: 0.02, kd: 0.8]
+  }
+
+  @enforce_keys [:depth, :heading, :gains]
+  defstruct [
+    :depth,
+    :heading,
+    :gains,
+    :dp,
+    :estimate,
+    :estimate_at,
+    mode: :motion,
+    gain: 0.5,
+    lights: 0,
+    laser: 0,
+    tilt: 0.0,
+    run_mode: :normal,
+    run_modes: [:normal],
+    pilot: %{surge: 0.0, heave: 0.0, yaw: 0.0},
+    thrusters: %{port: 0.0, vertical: 0.0, starboard: 0.0},
+    stale_after: 1.0,
+    deadband: 0.05,
+    dp_opts: []
+  ]
+
+  @type action ::
+          {:go, Allocation.thrusters()}
+          | {:stopped, String.t()}
+          | {:lights, 0..255}
+          | {:laser, 0..255}
+          | {:tilt, float()}
+          | {:run_mode, Command.run_mode(), %{depth: float(), heading: float()} | nil}
+
+  @typedoc """
+  * `mode`, `gain`, `lights`, `laser`, `tilt` (rad), `run_mode` — as set by the pilot;
+    `run_modes` — the run modes this vehicle has (`[:normal]` on a simulated board)
+  * `pilot` — the pilot's command in the current mode's terms (motion or dp:
+    `%{surge, heave, yaw}`, manual: `%{port, vertical, starboard}`)
+  * `depth`, `heading` — the autopilots; `dp` — DP when in mode dp, else nil
+  * `estimate`, `estimate_at` — the latest estimate and when it came (s, the caller's clock)
+  * `thrusters` — the output in force
+  """
+  @type t :: %__MODULE__{
+          mode: Command.control_mode(),
+          gain: float(),
+          lights: 0..255,
+          laser: 0..255,
+          tilt: float(),
+          run_mode: Command.run_mode(),
+          run_modes: [Command.run_mode()],
+          pilot: map(),
+          depth: Autopilot.t(),
+          heading: Autopilot.t(),
+          dp: DP.t() | nil,
+          gains: %{depth: keyword(), heading: keyword(), surge: keyword()},
+          estimate: map() | nil,
+          estimate_at: number() | nil,
+          thrusters: Allocation.thrusters(),
+          stale_after: float(),
+          deadband: float(),
+          dp_opts: keyword()
+        }
+
+  @doc """
+  Control at rest: mode motion, thrusters neutral, autopilots off. Options: `gain` (default
+  0.5), `run_modes` (default `[:normal]`; `[:normal, :simulator]` for a real board), `gains`
+  (`%{depth: [kp:, ki:, kd:], heading: …, surge: …}` merged over the defaults), `stale_after`
+  (s), `deadband` (the thrusters' deadband the autopilot outputs skip, default 0.05 — the
+  vehicle files' and a typical ESC's; 0 turns compensation off), `dp` (`return_radius`,
+  `capture_radius`).
+  """
+  @spec new(keyword()) :: t()
+  def new(opts \\ []) do
+    gains =
+      Map.merge(@default_gains, Map.new(Keyword.get(opts, :gains, %{})), fn _axis, a, b ->
+        Keyword.merge(a, Enum.to_list(b))
+      end)
+
+    %__MODULE__{
+      gain: Keyword.get(opts, :gain, 0.5) * 1.0,
+      run_modes: Keyword.get(opts, :run_modes, [:normal]),
+      gains: gains,
+      depth: Autopilot.new(:depth, gains.depth),
+      heading: Autopilot.new(:heading, gains.heading),
+      stale_after: Keyword.get(opts, :stale_after, 1.0) * 1.0,
+      deadband: Keyword.get(opts, :deadband, 0.05) * 1.0,
+      dp_opts: Keyword.get(opts, :dp, [])
+    }
+  end
+
+  @doc "The default PID gains of the depth, heading and DP surge loops."
+  @spec default_gains() :: map()
+  def default_gains, do: @default_gains
+
+  # --- commands ---------------------------------------------------------------------------
+
+  @doc """
+  Carries out a validated pilot command (`Neptunus.Control.Command`) at time `now` (s).
+  `{:error, reason}` changes nothing.
+  """
+  @spec command(t(), Command.t(), number()) :: {:ok, t(), [action()]} | {:error, String.t()}
+  def command(%__MODULE__{mode: mode} = core, {:set_control_mode, mode}, _now),
+    do: {:ok, core, []}
+
+  def command(core, {:set_control_mode, :dp}, now) do
+    case fresh_estimate(core, now) do
+      %{position: %{x: _, y: _}} = estimate ->
+        {core, actions} = pilot_stop(core, "control_mode_changed")
+        {:ok, enter_dp(core, estimate), actions}
+
+      _ ->
+        {:error, "dp needs a position source: this vehicle has none"}
+    end
+  end
+
+  def command(core, {:set_control_mode, mode}, _now) do
+    {core, actions} = pilot_stop(core, "control_mode_changed")
+    core = leave_dp(%{core | mode: mode, pilot: zero(mode)})
+
+    core =
+      if mode == :manual,
+        do: %{
+          core
+          | depth: Autopilot.disengage(core.depth),
+            heading: Autopilot.disengage(core.heading)
+        },
+        else: core
+
+    {:ok, core, actions}
+  end
+
+  def command(%__MODULE__{mode: mode}, {:thrust, thrust_mode, _values}, _now)
+      when thrust_mode != mode,
+      do: {:error, "thrust mode #{thrust_mode} does not match control mode #{mode}"}
+
+  def command(core, {:thrust, :manual, values}, _now) do
+    {:ok, %{core | pilot: values}, []} |> remix()
+  end
+
+  def command(core, {:thrust, :motion, values}, _now) do
+    # a release re-captures at the latest estimate (the stick moved the vehicle there)
+    estimate = core.estimate
+
+    core = %{
+      core
+      | pilot: values,
+        depth: pilot_axis(core.depth, values.heave, estimate, :depth, :depth_rate),
+        heading: pilot_axis(core.heading, values.yaw, estimate, :heading, :yaw_rate)
+    }
+
+    {:ok, core, []} |> remix()
+  end
+
+  def command(core, {:set_gain, k}, _now), do: {:ok, %{core | gain: k}, []} |> remix()
+  def command(core, {:set_lights, n}, _now), do: {:ok, %{core | lights: n}, [{:lights, n}]}
+  def command(core, {:set_laser, n}, _now), do: {:ok, %{core | laser: n}, [{:laser, n}]}
+  def command(core, {:set_tilt, rad}, _now), do: {:ok, %{core | tilt: rad}, [{:tilt, rad}]}
+
+  def command(%__MODULE__{mode: :manual}, {:autopilot, _}, _now),
+    do: {:error, "autopilots are not available in manual mode: switch to motion or dp"}
+
+  def command(%__MODULE__{mode: :dp}, {:autopilot, %{depth: d, heading: h}}, _now)
+      when is_nil(d) or is_nil(h),
+      do: {:error, "dp holds depth and heading: switch to motion to release them"}
+
+  def command(core, {:autopilot, %{depth: depth, heading: heading}}, now) do
+    engaging? = Enum.any?([depth, heading], &(&1 not in [nil, :unchanged]))
+
+    case fresh_estimate(core, now) do
+      nil when engaging? ->
+        {:error, "no current estimate of depth and heading (no board samples): cannot engage"}
+
+      estimate ->
+        core =
+          core
+          |> set_axis(:depth, depth, estimate)
+          |> set_axis(:heading, heading, estimate)
+
+        {:ok, core, []} |> remix()
+    end
+  end
+
+  def command(%__MODULE__{run_mode: mode} = core, {:set_run_mode, mode}, _now),
+    do: {:ok, core, []}
+
+  def command(core, {:set_run_mode, mode}, now) do
+    if mode in core.run_modes do
+      seed =
+        case fresh_estimate(core, now) || core.estimate do
+          %{depth: d, heading: h} -> %{depth: d, heading: h}
+          nil -> nil
+        end
+
+      {core, actions} = safety_stop(core, "run_mode_changed")
+      core = %{core | run_mode: mode, estimate: nil, estimate_at: nil}
+
+      {:ok, core,
+       actions ++
+         [
+           {:run_mode, mode, seed},
+           {:lights, core.lights},
+           {:laser, core.laser},
+           {:tilt, core.tilt}
+         ]}
+    else
+      {:error,
+       "run mode #{mode} needs a vehicle with a real board: this one is simulated " <>
+         "(its normal run mode is the simulator)"}
+    end
+  end
+
+  # --- stops, estimates, ticks -------------------------------------------------------------
+
+  @doc "A stop for `reason` (see the moduledoc: handovers keep the autopilots)."
+  @spec stop(t(), String.t()) :: {t(), [action()]}
+  def stop(core, reason) when reason in @handover_reasons do
+    core = release_pilot(%{core | pilot: zero(core.mode)})
+    thrusters = mix(core)
+    {%{core | thrusters: thrusters}, [{:go, thrusters}, {:stopped, reason}]}
+  end
+
+  def stop(core, reason), do: safety_stop(core, reason)
+
+  @doc "The latest estimate (see the moduledoc), arrived at `now` (s)."
+  @spec estimate(t(), map(), number()) :: t()
+  def estimate(core, estimate, now), do: %{core | estimate: estimate, estimate_at: now}
+
+  @doc "The estimate if it is no older than `stale_after` at `now`, else nil."
+  @spec fresh_estimate(t(), number()) :: map() | nil
+  def fresh_estimate(%__MODULE__{estimate_at: at} = core, now)
+      when is_number(at) and now - at <= core.stale_after,
+      do: core.estimate
+
+  def fresh_estimate(_core, _now), do: nil
+
+  @doc "Whether anything runs on the control loop (an autopilot or DP engaged)."
+  @spec active?(t()) :: boolean()
+  def active?(core),
+    do: core.dp != nil or Autopilot.engaged?(core.depth) or Autopilot.engaged?(core.heading)
+
+  @doc """
+  One control period of `dt` s at `now`: runs DP and the autopilots on the estimate and
+  returns `{:go, thrusters}` when the output changed. Nothing to do when nothing is engaged.
+  """
+  @spec tick(t(), number(), number()) :: {t(), [action()]}
+  def tick(core, dt, now) do
+    if active?(core) do
+      core =
+        case fresh_estimate(core, now) do
+          nil -> idle(core)
+          estimate -> run(core, estimate, dt)
+        end
+
+      emit(core)
+    else
+      {core, []}
+    end
+  end
+
+  defp run(core, estimate, dt) do
+    core =
+      case {core.dp, estimate[:position]} do
+        {nil, _} ->
+          core
+
+        {dp, %{x: _, y: _} = position} ->
+          dp = DP.step(dp, position, estimate.heading, dt)
+          heading = Autopilot.retarget(core.heading, DP.heading_setpoint(dp, position))
+          %{core | dp: dp, heading: heading}
+
+        {dp, nil} ->
+          %{core | dp: %{dp | output: 0.0}}
+      end
+
+    %{
+      core
+      | depth: Autopilot.step(core.depth, estimate.depth, estimate[:depth_rate], dt),
+        heading: Autopilot.step(core.heading, estimate.heading, estimate[:yaw_rate], dt)
+    }
+  end
+
+  defp idle(core) do
+    %{
+      core
+      | depth: Autopilot.idle(core.depth),
+        heading: Autopilot.idle(core.heading),
+        dp: core.dp && %{core.dp | output: 0.0}
+    }
+  end
+
+  defp emit(core) do
+    thrusters = mix(core)
+
+    if thrusters == core.thrusters,
+      do: {core, []},
+      else: {%{core | thrusters: thrusters}, [{:go, thrusters}]}
+  end
+
+  # --- views ---------------------------------------------------------------------------------
+
+  @doc """
+  The control state as the wire shows it (command replies, grants, join snapshot):
+  `%{mode, gain, lights, laser, tilt, run_mode, autopilot: %{depth, heading, position},
+  command, thrusters}` — `autopilot.depth`/`heading` are the setpoints (nil: disengaged),
+  `position` DP's target `%{x, y}` (nil unless in dp); `command` is the pilot's, `thrusters`
+  the output with pulse widths.
+  """
+  @spec status(t()) :: map()
+  def status(core) do
+    core
+    |> control()
+    |> Map.merge(%{command: core.pilot, thrusters: Allocation.with_us(core.thrusters)})
+  end
+
+  @doc "The control state without command and thrusters (telemetry's `control`)."
+  @spec control(t()) :: map()
+  def control(core) do
+    %{
+      mode: Atom.to_string(core.mode),
+      gain: core.gain,
+      lights: core.lights,
+      laser: core.laser,
+      tilt: core.tilt,
+      run_mode: Atom.to_string(core.run_mode),
+      autopilot: %{
+        depth: Autopilot.setpoint(core.depth),
+        heading: if(core.dp, do: core.dp.heading, else: Autopilot.setpoint(core.heading)),
+        position: dp_target(core.dp)
+      }
+    }
+  end
+
+  defp dp_target(nil), do: nil
+  defp dp_target(%DP{target: {x, y}}), do: %{x: x, y: y}
+
+  @doc """
+  Telemetry's `autopilot`: `%{depth, heading, position}`, each nil when disengaged, else
+  depth and heading `%{setpoint, output, overridden}` and position (DP)
+  `%{x, y, heading, phase, distance, output}`.
+  """
+  @spec autopilot(t()) :: map()
+  def autopilot(core) do
+    %{
+      depth: Autopilot.public(core.depth),
+      heading: Autopilot.public(core.heading),
+      position: core.dp && DP.public(core.dp)
+    }
+  end
+
+  # --- internals -----------------------------------------------------------------------------
+
+  # The pilot's command goes to zero and the thrusters neutral (control-mode change).
+  defp pilot_stop(core, reason) do
+    core = release_pilot(%{core | pilot: zero(core.mode), thrusters: Allocation.neutral()})
+    {core, [{:go, Allocation.neutral()}, {:stopped, reason}]}
+  end
+
+  defp safety_stop(core, reason) do
+    core = %{
+      leave_dp(core)
+      | mode: if(core.mode == :dp, do: :motion, else: core.mode),
+        pilot: zero(if core.mode == :dp, do: :motion, else: core.mode),
+        depth: Autopilot.disengage(core.depth),
+        heading: Autopilot.disengage(core.heading),
+        thrusters: Allocation.neutral()
+    }
+
+    {core, [{:go, Allocation.neutral()}, {:stopped, reason}]}
+  end
+
+  # the pilot let go of every axis: overridden autopilots re-capture
+  defp release_pilot(core) do
+    %{
+      core
+      | depth: pilot_axis(core.depth, 0.0, core.estimate, :depth, :depth_rate),
+        heading: pilot_axis(core.heading, 0.0, core.estimate, :heading, :yaw_rate)
+    }
+  end
+
+  defp pilot_axis(ap, input, estimate, key, rate_key) do
+    case estimate do
+      %{^key => value} -> Autopilot.pilot(ap, input != 0, value, estimate[rate_key])
+      _ -> Autopilot.pilot(ap, input != 0, nil, nil)
+    end
+  end
+
+  defp enter_dp(core, estimate) do
+    depth =
+      if Autopilot.engaged?(core.depth),
+        do: core.depth,
+        else: Autopilot.engage(core.depth, :hold, estimate.depth, estimate[:depth_rate], false)
+
+    heading =
+      if Autopilot.engaged?(core.heading),
+        do: core.heading,
+        else: Autopilot.engage(core.heading, :hold, estimate.heading, estimate[:yaw_rate], false)
+
+    dp =
+      DP.new(
+        estimate.position,
+        Autopilot.setpoint(heading),
+        [gains: core.gains.surge] ++ core.dp_opts
+      )
+
+    %{core | mode: :dp, pilot: zero(:dp), depth: depth, heading: heading, dp: dp}
+  end
+
+  # leaving DP: the heading autopilot goes back to DP's held heading
+  defp leave_dp(%__MODULE__{dp: nil} = core), do: core
+
+  defp leave_dp(%__MODULE__{dp: dp} = core),
+    do: %{core | dp: nil, heading: Autopilot.retarget(core.heading, dp.heading)}
+
+  defp set_axis(core, _axis, :unchanged, _estimate), do: core
+
+  defp set_axis(core, axis, nil, _estimate),
+    do: Map.update!(core, axis, &Autopilot.disengage/1)
+
+  defp set_axis(%__MODULE__{dp: %DP{} = dp} = core, :heading, value, estimate) do
+    dp = DP.set_heading(dp, if(value == :hold, do: estimate.heading, else: value))
+    heading = DP.heading_setpoint(dp, estimate[:position])
+    ap = Autopilot.engage(core.heading, heading, estimate.heading, estimate[:yaw_rate], false)
+    %{core | dp: dp, heading: ap}
+  end
+
+  defp set_axis(core, axis, value, estimate) do
+    {key, rate_key, input} =
+      case axis do
+        :depth -> {:depth, :depth_rate, core.pilot[:heave] || 0.0}
+        :heading -> {:heading, :yaw_rate, core.pilot[:yaw] || 0.0}
+      end
+
+    ap = Map.fetch!(core, axis)
+    ap = Autopilot.engage(ap, value, Map.fetch!(estimate, key), estimate[rate_key], input != 0)
+    Map.put(core, axis, ap)
+  end
+
+  # recompute the output and always command it (a command re-sends the thrust)
+  defp remix({:ok, core, actions}) do
+    thrusters = mix(core)
+    {:ok, %{core | thrusters: thrusters}, actions ++ [{:go, thrusters}]}
+  end
+
+  @doc false
+  # The thruster output of the current mode, pilot command and autopilot outputs.
+  @spec mix(t()) :: Allocation.thrusters()
+  def mix(%__MODULE__{mode: :manual, gain: k, pilot: p}) do
+    %{port: sat(k * p.port), vertical: sat(k * p.vertical), starboard: sat(k * p.starboard)}
+  end
+
+  # the pilot alone: the thesis' eq. 9.3 exactly
+  def mix(%__MODULE__{
+        mode: :motion,
+        gain: k,
+        pilot: p,
+        depth: %{state: ds},
+        heading: %{state: hs}
+      })
+      when ds != :holding and hs != :holding,
+      do: Allocation.motion(p, k)
+
+  def mix(%__MODULE__{mode: mode, gain: k, pilot: p} = core) do
+    {surge, pilot_k} =
+      if mode == :dp, do: {compensate(core.dp.output, core), 0.0}, else: {k * p.surge, k}
+
+    heave =
+      case Autopilot.output(core.depth) do
+        nil -> pilot_k * p.heave
+        u -> compensate(u, core)
+      end
+
+    case Autopilot.output(core.heading) do
+      nil ->
+        Allocation.motion(%{surge: surge, heave: heave, yaw: pilot_k * p.yaw}, 1.0)
+
+      yaw ->
+        yaw = compensate(yaw, core)
+        # heading first: surge gives way so that |surge| + |yaw| <= 1
+        room = max(1.0 - abs(yaw), 0.0)
+        surge = surge |> max(-room) |> min(room)
+        Allocation.motion(%{surge: surge, heave: heave, yaw: yaw}, 1.0)
+    end
+  end
+
+  # Thruster deadband compensation of an autopilot output: beyond `ramp` the output skips the
+  # deadband δ (δ + (1 − δ)|u|), below it a steeper line through zero (no chatter from noise).
+  defp compensate(u, %__MODULE__{deadband: d}) when d == 0, do: u
+
+  defp compensate(u, %__MODULE__{deadband: d}) do
+    ramp = @deadband_ramp
+    a = abs(u)
+    v = if a >= ramp, do: d + (1.0 - d) * a, else: a * (d + (1.0 - d) * ramp) / ramp
+    if u < 0, do: -v, else: v
+  end
+
+  defp zero(:manual), do: %{port: 0.0, vertical: 0.0, starboard: 0.0}
+  defp zero(_mode), do: %{surge: 0.0, heave: 0.0, yaw: 0.0}
+
+  defp sat(x), do: x |> max(-1.0) |> min(1.0) |> Kernel.*(1.0) |> Kernel.+(0.0)
+end

@@ -1,0 +1,260 @@
+defmodule Neptunus.Vehicle.ControlTest do
+  # Vehicle.Control as a process, on the test board (which reports every command to the test
+  # process). Estimates are sent by the test (Control.estimate/2), as navigation does.
+  use ExUnit.Case, async: true
+
+  alias Neptunus.{Allocation, Fleet, PubSub}
+  alias Neptunus.Vehicle.{Board, Control, Helm, Telemetry}
+
+  @moduletag :capture_log
+  @neutral %{port: 0.0, vertical: 0.0, starboard: 0.0}
+
+  setup do
+    id = "ctl-#{System.unique_integer([:positive])}"
+    PubSub.subscribe(Telemetry.topic(id))
+
+    vehicle = %{
+      id: id,
+      board: Board.Test,
+      report_to: self(),
+      control: [stale_after: 1.0, simulator: [sim: [noise: false]]],
+      helm: [tick_ms: 3_600_000]
+    }
+
+    start_supervised!({Neptunus.Vehicle.Supervisor, vehicle})
+    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}
+    flush_board(id)
+    {:ok, id: id}
+  end
+
+  defp flush_board(id) do
+    receive do
+      {:board, ^id, _} -> flush_board(id)
+    after
+      50 -> :ok
+    end
+  end
+
+  defp estimate(id, opts \\ []) do
+    Control.estimate(
+      id,
+      Map.merge(
+        %{t: 1.0, depth: 2.0, depth_rate: 0.0, heading: 1.0, yaw_rate: 0.0, position: nil},
+        Map.new(opts)
+      )
+    )
+  end
+
+  defp command(id, event, payload), do: Control.command(id, event, payload)
+
+  test "the control state: what the grant, replies and telemetry carry", %{id: id} do
+    assert %{
+             mode: "motion",
+             gain: 0.5,
+             lights: 0,
+             laser: 0,
+             tilt: 0.0,
+             run_mode: "normal",
+             autopilot: %{depth: nil, heading: nil, position: nil},
+             command: %{surge: 0.0},
+             thrusters: %{port_us: 1500}
+           } = Control.status(id)
+
+    assert Control.events() --
+             ~w(set_control_mode set_gain set_lights set_laser set_tilt autopilot set_run_mode) ==
+             []
+
+    party = %{id: "p1", name: "ada", role: :pilot, pid: self(), notify: fn _, _ -> :ok end}
+    assert {:ok, %{grant: %{control: control}}} = Helm.request_control(id, party)
+    assert control == Control.status(id)
+  end
+
+  test "lights, laser and tilt reach the board at once, without a thrust", %{id: id} do
+    assert {:ok, %{control: %{lights: 128}}} = command(id, "set_lights", %{"value" => 128})
+    assert_receive {:board, ^id, {:lights, 128}}
+    assert {:ok, %{control: %{laser: 3}}} = command(id, "set_laser", %{"value" => 3})
+    assert_receive {:board, ^id, {:laser, 3}}
+    assert {:ok, %{control: %{tilt: -0.5}}} = command(id, "set_tilt", %{"value" => -0.5})
+    assert_receive {:board, ^id, {:tilt, -0.5}}
+    refute_received {:board, ^id, {:go, _}}
+
+    assert {:error, "value must be an integer in [0, 255], got 300"} =
+             command(id, "set_lights", %{"value" => 300})
+
+    assert Control.status(id).lights == 128
+  end
+
+  test "manual mode: stop first, then each thruster times the gain", %{id: id} do
+    {:ok, _} = Control.thrust(id, %{"mode" => "motion", "surge" => 1, "heave" => 0, "yaw" => 0})
+    assert_receive {:board, ^id, {:go, %{port: 0.5}}}
+
+    assert {:ok, %{control: %{mode: "manual"}}} =
+             command(id, "set_control_mode", %{"mode" => "manual"})
+
+    assert_receive {:board, ^id, {:go, @neutral}}
+    assert_receive {:pubsub, _, "stopped", %{reason: "control_mode_changed"}}
+
+    assert {:ok, %{command: cmd, thrusters: thr, control: %{mode: "manual"}}} =
+             Control.thrust(id, %{
+               "mode" => "manual",
+               "port" => 1,
+               "vertical" => -0.5,
+               "starboard" => 0
+             })
+
+    assert cmd == %{port: 1.0, vertical: -0.5, starboard: 0.0}
+    assert %{port: 0.5, vertical: -0.25, starboard: +0.0, vertical_us: 1375} = thr
+    assert_receive {:board, ^id, {:go, %{port: 0.5, vertical: -0.25, starboard: +0.0}}}
+
+    assert {:error, "thrust mode motion does not match control mode manual"} =
+             Control.thrust(id, %{"mode" => "motion", "surge" => 1, "heave" => 0, "yaw" => 0})
+  end
+
+  test "depth hold runs on the control loop and shows in telemetry", %{id: id} do
+    assert {:error, "no current estimate" <> _} = command(id, "autopilot", %{"depth" => "hold"})
+    estimate(id, depth: 2.0)
+
+    assert {:ok, %{control: %{autopilot: %{depth: 2.1, heading: nil}}}} =
+             command(id, "autopilot", %{"depth" => 2.1})
+
+    # the loop keeps commanding the vertical thruster down towards 2.1 m (the integral grows)
+    assert_receive {:board, ^id, {:go, %{vertical: v1}}}
+    assert_receive {:board, ^id, {:go, %{vertical: v2}}}, 500
+    assert v2 > v1 and v1 > 0
+
+    Board.Test.sample(id, %{t: 1.0, measurement: measurement(), sim: nil})
+    estimate(id, depth: 2.0)
+    assert_receive {:pubsub, _, "telemetry", %{control: c, autopilot: ap}}, 500
+    assert %{mode: "motion", autopilot: %{depth: 2.1}} = c
+    assert %{depth: %{setpoint: 2.1, output: out, overridden: false}, heading: nil} = ap
+    assert out > 0
+
+    # a deadman stop disengages it and goes neutral
+    {:ok, _} = Control.stop(id, "deadman")
+    assert Control.status(id).autopilot.depth == nil
+    flush_board(id)
+    estimate(id, depth: 2.0)
+    refute_receive {:board, ^id, {:go, _}}, 100
+  end
+
+  test "estimates stop coming: outputs go neutral, setpoints stay", %{id: id} do
+    estimate(id, depth: 2.0)
+    {:ok, _} = command(id, "autopilot", %{"depth" => 3.0})
+    assert_receive {:board, ^id, {:go, %{vertical: 1.0}}}
+    # stale after 1 s (this test's setting)
+    assert_receive {:board, ^id, {:go, @neutral}}, 3_000
+    assert Control.status(id).autopilot.depth == 3.0
+  end
+
+  test "dp: refused without a position source, holds with one", %{id: id} do
+    estimate(id)
+
+    assert {:error, "dp needs a position source: this vehicle has none"} =
+             command(id, "set_control_mode", %{"mode" => "dp"})
+
+    estimate(id, position: %{x: 3.0, y: -1.0})
+
+    assert {:ok, %{control: %{mode: "dp", autopilot: %{position: %{x: 3.0, y: -1.0}}}}} =
+             command(id, "set_control_mode", %{"mode" => "dp"})
+
+    assert {:error, "thrust mode motion does not match control mode dp"} =
+             Control.thrust(id, %{"mode" => "motion", "surge" => 1, "heave" => 0, "yaw" => 0})
+
+    # a handover keeps it holding
+    {:ok, _} = Control.stop(id, "control_transferred")
+    assert %{mode: "dp"} = Control.status(id)
+  end
+
+  describe "run mode simulator" do
+    test "commands and samples move to a simulator seeded from the estimate, and back", %{
+      id: id
+    } do
+      estimate(id, depth: 4.0, heading: :math.pi() / 2)
+      {:ok, _} = command(id, "set_lights", %{"value" => 50})
+      flush_board(id)
+
+      assert {:ok, %{control: %{run_mode: "simulator"}}} =
+               command(id, "set_run_mode", %{"mode" => "simulator"})
+
+      assert_receive {:pubsub, _, "stopped", %{reason: "run_mode_changed"}}
+      sim = Control.simulator(id)
+      assert is_pid(sim)
+      assert Control.sample_source(id) == :simulator
+
+      # seeded at the estimated depth and heading
+      %{sim: %{dyn: dyn}, devices: devices} = :sys.get_state(sim)
+      assert_in_delta dyn.z, 4.0, 0.05
+      assert_in_delta dyn.psi, :math.pi() / 2, 0.05
+      assert devices.lights == 50
+
+      # the real board stays neutral: thrust goes to the simulator
+      {:ok, _} = Control.thrust(id, %{"mode" => "motion", "surge" => 1, "heave" => 0, "yaw" => 0})
+      refute_receive {:board, ^id, {:go, %{port: 0.5}}}, 100
+      assert %{port: 0.5} = :sys.get_state(sim).sim.thrusters
+      # ... lights too
+      {:ok, _} = command(id, "set_lights", %{"value" => 60})
+      refute_receive {:board, ^id, {:lights, 60}}, 50
+      assert :sys.get_state(sim).devices.lights == 60
+
+      # the real board's samples are dropped; telemetry shows the simulator's
+      Board.Test.sample(id, %{t: 99.0, measurement: measurement(), sim: nil})
+      Process.sleep(50)
+      assert %{sim: %{z: _}, t: t} = Telemetry.latest(id)
+      assert t < 99.0
+
+      # the real board is still kept alive
+      assert_receive {:board, ^id, :keepalive}, 1_500
+
+      assert {:ok, %{control: %{run_mode: "normal"}}} =
+               command(id, "set_run_mode", %{"mode" => "normal"})
+
+      assert_receive {:board, ^id, {:lights, 60}}
+      refute Process.alive?(sim)
+      assert Control.simulator(id) == nil
+      assert Control.sample_source(id) == :board
+    end
+
+    test "a simulated board has no other run mode" do
+      id = "ctl-sim-#{System.unique_integer([:positive])}"
+      start_supervised!({Neptunus.Vehicle.Supervisor, %{id: id, board: :simulated}}, id: :sim)
+
+      assert {:error, "run mode simulator needs a vehicle with a real board" <> _} =
+               command(id, "set_run_mode", %{"mode" => "simulator"})
+
+      assert {:ok, %{control: %{run_mode: "normal"}}} =
+               command(id, "set_run_mode", %{"mode" => "normal"})
+    end
+
+    test "if the simulator dies, control restarts in run mode normal", %{id: id} do
+      estimate(id)
+      {:ok, _} = command(id, "set_run_mode", %{"mode" => "simulator"})
+      control = Fleet.whereis(Control, id)
+      Process.exit(Control.simulator(id), :kill)
+      assert_receive {:board, ^id, {:go, @neutral}}, 1_000
+      wait_for(fn -> Fleet.whereis(Control, id) not in [nil, control] end)
+      assert %{run_mode: "normal"} = Control.status(id)
+      assert Control.sample_source(id) == :board
+    end
+  end
+
+  test "the simulated board records lights, laser and tilt and reports them" do
+    id = "ctl-dev-#{System.unique_integer([:positive])}"
+    start_supervised!({Neptunus.Vehicle.Supervisor, %{id: id, board: :simulated}}, id: :sim)
+    Board.lights(id, 7)
+    Board.laser(id, 8)
+    Board.tilt(id, 0.25)
+    assert %{devices: %{lights: 7, laser: 8, tilt: 0.25}} = Board.Simulated.state(id)
+    assert Allocation.neutral() == Board.Simulated.state(id).sim.thrusters
+  end
+
+  defp measurement,
+    do: %{depth: 1.0, heading: 0.5, roll: 0.0, pitch: 0.0, voltage: 12.0, current: 1.0}
+
+  defp wait_for(fun, n \\ 50) do
+    cond do
+      fun.() -> :ok
+      n == 0 -> flunk("timed out")
+      true -> Process.sleep(20) && wait_for(fun, n - 1)
+    end
+  end
+end
