@@ -4,15 +4,23 @@ defmodule Neptunus.Vehicle.Supervisor do
   `{Neptunus.Vehicle.Supervisor, id}` with the board type as value:
 
     1. the board link (`Neptunus.Vehicle.Board` implementation),
-    2. `Neptunus.Vehicle.Telemetry` (latest state, telemetry broadcast),
-    3. `Neptunus.Vehicle.Control` (commands → allocation → board; neutral on start).
+    2. `Neptunus.Vehicle.Navigation` (board samples → wild-point filter, Kalman estimate →
+       telemetry and control; only casts, so it never waits on what starts after it),
+    3. `Neptunus.Vehicle.Telemetry` (latest state, telemetry broadcast),
+    4. `Neptunus.Vehicle.Control` (commands → allocation → board; neutral on start),
+    5. `Neptunus.Vehicle.Helm` (who is in control; authorises every command, deadman;
+       neutral on start).
 
-  A crash restarts the crashed process and everything after it, so Control always restarts
-  and drives the thrusters neutral.
+  A crash restarts the crashed process and everything after it, so every crash ends with the
+  thrusters neutral: a crash of the board, navigation, telemetry or control restarts Control
+  (neutral on start) and the Helm (which forgets the pilot); a crash of the Helm alone
+  restarts it, and it stops the vehicle through Control as it starts. The Helm comes after Control because it
+  calls Control (never the other way round) and must not outlive a Control that forgot the
+  pilot's commands.
   """
   use Supervisor
 
-  alias Neptunus.Vehicle.{Board, Control, Telemetry}
+  alias Neptunus.Vehicle.{Board, Control, Helm, Navigation, Telemetry}
 
   @spec start_link(Neptunus.Config.vehicle()) :: Supervisor.on_start()
   def start_link(%{id: id, board: board} = vehicle) do
@@ -31,8 +39,10 @@ defmodule Neptunus.Vehicle.Supervisor do
 
     children = [
       {Board.module(board), opts},
+      {Navigation, opts},
       {Telemetry, opts},
-      {Control, opts}
+      {Control, opts},
+      {Helm, opts}
     ]
 
     Supervisor.init(children, strategy: :rest_for_one, max_restarts: 10, max_seconds: 10)

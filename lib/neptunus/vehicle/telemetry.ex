@@ -8,9 +8,14 @@ defmodule Neptunus.Vehicle.Telemetry do
 
       %{t: s, sent_at: epoch ms,
         measurement: %{depth, heading, roll, pitch, voltage, current},
+        estimate: %{depth, depth_rate, heading, yaw_rate},
+        wild_points: %{total, by_field, by_reason, reacquired},
         sim: %{x, y, z, phi, theta, psi, u, v, w, p, q, r} | nil,
-        command: %{surge, heave, yaw},
-        thrusters: %{port, vertical, starboard, port_us, vertical_us, starboard_us}}
+        command: %{surge, heave, yaw} | %{port, vertical, starboard},
+        thrusters: %{port, vertical, starboard, port_us, vertical_us, starboard_us},
+        control: %{mode, gain, lights, laser, tilt, run_mode, autopilot: %{depth, heading, position}},
+        autopilot: %{depth: %{setpoint, output, overridden} | nil, heading: … | nil,
+                     position: %{x, y, heading, phase, distance, output} | nil}}
 
   SI units (m, m/s, rad, rad/s, V, A); heading in [0, 2π). `t` is the vehicle's clock,
   `sent_at` the wall clock at broadcast (for latency measurements only).
@@ -20,6 +25,9 @@ defmodule Neptunus.Vehicle.Telemetry do
   alias Neptunus.{Allocation, Periodic, PubSub}
   alias Neptunus.Vehicle.Board
 
+  @no_estimate %{depth: nil, depth_rate: nil, heading: nil, yaw_rate: nil}
+  @no_autopilot %{depth: nil, heading: nil, position: nil}
+
   defmodule State do
     @moduledoc false
     @type t :: %__MODULE__{
@@ -27,11 +35,13 @@ defmodule Neptunus.Vehicle.Telemetry do
             topic: String.t(),
             periodic: Periodic.t(),
             sample: Board.sample() | nil,
-            command: Allocation.motion(),
-            thrusters: map()
+            command: map(),
+            thrusters: map(),
+            control: map() | nil,
+            autopilot: map()
           }
-    @enforce_keys [:id, :topic, :periodic, :command, :thrusters]
-    defstruct [:id, :topic, :periodic, :sample, :command, :thrusters]
+    @enforce_keys [:id, :topic, :periodic, :command, :thrusters, :autopilot]
+    defstruct [:id, :topic, :periodic, :sample, :command, :thrusters, :control, :autopilot]
   end
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -43,13 +53,25 @@ defmodule Neptunus.Vehicle.Telemetry do
   @spec topic(String.t()) :: String.t()
   def topic(id), do: "vehicle:" <> id
 
-  @doc "Reports a board sample (called by the board)."
+  @doc """
+  Reports a board sample (called by `Neptunus.Vehicle.Navigation`, with the filtered
+  `measurement`, the `estimate` and the `wild_points` counts).
+  """
   @spec sample(String.t(), Board.sample()) :: :ok
   def sample(id, sample), do: GenServer.cast(via(id), {:sample, sample})
 
-  @doc "Reports the control output (called by control)."
-  @spec control(String.t(), Allocation.motion(), Allocation.thrusters()) :: :ok
-  def control(id, command, thrusters), do: GenServer.cast(via(id), {:control, command, thrusters})
+  @doc """
+  Reports the control state (called by `Neptunus.Vehicle.Control` after every change and
+  control-loop tick): `%{command, thrusters, control, autopilot}` (see the moduledoc).
+  """
+  @spec control(String.t(), %{
+          command: map(),
+          thrusters: Allocation.thrusters(),
+          control: map(),
+          autopilot: map()
+        }) :: :ok
+  def control(id, %{command: _, thrusters: _, control: _, autopilot: _} = state),
+    do: GenServer.cast(via(id), {:control, state})
 
   @doc "The latest telemetry payload, or nil before the first board sample."
   @spec latest(String.t()) :: map() | nil
@@ -69,7 +91,8 @@ defmodule Neptunus.Vehicle.Telemetry do
       topic: topic(id),
       periodic: Periodic.new(hz),
       command: %{surge: 0.0, heave: 0.0, yaw: 0.0},
-      thrusters: Allocation.with_us(Allocation.neutral())
+      thrusters: Allocation.with_us(Allocation.neutral()),
+      autopilot: @no_autopilot
     }
 
     Periodic.arm(state.periodic, :tick)
@@ -79,8 +102,15 @@ defmodule Neptunus.Vehicle.Telemetry do
   @impl true
   def handle_cast({:sample, sample}, state), do: {:noreply, %{state | sample: sample}}
 
-  def handle_cast({:control, command, thrusters}, state) do
-    {:noreply, %{state | command: command, thrusters: Allocation.with_us(thrusters)}}
+  def handle_cast({:control, c}, state) do
+    {:noreply,
+     %{
+       state
+       | command: c.command,
+         thrusters: Allocation.with_us(c.thrusters),
+         control: c.control,
+         autopilot: c.autopilot
+     }}
   end
 
   @impl true
@@ -106,9 +136,14 @@ defmodule Neptunus.Vehicle.Telemetry do
       t: sample.t,
       sent_at: System.os_time(:microsecond) / 1000,
       measurement: sample.measurement,
+      estimate: Map.get(sample, :estimate, @no_estimate),
+      wild_points:
+        Map.get_lazy(sample, :wild_points, &Neptunus.Navigation.WildPoints.new_counts/0),
       sim: sample.sim,
       command: state.command,
-      thrusters: state.thrusters
+      thrusters: state.thrusters,
+      control: state.control,
+      autopilot: state.autopilot
     }
   end
 end

@@ -1,0 +1,135 @@
+defmodule Neptunus.Vehicle.Navigation do
+  @moduledoc """
+  A vehicle's navigation: every board sample comes here first (`sample/2`), goes through the
+  wild-point tests and the Kalman filter of `Neptunus.Estimator`, and goes on
+
+    * to `Neptunus.Vehicle.Telemetry` (`Telemetry.sample/2`) as the same sample with its
+      `measurement` filtered — each field the last accepted reading, wild points never passed
+      on — plus `estimate` (`%{depth, depth_rate, heading, yaw_rate}`, nil values while there
+      is none) and `wild_points` (`%{total, by_field, by_reason, reacquired}`);
+    * to `Neptunus.Vehicle.Control` (`Control.estimate/2`) as
+      `%{t, depth, depth_rate, heading, yaw_rate, position}` — only when both depth and
+      heading are estimated, so Control sees the estimate go stale (and its autopilots idle)
+      rather than a nil. `position` is `%{x, y}` (m, NED) from the simulator's truth or a
+      board's `position` field, nil without a position source.
+
+  The thruster commands come in through `command/2` (`Neptunus.Vehicle.Board.go/2` sends
+  every command here too, and Control sends the simulator's in run mode simulator): they
+  drive the filter's prediction.
+
+  It sits right after the board in the vehicle's `:rest_for_one` tree and only casts to the
+  processes after it (casts to registered names never fail, so it never waits on them); a
+  crash restarts it with a fresh filter, and Telemetry, Control and the Helm after it.
+
+  Options: `:id` (required); `:navigation` — options of `Neptunus.Estimator.new/1` (e.g.
+  `vehicle: nil` for a model-free filter). The filter's vehicle model is by default the
+  simulator's parameter set when the board simulates (`sim: [vehicle: …]`), else `neptunus`.
+  """
+  use GenServer
+
+  alias Neptunus.Estimator
+  alias Neptunus.Vehicle.{Board, Control, Telemetry}
+
+  defmodule State do
+    @moduledoc false
+    @type t :: %__MODULE__{
+            id: String.t(),
+            estimator: Neptunus.Estimator.t() | nil,
+            estimator_opts: keyword(),
+            samples: non_neg_integer()
+          }
+    @enforce_keys [:id, :estimator_opts]
+    defstruct [:id, :estimator, :estimator_opts, samples: 0]
+  end
+
+  @spec start_link(keyword()) :: GenServer.on_start()
+  def start_link(opts) do
+    GenServer.start_link(__MODULE__, opts, name: via(Keyword.fetch!(opts, :id)))
+  end
+
+  @doc "Reports a board sample (called by the board; asynchronous)."
+  @spec sample(String.t(), Board.sample()) :: :ok
+  def sample(id, sample), do: GenServer.cast(via(id), {:sample, sample})
+
+  @doc "Reports the thruster command sent to the board (asynchronous; see `Board.go/2`)."
+  @spec command(String.t(), map()) :: :ok
+  def command(id, thrusters), do: GenServer.cast(via(id), {:command, thrusters})
+
+  @doc """
+  The navigation state: the latest `estimate` (as sent to Control, position excepted),
+  filtered `measurement`, `wild_points`, the number of `samples` taken, and the thruster
+  `command` the filter's model is driven by (nil for a model-free filter).
+  """
+  @spec status(String.t()) :: map()
+  def status(id), do: GenServer.call(via(id), :status)
+
+  defp via(id), do: Neptunus.Fleet.via(__MODULE__, id)
+
+  # Callbacks
+
+  @impl true
+  def init(opts) do
+    state = %State{id: Keyword.fetch!(opts, :id), estimator_opts: estimator_opts(opts)}
+    {:ok, state, {:continue, :estimator}}
+  end
+
+  @impl true
+  def handle_continue(:estimator, state),
+    do: {:noreply, %{state | estimator: Estimator.new(state.estimator_opts)}}
+
+  @impl true
+  def handle_cast({:sample, sample}, state) do
+    estimator =
+      Estimator.update(state.estimator, Map.get(sample, :t), Map.get(sample, :measurement))
+
+    estimate = Estimator.estimate(estimator)
+
+    Telemetry.sample(
+      state.id,
+      Map.merge(sample, %{
+        measurement: Estimator.measurement(estimator),
+        estimate: Map.delete(estimate, :t),
+        wild_points: Estimator.wild_points(estimator)
+      })
+    )
+
+    if estimate.depth != nil and estimate.heading != nil do
+      Control.estimate(state.id, Map.put(estimate, :position, position(sample)))
+    end
+
+    {:noreply, %{state | estimator: estimator, samples: state.samples + 1}}
+  end
+
+  def handle_cast({:command, thrusters}, state),
+    do: {:noreply, %{state | estimator: Estimator.command(state.estimator, thrusters)}}
+
+  @impl true
+  def handle_call(:status, _from, state) do
+    reply = %{
+      estimate: Estimator.estimate(state.estimator),
+      measurement: Estimator.measurement(state.estimator),
+      wild_points: Estimator.wild_points(state.estimator),
+      samples: state.samples,
+      command: state.estimator.model && state.estimator.model.commands
+    }
+
+    {:reply, reply, state}
+  end
+
+  defp estimator_opts(opts) do
+    sim = Keyword.get(opts, :sim, [])
+
+    vehicle =
+      if Keyword.keyword?(sim), do: Keyword.get(sim, :vehicle, "neptunus"), else: "neptunus"
+
+    Keyword.merge([vehicle: vehicle], Keyword.get(opts, :navigation, []))
+  end
+
+  # the simulator's truth, else a board's position field (e.g. from a DVL or USBL)
+  defp position(%{sim: %{x: x, y: y}}) when is_number(x) and is_number(y), do: %{x: x, y: y}
+
+  defp position(%{board: %{position: %{x: x, y: y}}}) when is_number(x) and is_number(y),
+    do: %{x: x, y: y}
+
+  defp position(_sample), do: nil
+end

@@ -1,0 +1,159 @@
+defmodule Neptunus.Vehicle.NavigationTest do
+  use ExUnit.Case, async: true
+
+  @moduletag :capture_log
+
+  alias Neptunus.{Allocation, Fleet}
+  alias Neptunus.Vehicle.{Board, Control, Navigation, Telemetry}
+
+  @m %{depth: 1.0, heading: 0.5, roll: 0.01, pitch: -0.01, voltage: 12.4, current: 0.4}
+
+  defp id, do: "nav-#{System.unique_integer([:positive])}"
+
+  describe "alone, the test process standing in for telemetry and control" do
+    setup do
+      id = id()
+      {:ok, _} = Registry.register(Fleet.Registry, {Telemetry, id}, nil)
+      {:ok, _} = Registry.register(Fleet.Registry, {Control, id}, nil)
+      start_supervised!({Navigation, id: id})
+      {:ok, id: id}
+    end
+
+    test "a sample goes on to telemetry filtered and estimated, the estimate to control",
+         %{id: id} do
+      truth = %{x: 3.0, y: -2.0, z: 1.0, psi: 0.5}
+      Navigation.sample(id, %{t: 1.0, measurement: @m, sim: truth})
+
+      assert_receive {:"$gen_cast", {:sample, sample}}
+      assert %{t: 1.0, measurement: @m, sim: ^truth} = sample
+      assert sample.estimate == %{depth: 1.0, depth_rate: 0.0, heading: 0.5, yaw_rate: 0.0}
+
+      assert %{total: 0, by_field: %{depth: 0}, by_reason: %{}, reacquired: 0} =
+               sample.wild_points
+
+      assert_receive {:"$gen_cast", {:estimate, estimate}}
+
+      assert estimate == %{
+               t: 1.0,
+               depth: 1.0,
+               depth_rate: 0.0,
+               heading: 0.5,
+               yaw_rate: 0.0,
+               position: %{x: 3.0, y: -2.0}
+             }
+    end
+
+    test "wild points are counted and never passed on", %{id: id} do
+      Navigation.sample(id, %{t: 1.0, measurement: @m, sim: nil})
+      Navigation.sample(id, %{t: 1.05, measurement: %{@m | depth: 10.0, heading: 50.0}, sim: nil})
+
+      assert_receive {:"$gen_cast", {:sample, %{t: 1.0}}}
+      assert_receive {:"$gen_cast", {:sample, %{t: 1.05} = sample}}
+      assert sample.measurement.depth == 1.0 and sample.measurement.heading == 0.5
+      assert_in_delta sample.estimate.depth, 1.0, 1.0e-4
+      assert %{total: 2, by_field: %{depth: 1, heading: 1}} = sample.wild_points
+
+      assert %{wild_points: %{total: 2}, samples: 2, measurement: %{depth: 1.0}} =
+               Navigation.status(id)
+    end
+
+    test "a board's position field is the position source; none gives nil", %{id: id} do
+      Navigation.sample(id, %{
+        t: 1.0,
+        measurement: @m,
+        sim: nil,
+        board: %{position: %{x: 1, y: 2}}
+      })
+
+      assert_receive {:"$gen_cast", {:estimate, %{position: %{x: 1, y: 2}}}}
+      Navigation.sample(id, %{t: 1.05, measurement: @m, sim: nil, board: %{yaw: 0.1}})
+      assert_receive {:"$gen_cast", {:estimate, %{t: 1.05, position: nil}}}
+    end
+
+    test "no estimate for control until both depth and heading are estimated", %{id: id} do
+      Navigation.sample(id, %{t: 1.0, measurement: %{@m | heading: 9.0}, sim: nil})
+      assert_receive {:"$gen_cast", {:sample, %{estimate: %{depth: 1.0, heading: nil}}}}
+      refute_receive {:"$gen_cast", {:estimate, _}}, 50
+    end
+
+    test "commands drive the filter's model", %{id: id} do
+      Navigation.command(id, %{port: 0.2, vertical: 1.0, starboard: 0.2})
+      assert %{command: %{vertical: 1.0, port: 0.2}} = Navigation.status(id)
+    end
+  end
+
+  describe "in the vehicle" do
+    setup do
+      id = id()
+
+      start_supervised!(
+        {Neptunus.Vehicle.Supervisor, %{id: id, board: Board.Test, report_to: self()}}
+      )
+
+      {:ok, id: id}
+    end
+
+    test "board samples reach telemetry through navigation", %{id: id} do
+      Board.Test.sample(id, %{t: 1.0, measurement: @m, sim: nil})
+      Board.Test.sample(id, %{t: 1.05, measurement: %{@m | depth: 100.0}, sim: nil})
+
+      assert %{
+               t: 1.05,
+               measurement: %{depth: 1.0},
+               estimate: %{depth: depth, heading: 0.5},
+               wild_points: %{total: 1, by_field: %{depth: 1}}
+             } = Telemetry.latest(id)
+
+      assert_in_delta depth, 1.0, 1.0e-4
+    end
+
+    test "thruster commands reach navigation with the board", %{id: id} do
+      Board.go(id, %{port: 0.5, vertical: -0.5, starboard: 0.5})
+      assert_receive {:board, ^id, {:go, %{vertical: -0.5}}}
+      assert %{command: %{port: 0.5, vertical: -0.5, starboard: 0.5}} = Navigation.status(id)
+    end
+
+    test "a crash of navigation restarts what comes after it, not the board", %{id: id} do
+      neutral = Allocation.neutral()
+      assert_receive {:board, ^id, {:started, ^neutral}}
+      Board.Test.sample(id, %{t: 1.0, measurement: @m, sim: nil})
+      flush_gos(id)
+      board = Fleet.whereis(Board, id)
+      control = Fleet.whereis(Control, id)
+
+      Process.exit(Fleet.whereis(Navigation, id), :kill)
+      # control restarts, and drives the thrusters neutral; the board stays
+      assert_receive {:board, ^id, {:go, ^neutral}}, 1_000
+      refute_received {:board, ^id, {:started, _}}
+      assert Fleet.whereis(Board, id) == board
+      assert Fleet.whereis(Control, id) != control
+      assert %{samples: 0} = Navigation.status(id)
+    end
+  end
+
+  defp flush_gos(id) do
+    receive do
+      {:board, ^id, {:go, _}} -> flush_gos(id)
+    after
+      100 -> :ok
+    end
+  end
+
+  test "on a simulated vehicle the estimate follows the simulator's truth" do
+    id = id()
+    start_supervised!({Neptunus.Vehicle.Supervisor, %{id: id, board: :simulated}})
+
+    wait = fn wait, n ->
+      case Telemetry.latest(id) do
+        %{t: t} = latest when t > 0.5 -> latest
+        _ when n > 0 -> Process.sleep(50) && wait.(wait, n - 1)
+      end
+    end
+
+    latest = wait.(wait, 100)
+    assert_in_delta latest.estimate.depth, latest.sim.z, 0.05
+    heading_error = Neptunus.Dynamics.wrap_pi(latest.estimate.heading - latest.sim.psi)
+    assert_in_delta heading_error, 0.0, 0.05
+    assert is_float(latest.estimate.depth_rate) and is_float(latest.estimate.yaw_rate)
+  end
+end
