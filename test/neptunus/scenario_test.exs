@@ -171,7 +171,8 @@ defmodule Neptunus.ScenarioTest do
       assert error(with_event(%{"gain" => 1})) == "missing field: events[0].t"
 
       assert error(with_event(%{"t" => 0})) ==
-               "events[0] must have at least one of: current, gain, tau, thrust"
+               "events[0] must have at least one of: autopilot, control_mode, current, gain, " <>
+                 "tau, thrust"
 
       assert error(with_event(%{"t" => 0, "foo" => 1})) =~ "unknown field: events[0].foo"
 
@@ -190,8 +191,7 @@ defmodule Neptunus.ScenarioTest do
       assert error(with_event(%{"t" => 0, "current" => "east"})) =~
                "events[0].current must be a list of 3 numbers"
 
-      assert error(with_event(%{"t" => 0, "autopilot" => %{"depth" => 1}})) =~
-               "events[0].autopilot: autopilots are not available yet"
+      # autopilot and control_mode events: test/neptunus/control/scenario_control_test.exs
 
       assert error(
                Map.put(@minimal, "events", [
@@ -240,7 +240,7 @@ defmodule Neptunus.ScenarioTest do
       assert Run.columns() ==
                ~w(t x y z phi theta psi u v w p q r depth_meas heading_meas roll_meas pitch_meas
                   voltage_meas current_meas depth_est depth_rate_est heading_est yaw_rate_est
-                  port vertical starboard)
+                  depth_setpoint heading_setpoint port vertical starboard)
     end
 
     test "events take effect at their step; gain scales motion and manual thrust" do
@@ -334,10 +334,12 @@ defmodule Neptunus.ScenarioTest do
 
       for line <- lines do
         values = String.split(line, ",")
-        assert length(values) == 26
+        assert length(values) == 28
+        # the autopilot setpoints are empty while disengaged
+        assert ["", ""] = Enum.slice(values, 23, 2)
 
         Enum.each(
-          values,
+          values -- ["", ""],
           &String.to_float(if String.contains?(&1, "."), do: &1, else: &1 <> ".0")
         )
       end

@@ -92,6 +92,8 @@ defmodule Mix.Tasks.Neptunus.SimulateTest do
       System.cmd("mix", ["neptunus.simulate", bad], env: env, stderr_to_stdout: true)
 
     assert status != 0
-    assert output =~ "events[0] must have at least one of: current, gain, tau, thrust"
+
+    assert output =~
+             "events[0] must have at least one of: autopilot, control_mode, current, gain, tau, thrust"
   end
 end
