@@ -1,7 +1,13 @@
 // Builds the browser assets into ../priv/static (served by the Neptunus endpoint):
-//   src/operator/main.ts → priv/static/assets/app.js (+ .map), bundled, minified, es2020
-//   static/index.html    → priv/static/index.html
-//   static/app.css       → priv/static/assets/app.css
+//   src/operator/main.tsx  → priv/static/assets/app.js (+ .map), bundled, minified, es2020
+//   src/developer/main.tsx → priv/static/assets/dev.js (+ .map)
+//   src/login/main.ts      → priv/static/assets/login.js (+ .map)
+//   static/index.html      → priv/static/index.html
+//   static/dev.html        → priv/static/dev.html
+//   static/login.html      → priv/static/login.html
+//   static/app.css         → priv/static/assets/app.css
+//   uplot's uPlot.min.css  → priv/static/assets/uplot.css
+// TSX uses Preact's automatic JSX runtime (tsconfig.json: jsx react-jsx, jsxImportSource preact).
 // Usage: node build.mjs [--watch]     (npm run build)
 import { copyFile, mkdir } from "node:fs/promises";
 import { dirname, join } from "node:path";
@@ -15,7 +21,10 @@ const watch = process.argv.includes("--watch");
 
 const copies = [
   [join(here, "static", "index.html"), join(outRoot, "index.html")],
+  [join(here, "static", "login.html"), join(outRoot, "login.html")],
+  [join(here, "static", "dev.html"), join(outRoot, "dev.html")],
   [join(here, "static", "app.css"), join(outAssets, "app.css")],
+  [join(here, "node_modules", "uplot", "dist", "uPlot.min.css"), join(outAssets, "uplot.css")],
 ];
 
 async function copyStatic() {
@@ -26,8 +35,12 @@ async function copyStatic() {
 /** @type {import("esbuild").BuildOptions} */
 const options = {
   absWorkingDir: here,
-  entryPoints: [join(here, "src", "operator", "main.ts")],
-  outfile: join(outAssets, "app.js"),
+  entryPoints: {
+    app: join(here, "src", "operator", "main.tsx"),
+    dev: join(here, "src", "developer", "main.tsx"),
+    login: join(here, "src", "login", "main.ts"),
+  },
+  outdir: outAssets,
   bundle: true,
   format: "iife",
   platform: "browser",

@@ -11,27 +11,77 @@ defmodule Neptunus.E2E.ExternalTest do
 
   defp url, do: "http://127.0.0.1:#{Application.fetch_env!(:neptunus, :endpoint).port}"
 
-  defp node!(args) do
+  defp node!(args, env \\ []) do
     node = System.find_executable("node") || flunk("node is not installed: run `make setup`")
 
     {output, status} =
-      System.cmd(node, args, cd: @root, env: [{"NEPTUNUS_URL", url()}], stderr_to_stdout: true)
+      System.cmd(node, args,
+        cd: @root,
+        env: [{"NEPTUNUS_URL", url()} | env],
+        stderr_to_stdout: true
+      )
 
     assert status == 0, "node #{Enum.join(args, " ")} failed (exit #{status}):\n#{output}"
     output
   end
 
-  test "the official phoenix JS client: join, presence, telemetry, thrust, stop" do
+  test "the official phoenix JS client: join, presence, telemetry, helm, thrust, stop" do
     output = node!(["--test", "--test-reporter=spec", "assets/test/protocol/vehicle.test.mjs"])
     assert output =~ ~r/pass \d+/
     refute output =~ ~r/fail [1-9]/
   end
 
-  test "the operator page in Chromium: keys drive the simulated vehicle" do
+  test "the operator page in Chromium: keyboard, touch, gamepad, handover, safety stops, settings" do
     unless File.exists?(Path.join(@root, "priv/static/index.html")),
       do: flunk("priv/static is not built: run `make assets`")
 
     output = node!(["--test", "--test-reporter=spec", "test/e2e/operator.e2e.mjs"])
+    assert output =~ ~r/pass \d+/
+    refute output =~ ~r/fail [1-9]/
+  end
+
+  test "the developer page in Chromium: plots, reset, remove, CSV, logger categories" do
+    unless File.exists?(Path.join(@root, "priv/static/dev.html")),
+      do: flunk("priv/static is not built: run `make assets`")
+
+    output = node!(["--test", "--test-reporter=spec", "test/e2e/developer.e2e.mjs"])
+    assert output =~ ~r/pass \d+/
+    refute output =~ ~r/fail [1-9]/
+  end
+
+  test "login, roles and the main station's takeover in Chromium (secure mode)" do
+    unless File.exists?(Path.join(@root, "priv/static/login.html")),
+      do: flunk("priv/static is not built: run `make assets`")
+
+    # The test server switches to secure mode for this test (NeptunusWeb.Auth reads its
+    # configuration at every connection and login).
+    logins = %{"e2e-pilot" => "pilot pw", "e2e-main" => "main pw", "e2e-olga" => "olga pw"}
+    roles = %{"e2e-pilot" => :pilot, "e2e-main" => :main_station, "e2e-olga" => :observer}
+
+    users =
+      Map.new(logins, fn {name, password} ->
+        hash = NeptunusWeb.Auth.Password.hash(password, iterations: 1000)
+        {name, %{name: name, role: Map.fetch!(roles, name), hash: hash}}
+      end)
+
+    previous = Application.get_env(:neptunus, :auth)
+    on_exit(fn -> Application.put_env(:neptunus, :auth, previous) end)
+
+    Application.put_env(:neptunus, :auth, %{
+      mode: :secure,
+      secret: Base.encode64(:crypto.strong_rand_bytes(32)),
+      users: users,
+      anonymous_observers: false,
+      origins: []
+    })
+
+    NeptunusWeb.Auth.RateLimit.reset()
+
+    output =
+      node!(["--test", "--test-reporter=spec", "test/e2e/login.e2e.mjs"], [
+        {"NEPTUNUS_E2E_LOGINS", :jiffy.encode(logins) |> IO.iodata_to_binary()}
+      ])
+
     assert output =~ ~r/pass \d+/
     refute output =~ ~r/fail [1-9]/
   end

@@ -1,144 +1,48 @@
-// Browser test of the operator page: headless Debian Chromium driven by playwright-core (from
-// assets/node_modules) against a running Neptunus server with a simulated vehicle.
+// Browser tests of the operator page: headless Debian Chromium (playwright-core) against a
+// running Neptunus server with a simulated vehicle, at desktop (1920×1080) and tablet
+// (1024×768, touch emulation) viewports.
 //
 //   (cd assets && npm install && npm run build)
 //   NEPTUNUS_URL=http://127.0.0.1:4102 node --test test/e2e/operator.e2e.mjs
 //
-// NEPTUNUS_URL defaults to http://127.0.0.1:4000, CHROMIUM_PATH to /usr/bin/chromium.
-// Screenshots go to test/e2e/artifacts/ (git-ignored). Every wait has a timeout; the browser is
-// closed in `after`, so the process exits whether the server is there or not.
+// Every wait has a timeout; the browser is closed in `after`, so the process exits whether the
+// server is there or not. Screenshots: test/e2e/artifacts/.
 
 import assert from "node:assert/strict";
-import { existsSync, mkdirSync } from "node:fs";
-import { createRequire } from "node:module";
-import { dirname, join } from "node:path";
 import { after, before, test } from "node:test";
-import { fileURLToPath } from "node:url";
+import {
+  DESKTOP,
+  TABLET,
+  TEST_MS,
+  WAIT_MS,
+  allZero,
+  assertNoPageProblems,
+  helmState,
+  launch,
+  num,
+  open,
+  screenshot,
+  takeHelm,
+  thrusterValues,
+  until,
+  waitTelemetry,
+} from "./helpers.mjs";
 
-const here = dirname(fileURLToPath(import.meta.url));
-const root = join(here, "..", "..");
-const require = createRequire(join(root, "assets", "package.json"));
-
-const BASE = (process.env.NEPTUNUS_URL || "http://127.0.0.1:4000").replace(/\/+$/, "");
-const CHROMIUM = process.env.CHROMIUM_PATH || "/usr/bin/chromium";
-const ARTIFACTS = join(here, "artifacts");
-const CHROMIUM_ARGS = [
-  "--no-sandbox",
-  "--disable-gpu",
-  "--disable-quic",
-  "--no-first-run",
-  "--disable-background-networking",
-  "--disable-component-update",
-  "--disable-sync",
-];
-
-const WAIT_MS = 5000;
-const TEST_MS = 60000;
-
-let chromium;
 let browser;
-/** Uncaught errors and console errors of every page, checked at the end of each test. */
-const pageProblems = [];
-
-function loadPlaywright() {
-  try {
-    return require("playwright-core").chromium;
-  } catch (err) {
-    throw new Error(
-      `playwright-core not found in assets/node_modules (${err.message}): run \`npm install\` in assets/`,
-    );
-  }
-}
-
-async function get(path) {
-  try {
-    return await fetch(`${BASE}${path}`, { signal: AbortSignal.timeout(2000) });
-  } catch (err) {
-    throw new Error(
-      `Neptunus server not reachable at ${BASE} (${err.cause?.message ?? err.message}). ` +
-        "Start it (e.g. `NEPTUNUS_PORT=4102 mix run --no-halt`) and set NEPTUNUS_URL.",
-    );
-  }
-}
 
 before(async () => {
-  chromium = loadPlaywright();
-  assert.ok(existsSync(CHROMIUM), `no Chromium at ${CHROMIUM} (apt-get install chromium, or set CHROMIUM_PATH)`);
-  const health = await get("/api/health");
-  assert.equal(health.status, 200, `GET ${BASE}/api/health answered ${health.status}`);
-  const js = await get("/assets/app.js");
-  assert.equal(js.status, 200, `GET ${BASE}/assets/app.js answered ${js.status}: run \`npm run build\` in assets/`);
-  mkdirSync(ARTIFACTS, { recursive: true });
-  browser = await chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 30000 });
+  browser = await launch();
 });
 
 after(async () => {
   await browser?.close().catch(() => undefined);
 });
 
-/** A fresh context and page on the operator page. */
-async function openOperator({ width, height, name, touch = false }) {
-  const context = await browser.newContext({ viewport: { width, height }, hasTouch: touch });
-  context.setDefaultTimeout(WAIT_MS);
-  const page = await context.newPage();
-  page.on("pageerror", (err) => pageProblems.push(`[${name}] uncaught: ${err.message}`));
-  page.on("console", (msg) => {
-    if (msg.type() === "error") pageProblems.push(`[${name}] console.error: ${msg.text()}`);
-  });
-  await page.goto(`${BASE}/?name=${encodeURIComponent(name)}`, { waitUntil: "load", timeout: WAIT_MS });
-  await waitConnected(page);
-  return { context, page };
+async function operator(opts) {
+  const side = await open(browser, opts);
+  await waitTelemetry(side.page);
+  return side;
 }
-
-async function waitConnected(page) {
-  await page
-    .locator('#status[data-state="connected"]')
-    .waitFor({ timeout: WAIT_MS })
-    .catch(async () => {
-      const status = await page.locator("#status").textContent();
-      const message = await page.locator("#message").textContent();
-      throw new Error(`page never showed "connected" (status: "${status}", message: "${message}")`);
-    });
-  // telemetry on screen: heading is a number
-  await page.waitForFunction(() => /^\d+\.\d$/.test(document.querySelector("#heading")?.textContent ?? ""), null, {
-    timeout: WAIT_MS,
-  });
-}
-
-async function num(page, selector) {
-  const text = (await page.locator(selector).textContent()) ?? "";
-  const value = Number.parseFloat(text);
-  assert.ok(Number.isFinite(value), `${selector} shows "${text}", not a number`);
-  return value;
-}
-
-async function readouts(page) {
-  return {
-    heading: await num(page, "#heading"),
-    depth: await num(page, "#depth"),
-    x: await num(page, "#x"),
-    y: await num(page, "#y"),
-  };
-}
-
-/** Waits until `read()` satisfies `pred`; returns the last value. */
-async function until(read, pred, ms, what) {
-  const deadline = Date.now() + ms;
-  let last;
-  for (;;) {
-    last = await read();
-    if (pred(last)) return last;
-    if (Date.now() > deadline) assert.fail(`timed out after ${ms} ms waiting for ${what}; last: ${JSON.stringify(last)}`);
-    await new Promise((r) => setTimeout(r, 100));
-  }
-}
-
-const thrusterValues = async (page) => ({
-  port: await num(page, "#thr-port"),
-  vertical: await num(page, "#thr-vertical"),
-  starboard: await num(page, "#thr-starboard"),
-});
-const allZero = (t) => t.port === 0 && t.vertical === 0 && t.starboard === 0;
 
 async function hold(page, code, ms) {
   await page.keyboard.down(code);
@@ -149,82 +53,85 @@ async function hold(page, code, ms) {
   }
 }
 
-function assertNoPageProblems() {
-  const problems = pageProblems.splice(0);
-  assert.deepEqual(problems, [], `the page reported errors:\n${problems.join("\n")}`);
-}
-
-test("operator page: keyboard drives the simulated vehicle (desktop 1280×800)", { timeout: TEST_MS }, async () => {
-  const { context, page } = await openOperator({ width: 1280, height: 800, name: "e2e-desktop" });
+test("keyboard: request control, keys drive the vehicle, request → deny → accept handover between two browsers", { timeout: TEST_MS }, async () => {
+  const { context, page } = await operator({ ...DESKTOP, name: "e2e-desktop" });
   try {
-    assert.equal(await page.title().then((t) => t.startsWith("Neptunus")), true);
     assert.match((await page.locator("#vehicle-id").textContent()) ?? "", /\S/);
-    await until(() => num(page, "#observers"), (n) => n >= 1, WAIT_MS, "observers ≥ 1");
+    assert.match((await page.locator("#mode-banner").textContent()) ?? "", /Local mode/);
+    await page.locator('[data-testid="no-camera"]').waitFor(); // the simulated vehicle has no camera
+    await page.locator("#input-keyboard").click();
 
-    // Start from rest (the simulator may still coast from an earlier run).
+    // not in control yet: keys do nothing
+    await until(() => helmState(page), (h) => h.state === "free", WAIT_MS, "a free helm");
     assert.ok(allZero(await thrusterValues(page)), "thrusters must be at zero before we press anything");
-    const start = await readouts(page);
-    assert.ok(start.heading >= 0 && start.heading < 360, `heading ${start.heading} outside 0..359.9`);
+    await hold(page, "KeyW", 150);
+    await page.locator("#message", { hasText: "Not in control" }).waitFor();
 
-    // --- W: surge forward -------------------------------------------------------------------
+    await takeHelm(page);
+    assert.equal((await helmState(page)).text, "You pilot");
+    assert.equal(await page.locator("#pilot").textContent(), "e2e-desktop");
+
+    // W: surge forward, held longer than the deadman (the page's heartbeats keep it going)
+    const start = { x: await num(page, "#x"), y: await num(page, "#y") };
     await page.keyboard.down("KeyW");
     try {
       await until(() => num(page, "#cmd-surge"), (v) => v > 0, WAIT_MS, "commanded surge > 0 while W is held");
       await until(async () => (await thrusterValues(page)).port, (v) => v !== 0, WAIT_MS, "port thruster running");
-      await page.waitForTimeout(1000);
-      await page.screenshot({ path: join(ARTIFACTS, "operator-desktop.png"), fullPage: true });
+      await page.waitForTimeout(700);
+      assert.ok((await num(page, "#cmd-surge")) > 0, "surge dropped while W was held (deadman?)");
+      // the heartbeat replies give a round-trip time
+      await until(async () => (await page.locator("#rtt").textContent()) ?? "", (t) => /ms$/.test(t), WAIT_MS, "an RTT");
+      await screenshot(page, "operator-1920x1080.png");
     } finally {
       await page.keyboard.up("KeyW");
     }
-    assert.equal(
-      ((await page.locator("#message").getAttribute("data-kind")) ?? "") === "error",
-      false,
-      `error shown while driving: ${await page.locator("#message").textContent()}`,
-    );
-    assert.equal(await page.locator("#pilot").textContent(), "e2e-desktop");
     await until(() => thrusterValues(page), allZero, WAIT_MS, "thrusters back to 0 after releasing W");
-    await until(() => num(page, "#cmd-surge"), (v) => v === 0, WAIT_MS, "commanded surge back to 0");
-    const moved = await until(
-      () => readouts(page),
-      (r) => Math.hypot(r.x - start.x, r.y - start.y) >= 0.02,
+    await until(
+      async () => ({ x: await num(page, "#x"), y: await num(page, "#y") }),
+      (r) => Math.hypot(r.x - start.x, r.y - start.y) >= 0.01,
       WAIT_MS,
-      `position to change from x=${start.x}, y=${start.y}`,
+      "the position to change",
     );
-    assert.notEqual(moved.x, start.x, "x did not change");
 
-    // --- Q (or E if Q cannot move it, e.g. at the surface): heave -----------------------------
-    const depth0 = await num(page, "#depth");
-    await hold(page, "KeyQ", 1000);
-    await until(() => thrusterValues(page), allZero, WAIT_MS, "thrusters back to 0 after releasing Q");
-    let depth1 = await num(page, "#depth");
-    if (Math.abs(depth1 - depth0) < 0.01) {
-      await hold(page, "KeyE", 1000);
-      await until(() => thrusterValues(page), allZero, WAIT_MS, "thrusters back to 0 after releasing E");
-      depth1 = await until(
-        () => num(page, "#depth"),
-        (d) => Math.abs(d - depth0) >= 0.01,
-        WAIT_MS,
-        `depth to change from ${depth0} with Q or E`,
-      );
-    }
-    assert.ok(Math.abs(depth1 - depth0) >= 0.01, `depth did not change (${depth0} → ${depth1})`);
-
-    // --- a second operator (tablet 1024×768) is refused while the first pilots ---------------
-    const tablet = await openOperator({ width: 1024, height: 768, name: "e2e-tablet", touch: true });
+    // a second operator (tablet) watches, is refused, asks, is denied, asks again, is handed the helm
+    const tablet = await operator({ ...TABLET, name: "e2e-tablet", touch: true });
     try {
-      await until(() => num(page, "#observers"), (n) => n >= 2, WAIT_MS, "observers ≥ 2 on the desktop page");
-      assert.equal(await tablet.page.locator("#pilot").textContent(), "e2e-desktop");
-      await tablet.page.keyboard.down("KeyW");
-      await tablet.page.waitForTimeout(200);
-      await tablet.page.keyboard.up("KeyW");
-      await tablet.page
-        .locator("#message", { hasText: "not_in_control" })
-        .waitFor({ timeout: WAIT_MS });
+      await until(() => helmState(tablet.page), (h) => h.text === "e2e-desktop pilots", WAIT_MS, "the tablet names the pilot");
+      await until(() => num(page, "#observers"), (n) => n >= 2, WAIT_MS, "two connections watching");
+      await tablet.page.locator("#input-keyboard").click();
+      await hold(tablet.page, "KeyW", 150);
+      await tablet.page.locator("#message", { hasText: "Not in control" }).waitFor();
       assert.ok(allZero(await thrusterValues(page)), "a refused operator moved the thrusters");
-      // readable on a tablet: nothing wider than the viewport
+
+      await tablet.page.locator("#request-control:enabled").click();
+      await page.locator("#control-request", { hasText: "e2e-tablet" }).waitFor();
+      await page.locator("#deny-request").click();
+      await tablet.page.locator("#message", { hasText: "refused: denied" }).waitFor();
+      assert.equal((await helmState(page)).me, "pilot");
+
+      await page.keyboard.down("KeyD");
+      await until(() => num(page, "#cmd-yaw"), (v) => v > 0, WAIT_MS, "yaw while D is held");
+      await tablet.page.locator("#request-control:enabled").click();
+      await page.locator("#accept-request").click();
+      await tablet.page.locator('#helm-state[data-me="pilot"]').waitFor();
+      await until(() => thrusterValues(page), allZero, WAIT_MS, "neutral on transfer although D is still held");
+      await page.keyboard.up("KeyD");
+      await page.locator('#helm-state[data-me="watching"]').waitFor();
+      assert.equal(await page.locator("#pilot").textContent(), "e2e-tablet");
+
+      await tablet.page.keyboard.down("KeyW");
+      try {
+        await until(() => num(page, "#cmd-surge"), (v) => v > 0, WAIT_MS, "the new pilot's surge");
+      } finally {
+        await tablet.page.keyboard.up("KeyW");
+      }
+      await until(() => thrusterValues(page), allZero, WAIT_MS, "thrusters back to 0");
+
       const overflow = await tablet.page.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
       assert.ok(overflow <= 0, `page is ${overflow}px wider than the 1024px viewport`);
-      await tablet.page.screenshot({ path: join(ARTIFACTS, "operator-tablet.png"), fullPage: true });
+      await screenshot(tablet.page, "operator-1024x768.png");
+      await tablet.page.locator("#release-control").click();
+      await until(() => helmState(page), (h) => h.state === "free", WAIT_MS, "helm free after release");
     } finally {
       await tablet.context.close();
     }
@@ -234,24 +141,212 @@ test("operator page: keyboard drives the simulated vehicle (desktop 1280×800)",
   }
 });
 
-test("operator page: closing the pilot's page releases control; blur stops (1920×1080)", { timeout: TEST_MS }, async () => {
-  // The previous test's pilot closed its page: a new page must be able to drive.
-  const { context, page } = await openOperator({ width: 1920, height: 1080, name: "e2e-wide" });
+test("safety: blur, a hidden page and an input mode change stop the vehicle, as another browser sees it", { timeout: TEST_MS }, async () => {
+  const pilot = await operator({ ...DESKTOP, name: "e2e-pilot" });
+  const watcher = await operator({ ...TABLET, name: "e2e-watcher", touch: true });
   try {
-    await until(async () => (await page.locator("#pilot").textContent()) ?? "", (p) => p !== "e2e-desktop", WAIT_MS, "pilot released");
-    await page.keyboard.down("KeyD");
-    try {
-      await until(() => num(page, "#cmd-yaw"), (v) => v > 0, WAIT_MS, "commanded yaw > 0 while D is held");
-      await page.screenshot({ path: join(ARTIFACTS, "operator-wide.png") });
-      // Safety: the window losing focus stops the vehicle although D is still down.
-      await page.evaluate(() => window.dispatchEvent(new Event("blur")));
-      await until(() => thrusterValues(page), allZero, WAIT_MS, "thrusters at 0 after the window lost focus");
-      await page.locator("#message", { hasText: "Stopped" }).waitFor({ timeout: WAIT_MS });
-    } finally {
-      await page.keyboard.up("KeyD");
+    await pilot.page.locator("#input-keyboard").click();
+    await takeHelm(pilot.page);
+    const stopsBy = async (reason, trigger) => {
+      await pilot.page.keyboard.down("KeyD");
+      try {
+        await until(() => num(watcher.page, "#cmd-yaw"), (v) => v > 0, WAIT_MS, "the watcher sees yaw while D is held");
+        await trigger();
+        // server-side: the other browser sees neutral thrust and the server's `stopped`
+        await until(() => thrusterValues(watcher.page), allZero, WAIT_MS, `neutral after "${reason}" although D is held`);
+        await watcher.page.locator("#message", { hasText: `Vehicle stopped: ${reason}` }).waitFor();
+        await pilot.page.locator("#message", { hasText: "top" }).waitFor();
+      } finally {
+        await pilot.page.keyboard.up("KeyD");
+      }
+    };
+    await stopsBy("window lost focus", () => pilot.page.evaluate(() => window.dispatchEvent(new Event("blur"))));
+    await stopsBy("page hidden", () =>
+      pilot.page.evaluate(() => {
+        Object.defineProperty(document, "visibilityState", { value: "hidden", configurable: true });
+        document.dispatchEvent(new Event("visibilitychange"));
+        Object.defineProperty(document, "visibilityState", { value: "visible", configurable: true });
+      }),
+    );
+    await stopsBy("input mode changed", () => pilot.page.locator("#input-touch").click());
+    assert.equal(await pilot.page.locator("#pilot").textContent(), "e2e-pilot", "the pilot keeps the helm after a safety stop");
+    assertNoPageProblems();
+  } finally {
+    await pilot.context.close();
+    await watcher.context.close();
+  }
+});
+
+test("touch: two on-screen sticks at once on a 1024×768 tablet, no scrolling", { timeout: TEST_MS }, async () => {
+  const { context, page } = await operator({ ...TABLET, name: "e2e-touch", touch: true });
+  try {
+    await page.locator("#input-touch").click();
+    await takeHelm(page);
+    const cdp = await context.newCDPSession(page);
+    const box = async (sel) => {
+      const b = await page.locator(sel).boundingBox();
+      assert.ok(b, `${sel} is not visible`);
+      return { x: b.x + b.width / 2, y: b.y + b.height / 2, r: b.width / 2 };
+    };
+    const right = await box("#stick-right");
+    const left = await box("#stick-left");
+    const touch = (type, points) => cdp.send("Input.dispatchTouchEvent", { type, touchPoints: points });
+    const scroll0 = await page.evaluate(() => [window.scrollX, window.scrollY]);
+
+    // right stick up: surge
+    await touch("touchStart", [{ x: right.x, y: right.y, id: 1 }]);
+    await touch("touchMove", [{ x: right.x, y: right.y - right.r * 0.8, id: 1 }]);
+    await until(() => num(page, "#cmd-surge"), (v) => v > 0.5, WAIT_MS, "surge from the right stick");
+    // a second finger on the left stick, down: heave (descend) while the first still holds surge
+    await touch("touchStart", [
+      { x: right.x, y: right.y - right.r * 0.8, id: 1 },
+      { x: left.x, y: left.y, id: 2 },
+    ]);
+    await touch("touchMove", [
+      { x: right.x, y: right.y - right.r * 0.8, id: 1 },
+      { x: left.x, y: left.y + left.r * 0.9, id: 2 },
+    ]);
+    await until(
+      async () => [await num(page, "#cmd-surge"), await num(page, "#cmd-heave")],
+      ([s, h]) => s > 0.5 && h > 0.5,
+      WAIT_MS,
+      "surge and heave at once",
+    );
+    await until(async () => (await thrusterValues(page)).vertical, (v) => v !== 0, WAIT_MS, "vertical thruster running");
+    await screenshot(page, "operator-touch-1024x768.png");
+    // lift the first finger (touchEnd lists the points that lift): surge back to 0, heave stays
+    await touch("touchEnd", [{ x: right.x, y: right.y - right.r * 0.8, id: 1 }]);
+    await until(
+      async () => [await num(page, "#cmd-surge"), await num(page, "#cmd-heave")],
+      ([s, h]) => s === 0 && h > 0.5,
+      WAIT_MS,
+      "surge 0, heave held",
+    );
+    await touch("touchEnd", []);
+    await until(() => thrusterValues(page), allZero, WAIT_MS, "neutral after lifting both fingers");
+    const scroll1 = await page.evaluate(() => [window.scrollX, window.scrollY]);
+    assert.deepEqual(scroll1, scroll0, "piloting scrolled the page");
+    const style = await page.locator("#stick-left").evaluate((el) => {
+      const s = getComputedStyle(el);
+      return { touchAction: s.touchAction, userSelect: s.userSelect || s.webkitUserSelect };
+    });
+    assert.deepEqual(style, { touchAction: "none", userSelect: "none" });
+    await page.locator("#release-control").click();
+    assertNoPageProblems();
+  } finally {
+    await context.close();
+  }
+});
+
+test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard is ignored in gamepad mode", { timeout: TEST_MS }, async () => {
+  const init = () => {
+    const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
+    window.__pad = { axes: [0, 0, 0, 0], buttons: buttons() };
+    Object.defineProperty(Navigator.prototype, "getGamepads", {
+      configurable: true,
+      value: () => [
+        {
+          id: "Stub pad (STANDARD GAMEPAD)",
+          index: 0,
+          connected: true,
+          mapping: "standard",
+          timestamp: performance.now(),
+          axes: window.__pad.axes.slice(),
+          buttons: window.__pad.buttons.map((b) => ({ ...b })),
+        },
+      ],
+    });
+  };
+  const { context, page } = await operator({ ...DESKTOP, name: "e2e-gamepad", init });
+  const setPad = (axes) => page.evaluate((a) => (window.__pad.axes = a), axes);
+  try {
+    await page.locator("#input-gamepad").click();
+    await page.locator('[data-testid="gamepad-status"]', { hasText: "Stub pad" }).waitFor();
+    await takeHelm(page);
+    // right stick 55 % up: surge (0.55 − 0.1) / 0.9 = 0.5 after the default deadband
+    await setPad([0, 0, 0, -0.55]);
+    await until(() => num(page, "#cmd-surge"), (v) => Math.abs(v - 0.5) < 0.011, WAIT_MS, "surge 0.50 from the right stick");
+    // right stick X: yaw; left stick Y down: heave
+    await setPad([0, 1, 0.55, -0.55]);
+    await until(
+      async () => [await num(page, "#cmd-yaw"), await num(page, "#cmd-heave")],
+      ([y, h]) => Math.abs(y - 0.5) < 0.011 && h === 1,
+      WAIT_MS,
+      "yaw 0.50 and heave 1",
+    );
+    // keys are input of another mode: ignored
+    await hold(page, "KeyS", 300);
+    assert.ok(Math.abs((await num(page, "#cmd-surge")) - 0.5) < 0.011, "a key changed the command in gamepad mode");
+    // inside the deadband: neutral
+    await setPad([0, 0.05, 0.08, -0.09]);
+    await until(() => thrusterValues(page), allZero, WAIT_MS, "neutral inside the deadband");
+    await page.locator("#release-control").click();
+    assertNoPageProblems();
+  } finally {
+    await context.close();
+  }
+});
+
+test("settings: values go to the server and its reason is shown in the form; camera rotation is kept per vehicle", { timeout: TEST_MS }, async () => {
+  const { context, page } = await operator({ ...DESKTOP, name: "e2e-settings" });
+  try {
+    // observers' controls are disabled
+    assert.equal(await page.locator("#gain-set").isDisabled(), true);
+    await takeHelm(page);
+    const result = async (field) => {
+      const el = page.locator(`[data-testid="${field}-status"]`);
+      await until(async () => await el.getAttribute("data-state"), (s) => s === "ok" || s === "error", WAIT_MS, `${field} answered`);
+      return { state: await el.getAttribute("data-state"), text: ((await el.textContent()) ?? "").trim() };
+    };
+    // out of range: refused, with the server's reason next to the field
+    await page.locator("#gain-input").fill("2");
+    await page.locator("#gain-set").click();
+    const bad = await result("gain");
+    assert.equal(bad.state, "error", "gain 2 must be refused");
+    assert.ok(bad.text.length > 3 && !/timeout|not connected/.test(bad.text), `gain reason: "${bad.text}"`);
+    console.log(`# gain 2 → ${bad.text}`);
+    // a control mode change: the server's answer (✓, or its reason where the feature is missing)
+    await page.locator("#control-mode-manual").click();
+    const mode = await result("control_mode");
+    console.log(`# set_control_mode manual → ${mode.state} ${mode.text}`);
+    if (mode.state === "ok") {
+      // manual column of table 7.1: Q drives the port thruster alone, absolute values
+      await page.locator('#control-mode-manual[aria-checked="true"]').waitFor();
+      await page.locator("#input-keyboard").click();
+      await page.keyboard.down("KeyQ");
+      try {
+        const t = await until(() => thrusterValues(page), (v) => v.port > 0, WAIT_MS, "port thruster from Q in manual mode");
+        assert.equal(t.vertical, 0);
+        assert.equal(t.starboard, 0);
+      } finally {
+        await page.keyboard.up("KeyQ");
+      }
+      await until(() => thrusterValues(page), allZero, WAIT_MS, "neutral after releasing Q");
+      await page.locator("#control-mode-motion").click();
+      await page.locator('#control-mode-motion[aria-checked="true"]').waitFor();
+      // a valid gain is taken and shown
+      await page.locator("#gain-input").fill("0.6");
+      await page.locator("#gain-set").click();
+      await page.locator('[data-testid="gain-current"]', { hasText: "0.60" }).waitFor();
+      await page.locator("#gain-input").fill("0.5");
+      await page.locator("#gain-set").click();
+      await page.locator('[data-testid="gain-current"]', { hasText: "0.50" }).waitFor();
+    } else {
+      assert.ok(mode.text.length > 3, "an error without a reason");
     }
-    await until(() => thrusterValues(page), allZero, WAIT_MS, "thrusters at 0 after releasing D");
-    assert.equal(await page.locator("#pilot").textContent(), "e2e-wide");
+    await page.locator("#depth-input").fill("1.5");
+    await page.locator("#depth-set").click();
+    const depth = await result("depth");
+    console.log(`# autopilot depth 1.5 → ${depth.state} ${depth.text}`);
+    if (depth.state === "ok") await page.locator("#depth-off").click();
+
+    // image rotation: a per-vehicle setting of this browser
+    await page.locator("#rotation").selectOption("180");
+    await page.locator('[data-testid="camera"][data-rotation="180"]').waitFor();
+    await page.locator("#release-control").click();
+    await page.reload();
+    await page.locator('[data-testid="camera"][data-rotation="180"]').waitFor();
+    await page.locator("#rotation").selectOption("0");
     assertNoPageProblems();
   } finally {
     await context.close();

@@ -13,6 +13,9 @@
  * An axis is the sum of its held keys, so opposing keys held together cancel to 0.
  */
 
+import { manualDemand, motionDemand } from "./demand";
+import type { StickMode, ThrustDemand } from "./demand";
+
 export type MotionAxis = "surge" | "heave" | "yaw";
 export type Thruster = "port" | "vertical" | "starboard";
 
@@ -150,6 +153,11 @@ export interface KeyboardInputOptions {
    * `reset()`), with why. The axes are neutral afterwards; `onChange` is not called for this.
    */
   readonly onReset?: (reason: string) => void;
+  /**
+   * Called with the held table keys whenever that set changes (press, release; not on
+   * `reset`): for manual mode, where the same keys drive single thrusters (`keyboardDemand`).
+   */
+  readonly onHeld?: (held: ReadonlySet<string>) => void;
 }
 
 function isKeyEventLike(event: Event): event is Event & KeyEventLike {
@@ -205,14 +213,15 @@ export class KeyboardInput {
   }
 
   /**
-   * Forgets every held key (their key-ups may never come) and reports `onReset(reason)`.
-   * Returns whether any key was held.
+   * Forgets every held key (their key-ups may never come) and reports `onReset(reason)`
+   * unless `notify` is false (e.g. when the server has already stopped the vehicle and a held
+   * key must be pressed again to count). Returns whether any key was held.
    */
-  reset(reason: string): boolean {
+  reset(reason: string, notify = true): boolean {
     const wasHeld = this.held.size > 0;
     this.held.clear();
     this.axes = NEUTRAL_AXES;
-    this.options.onReset?.(reason);
+    if (notify) this.options.onReset?.(reason);
     return wasHeld;
   }
 
@@ -241,9 +250,29 @@ export class KeyboardInput {
   }
 
   private update(): void {
+    this.options.onHeld?.(new Set(this.held));
     const next = axesFromKeys(this.held);
     if (axesEqual(next, this.axes)) return;
     this.axes = next;
     this.options.onChange(next);
   }
 }
+
+/**
+ * The demand of the held keys in control mode `mode`: table 7.1's motion column (axes) or its
+ * manual column (thrusters). Values are absolute: -1, 0 or 1 per axis.
+ */
+export function keyboardDemand(held: ReadonlySet<string>, mode: StickMode): ThrustDemand {
+  if (mode === "motion") {
+    const a = axesFromKeys(held);
+    return motionDemand(a.surge, a.heave, a.yaw);
+  }
+  const t = thrustersFromKeys(held);
+  return manualDemand(t.port, t.vertical, t.starboard);
+}
+
+/** Every key of table 7.1 (the same six in both columns). */
+export const TABLE_KEYS: ReadonlySet<string> = new Set([
+  ...Object.keys(MOTION_KEYMAP),
+  ...Object.keys(MANUAL_KEYMAP),
+]);

@@ -66,36 +66,180 @@ export interface Thrusters extends ThrusterOutputs {
   readonly starboard_us: number;
 }
 
+export type ControlMode = "motion" | "manual" | "dp";
+export type RunMode = "normal" | "simulator";
+export const CONTROL_MODES: readonly ControlMode[] = ["motion", "manual", "dp"];
+export const RUN_MODES: readonly RunMode[] = ["normal", "simulator"];
+
+/** Autopilot setpoints: depth (m) and heading (rad), null when that autopilot is off. */
+export interface AutopilotSetpoints {
+  readonly depth: number | null;
+  readonly heading: number | null;
+}
+
+/**
+ * The control settings (`control` in telemetry, the snapshot, grants and the `ok` replies of
+ * the settings commands). Fields a server does not send yet are null.
+ */
+export interface ControlSettings {
+  readonly mode: string;
+  /** [0, 1] */
+  readonly gain: number | null;
+  /** 0..255 */
+  readonly lights: number | null;
+  /** 0..255 */
+  readonly laser: number | null;
+  /** rad, [-π/4, π/4] */
+  readonly tilt: number | null;
+  readonly run_mode: string | null;
+  readonly autopilot: AutopilotSetpoints | null;
+}
+
+/** One autopilot loop: its setpoint (m or rad) and output. */
+export interface AutopilotLoop {
+  readonly setpoint: number;
+  readonly output: number;
+}
+
+export interface AutopilotStatus {
+  readonly depth: AutopilotLoop | null;
+  readonly heading: AutopilotLoop | null;
+}
+
+/** The navigation filter's estimate (NaN for a field the server does not send). */
+export interface Estimate {
+  /** m */
+  readonly depth: number;
+  /** m/s */
+  readonly depth_rate: number;
+  /** rad */
+  readonly heading: number;
+  /** rad/s */
+  readonly yaw_rate: number;
+}
+
+/** The board link (serial boards; simulated vehicles have none). */
+export interface LinkStatus {
+  readonly up: boolean;
+  readonly reason: string | null;
+}
+
+export interface WildPoints {
+  readonly total: number;
+  readonly by_field: Readonly<Record<string, number>>;
+}
+
+/** Where the vehicle's camera can be watched (from the snapshot). */
+export interface CameraInfo {
+  readonly url: string;
+}
+
 export interface Telemetry {
   /** s, vehicle monotonic clock */
   readonly t: number;
   /** ms since the Unix epoch, when the server sent the sample */
   readonly sent_at: number;
+  /** sensor readings; NaN for a value the board did not give */
   readonly measurement: Measurement;
   /** the simulator's true state; `null` on a real board */
   readonly sim: SimState | null;
-  readonly command: MotionCommand;
+  /** the motion command; null when the command is not a motion command (manual mode) */
+  readonly command: MotionCommand | null;
+  /** the manual command, when the command names thrusters */
+  readonly manual: ThrusterOutputs | null;
   readonly thrusters: Thrusters;
+  readonly control: ControlSettings | null;
+  readonly autopilot: AutopilotStatus | null;
+  readonly estimate: Estimate | null;
+  readonly link: LinkStatus | null;
+  readonly wild_points: WildPoints | null;
+  /** the payload as received (plots derive their series from it) */
+  readonly raw: Readonly<Record<string, unknown>>;
 }
 
 export interface Pilot {
   readonly name: string;
 }
 
+export type Role = "pilot" | "observer" | "main_station";
+export type AuthMode = "local" | "secure";
+
+/** One connection of one user, as the helm names it. */
+export interface Party {
+  /** connection id (the snapshot's `session.id` for this client) */
+  readonly id: string;
+  readonly name: string;
+  readonly role: Role;
+}
+
+/** The pilot, with when it got the helm (ms since the Unix epoch). */
+export interface HelmPilot extends Party {
+  readonly since: number | null;
+}
+
+export type HelmStateName = "free" | "piloted" | "requested" | "takeover";
+
+/** The `helm` event and the snapshot's `helm` (docs/API.md). */
+export interface Helm {
+  readonly state: HelmStateName;
+  /** stamp for `thrust`; changes on every grant and every deadman stop */
+  readonly epoch: number;
+  readonly pilot: HelmPilot | null;
+  readonly request: { readonly from: Party; readonly remaining_ms: number } | null;
+  readonly takeover: { readonly by: Party; readonly countdown_ms: number } | null;
+  readonly deadman_ms: number;
+  readonly heartbeat_ms: number;
+  readonly request_timeout_ms: number;
+  readonly takeover_ms: number;
+}
+
+/** What the new pilot picks up (pick-up procedure). */
+export interface ControlState extends ControlSettings {
+  readonly command: MotionCommand | null;
+}
+
+/** `control_granted` and the `granted` reply of `request_control` / `take_control`. */
+export interface Grant {
+  readonly epoch: number;
+  readonly pilot: HelmPilot;
+  readonly control: ControlState;
+  readonly deadman_ms: number;
+  readonly heartbeat_ms: number;
+}
+
+/** Who this connection is (snapshot `session`). */
+export interface Session {
+  readonly id: string;
+  readonly name: string;
+  readonly role: Role;
+  readonly mode: AuthMode;
+}
+
+export type ControlReply =
+  | { readonly status: "granted"; readonly grant: Grant }
+  | { readonly status: "pending"; readonly timeout_ms: number }
+  | { readonly status: "takeover"; readonly countdown_ms: number };
+
 export interface FleetReply {
   readonly vehicles: readonly VehicleInfo[];
 }
 
-/** Join reply of `vehicle:<id>`. */
+/** Join reply of `vehicle:<id>`. `helm` and `session` are null from servers without them. */
 export interface VehicleSnapshot {
   readonly vehicle: VehicleInfo;
   readonly telemetry: Telemetry | null;
   readonly pilot: Pilot | null;
+  readonly helm: Helm | null;
+  readonly session: Session | null;
+  readonly control: ControlSettings | null;
+  /** null: the vehicle has no camera (or the server does not say) */
+  readonly camera: CameraInfo | null;
 }
 
 /** Reply to a `thrust` or `stop` push (outputs only; the pulse widths come with telemetry). */
 export interface ThrustReply {
-  readonly command: MotionCommand;
+  /** Motion mode echoes `{surge, heave, yaw}`; manual mode `{port, vertical, starboard}`. */
+  readonly command: MotionCommand | ThrusterOutputs;
   readonly thrusters: ThrusterOutputs;
 }
 
@@ -105,6 +249,10 @@ export interface PresenceEntry {
   /** display name from the first meta that has one, else the key */
   readonly name: string;
   readonly connections: number;
+  /** role from the first meta that has one */
+  readonly role: string | null;
+  /** one of its connections pilots */
+  readonly pilot: boolean;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -160,18 +308,118 @@ export function decodeThrusterOutputs(value: unknown): ThrusterOutputs | null {
   return numbers(value, OUTPUT_KEYS);
 }
 
+/** Like `numbers`, but a missing or null field reads NaN ("not known"); null if not a record. */
+function lenientNumbers<K extends string>(
+  value: unknown,
+  keys: readonly K[],
+): { readonly [P in K]: number } | null {
+  if (!isRecord(value)) return null;
+  const out: Partial<Record<K, number>> = {};
+  for (const key of keys) {
+    const v = value[key];
+    out[key] = isFiniteNumber(v) ? v : Number.NaN;
+  }
+  return out as { [P in K]: number };
+}
+
+const ESTIMATE_KEYS = ["depth", "depth_rate", "heading", "yaw_rate"] as const;
+
+function numberOrNull(value: unknown): number | null {
+  return isFiniteNumber(value) ? value : null;
+}
+
+/** Control settings; null unless it has at least a string `mode`. */
+export function decodeControlSettings(value: unknown): ControlSettings | null {
+  if (!isRecord(value) || typeof value["mode"] !== "string") return null;
+  const ap = value["autopilot"];
+  const autopilot = isRecord(ap)
+    ? { depth: numberOrNull(ap["depth"]), heading: numberOrNull(ap["heading"]) }
+    : null;
+  const runMode = value["run_mode"];
+  return {
+    mode: value["mode"],
+    gain: numberOrNull(value["gain"]),
+    lights: numberOrNull(value["lights"]),
+    laser: numberOrNull(value["laser"]),
+    tilt: numberOrNull(value["tilt"]),
+    run_mode: typeof runMode === "string" ? runMode : null,
+    autopilot,
+  };
+}
+
+function decodeLoop(value: unknown): AutopilotLoop | null {
+  const loop = numbers(value, ["setpoint", "output"] as const);
+  return loop ? { setpoint: loop.setpoint, output: loop.output } : null;
+}
+
+export function decodeAutopilotStatus(value: unknown): AutopilotStatus | null {
+  if (!isRecord(value)) return null;
+  return { depth: decodeLoop(value["depth"]), heading: decodeLoop(value["heading"]) };
+}
+
+export function decodeLinkStatus(value: unknown): LinkStatus | null {
+  if (!isRecord(value) || typeof value["up"] !== "boolean") return null;
+  const reason = value["reason"];
+  return { up: value["up"], reason: typeof reason === "string" ? reason : null };
+}
+
+export function decodeWildPoints(value: unknown): WildPoints | null {
+  if (!isRecord(value) || !isFiniteNumber(value["total"])) return null;
+  const byField: Record<string, number> = {};
+  const raw = value["by_field"];
+  if (isRecord(raw)) for (const [k, v] of Object.entries(raw)) if (isFiniteNumber(v)) byField[k] = v;
+  return { total: value["total"], by_field: byField };
+}
+
+/**
+ * Telemetry. Required: `t`, `sent_at`, a `measurement` object (fields the board did not give
+ * read NaN), `sim` (object or null), `thrusters`. The command is a motion command or names
+ * thrusters (manual mode). The fields later servers add (`control`, `autopilot`, `estimate`,
+ * `link`, `wild_points`) are null when absent or malformed.
+ */
 export function decodeTelemetry(value: unknown): Telemetry | null {
   if (!isRecord(value)) return null;
   const { t, sent_at } = value;
   if (!isFiniteNumber(t) || !isFiniteNumber(sent_at)) return null;
-  const measurement = numbers(value["measurement"], MEASUREMENT_KEYS);
+  const measurement = lenientNumbers(value["measurement"], MEASUREMENT_KEYS);
   const rawSim = value["sim"];
   const sim = rawSim === null ? null : numbers(rawSim, SIM_KEYS);
   const command = decodeMotionCommand(value["command"]);
+  const manual = command ? null : decodeThrusterOutputs(value["command"]);
   const thrusters = decodeThrusters(value["thrusters"]);
-  if (!measurement || !command || !thrusters) return null;
+  if (!measurement || !thrusters || (!command && !manual)) return null;
   if (sim === null && rawSim !== null) return null;
-  return { t, sent_at, measurement, sim, command, thrusters };
+  const estimate = lenientNumbers(value["estimate"], ESTIMATE_KEYS);
+  return {
+    t,
+    sent_at,
+    measurement,
+    sim,
+    command,
+    manual,
+    thrusters,
+    control: decodeControlSettings(value["control"]),
+    autopilot: decodeAutopilotStatus(value["autopilot"]),
+    estimate,
+    link: decodeLinkStatus(value["link"]),
+    wild_points: decodeWildPoints(value["wild_points"]),
+    raw: value,
+  };
+}
+
+/** The camera: `camera: {url}` (or a bare URL) in the snapshot, else `vehicle.camera_url`. */
+export function decodeCamera(snapshot: Record<string, unknown>): CameraInfo | null {
+  const camera = snapshot["camera"];
+  const vehicle = snapshot["vehicle"];
+  const candidates = [
+    isRecord(camera) ? camera["url"] : camera,
+    isRecord(vehicle) ? vehicle["camera_url"] : undefined,
+    isRecord(vehicle) ? vehicle["video_url"] : undefined,
+  ];
+  for (const url of candidates) {
+    if (typeof url === "string" && /^(https?:\/\/|\/)/.test(url)) return { url };
+  }
+  return null;
 }
 
 export function decodeVehicleInfo(value: unknown): VehicleInfo | null {
@@ -207,14 +455,124 @@ export function decodeVehicleSnapshot(value: unknown): VehicleSnapshot | null {
   const pilot = decodePilot(value["pilot"]);
   if (!vehicle || pilot === undefined) return null;
   if (telemetry === null && raw !== null && raw !== undefined) return null;
-  return { vehicle, telemetry, pilot };
+  const rawHelm = value["helm"];
+  const helm = rawHelm === undefined ? null : decodeHelm(rawHelm);
+  if (helm === null && rawHelm !== undefined) return null;
+  const rawSession = value["session"];
+  const session = rawSession === undefined ? null : decodeSession(rawSession);
+  if (session === null && rawSession !== undefined) return null;
+  const control = decodeControlSettings(value["control"]);
+  return { vehicle, telemetry, pilot, helm, session, control, camera: decodeCamera(value) };
+}
+
+const ROLES: readonly string[] = ["pilot", "observer", "main_station"];
+const HELM_STATES: readonly string[] = ["free", "piloted", "requested", "takeover"];
+
+function isRole(value: unknown): value is Role {
+  return typeof value === "string" && ROLES.includes(value);
+}
+
+export function decodeParty(value: unknown): Party | null {
+  if (!isRecord(value)) return null;
+  const { id, name, role } = value;
+  if (typeof id !== "string" || typeof name !== "string" || !isRole(role)) return null;
+  return { id, name, role };
+}
+
+function decodeHelmPilot(value: unknown): HelmPilot | null {
+  const party = decodeParty(value);
+  if (!party || !isRecord(value)) return null;
+  const since = value["since"];
+  return { ...party, since: isFiniteNumber(since) ? since : null };
+}
+
+export function decodeHelm(value: unknown): Helm | null {
+  if (!isRecord(value)) return null;
+  const state = value["state"];
+  if (typeof state !== "string" || !HELM_STATES.includes(state)) return null;
+  const times = numbers(value, [
+    "epoch",
+    "deadman_ms",
+    "heartbeat_ms",
+    "request_timeout_ms",
+    "takeover_ms",
+  ] as const);
+  if (!times) return null;
+
+  const rawPilot = value["pilot"];
+  const pilot = rawPilot === null ? null : decodeHelmPilot(rawPilot);
+  if (pilot === null && (rawPilot !== null || state !== "free")) return null;
+
+  let request: Helm["request"] = null;
+  const rawRequest = value["request"];
+  if (rawRequest !== null && rawRequest !== undefined) {
+    const from = isRecord(rawRequest) ? decodeParty(rawRequest["from"]) : null;
+    const remaining = isRecord(rawRequest) ? rawRequest["remaining_ms"] : undefined;
+    if (!from || !isFiniteNumber(remaining)) return null;
+    request = { from, remaining_ms: remaining };
+  }
+
+  let takeover: Helm["takeover"] = null;
+  const rawTakeover = value["takeover"];
+  if (rawTakeover !== null && rawTakeover !== undefined) {
+    const by = isRecord(rawTakeover) ? decodeParty(rawTakeover["by"]) : null;
+    const countdown = isRecord(rawTakeover) ? rawTakeover["countdown_ms"] : undefined;
+    if (!by || !isFiniteNumber(countdown)) return null;
+    takeover = { by, countdown_ms: countdown };
+  }
+
+  return { state: state as HelmStateName, ...times, pilot, request, takeover };
+}
+
+export function decodeGrant(value: unknown): Grant | null {
+  if (!isRecord(value)) return null;
+  const times = numbers(value, ["epoch", "deadman_ms", "heartbeat_ms"] as const);
+  const pilot = decodeHelmPilot(value["pilot"]);
+  const control = value["control"];
+  const settings = decodeControlSettings(control);
+  if (!times || !pilot || !settings || !isRecord(control)) return null;
+  const command = decodeMotionCommand(control["command"]);
+  return { ...times, pilot, control: { ...settings, command } };
+}
+
+export function decodeSession(value: unknown): Session | null {
+  if (!isRecord(value)) return null;
+  const { id, name, role, mode } = value;
+  if (typeof id !== "string" || typeof name !== "string" || !isRole(role)) return null;
+  if (mode !== "local" && mode !== "secure") return null;
+  return { id, name, role, mode };
+}
+
+export function decodeControlReply(value: unknown): ControlReply | null {
+  if (!isRecord(value)) return null;
+  switch (value["status"]) {
+    case "granted": {
+      const grant = decodeGrant(value["grant"]);
+      return grant ? { status: "granted", grant } : null;
+    }
+    case "pending": {
+      const t = value["timeout_ms"];
+      return isFiniteNumber(t) ? { status: "pending", timeout_ms: t } : null;
+    }
+    case "takeover": {
+      const t = value["countdown_ms"];
+      return isFiniteNumber(t) ? { status: "takeover", countdown_ms: t } : null;
+    }
+    default:
+      return null;
+  }
 }
 
 export function decodeThrustReply(value: unknown): ThrustReply | null {
   if (!isRecord(value)) return null;
-  const command = decodeMotionCommand(value["command"]);
+  const command = decodeMotionCommand(value["command"]) ?? decodeThrusterOutputs(value["command"]);
   const thrusters = decodeThrusterOutputs(value["thrusters"]);
   return command && thrusters ? { command, thrusters } : null;
+}
+
+/** The `ok` reply of the settings commands: `{control: C}`. */
+export function decodeControlUpdate(value: unknown): ControlSettings | null {
+  return isRecord(value) ? decodeControlSettings(value["control"]) : null;
 }
 
 /** Readable reason from an error reply `{reason}`; falls back to the JSON of the reply. */
@@ -233,12 +591,16 @@ export function errorReason(value: unknown): string {
 /** One Presence list entry from the `(key, {metas})` pair that phoenix' Presence hands out. */
 export function presenceEntry(key: string, presence: unknown): PresenceEntry {
   const metas = isRecord(presence) && Array.isArray(presence["metas"]) ? presence["metas"] : [];
-  let name = key;
+  let name: string | null = null;
+  let role: string | null = null;
+  let pilot = false;
   for (const meta of metas) {
-    if (isRecord(meta) && typeof meta["name"] === "string" && meta["name"] !== "") {
+    if (!isRecord(meta)) continue;
+    if (name === null && typeof meta["name"] === "string" && meta["name"] !== "") {
       name = meta["name"];
-      break;
     }
+    if (role === null && typeof meta["role"] === "string") role = meta["role"];
+    if (meta["pilot"] === true) pilot = true;
   }
-  return { key, name, connections: Math.max(1, metas.length) };
+  return { key, name: name ?? key, connections: Math.max(1, metas.length), role, pilot };
 }

@@ -1,11 +1,14 @@
 /**
  * Typed wrapper around the official phoenix client for the Neptunus channels.
  *
- * - `NeptunusClient` owns the Socket (`/socket`, params `{name}`).
+ * - `NeptunusClient` owns the Socket (`/socket`, params `{name}` in local mode, `{token}` after
+ *   a login — in the query string: yaws has no WebSocket subprotocols).
  * - `fleet()` joins `fleet` and resolves with the vehicle list.
  * - `vehicle(id)` gives a `VehicleChannel` for `vehicle:<id>`: join → snapshot, telemetry,
- *   pilot and presence callbacks, and commands (`thrust`, `stop`) as Promises that reject with
- *   a `CommandError` carrying the server's readable reason.
+ *   helm, presence and the helm's events for this connection (`control_request`,
+ *   `control_granted`, `control_lost`, `request_denied`), and commands (`thrust`, `stop`,
+ *   `heartbeat`, `requestControl`, `answerRequest`, `takeControl`, `releaseControl`) as
+ *   Promises that reject with a `CommandError` carrying the server's readable reason.
  *
  * Commands are only sent while the channel is joined: the phoenix client would otherwise buffer
  * them and deliver them up to a push timeout later, and a late thrust command is worse than none.
@@ -14,8 +17,13 @@
 import { Presence, Socket } from "phoenix";
 import type { Channel, Push, SocketConnectOption } from "phoenix";
 import {
+  decodeControlReply,
+  decodeControlUpdate,
+  decodeLinkStatus,
   decodeFleetReply,
-  decodePilot,
+  decodeGrant,
+  decodeHelm,
+  decodeParty,
   decodeTelemetry,
   decodeThrustReply,
   decodeVehicleSnapshot,
@@ -24,9 +32,17 @@ import {
   presenceEntry,
 } from "./protocol";
 import type {
+  ControlMode,
+  ControlReply,
+  ControlSettings,
+  LinkStatus,
+  RunMode,
+  ThrusterOutputs,
   FleetReply,
+  Grant,
+  Helm,
   MotionCommand,
-  Pilot,
+  Party,
   PresenceEntry,
   Telemetry,
   ThrustReply,
@@ -56,8 +72,10 @@ export const DEFAULT_COMMAND_TIMEOUT_MS = 2000;
 export interface NeptunusClientOptions {
   /** Socket endpoint; the client appends `/websocket`. Default "/socket". */
   readonly endpoint?: string;
-  /** Display name shown in presence. */
+  /** Display name shown in presence (local mode; a login's token names the user). */
   readonly name?: string;
+  /** Login token (`POST /api/login`), sent as the `token` query parameter. */
+  readonly token?: string;
   /** WebSocket constructor (the `ws` package in Node). Default: the browser's. */
   readonly transport?: SocketConnectOption["transport"];
 }
@@ -91,9 +109,10 @@ export class NeptunusClient {
   private fleetChannel: Channel | null = null;
 
   constructor(options: NeptunusClientOptions = {}) {
-    const opts: Partial<SocketConnectOption> = {
-      params: options.name === undefined ? {} : { name: options.name },
-    };
+    const params: Record<string, string> = {};
+    if (options.name !== undefined) params["name"] = options.name;
+    if (options.token !== undefined) params["token"] = options.token;
+    const opts: Partial<SocketConnectOption> = { params };
     if (options.transport) opts.transport = options.transport;
     this.socket = new Socket(options.endpoint ?? "/socket", opts);
   }
@@ -124,15 +143,76 @@ export class NeptunusClient {
   vehicle(id: string, handlers: VehicleHandlers = {}): VehicleChannel {
     return new VehicleChannel(this.socket, id, handlers);
   }
+
+  /** The developer log of vehicle `id` (topic `log:<id>`); `entry` gets every `log` payload. */
+  log(id: string, entry: (payload: unknown) => void): LogTopic {
+    return new LogTopic(this.socket, id, entry);
+  }
+
+  /**
+   * Round trip of the socket's own heartbeat (topic `phoenix`), in ms; rejects when not
+   * connected or after `timeoutMs`.
+   */
+  ping(timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<number> {
+    return new Promise<number>((resolve, reject) => {
+      const timer = setTimeout(() => reject(new CommandError("no reply to ping (timeout)", "timeout")), timeoutMs);
+      const sent = this.socket.ping((latency: number) => {
+        clearTimeout(timer);
+        resolve(latency);
+      });
+      if (!sent) {
+        clearTimeout(timer);
+        reject(new CommandError("not connected", "not_joined"));
+      }
+    });
+  }
+}
+
+/** Topic `log:<id>` (read-only): the server's log entries for the developer logger. */
+export class LogTopic {
+  readonly topic: string;
+  private readonly channel: Channel;
+
+  constructor(socket: Socket, id: string, entry: (payload: unknown) => void) {
+    this.topic = `log:${id}`;
+    this.channel = socket.channel(this.topic, {});
+    this.channel.on("log", (payload: unknown) => entry(payload));
+  }
+
+  /** Joins; rejects with the server's reason (e.g. a server without the log topic). */
+  join(timeoutMs = DEFAULT_JOIN_TIMEOUT_MS): Promise<void> {
+    return awaitPush(this.channel.join(timeoutMs), () => true, `join ${this.topic}`).then(
+      () => undefined,
+      (err: unknown) => {
+        if (err instanceof CommandError && err.kind === "error") this.channel.leave();
+        throw err;
+      },
+    );
+  }
+
+  leave(): void {
+    this.channel.leave();
+  }
 }
 
 export interface VehicleHandlers {
   /** Every successful (re)join, with the server's snapshot. */
   readonly snapshot?: (snapshot: VehicleSnapshot) => void;
   readonly telemetry?: (telemetry: Telemetry) => void;
-  readonly pilot?: (pilot: Pilot | null) => void;
+  /** The helm changed (who pilots, requests, takeover countdown, epoch). */
+  readonly helm?: (helm: Helm) => void;
+  /** We pilot and `from` asks for control: answer with `answerRequest`. */
+  readonly controlRequest?: (from: Party) => void;
+  /** We got the helm (also after a `granted` reply). */
+  readonly controlGranted?: (grant: Grant) => void;
+  /** We lost the helm, and why (`released`, `control_transferred`, `main_station_takeover`…). */
+  readonly controlLost?: (reason: string) => void;
+  /** Our request was refused: `denied`, `request_timeout`, `main_station_takeover`. */
+  readonly requestDenied?: (reason: string) => void;
   /** The thrusters were driven neutral (safety or by request), with the server's reason. */
   readonly stopped?: (reason: string) => void;
+  /** The board link came up or went down (serial boards). */
+  readonly link?: (link: LinkStatus) => void;
   /** Who is connected to this vehicle (after every presence sync). */
   readonly presence?: (entries: readonly PresenceEntry[]) => void;
   readonly status?: (status: ConnectionStatus) => void;
@@ -164,13 +244,34 @@ export class VehicleChannel {
       if (telemetry) handlers.telemetry?.(telemetry);
       else handlers.protocolError?.("telemetry", payload);
     });
-    this.channel.on("pilot", (payload: unknown) => {
-      const pilot = isRecord(payload) ? decodePilot(payload["pilot"]) : undefined;
-      if (pilot === undefined) handlers.protocolError?.("pilot", payload);
-      else handlers.pilot?.(pilot);
+    this.channel.on("helm", (payload: unknown) => {
+      const helm = decodeHelm(payload);
+      if (helm) handlers.helm?.(helm);
+      else handlers.protocolError?.("helm", payload);
+    });
+    this.channel.on("control_request", (payload: unknown) => {
+      const from = isRecord(payload) ? decodeParty(payload["from"]) : null;
+      if (from) handlers.controlRequest?.(from);
+      else handlers.protocolError?.("control_request", payload);
+    });
+    this.channel.on("control_granted", (payload: unknown) => {
+      const grant = decodeGrant(payload);
+      if (grant) handlers.controlGranted?.(grant);
+      else handlers.protocolError?.("control_granted", payload);
+    });
+    this.channel.on("control_lost", (payload: unknown) => {
+      handlers.controlLost?.(errorReason(payload));
+    });
+    this.channel.on("request_denied", (payload: unknown) => {
+      handlers.requestDenied?.(errorReason(payload));
     });
     this.channel.on("stopped", (payload: unknown) => {
       handlers.stopped?.(errorReason(payload));
+    });
+    this.channel.on("link", (payload: unknown) => {
+      const link = decodeLinkStatus(payload);
+      if (link) handlers.link?.(link);
+      else handlers.protocolError?.("link", payload);
     });
 
     const presence = new Presence(this.channel);
@@ -246,14 +347,97 @@ export class VehicleChannel {
     return this.joinedOnce;
   }
 
-  /** Motion command with absolute axes in [-1, 1]. */
-  thrust(command: MotionCommand, timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<ThrustReply> {
+  /**
+   * Motion command with absolute axes in [-1, 1], stamped with the helm `epoch` of our grant
+   * (the server refuses other epochs with `stale_command`).
+   */
+  thrust(
+    command: MotionCommand,
+    epoch: number,
+    timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS,
+  ): Promise<ThrustReply> {
     return this.command(
       "thrust",
-      { mode: "motion", surge: command.surge, heave: command.heave, yaw: command.yaw },
+      { mode: "motion", surge: command.surge, heave: command.heave, yaw: command.yaw, epoch },
       decodeThrustReply,
       timeoutMs,
     );
+  }
+
+  /** Manual-mode thrust: each thruster in [-1, 1], stamped like `thrust`. */
+  thrustManual(
+    thrusters: ThrusterOutputs,
+    epoch: number,
+    timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS,
+  ): Promise<ThrustReply> {
+    const { port, vertical, starboard } = thrusters;
+    return this.command(
+      "thrust",
+      { mode: "manual", port, vertical, starboard, epoch },
+      decodeThrustReply,
+      timeoutMs,
+    );
+  }
+
+  /**
+   * The pilot's heartbeat (every `heartbeat_ms` while piloting; feeds the deadman). Resolves
+   * with the round trip in ms.
+   */
+  heartbeat(timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<number> {
+    const sent = performance.now();
+    return this.command("heartbeat", {}, () => true, timeoutMs).then(() => performance.now() - sent);
+  }
+
+  /** `set_control_mode {mode}`: motion, manual or dp. */
+  setControlMode(mode: ControlMode): Promise<ControlSettings> {
+    return this.setting("set_control_mode", { mode });
+  }
+
+  /** `set_run_mode {mode}`: normal or simulator. */
+  setRunMode(mode: RunMode): Promise<ControlSettings> {
+    return this.setting("set_run_mode", { mode });
+  }
+
+  /**
+   * `set_gain`, `set_lights`, `set_laser`, `set_tilt` with `{value}`. The value goes as typed
+   * (a number, or the text when it is not one) so the server's reason names what is wrong.
+   */
+  setValue(event: "set_gain" | "set_lights" | "set_laser" | "set_tilt", value: number | string): Promise<ControlSettings> {
+    return this.setting(event, { value });
+  }
+
+  /** `autopilot {depth?, heading?}`: m / rad, "hold" (the current value) or null (off). */
+  autopilot(setpoints: {
+    readonly depth?: number | string | null;
+    readonly heading?: number | string | null;
+  }): Promise<ControlSettings> {
+    return this.setting("autopilot", setpoints);
+  }
+
+  /** Asks for control: granted at once on a free helm, else pending the pilot's answer. */
+  requestControl(timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<ControlReply> {
+    return this.command("request_control", {}, decodeControlReply, timeoutMs).then((reply) => {
+      if (reply.status === "granted") this.handlers.controlGranted?.(reply.grant);
+      return reply;
+    });
+  }
+
+  /** The main station takes control (after the server's warning countdown). */
+  takeControl(timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<ControlReply> {
+    return this.command("take_control", {}, decodeControlReply, timeoutMs).then((reply) => {
+      if (reply.status === "granted") this.handlers.controlGranted?.(reply.grant);
+      return reply;
+    });
+  }
+
+  /** The pilot answers a control request. */
+  answerRequest(accept: boolean, timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<void> {
+    return this.command("answer_request", { accept }, () => true, timeoutMs).then(() => undefined);
+  }
+
+  /** Gives the helm up (or withdraws our request / cancels our takeover). */
+  releaseControl(timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<void> {
+    return this.command("release_control", {}, () => true, timeoutMs).then(() => undefined);
   }
 
   /** All thrusters neutral; `reason` (1..100 bytes) is shown to everyone watching. */
@@ -271,6 +455,10 @@ export class VehicleChannel {
         .receive("ok", () => resolve())
         .receive("timeout", () => resolve());
     });
+  }
+
+  private setting(event: string, payload: object): Promise<ControlSettings> {
+    return this.command(event, payload, decodeControlUpdate, DEFAULT_COMMAND_TIMEOUT_MS);
   }
 
   private command<T>(

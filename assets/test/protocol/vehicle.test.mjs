@@ -170,10 +170,34 @@ const thrustersAtZero = (t) =>
 
 const commandAtZero = (t) => t.command.surge === 0 && t.command.heave === 0 && t.command.yaw === 0;
 
-// ---------------------------------------------------------------------------------------------
-// Fixture: one pilot socket for the whole file, an observer socket for the control tests.
+const VEHICLE_EVENTS = [
+  "telemetry",
+  "presence_state",
+  "presence_diff",
+  "helm",
+  "stopped",
+  "control_request",
+  "control_granted",
+  "control_lost",
+  "request_denied",
+];
 
-let pilot; // {socket, channel, events}
+const motion = (surge, epoch) => ({ mode: "motion", surge, heave: 0, yaw: 0, epoch });
+
+function assertHelm(h, where = "helm") {
+  assert.ok(h && typeof h === "object", `${where} must be an object`);
+  assert.ok(["free", "piloted", "requested", "takeover"].includes(h.state), `${where}.state = ${JSON.stringify(h.state)}`);
+  assertNumbers(h, ["epoch", "deadman_ms", "heartbeat_ms", "request_timeout_ms", "takeover_ms"], where);
+  if (h.state === "free") assert.equal(h.pilot, null, `${where}.pilot must be null when free`);
+  else assert.equal(typeof h.pilot?.name, "string", `${where}.pilot must name the pilot`);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fixture: one pilot socket for the whole file, a second client for the helm tests.
+// Helm (docs/API.md): request_control on a free helm grants at once; thrust must carry the
+// grant's `epoch`; control passes by request and acknowledge.
+
+let pilot; // {socket, channel, events, epoch}
 let observer;
 let snapshot;
 
@@ -196,7 +220,7 @@ after(async () => {
   // Leave the vehicle stopped, whatever happened above.
   for (const side of [pilot, observer]) {
     if (side?.channel?.state === "joined") {
-      await within(REPLY_MS, "final stop", reply(side.channel.push("stop", { reason: "protocol test done" }, REPLY_MS), "stop")).catch(() => undefined);
+      await within(REPLY_MS, "final release", reply(side.channel.push("release_control", {}, REPLY_MS), "release")).catch(() => undefined);
     }
   }
   await closeSocket(pilot?.socket);
@@ -225,22 +249,22 @@ test("fleet: join reply lists the vehicles", { timeout: TEST_MS }, async () => {
 test(`${TOPIC}: join reply is a snapshot`, { timeout: TEST_MS }, async () => {
   const channel = pilot.socket.channel(TOPIC, {});
   // register before joining: presence_state and telemetry follow the reply immediately
-  const events = recorder(channel, ["telemetry", "presence_state", "presence_diff", "pilot"]);
+  const events = recorder(channel, VEHICLE_EVENTS);
   pilot.channel = channel;
   pilot.events = events;
   const { status, response } = await reply(channel.join(REPLY_MS), `join ${TOPIC}`);
   assert.equal(status, "ok", `join ${TOPIC} refused: ${JSON.stringify(response)}`);
   snapshot = response;
-  for (const key of ["vehicle", "telemetry", "pilot"]) {
+  for (const key of ["vehicle", "telemetry", "pilot", "helm", "control", "session"]) {
     assert.ok(key in response, `snapshot has no "${key}": ${JSON.stringify(response)}`);
   }
   assert.equal(response.vehicle.id, VEHICLE);
   assert.equal(typeof response.vehicle.board, "string");
   if (response.telemetry !== null) assertTelemetry(response.telemetry, "snapshot.telemetry");
-  assert.ok(
-    response.pilot === null || typeof response.pilot?.name === "string",
-    `snapshot.pilot must be null or {name}: ${JSON.stringify(response.pilot)}`,
-  );
+  assertHelm(response.helm, "snapshot.helm");
+  assert.equal(response.session.name, NAME, `session names us: ${JSON.stringify(response.session)}`);
+  assert.equal(response.session.mode, "local", "the test server runs in local mode");
+  assert.equal(typeof response.session.id, "string");
 });
 
 test("presence_state lists this client", { timeout: TEST_MS }, async () => {
@@ -269,23 +293,36 @@ test("telemetry arrives with the documented shape", { timeout: TEST_MS }, async 
   }
 });
 
-test("thrust makes this client the pilot and moves the vehicle forward", { timeout: TEST_MS }, async () => {
+test("request_control on a free helm grants at once; thrust with the grant's epoch moves the vehicle", { timeout: TEST_MS }, async () => {
   const { channel, events } = pilot;
   const before = events.last("telemetry");
   assert.ok(before, "no telemetry yet");
-  const pilotEvent = events.next("pilot", (p) => p?.pilot?.name === NAME, 2000, `pilot event naming ${NAME}`);
-  pilotEvent.catch(() => undefined);
-
-  const { status, response } = await reply(
-    channel.push("thrust", { mode: "motion", surge: 1, heave: 0, yaw: 0 }, REPLY_MS),
-    "thrust",
-  );
-  if (status === "error" && response?.reason === "not_in_control") {
-    assert.fail(
-      `thrust refused with not_in_control: another client pilots ${VEHICLE} ` +
-        `(snapshot pilot: ${JSON.stringify(snapshot?.pilot)}); close it and rerun`,
-    );
+  if (snapshot.helm.state !== "free") {
+    assert.fail(`another client pilots ${VEHICLE} (helm: ${JSON.stringify(snapshot.helm)}); close it and rerun`);
   }
+
+  // before the grant: refused, nothing moves
+  const early = await reply(channel.push("thrust", motion(1, snapshot.helm.epoch), REPLY_MS), "thrust before grant");
+  assert.equal(early.status, "error");
+  assert.equal(early.response.reason, "not_in_control");
+
+  const granted = await reply(channel.push("request_control", {}, REPLY_MS), "request_control");
+  assert.equal(granted.status, "ok", `request_control refused: ${JSON.stringify(granted.response)}`);
+  assert.equal(granted.response.status, "granted");
+  const grant = granted.response.grant;
+  assertNumbers(grant, ["epoch", "deadman_ms", "heartbeat_ms"], "grant");
+  assert.equal(grant.pilot.id, snapshot.session.id, "the grant names this connection");
+  assert.equal(grant.control.mode, "motion");
+  assertNumbers(grant.control.command, ["surge", "heave", "yaw"], "grant.control.command");
+  pilot.epoch = grant.epoch;
+  await events.seenOrNext("control_granted", (g) => g.epoch === grant.epoch, REPLY_MS, "control_granted");
+  await events.seenOrNext("helm", (h) => h.state === "piloted" && h.pilot?.name === NAME, REPLY_MS, "helm naming us");
+
+  const stale = await reply(channel.push("thrust", motion(1, grant.epoch - 1), REPLY_MS), "stale thrust");
+  assert.equal(stale.status, "error");
+  assert.equal(stale.response.reason, "stale_command", "a command stamped before the grant must be refused");
+
+  const { status, response } = await reply(channel.push("thrust", motion(1, grant.epoch), REPLY_MS), "thrust");
   assert.equal(status, "ok", `thrust refused: ${JSON.stringify(response)}`);
   assertNumbers(response.command, ["surge", "heave", "yaw"], "reply.command");
   assert.ok(response.command.surge > 0, `reply.command.surge = ${response.command.surge}, expected > 0`);
@@ -295,10 +332,8 @@ test("thrust makes this client the pilot and moves the vehicle forward", { timeo
     `surge must drive port and starboard: ${JSON.stringify(response.thrusters)}`,
   );
 
-  if (snapshot?.pilot?.name !== NAME) {
-    const p = await pilotEvent;
-    assert.equal(p.pilot.name, NAME);
-  }
+  const hb = await reply(channel.push("heartbeat", {}, REPLY_MS), "heartbeat");
+  assert.equal(hb.status, "ok", `the pilot's heartbeat refused: ${JSON.stringify(hb.response)}`);
 
   const moved = await events.next(
     "telemetry",
@@ -310,17 +345,18 @@ test("thrust makes this client the pilot and moves the vehicle forward", { timeo
   assert.ok(moved.command.surge > 0, "telemetry command.surge should show the thrust");
 });
 
-test("another client is refused with not_in_control", { timeout: TEST_MS }, async () => {
+test("another client is refused with not_in_control and changes nothing", { timeout: TEST_MS }, async () => {
   const { socket, opened } = openSocket(OTHER_NAME);
   observer = { socket };
   await opened;
   const channel = socket.channel(TOPIC, {});
-  const events = recorder(channel, ["telemetry", "pilot", "presence_state", "presence_diff"]);
+  const events = recorder(channel, VEHICLE_EVENTS);
   observer.channel = channel;
   observer.events = events;
   const join = await reply(channel.join(REPLY_MS), `observer join ${TOPIC}`);
   assert.equal(join.status, "ok");
-  assert.equal(join.response.pilot?.name, NAME, `observer's snapshot should name the pilot: ${JSON.stringify(join.response.pilot)}`);
+  observer.session = join.response.session;
+  assert.equal(join.response.helm.pilot?.name, NAME, `the snapshot's helm should name the pilot: ${JSON.stringify(join.response.helm)}`);
 
   // the pilot sees the observer arrive
   await pilot.events.seenOrNext(
@@ -330,24 +366,68 @@ test("another client is refused with not_in_control", { timeout: TEST_MS }, asyn
     `presence_diff joining ${OTHER_NAME}`,
   );
 
-  const { status, response } = await reply(
-    channel.push("thrust", { mode: "motion", surge: -1, heave: 0, yaw: 0 }, REPLY_MS),
-    "observer thrust",
-  );
-  assert.equal(status, "error", `observer's thrust was accepted: ${JSON.stringify(response)}`);
-  assert.equal(response.reason, "not_in_control");
-  const stop = await reply(channel.push("stop", { reason: "observer" }, REPLY_MS), "observer stop");
-  assert.equal(stop.status, "error", "observer's stop must be refused too");
-  assert.equal(stop.response.reason, "not_in_control");
+  for (const [event, payload] of [
+    ["thrust", motion(-1, pilot.epoch)],
+    ["stop", { reason: "observer" }],
+    ["heartbeat", {}],
+    ["answer_request", { accept: true }],
+    ["release_control", {}],
+  ]) {
+    const { status, response } = await reply(channel.push(event, payload, REPLY_MS), `observer ${event}`);
+    assert.equal(status, "error", `observer's ${event} was accepted: ${JSON.stringify(response)}`);
+    assert.equal(response.reason, "not_in_control", `observer's ${event}`);
+  }
   // and nothing changed: the pilot's surge is still commanded
   const t = await events.next("telemetry", () => true, REPLY_MS, "observer telemetry");
   assert.ok(t.command.surge > 0, `observer's refused command changed the vehicle: ${JSON.stringify(t.command)}`);
 });
 
+test("control passes by request and acknowledge, neutral on transfer", { timeout: TEST_MS }, async () => {
+  const pending = await reply(observer.channel.push("request_control", {}, REPLY_MS), "observer request_control");
+  assert.equal(pending.status, "ok", JSON.stringify(pending.response));
+  assert.equal(pending.response.status, "pending");
+  const request = await pilot.events.seenOrNext("control_request", () => true, REPLY_MS, "control_request to the pilot");
+  assert.equal(request.from.name, OTHER_NAME);
+
+  const answer = await reply(pilot.channel.push("answer_request", { accept: true }, REPLY_MS), "answer_request");
+  assert.equal(answer.status, "ok", JSON.stringify(answer.response));
+  const grant = await observer.events.seenOrNext("control_granted", () => true, REPLY_MS, "control_granted");
+  assert.ok(grant.epoch > pilot.epoch, "a transfer starts a new epoch");
+  await pilot.events.seenOrNext("control_lost", (l) => l.reason === "control_transferred", REPLY_MS, "control_lost");
+  await observer.events.seenOrNext("stopped", (s) => s.reason === "control_transferred", REPLY_MS, "stopped on transfer");
+  await observer.events.next("telemetry", (t) => commandAtZero(t), 2000, "neutral after the transfer");
+
+  const old = await reply(pilot.channel.push("thrust", motion(1, pilot.epoch), REPLY_MS), "old pilot's thrust");
+  assert.equal(old.response.reason, "not_in_control");
+  const stale = await reply(observer.channel.push("thrust", motion(1, pilot.epoch), REPLY_MS), "pre-grant stamp");
+  assert.equal(stale.response.reason, "stale_command");
+
+  // and back (denied once first)
+  const again = await reply(pilot.channel.push("request_control", {}, REPLY_MS), "pilot requests back");
+  assert.equal(again.response.status, "pending");
+  await observer.events.seenOrNext("control_request", (r) => r.from.name === NAME, REPLY_MS, "request from the pilot");
+  await reply(observer.channel.push("answer_request", { accept: false }, REPLY_MS), "deny");
+  const denied = await pilot.events.seenOrNext("request_denied", () => true, REPLY_MS, "request_denied");
+  assert.equal(denied.reason, "denied");
+
+  // listen first: the request reaches the observer's connection before the reply reaches ours
+  const second = observer.events.next("control_request", (r) => r.from.name === NAME, REPLY_MS, "second request");
+  await reply(pilot.channel.push("request_control", {}, REPLY_MS), "pilot requests again");
+  await second;
+  // listen first here too: the grant may reach the pilot before the accept reply reaches us
+  const granted = pilot.events.next("control_granted", () => true, REPLY_MS, "control back");
+  await reply(observer.channel.push("answer_request", { accept: true }, REPLY_MS), "accept");
+  const back = await granted;
+  pilot.epoch = back.epoch;
+});
+
 test("stop puts every thruster at zero", { timeout: TEST_MS }, async () => {
   const { channel, events } = pilot;
+  const go = await reply(channel.push("thrust", motion(0.5, pilot.epoch), REPLY_MS), "thrust");
+  assert.equal(go.status, "ok", `thrust refused: ${JSON.stringify(go.response)}`);
   const { status, response } = await reply(channel.push("stop", { reason: "protocol test" }, REPLY_MS), "stop");
   assert.equal(status, "ok", `stop refused: ${JSON.stringify(response)}`);
+  await observer.events.seenOrNext("stopped", (s) => s.reason === "protocol test", REPLY_MS, "stopped with our reason");
   const t = await events.next(
     "telemetry",
     (x) => thrustersAtZero(x) && commandAtZero(x),
@@ -362,9 +442,10 @@ test("stop puts every thruster at zero", { timeout: TEST_MS }, async () => {
 test("bad thrust values are refused with a reason and change nothing", { timeout: TEST_MS }, async () => {
   const { channel, events } = pilot;
   const bad = [
-    { mode: "motion", surge: 5, heave: 0, yaw: 0 },
-    { mode: "motion", surge: "fast", heave: 0, yaw: 0 },
-    { mode: "motion", surge: 0.5, heave: -1.5, yaw: 0 },
+    motion(5, pilot.epoch),
+    motion("fast", pilot.epoch),
+    { ...motion(0.5, pilot.epoch), heave: -1.5 },
+    { mode: "motion", surge: 0.5, heave: 0, yaw: 0 },
   ];
   for (const payload of bad) {
     const { status, response } = await reply(channel.push("thrust", payload, REPLY_MS), "bad thrust");
@@ -376,26 +457,27 @@ test("bad thrust values are refused with a reason and change nothing", { timeout
   assert.ok(thrustersAtZero(t) && commandAtZero(t), `a refused command moved the vehicle: ${JSON.stringify(t.command)}`);
 });
 
-test("closing the pilot's socket releases control", { timeout: TEST_MS }, async () => {
+test("closing the pilot's socket stops the vehicle and frees the helm", { timeout: TEST_MS }, async () => {
   // go again so there is something to stop
-  const go = await reply(pilot.channel.push("thrust", { mode: "motion", surge: 0.5, heave: 0, yaw: 0 }, REPLY_MS), "thrust");
+  const go = await reply(pilot.channel.push("thrust", motion(0.5, pilot.epoch), REPLY_MS), "thrust");
   assert.equal(go.status, "ok", `thrust refused: ${JSON.stringify(go.response)}`);
   await observer.events.next("telemetry", (t) => t.command.surge > 0, REPLY_MS, "observer sees the thrust");
 
-  const released = observer.events.next("pilot", (p) => p?.pilot === null, REPLY_MS, "pilot event {pilot: null}");
-  released.catch(() => undefined);
+  const freed = observer.events.next("helm", (h) => h.state === "free", REPLY_MS, "helm free");
+  freed.catch(() => undefined);
+  const stopped = observer.events.next("stopped", (s) => s.reason === "pilot_disconnected", REPLY_MS, "stopped pilot_disconnected");
+  stopped.catch(() => undefined);
   await closeSocket(pilot.socket);
-  await released;
+  await freed;
+  await stopped;
   await observer.events.next(
     "telemetry",
     (t) => thrustersAtZero(t) && commandAtZero(t),
     2000,
     "thrusters at zero after the pilot left",
   );
-  // and the observer may take over now
-  const { status, response } = await reply(
-    observer.channel.push("stop", { reason: "protocol test takes over" }, REPLY_MS),
-    "observer stop",
-  );
-  assert.equal(status, "ok", `observer could not command after the pilot left: ${JSON.stringify(response)}`);
+  // and the observer may take over now: granted at once
+  const { status, response } = await reply(observer.channel.push("request_control", {}, REPLY_MS), "observer request_control");
+  assert.equal(status, "ok", `observer could not take the free helm: ${JSON.stringify(response)}`);
+  assert.equal(response.status, "granted");
 });

@@ -1,7 +1,8 @@
 // A stand-in for the Neptunus server, for developing the browser code and checking the JS test
 // suites when the Elixir server is not at hand. It implements only the documented contract
 // (docs/API.md: static files, /api/health, Phoenix Channels v2 on /socket/websocket with
-// `fleet` and `vehicle:<id>`) with a crude planar simulated vehicle. It is NOT the reference:
+// `fleet` and `vehicle:<id>`) with a crude planar simulated vehicle and a simplified helm (local
+// mode: request/grant/answer/release, epoch stamps; no takeover, no deadman). It is NOT the reference:
 // the Elixir server is. Loopback only.
 //
 //   node test/support/fake_server.mjs [port]          (default 4199; prints the URL)
@@ -21,14 +22,14 @@ export function startFakeServer(port = 4199) {
   // --- vehicle ---------------------------------------------------------------------------
   const s = { x: 0, y: 0, z: 0.5, psi: 0.3, u: 0, w: 0, r: 0 };
   let cmd = { surge: 0, heave: 0, yaw: 0 };
-  let pilot = null; // {conn, name}
+  let pilot = null; // {conn, name, since}
   const t0 = performance.now();
   const clamp = (v) => Math.max(-1, Math.min(1, v));
-  const GAIN = 0.5; // docs/API.md: port = sat(k(X + M)), vertical = sat(kZ), starboard = sat(k(X − M))
+  let gain = 0.5; // docs/API.md: port = sat(k(X + M)), vertical = sat(kZ), starboard = sat(k(X − M))
   const thrusters = () => {
-    const port = clamp(GAIN * (cmd.surge + cmd.yaw));
-    const starboard = clamp(GAIN * (cmd.surge - cmd.yaw));
-    const vertical = clamp(GAIN * cmd.heave);
+    const port = clamp(gain * (cmd.surge + cmd.yaw));
+    const starboard = clamp(gain * (cmd.surge - cmd.yaw));
+    const vertical = clamp(gain * cmd.heave);
     const us = (v) => Math.round(1500 + 500 * v);
     return { port, vertical, starboard, port_us: us(port), vertical_us: us(vertical), starboard_us: us(starboard) };
   };
@@ -68,10 +69,51 @@ export function startFakeServer(port = 4199) {
   };
   const vtopic = `vehicle:${VEHICLE.id}`;
   // like the server: keyed by display name, one meta per connection
-  const presenceOf = (c) => ({ [c.name]: { metas: [{ phx_ref: c.phxRef, online_at: c.onlineAt }] } });
-  const setPilot = (p) => {
-    pilot = p;
-    broadcast(vtopic, "pilot", { pilot: p ? { name: p.name } : null });
+  const presenceOf = (c) => ({
+    [c.name]: {
+      metas: [{ phx_ref: c.phxRef, online_at: c.onlineAt, since: c.onlineAt, name: c.name, role: "pilot", pilot: pilot?.conn === c, conn: c.id }],
+    },
+  });
+  const party = (c) => ({ id: c.id, name: c.name, role: "pilot" });
+  // the helm, simplified: free → granted at once; otherwise one pending request the pilot answers
+  let epoch = 0;
+  let request = null; // conn
+  const helm = () => ({
+    state: request ? "requested" : pilot ? "piloted" : "free",
+    epoch,
+    pilot: pilot ? { ...party(pilot.conn), since: pilot.since } : null,
+    request: request ? { from: party(request), remaining_ms: 10000 } : null,
+    takeover: null,
+    deadman_ms: 500,
+    heartbeat_ms: 100,
+    request_timeout_ms: 10000,
+    takeover_ms: 3000,
+  });
+  const grantFor = () => ({
+    epoch,
+    pilot: { ...party(pilot.conn), since: pilot.since },
+    control: { mode: "motion", gain, command: { ...cmd } },
+    deadman_ms: 500,
+    heartbeat_ms: 100,
+  });
+  const push = (c, event, payload) => {
+    const joinRef = c.joined.get(vtopic);
+    if (joinRef !== undefined) send(c, [joinRef, null, vtopic, event, payload]);
+  };
+  const stop = (reason) => {
+    cmd = { surge: 0, heave: 0, yaw: 0 };
+    broadcast(vtopic, "stopped", { reason });
+  };
+  const grant = (c) => {
+    if (pilot) {
+      stop("control_transferred");
+      push(pilot.conn, "control_lost", { reason: "control_transferred" });
+    }
+    epoch += 1;
+    pilot = { conn: c, name: c.name, since: Date.now() };
+    request = null;
+    push(c, "control_granted", grantFor());
+    broadcast(vtopic, "helm", helm());
   };
   const isAxis = (v) => typeof v === "number" && Number.isFinite(v) && v >= -1 && v <= 1;
 
@@ -86,6 +128,10 @@ export function startFakeServer(port = 4199) {
         conn.joined.set(topic, joinRef);
         return ok({ vehicles: [VEHICLE] });
       }
+      if (topic === `log:${VEHICLE.id}`) {
+        conn.joined.set(topic, joinRef);
+        return ok({ vehicle: VEHICLE.id });
+      }
       if (topic.startsWith("vehicle:") && topic !== vtopic) return error(`unknown vehicle: ${topic.slice(8)}`);
       if (topic !== vtopic) return error("unmatched topic");
       const rejoin = conn.joined.has(topic);
@@ -95,7 +141,9 @@ export function startFakeServer(port = 4199) {
         vehicle: VEHICLE,
         telemetry: telemetry(),
         pilot: pilot ? { name: pilot.name } : null,
-        control: { command: { ...cmd }, thrusters: thrusters(), gain: GAIN },
+        helm: helm(),
+        control: { mode: "motion", command: { ...cmd }, thrusters: thrusters(), gain },
+        session: { id: conn.id, name: conn.name, role: "pilot", mode: "local" },
       });
       const state = {};
       for (const c of conns) if (c.joined.has(vtopic)) Object.assign(state, presenceOf(c));
@@ -109,29 +157,90 @@ export function startFakeServer(port = 4199) {
       return send(conn, [joinRef, joinRef, topic, "phx_close", {}]);
     }
     if (topic !== vtopic || !conn.joined.has(topic)) return error("unmatched topic");
-    if (event !== "thrust" && event !== "stop") return error(`unknown event: ${event}`);
-    if (pilot && pilot.conn !== conn) return error("not_in_control");
-    if (event === "thrust") {
-      const { mode, surge, heave, yaw } = payload ?? {};
-      if (mode !== "motion") return error("mode must be \"motion\"");
-      if (![surge, heave, yaw].every(isAxis)) return error("surge, heave and yaw must be numbers in [-1, 1]");
-      cmd = { surge, heave, yaw };
-    } else {
-      cmd = { surge: 0, heave: 0, yaw: 0 };
-      broadcast(vtopic, "stopped", { reason: typeof payload?.reason === "string" ? payload.reason : "pilot_stop" });
+    const isPilot = pilot?.conn === conn;
+    switch (event) {
+      case "request_control":
+        if (!pilot) {
+          grant(conn);
+          return ok({ status: "granted", grant: grantFor() });
+        }
+        if (isPilot) return ok({ status: "granted", grant: grantFor() });
+        if (request && request !== conn) return error("busy");
+        request = conn;
+        push(pilot.conn, "control_request", { from: party(conn) });
+        broadcast(vtopic, "helm", helm());
+        return ok({ status: "pending", timeout_ms: 10000 });
+      case "answer_request": {
+        if (!isPilot) return error("not_in_control");
+        if (!request) return error("no_request");
+        if (typeof payload?.accept !== "boolean") return error("accept must be true or false");
+        const requester = request;
+        if (payload.accept) {
+          grant(requester);
+        } else {
+          request = null;
+          push(requester, "request_denied", { reason: "denied" });
+          broadcast(vtopic, "helm", helm());
+        }
+        return ok({ helm: helm() });
+      }
+      case "release_control":
+        if (!isPilot) return error("not_in_control");
+        stop("released");
+        push(conn, "control_lost", { reason: "released" });
+        pilot = null;
+        request = null;
+        broadcast(vtopic, "helm", helm());
+        return ok({ helm: helm() });
+      case "take_control":
+        return error("forbidden");
+      case "heartbeat":
+        return isPilot ? ok({}) : error("not_in_control");
+      case "thrust": {
+        if (!isPilot) return error("not_in_control");
+        const { mode, surge, heave, yaw, epoch: stamp } = payload ?? {};
+        if (stamp === undefined) return error("missing field: epoch");
+        if (stamp !== epoch) return error("stale_command");
+        if (mode !== "motion") return error("mode must be \"motion\"");
+        if (![surge, heave, yaw].every(isAxis)) return error("surge, heave and yaw must be numbers in [-1, 1]");
+        cmd = { surge, heave, yaw };
+        break;
+      }
+      case "stop":
+        if (!isPilot) return error("not_in_control");
+        stop(typeof payload?.reason === "string" ? payload.reason : "pilot_stop");
+        break;
+      case "set_gain": {
+        // the settings commands' contract, shown with one of them
+        if (!isPilot) return error("not_in_control");
+        const v = payload?.value;
+        if (typeof v !== "number" || v < 0 || v > 1) return error(`value must be a number in [0, 1], got ${JSON.stringify(v)}`);
+        gain = v;
+        broadcast(`log:${VEHICLE.id}`, "log", { category: "gain", level: "info", message: `gain ${v}`, at: Date.now() });
+        return ok({ control: { mode: "motion", gain } });
+      }
+      default:
+        return error(`unknown event: ${event}`);
     }
-    if (!pilot) setPilot({ conn, name: conn.name });
     const { port, vertical, starboard } = thrusters(); // like the server: outputs only
     return ok({ command: { ...cmd }, thrusters: { port, vertical, starboard } });
   }
 
   function leave(conn, topic) {
-    if (!conn.joined.delete(topic) || topic !== vtopic) return;
+    if (!conn.joined.has(topic) || topic !== vtopic) return void conn.joined.delete(topic);
     broadcast(vtopic, "presence_diff", { joins: {}, leaves: presenceOf(conn) });
+    conn.joined.delete(topic);
+    if (request === conn) {
+      request = null;
+      broadcast(vtopic, "helm", helm());
+    }
     if (pilot?.conn === conn) {
-      cmd = { surge: 0, heave: 0, yaw: 0 };
-      broadcast(vtopic, "stopped", { reason: "pilot_disconnected" });
-      setPilot(null);
+      stop("pilot_disconnected");
+      pilot = null;
+      const next = request;
+      request = null;
+      if (next) grant(next);
+      else broadcast(vtopic, "helm", helm());
     }
   }
 
@@ -159,7 +268,7 @@ export function startFakeServer(port = 4199) {
     wss.handleUpgrade(req, socket, head, (ws) => {
       const id = nextId++;
       const name = (url.searchParams.get("name") ?? "").trim().slice(0, 40) || `guest-${1000 + id}`;
-      const conn = { ws, name, onlineAt: Date.now(), joined: new Map(), phxRef: "" };
+      const conn = { id: `c${id}`, ws, name, onlineAt: Date.now(), joined: new Map(), phxRef: "" };
       conns.add(conn);
       ws.on("message", (data) => {
         try {

@@ -1,6 +1,14 @@
 import { describe, expect, it } from "vitest";
 import {
+  decodeCamera,
+  decodeControlReply,
+  decodeControlSettings,
+  decodeControlUpdate,
   decodeFleetReply,
+  decodeGrant,
+  decodeHelm,
+  decodeParty,
+  decodeSession,
   decodePilot,
   decodeTelemetry,
   decodeThrustReply,
@@ -8,7 +16,7 @@ import {
   errorReason,
   presenceEntry,
 } from "../../src/lib/protocol";
-import { barGeometry } from "../../src/operator/view";
+import { barGeometry } from "../../src/operator/format";
 
 const telemetry = {
   t: 12.5,
@@ -26,32 +34,119 @@ const telemetry = {
   },
 };
 
+const helm = {
+  state: "free",
+  epoch: 0,
+  pilot: null,
+  request: null,
+  takeover: null,
+  deadman_ms: 500,
+  heartbeat_ms: 100,
+  request_timeout_ms: 10000,
+  takeover_ms: 3000,
+};
+
+/** What decodeTelemetry gives for `input` when it has no fields of later servers. */
+const plain = (input: Record<string, unknown>, over: Record<string, unknown> = {}): Record<string, unknown> => ({
+  ...telemetry,
+  manual: null,
+  control: null,
+  autopilot: null,
+  estimate: null,
+  link: null,
+  wild_points: null,
+  raw: input,
+  ...over,
+});
+
 describe("decodeTelemetry", () => {
-  it("accepts the documented shape", () => {
-    expect(decodeTelemetry(telemetry)).toEqual(telemetry);
+  it("accepts the documented shape (and keeps the raw payload for the plots)", () => {
+    expect(decodeTelemetry(telemetry)).toEqual(plain(telemetry));
   });
 
   it("accepts sim: null (a real board)", () => {
-    expect(decodeTelemetry({ ...telemetry, sim: null })).toEqual({ ...telemetry, sim: null });
+    const input = { ...telemetry, sim: null };
+    expect(decodeTelemetry(input)).toEqual(plain(input, { sim: null }));
   });
 
-  it("drops unknown fields", () => {
-    const decoded = decodeTelemetry({ ...telemetry, extra: 1, sim: { ...telemetry.sim, k: 2 } });
-    expect(decoded).toEqual(telemetry);
+  it("drops unknown fields from the typed part", () => {
+    const input = { ...telemetry, extra: 1, sim: { ...telemetry.sim, k: 2 } };
+    expect(decodeTelemetry(input)).toEqual(plain(input));
   });
 
-  it("rejects missing, non-numeric or non-finite fields", () => {
+  it("reads missing or null measurements as NaN (not known) rather than dropping the sample", () => {
+    const { depth: _depth, ...noDepth } = telemetry.measurement;
+    const decoded = decodeTelemetry({ ...telemetry, measurement: { ...noDepth, voltage: null } });
+    expect(decoded?.measurement.depth).toBeNaN();
+    expect(decoded?.measurement.voltage).toBeNaN();
+    expect(decoded?.measurement.heading).toBe(3.1);
+  });
+
+  it("decodes a manual command (thrusters named) as `manual`", () => {
+    const decoded = decodeTelemetry({ ...telemetry, command: { port: 0.5, vertical: -1, starboard: 0 } });
+    expect(decoded?.command).toBeNull();
+    expect(decoded?.manual).toEqual({ port: 0.5, vertical: -1, starboard: 0 });
+  });
+
+  it("decodes the fields later servers add: control, autopilot, estimate, link, wild_points", () => {
+    const input = {
+      ...telemetry,
+      control: { mode: "dp", gain: 0.7, lights: 100, laser: 0, tilt: 0.2, run_mode: "simulator", autopilot: { depth: 2, heading: null } },
+      autopilot: { depth: { setpoint: 2, output: 0.3 }, heading: null },
+      estimate: { depth: 1.2, depth_rate: 0.1, heading: 3, yaw_rate: 0.01 },
+      link: { up: false, reason: "hangup: end of file on the line" },
+      wild_points: { total: 4, by_field: { hdgd: 3, deap: 1, junk: "x" } },
+    };
+    const d = decodeTelemetry(input);
+    expect(d?.control).toEqual({ mode: "dp", gain: 0.7, lights: 100, laser: 0, tilt: 0.2, run_mode: "simulator", autopilot: { depth: 2, heading: null } });
+    expect(d?.autopilot).toEqual({ depth: { setpoint: 2, output: 0.3 }, heading: null });
+    expect(d?.estimate).toEqual({ depth: 1.2, depth_rate: 0.1, heading: 3, yaw_rate: 0.01 });
+    expect(d?.link).toEqual({ up: false, reason: "hangup: end of file on the line" });
+    expect(d?.wild_points).toEqual({ total: 4, by_field: { hdgd: 3, deap: 1 } });
+  });
+
+  it("tolerates malformed optional fields (null), partial control settings and estimates", () => {
+    const d = decodeTelemetry({ ...telemetry, control: { gain: 1 }, link: { up: "yes" }, estimate: { depth: 1 }, wild_points: {} });
+    expect(d?.control).toBeNull();
+    expect(d?.link).toBeNull();
+    expect(d?.wild_points).toBeNull();
+    expect(d?.estimate?.depth).toBe(1);
+    expect(d?.estimate?.yaw_rate).toBeNaN();
+    const partial = decodeTelemetry({ ...telemetry, control: { mode: "motion" } });
+    expect(partial?.control).toEqual({ mode: "motion", gain: null, lights: null, laser: null, tilt: null, run_mode: null, autopilot: null });
+  });
+
+  it("rejects missing, non-numeric or non-finite required fields", () => {
     expect(decodeTelemetry(null)).toBeNull();
     expect(decodeTelemetry([])).toBeNull();
     expect(decodeTelemetry({ ...telemetry, t: "1" })).toBeNull();
     expect(decodeTelemetry({ ...telemetry, sim: undefined })).toBeNull();
     expect(decodeTelemetry({ ...telemetry, sim: { x: 1 } })).toBeNull();
-    const { depth: _depth, ...noDepth } = telemetry.measurement;
-    expect(decodeTelemetry({ ...telemetry, measurement: noDepth })).toBeNull();
+    expect(decodeTelemetry({ ...telemetry, measurement: 3 })).toBeNull();
     expect(
       decodeTelemetry({ ...telemetry, thrusters: { ...telemetry.thrusters, port: Number.NaN } }),
     ).toBeNull();
     expect(decodeTelemetry({ ...telemetry, command: { surge: 1, heave: 0 } })).toBeNull();
+  });
+});
+
+describe("control settings replies and the camera", () => {
+  it("decodes {control: C}", () => {
+    expect(decodeControlUpdate({ control: { mode: "manual", gain: 0.3 } })).toEqual({
+      mode: "manual", gain: 0.3, lights: null, laser: null, tilt: null, run_mode: null, autopilot: null,
+    });
+    expect(decodeControlUpdate({ mode: "manual" })).toBeNull();
+    expect(decodeControlSettings({ mode: 1 })).toBeNull();
+  });
+
+  it("finds the camera URL in the snapshot, or none", () => {
+    const vehicle = { id: "v", board: "simulated" };
+    expect(decodeCamera({ vehicle, camera: { url: "http://cam:8080/?action=stream" } })).toEqual({ url: "http://cam:8080/?action=stream" });
+    expect(decodeCamera({ vehicle, camera: "/video/v.mp4" })).toEqual({ url: "/video/v.mp4" });
+    expect(decodeCamera({ vehicle: { ...vehicle, camera_url: "https://x/y.mjpg" } })).toEqual({ url: "https://x/y.mjpg" });
+    expect(decodeCamera({ vehicle, camera: null })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: { url: "javascript:alert(1)" } })).toBeNull();
+    expect(decodeCamera({ vehicle })).toBeNull();
   });
 });
 
@@ -71,13 +166,35 @@ describe("join replies", () => {
       vehicle,
       telemetry: null,
       pilot: null,
+      helm: null,
+      session: null,
+      control: null,
+      camera: null,
     });
-    // later fields (e.g. "control") are ignored
+    // a malformed "control" reads as none
     expect(decodeVehicleSnapshot({ vehicle, telemetry, pilot: { name: "ada" }, control: {} })).toEqual({
       vehicle,
-      telemetry,
+      telemetry: plain(telemetry),
       pilot: { name: "ada" },
+      helm: null,
+      session: null,
+      control: null,
+      camera: null,
     });
+    const session = { id: "c1", name: "ada", role: "pilot", mode: "local" };
+    expect(decodeVehicleSnapshot({ vehicle, telemetry: null, pilot: null, helm, session, control: { mode: "motion", gain: 0.5 } })).toEqual({
+      vehicle,
+      telemetry: null,
+      pilot: null,
+      helm,
+      session,
+      control: { mode: "motion", gain: 0.5, lights: null, laser: null, tilt: null, run_mode: null, autopilot: null },
+      camera: null,
+    });
+    expect(decodeVehicleSnapshot({ vehicle, telemetry: null, pilot: null, helm: { state: "x" } })).toBeNull();
+    expect(
+      decodeVehicleSnapshot({ vehicle, telemetry: null, pilot: null, session: { ...session, role: "admiral" } }),
+    ).toBeNull();
     expect(decodeVehicleSnapshot({ vehicle, telemetry: { t: 1 }, pilot: null })).toBeNull();
     expect(decodeVehicleSnapshot({ vehicle, telemetry: null, pilot: "ada" })).toBeNull();
     expect(decodeVehicleSnapshot({ telemetry: null, pilot: null })).toBeNull();
@@ -98,7 +215,66 @@ describe("join replies", () => {
       reply,
     );
     expect(decodeThrustReply({ command: telemetry.command })).toBeNull();
+    // manual mode echoes the thruster command
+    const manual = { command: { port: 0.5, vertical: -1, starboard: 0 }, thrusters };
+    expect(decodeThrustReply({ ...manual, thrusters: telemetry.thrusters })).toEqual(manual);
+    expect(decodeThrustReply({ command: { port: 0.5 }, thrusters: telemetry.thrusters })).toBeNull();
     expect(decodeThrustReply({ command: telemetry.command, thrusters: { port: 1 } })).toBeNull();
+  });
+});
+
+describe("helm payloads", () => {
+  const ada = { id: "c1", name: "ada", role: "pilot" };
+  const main = { id: "c2", name: "main", role: "main_station" };
+
+  it("decodes every helm state", () => {
+    expect(decodeHelm(helm)).toEqual(helm);
+    const piloted = { ...helm, state: "piloted", epoch: 1, pilot: { ...ada, since: 1_700_000_000_000 } };
+    expect(decodeHelm(piloted)).toEqual(piloted);
+    const requested = { ...piloted, state: "requested", request: { from: main, remaining_ms: 9000 } };
+    expect(decodeHelm(requested)).toEqual(requested);
+    const takeover = { ...piloted, state: "takeover", takeover: { by: main, countdown_ms: 3000 } };
+    expect(decodeHelm(takeover)).toEqual(takeover);
+  });
+
+  it("rejects malformed helms", () => {
+    expect(decodeHelm({ ...helm, state: "adrift" })).toBeNull();
+    expect(decodeHelm({ ...helm, state: "piloted" })).toBeNull(); // piloted by nobody
+    expect(decodeHelm({ ...helm, epoch: "1" })).toBeNull();
+    expect(decodeHelm({ ...helm, request: { from: ada } })).toBeNull();
+    expect(decodeHelm({ ...helm, takeover: { by: { ...main, role: "admiral" }, countdown_ms: 1 } })).toBeNull();
+  });
+
+  it("decodes grants and control replies", () => {
+    const grant = {
+      epoch: 3,
+      pilot: { ...ada, since: 5 },
+      control: { mode: "motion", gain: 0.5, command: { surge: 0, heave: 0, yaw: 0 } },
+      deadman_ms: 500,
+      heartbeat_ms: 100,
+    };
+    const settings = { lights: null, laser: null, tilt: null, run_mode: null, autopilot: null };
+    expect(decodeGrant({ ...grant, control: { ...grant.control, thrusters: {} } })).toEqual({ ...grant, control: { ...grant.control, ...settings } });
+    // a manual-mode grant has no motion command; a control without a mode is malformed
+    expect(decodeGrant({ ...grant, control: { mode: "manual" } })?.control).toEqual({ mode: "manual", gain: null, command: null, ...settings });
+    expect(decodeGrant({ ...grant, control: { gain: 0.5 } })).toBeNull();
+    expect(decodeControlReply({ status: "granted", grant })).toEqual({ status: "granted", grant: { ...grant, control: { ...grant.control, ...settings } } });
+    expect(decodeControlReply({ status: "pending", timeout_ms: 10000 })).toEqual({ status: "pending", timeout_ms: 10000 });
+    expect(decodeControlReply({ status: "takeover", countdown_ms: 2999 })).toEqual({
+      status: "takeover",
+      countdown_ms: 2999,
+    });
+    expect(decodeControlReply({ status: "granted" })).toBeNull();
+    expect(decodeControlReply({ status: "maybe" })).toBeNull();
+    expect(decodeParty(ada)).toEqual(ada);
+    expect(decodeParty({ name: "x" })).toBeNull();
+    expect(decodeSession({ id: "c", name: "n", role: "observer", mode: "secure" })).toEqual({
+      id: "c",
+      name: "n",
+      role: "observer",
+      mode: "secure",
+    });
+    expect(decodeSession({ id: "c", name: "n", role: "observer", mode: "open" })).toBeNull();
   });
 });
 
@@ -117,13 +293,25 @@ describe("presenceEntry", () => {
       key: "k1",
       name: "ada",
       connections: 1,
+      role: null,
+      pilot: false,
     });
     expect(presenceEntry("bob", { metas: [{ phx_ref: "a" }, { phx_ref: "b" }] })).toEqual({
       key: "bob",
       name: "bob",
       connections: 2,
+      role: null,
+      pilot: false,
     });
-    expect(presenceEntry("x", null)).toEqual({ key: "x", name: "x", connections: 1 });
+    expect(presenceEntry("x", null)).toEqual({ key: "x", name: "x", connections: 1, role: null, pilot: false });
+  });
+
+  it("marks the pilot and reads the role", () => {
+    const metas = [
+      { phx_ref: "a", name: "ada", role: "pilot", pilot: false },
+      { phx_ref: "b", name: "ada", role: "pilot", pilot: true },
+    ];
+    expect(presenceEntry("ada", { metas })).toEqual({ key: "ada", name: "ada", connections: 2, role: "pilot", pilot: true });
   });
 });
 

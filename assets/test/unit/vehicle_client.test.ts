@@ -4,7 +4,7 @@ import { afterAll, afterEach, beforeAll, describe, expect, it } from "vitest";
 import WebSocket from "ws";
 import { startFakeServer } from "../support/fake_server.mjs";
 import type { FakeServer } from "../support/fake_server.mjs";
-import type { PresenceEntry, Telemetry } from "../../src/lib/protocol";
+import type { Grant, Helm, PresenceEntry, Telemetry } from "../../src/lib/protocol";
 import { CommandError, NeptunusClient } from "../../src/lib/vehicle_client";
 import type { ConnectionStatus } from "../../src/lib/vehicle_client";
 
@@ -81,15 +81,22 @@ describe("NeptunusClient", () => {
     const other = client("other").vehicle("neptunus-1");
     await Promise.all([pilot.join(), other.join()]);
 
-    const reply = await pilot.thrust({ surge: 1, heave: 0, yaw: 0 });
+    const granted = await pilot.requestControl();
+    expect(granted.status).toBe("granted");
+    const epoch = granted.status === "granted" ? granted.grant.epoch : -1;
+
+    const reply = await pilot.thrust({ surge: 1, heave: 0, yaw: 0 }, epoch);
     expect(reply.command).toEqual({ surge: 1, heave: 0, yaw: 0 });
     expect(reply.thrusters.port).toBe(0.5); // gain 0.5
 
-    const refused = await other.thrust({ surge: -1, heave: 0, yaw: 0 }).catch((e: unknown) => e);
+    const refused = await other.thrust({ surge: -1, heave: 0, yaw: 0 }, epoch).catch((e: unknown) => e);
     expect(refused).toBeInstanceOf(CommandError);
     expect(refused).toMatchObject({ reason: "not_in_control", kind: "error" });
 
-    const bad = await pilot.thrust({ surge: 5, heave: 0, yaw: 0 }).catch((e: unknown) => e);
+    const stale = await pilot.thrust({ surge: 1, heave: 0, yaw: 0 }, epoch - 1).catch((e: unknown) => e);
+    expect(stale).toMatchObject({ reason: "stale_command" });
+
+    const bad = await pilot.thrust({ surge: 5, heave: 0, yaw: 0 }, epoch).catch((e: unknown) => e);
     expect(bad).toMatchObject({ kind: "error" });
     expect((bad as CommandError).reason).not.toBe("");
 
@@ -98,11 +105,47 @@ describe("NeptunusClient", () => {
     await watcher.join();
     await expect(pilot.stop("test")).resolves.toBeUndefined();
     expect(await eventually(() => stopped[0])).toBe("test");
+    await pilot.releaseControl();
+  });
+
+  it("hands the helm over by request and acknowledge", async () => {
+    const granted: Grant[] = [];
+    const requests: string[] = [];
+    const lost: string[] = [];
+    const helms: Helm[] = [];
+    const ada = client("ada").vehicle("neptunus-1", {
+      controlRequest: (from) => requests.push(from.name),
+      controlLost: (reason) => lost.push(reason),
+      helm: (h) => helms.push(h),
+    });
+    const bob = client("bob").vehicle("neptunus-1", { controlGranted: (g) => granted.push(g) });
+    const [adaSnap, bobSnap] = await Promise.all([ada.join(), bob.join()]);
+    expect(adaSnap.session?.name).toBe("ada");
+    expect(bobSnap.helm?.state).toBe("free");
+
+    await ada.requestControl();
+    const rtt = await ada.heartbeat();
+    expect(rtt).toBeGreaterThanOrEqual(0); // the round trip, in ms
+    await expect(bob.heartbeat()).rejects.toMatchObject({ reason: "not_in_control" });
+    const pending = await bob.requestControl();
+    expect(pending).toEqual({ status: "pending", timeout_ms: 10000 });
+    expect(await eventually(() => requests[0])).toBe("bob");
+    expect(await eventually(() => helms.find((h) => h.state === "requested"))).toMatchObject({
+      request: { from: { name: "bob" } },
+    });
+
+    await ada.answerRequest(true);
+    const grant = await eventually(() => granted[0]);
+    expect(grant.pilot.name).toBe("bob");
+    expect(grant.control.command).toEqual({ surge: 0, heave: 0, yaw: 0 });
+    expect(await eventually(() => lost[0])).toBe("control_transferred");
+    await expect(bob.thrust({ surge: 0.5, heave: 0, yaw: 0 }, grant.epoch)).resolves.toBeDefined();
+    await bob.releaseControl();
   });
 
   it("does not send commands before the channel is joined", async () => {
     const vehicle = client("early").vehicle("neptunus-1");
-    await expect(vehicle.thrust({ surge: 1, heave: 0, yaw: 0 })).rejects.toMatchObject({
+    await expect(vehicle.thrust({ surge: 1, heave: 0, yaw: 0 }, 1)).rejects.toMatchObject({
       kind: "not_joined",
     });
     await expect(vehicle.stop()).rejects.toMatchObject({ kind: "not_joined" });
@@ -127,5 +170,27 @@ describe("NeptunusClient", () => {
     await own.close();
     await eventually(() => (vehicle.status === "disconnected" ? true : undefined));
     expect(vehicle.joined).toBe(false);
+  });
+
+  it("settings commands resolve with the control settings or reject with the server's reason; the log topic delivers entries", async () => {
+    const c = client("setter");
+    const entries: unknown[] = [];
+    const log = c.log("neptunus-1", (p) => entries.push(p));
+    await log.join();
+    const v = c.vehicle("neptunus-1");
+    await v.join();
+    await expect(v.setValue("set_gain", 0.7)).rejects.toMatchObject({ reason: "not_in_control" });
+    await v.requestControl();
+    await expect(v.setValue("set_gain", 0.7)).resolves.toMatchObject({ mode: "motion", gain: 0.7 });
+    await expect(v.setValue("set_gain", 2)).rejects.toMatchObject({ reason: "value must be a number in [0, 1], got 2" });
+    await expect(v.setValue("set_gain", "abc")).rejects.toMatchObject({ reason: 'value must be a number in [0, 1], got "abc"' });
+    // a command the server does not know yet: its reason, not a fake success
+    await expect(v.setControlMode("manual")).rejects.toMatchObject({ reason: "unknown event: set_control_mode", kind: "error" });
+    await expect(v.autopilot({ depth: 2 })).rejects.toMatchObject({ reason: "unknown event: autopilot" });
+    await eventually(() => (entries.length > 0 ? entries : undefined));
+    expect(entries[0]).toMatchObject({ category: "gain", message: "gain 0.7" });
+    await v.setValue("set_gain", 0.5);
+    expect(await c.ping()).toBeGreaterThanOrEqual(0);
+    log.leave();
   });
 });

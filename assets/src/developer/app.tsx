@@ -1,0 +1,210 @@
+/** The developer page (Preact): plots on the left, the logger on the right. */
+
+import { useEffect, useRef, useState } from "preact/hooks";
+import { CATEGORIES, categoryLabel, clockTime, formatLog } from "../logger/model";
+import { downloadText, fileStamp } from "../lib/download";
+import { useStore } from "../lib/use_store";
+import { Plot } from "../plots/plot";
+import { sortSeries } from "../plots/series";
+import { MAX_PLOTS } from "./controller";
+import type { DevController, DevState } from "./controller";
+
+/** Entries rendered at most (the download has all the matching ones). */
+const SHOWN = 400;
+
+function Header({ s }: { s: DevState }): preact.JSX.Element {
+  const back = s.vehicleId === null ? "/" : `/?vehicle=${encodeURIComponent(s.vehicleId)}`;
+  return (
+    <header class="bar">
+      <h1>Neptunus</h1>
+      <span class="vehicle">
+        Developer · vehicle{" "}
+        <strong id="vehicle-id" data-testid="vehicle-id">
+          {s.vehicleId ?? "—"}
+        </strong>
+      </span>
+      <span id="status" class="status" data-testid="status" data-state={s.status} role="status">
+        {s.status === "disconnected" ? "disconnected — reconnecting" : s.status}
+      </span>
+      <a class="dev-link" href={back}>
+        Operator page
+      </a>
+    </header>
+  );
+}
+
+function Plots({ s, c }: { s: DevState; c: DevController }): preact.JSX.Element {
+  const all = sortSeries(s.series);
+  const seconds = Math.round(c.recorder.capacity / 20);
+  const download = (): void => {
+    const name = `neptunus-${s.vehicleId ?? "vehicle"}-${fileStamp(new Date())}.csv`;
+    downloadText(name, c.recorder.toCsv(sortSeries(c.recorder.series)), "text/csv");
+  };
+  return (
+    <section class="panel plots-panel" aria-labelledby="plots-title">
+      <h2 id="plots-title">Plots</h2>
+      <div class="toolbar">
+        <button type="button" id="add-plot" data-testid="add-plot" disabled={s.plots.length >= MAX_PLOTS} onClick={() => c.addPlot()}>
+          Add plot
+        </button>
+        <button type="button" id="reset-graphs" data-testid="reset-graphs" onClick={() => c.resetGraphs()}>
+          Reset graphs
+        </button>
+        <button type="button" id="remove-plots" data-testid="remove-plots" disabled={s.plots.length === 0} onClick={() => c.removeAllPlots()}>
+          Remove plots
+        </button>
+        <button type="button" id="download-csv" data-testid="download-csv" onClick={download}>
+          Download CSV
+        </button>
+        <span class="buffer" id="buffer" data-testid="buffer" data-samples={c.recorder.size}>
+          {s.plots.length}/{MAX_PLOTS} plots · buffer {c.recorder.size.toLocaleString("en")} / {c.recorder.capacity.toLocaleString("en")} samples (≈ {Math.round(seconds / 60)} min at 20 Hz), recording since this page connected
+          {c.recorder.dropped > 0 ? ` · ${c.recorder.dropped.toLocaleString("en")} oldest dropped` : ""} · {all.length} series
+        </span>
+      </div>
+      {s.plots.length === 0 && <p class="note">No plots: “Add plot” shows one (up to {MAX_PLOTS}); each overlays any series.</p>}
+      <div class="plot-list">
+        {s.plots.map((p) => (
+          <Plot
+            key={p.id}
+            id={p.id}
+            series={p.series}
+            allSeries={all}
+            recorder={c.recorder}
+            dataVersion={s.dataVersion}
+            onSeries={(series) => c.setPlotSeries(p.id, series)}
+            onRemove={() => c.removePlot(p.id)}
+          />
+        ))}
+      </div>
+    </section>
+  );
+}
+
+function Logger({ s, c }: { s: DevState; c: DevController }): preact.JSX.Element {
+  const [selected, setSelected] = useState<ReadonlySet<string>>(() => new Set(CATEGORIES.map((x) => x.id)));
+  const [filter, setFilter] = useState("");
+  const list = useRef<HTMLOListElement>(null);
+  const stick = useRef(true);
+  // categories the server used that are not in our list
+  const extra = Array.from(new Set(c.log.all.map((e) => e.category))).filter((id) => !CATEGORIES.some((x) => x.id === id));
+  const categories = [...CATEGORIES.map((x) => x.id), ...extra];
+  const visible = c.log.visible(selected, filter);
+  const shown = visible.slice(-SHOWN);
+
+  useEffect(() => {
+    const el = list.current;
+    if (el && stick.current) el.scrollTop = el.scrollHeight;
+  }, [s.logVersion, shown.length]);
+
+  const toggle = (id: string, on: boolean): void => {
+    const next = new Set(selected);
+    if (on) next.add(id);
+    else next.delete(id);
+    setSelected(next);
+  };
+  const download = (): void => {
+    const name = `neptunus-${s.vehicleId ?? "vehicle"}-log-${fileStamp(new Date())}.txt`;
+    downloadText(name, formatLog(visible));
+  };
+
+  return (
+    <section class="panel logger" aria-labelledby="logger-title" data-testid="logger">
+      <h2 id="logger-title">Logger</h2>
+      <p class="note" data-testid="log-topic" data-state={s.logJoined}>
+        {s.logJoined === "joined" ? "log topic joined" : s.logJoined === "joining" ? "joining the log topic…" : `no log topic: ${s.logError ?? ""}`}
+      </p>
+      <fieldset class="categories" data-testid="categories">
+        <legend>Categories</legend>
+        <div class="cat-actions">
+          <button type="button" id="cat-all" onClick={() => setSelected(new Set(categories))}>
+            All
+          </button>
+          <button type="button" id="cat-none" onClick={() => setSelected(new Set())}>
+            None
+          </button>
+        </div>
+        {categories.map((id) => (
+          <label key={id} class="cat">
+            <input type="checkbox" data-testid={`cat-${id}`} id={`cat-${id}`} checked={selected.has(id)} onChange={(e) => toggle(id, (e.currentTarget as HTMLInputElement).checked)} />
+            {categoryLabel(id)}
+          </label>
+        ))}
+      </fieldset>
+      <div class="toolbar">
+        <input
+          type="search"
+          id="log-filter"
+          data-testid="log-filter"
+          placeholder="filter text"
+          value={filter}
+          onInput={(e) => setFilter((e.currentTarget as HTMLInputElement).value)}
+        />
+        <button
+          type="button"
+          id="log-pause"
+          data-testid="log-pause"
+          aria-pressed={c.log.paused}
+          onClick={() => {
+            if (c.log.paused) c.log.resume();
+            else c.log.pause();
+            c.bumpLog();
+          }}
+        >
+          {c.log.paused ? `Resume (${c.log.pending} new)` : "Pause"}
+        </button>
+        <button
+          type="button"
+          id="log-clear"
+          data-testid="log-clear"
+          onClick={() => {
+            c.log.clear();
+            c.bumpLog();
+          }}
+        >
+          Clear
+        </button>
+        <button type="button" id="log-download" data-testid="log-download" onClick={download}>
+          Download
+        </button>
+      </div>
+      <p class="note">
+        {visible.length} shown{visible.length > SHOWN ? ` (the last ${SHOWN} on screen)` : ""} · {c.log.all.length} kept (last {c.log.capacity})
+      </p>
+      <ol
+        class="log-list"
+        ref={list}
+        data-testid="log-list"
+        onScroll={(e) => {
+          const el = e.currentTarget as HTMLOListElement;
+          stick.current = el.scrollTop + el.clientHeight >= el.scrollHeight - 8;
+        }}
+      >
+        {shown.map((e) => (
+          <li key={e.seq} data-category={e.category} data-level={e.level}>
+            <time dateTime={new Date(e.at).toISOString()}>{clockTime(e.at)}</time>
+            <span class="log-cat">{categoryLabel(e.category)}</span>
+            <span class="log-msg">{e.message}</span>
+          </li>
+        ))}
+      </ol>
+    </section>
+  );
+}
+
+export function DevApp({ controller }: { controller: DevController }): preact.JSX.Element {
+  const s = useStore(controller.store);
+  return (
+    <div class="page dev">
+      <Header s={s} />
+      {s.message !== "" && (
+        <p class="banner" role="alert" data-testid="message">
+          {s.message}
+        </p>
+      )}
+      <main class="dev-layout">
+        <Plots s={s} c={controller} />
+        <Logger s={s} c={controller} />
+      </main>
+    </div>
+  );
+}

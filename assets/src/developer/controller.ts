@@ -1,0 +1,277 @@
+/**
+ * The developer page's logic: connects like the operator page (watching only, it never asks
+ * for control), records every telemetry sample from the moment it connects (plots), and feeds
+ * the logger from the vehicle topic and the `log:<id>` topic.
+ */
+
+import { LogBook, entryFromServerLog, telemetryChanges, telemetryFacts } from "../logger/model";
+import type { NewEntry, TelemetryFacts } from "../logger/model";
+import { SeriesRecorder } from "../plots/recorder";
+import { flattenNumeric } from "../plots/series";
+import type { Helm, Telemetry } from "../lib/protocol";
+import { AuthError, TOKEN_KEY, fetchSession, loadToken } from "../lib/session";
+import { Store } from "../lib/store";
+import { CommandError, NeptunusClient } from "../lib/vehicle_client";
+import type { ConnectionStatus } from "../lib/vehicle_client";
+
+export const MAX_PLOTS = 10;
+
+export interface PlotSpec {
+  readonly id: number;
+  readonly series: readonly string[];
+}
+
+export interface DevState {
+  readonly status: ConnectionStatus;
+  readonly vehicleId: string | null;
+  readonly logJoined: "joining" | "joined" | "error";
+  readonly logError: string | null;
+  /** changes when the logger has new entries (or was cleared / paused) */
+  readonly logVersion: number;
+  /** changes when the recording changed (throttled) */
+  readonly dataVersion: number;
+  /** series known so far, in arrival order */
+  readonly series: readonly string[];
+  readonly plots: readonly PlotSpec[];
+  readonly message: string;
+}
+
+const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
+/** Series a new plot starts with (thesis table 7.3), taken in turn. */
+const STARTERS = [
+  ["measurement.depth"],
+  ["command.surge", "command.heave", "command.yaw"],
+  ["thrusters.port", "thrusters.vertical", "thrusters.starboard"],
+  ["measurement.heading"],
+  ["measurement.roll", "measurement.pitch"],
+  ["sim.x", "sim.y", "sim.z"],
+  ["sim.u", "sim.w", "sim.r"],
+  ["measurement.voltage"],
+  ["measurement.current"],
+  ["sim.psi"],
+];
+
+function reasonOf(err: unknown): string {
+  if (err instanceof CommandError) return err.reason;
+  if (err instanceof Error) return err.message;
+  return String(err);
+}
+
+export class DevController {
+  readonly store: Store<DevState>;
+  readonly recorder: SeriesRecorder;
+  readonly log = new LogBook();
+  private readonly params: URLSearchParams;
+  private facts: TelemetryFacts | null = null;
+  private lastHelm: Helm | null = null;
+  private nextPlotId = 1;
+  private starter = 0;
+
+  constructor(params: URLSearchParams, capacity?: number) {
+    this.params = params;
+    this.recorder = new SeriesRecorder(capacity);
+    this.store = new Store<DevState>({
+      status: "connecting",
+      vehicleId: null,
+      logJoined: "joining",
+      logError: null,
+      logVersion: 0,
+      dataVersion: 0,
+      series: [],
+      plots: [],
+      message: "",
+    });
+  }
+
+  async start(): Promise<void> {
+    // plots redraw at most 4 times a second, whatever the telemetry rate
+    window.setInterval(() => {
+      const v = this.recorder.version;
+      if (v !== this.store.get().dataVersion) {
+        this.store.update({ dataVersion: v, series: [...this.recorder.series] });
+      }
+    }, 250);
+
+    let token = loadToken(window.localStorage, Date.now());
+    for (;;) {
+      try {
+        let session;
+        try {
+          session = await fetchSession(token);
+        } catch (err) {
+          if (!(err instanceof AuthError) || err.status !== 401) throw err;
+          window.localStorage.removeItem(TOKEN_KEY);
+          token = null;
+          session = await fetchSession(null);
+        }
+        if (session.mode === "secure" && session.user === null && !session.anonymous_observers) {
+          const next = window.location.pathname + window.location.search;
+          window.location.assign(`/login.html?${new URLSearchParams({ next }).toString()}`);
+          return;
+        }
+        if (session.user === null) token = null;
+        break;
+      } catch (err) {
+        this.store.update({ message: `Cannot reach the server: ${reasonOf(err)}` });
+        await new Promise((r) => setTimeout(r, 2000));
+      }
+    }
+
+    const name = (this.params.get("name") ?? "").trim().slice(0, 40) || "developer";
+    const client = new NeptunusClient({ name, ...(token !== null ? { token } : {}) });
+    client.socket.onOpen(() => this.store.update({ status: "connected" }));
+    client.connect();
+    const id = await this.chooseVehicle(client);
+    if (id === null) return;
+    this.store.update({ vehicleId: id, message: "" });
+    document.title = `Neptunus — developer — ${id}`;
+
+    const vehicle = client.vehicle(id, {
+      snapshot: (snapshot) => {
+        this.lastHelm = snapshot.helm;
+        if (snapshot.telemetry) this.onTelemetry(snapshot.telemetry);
+      },
+      telemetry: (t) => this.onTelemetry(t),
+      helm: (h) => this.onHelm(h),
+      stopped: (reason) => this.add({ category: "stop", level: "warning", message: `stopped: ${reason}` }),
+      link: (link) =>
+        this.add({
+          category: "link",
+          level: link.up ? "info" : "warning",
+          message: `board link ${link.up ? "up" : "down"}${link.reason ? `: ${link.reason}` : ""}`,
+        }),
+      status: (status) => {
+        const was = this.store.get().status;
+        this.store.update({ status });
+        if (status !== was && (status === "disconnected" || was === "disconnected")) {
+          this.add({
+            category: "link",
+            level: status === "connected" ? "info" : "warning",
+            message: `server connection ${status}`,
+          });
+        }
+      },
+      protocolError: (what, payload) =>
+        this.add({ category: "error", level: "error", message: `unexpected ${what} payload: ${JSON.stringify(payload).slice(0, 200)}` }),
+    });
+    vehicle.join().catch((err: unknown) => {
+      this.add({ category: "error", level: "error", message: `cannot join vehicle ${id}: ${reasonOf(err)}` });
+      this.store.update({ message: `Cannot join vehicle ${id}: ${reasonOf(err)}` });
+    });
+
+    const log = client.log(id, (payload) => {
+      const entry = entryFromServerLog(payload, Date.now());
+      if (entry) this.add(entry);
+      else this.add({ category: "error", level: "error", message: `unexpected log payload: ${JSON.stringify(payload).slice(0, 200)}` });
+    });
+    log.join().then(
+      () => this.store.update({ logJoined: "joined", logError: null }),
+      (err: unknown) => {
+        const reason = reasonOf(err);
+        this.store.update({ logJoined: "error", logError: reason });
+        this.add({ category: "error", level: "error", message: `cannot join log:${id}: ${reason}` });
+      },
+    );
+  }
+
+  private async chooseVehicle(client: NeptunusClient): Promise<string | null> {
+    const requested = this.params.get("vehicle");
+    if (requested !== null) {
+      if (VEHICLE_ID.test(requested)) return requested;
+      this.store.update({ message: `Invalid vehicle id in the address: "${requested}"` });
+      return null;
+    }
+    for (;;) {
+      try {
+        const fleet = await client.fleet();
+        const first = fleet.vehicles[0];
+        if (first) return first.id;
+        this.store.update({ message: "The server has no vehicles." });
+      } catch (err) {
+        this.store.update({ message: `Cannot list vehicles: ${reasonOf(err)}` });
+      }
+      await new Promise((r) => setTimeout(r, 2000));
+    }
+  }
+
+  private onTelemetry(t: Telemetry): void {
+    this.recorder.add(t.sent_at / 1000, flattenNumeric(t.raw));
+    const facts = telemetryFacts(t);
+    for (const e of telemetryChanges(this.facts, facts, t.sent_at)) this.add(e);
+    this.facts = facts;
+  }
+
+  private onHelm(h: Helm): void {
+    const prev = this.lastHelm;
+    this.lastHelm = h;
+    const pilot = h.pilot?.name ?? null;
+    const changed =
+      prev === null ||
+      prev.state !== h.state ||
+      (prev.pilot?.id ?? null) !== (h.pilot?.id ?? null) ||
+      (prev.request?.from.id ?? null) !== (h.request?.from.id ?? null) ||
+      (prev.takeover?.by.id ?? null) !== (h.takeover?.by.id ?? null);
+    if (changed) {
+      let message: string;
+      switch (h.state) {
+        case "free":
+          message = "helm free";
+          break;
+        case "piloted":
+          message = `${pilot ?? "?"} pilots`;
+          break;
+        case "requested":
+          message = `${h.request?.from.name ?? "?"} requests control from ${pilot ?? "?"}`;
+          break;
+        case "takeover":
+          message = `main station ${h.takeover?.by.name ?? "?"} takes control from ${pilot ?? "?"} in ${Math.ceil((h.takeover?.countdown_ms ?? 0) / 1000)} s`;
+          break;
+      }
+      this.add({ category: "transfer", level: h.state === "takeover" ? "warning" : "info", message: `${message} (epoch ${h.epoch})` });
+    } else if (prev.epoch !== h.epoch) {
+      this.add({ category: "safety", level: "warning", message: `new epoch ${h.epoch} (deadman stop?)` });
+    }
+  }
+
+  add(entry: Omit<NewEntry, "at"> & { at?: number }): void {
+    this.log.add({ ...entry, at: entry.at ?? Date.now() });
+    this.bumpLog();
+  }
+
+  bumpLog(): void {
+    this.store.update((s) => ({ logVersion: s.logVersion + 1 }));
+  }
+
+  // Plots
+
+  addPlot(): void {
+    const plots = this.store.get().plots;
+    if (plots.length >= MAX_PLOTS) return;
+    const known = new Set(this.recorder.series);
+    let series: string[] = [];
+    for (let i = 0; i < STARTERS.length && series.length === 0; i++) {
+      const candidate = STARTERS[(this.starter + i) % STARTERS.length] ?? [];
+      series = candidate.filter((k) => known.has(k));
+      if (series.length > 0) this.starter = (this.starter + i + 1) % STARTERS.length;
+    }
+    this.store.update({ plots: [...plots, { id: this.nextPlotId++, series }] });
+  }
+
+  removePlot(id: number): void {
+    this.store.update((s) => ({ plots: s.plots.filter((p) => p.id !== id) }));
+  }
+
+  removeAllPlots(): void {
+    this.store.update({ plots: [] });
+  }
+
+  setPlotSeries(id: number, series: readonly string[]): void {
+    this.store.update((s) => ({ plots: s.plots.map((p) => (p.id === id ? { ...p, series } : p)) }));
+  }
+
+  /** Clears the recorded data; the plots stay with their series. */
+  resetGraphs(): void {
+    this.recorder.clear();
+    this.store.update({ dataVersion: this.recorder.version });
+  }
+}

@@ -1,0 +1,31 @@
+/** Display helpers of the operator page (pure). */
+
+import { clampUnit, formatFixed, radToDeg } from "../lib/units";
+
+/** Bar geometry for a value in [-1, 1] on a meter centred on zero (percent of the width). */
+export function barGeometry(value: number): { left: number; width: number; reverse: boolean } {
+  const v = clampUnit(value);
+  const width = Math.abs(v) * 50;
+  return { left: v < 0 ? 50 - width : 50, width, reverse: v < 0 };
+}
+
+/** Degrees with one decimal from radians; "—" when unknown. */
+export function formatDeg(rad: number | null | undefined, signed = false): string {
+  return rad === null || rad === undefined ? "—" : formatFixed(radToDeg(rad), 1, signed);
+}
+
+/** A value with `decimals`, "—" for null/undefined/NaN. */
+export function fmt(value: number | null | undefined, decimals: number, signed = false): string {
+  return value === null || value === undefined ? "—" : formatFixed(value, decimals, signed);
+}
+
+/** Video files play in <video>; anything else (MJPEG streams, snapshots) in <img>. */
+export function cameraElement(url: string): "video" | "img" {
+  return /\.(mp4|webm|ogv|m3u8)(\?|#|$)/i.test(url) ? "video" : "img";
+}
+
+/** "reconnecting for 12 s" style text for a connection lost `ms` ago. */
+export function downFor(ms: number): string {
+  const s = Math.max(0, Math.floor(ms / 1000));
+  return s < 60 ? `${s} s` : `${Math.floor(s / 60)} min ${s % 60} s`;
+}

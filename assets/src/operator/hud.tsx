@@ -1,0 +1,169 @@
+/**
+ * The camera area and the head-up display over it: compass tape (heading and the autopilot's
+ * heading bug), depth with its setpoint, attitude (roll/pitch), power and link.
+ */
+
+import type { ComponentChildren } from "preact";
+import { bugPosition, compassTicks } from "../lib/compass";
+import { formatMs } from "../lib/latency";
+import type { Rotation } from "../lib/prefs";
+import type { CameraInfo } from "../lib/protocol";
+import { formatHeading, headingDeg, radToDeg } from "../lib/units";
+import type { OperatorState } from "./controller";
+import { barGeometry, cameraElement, fmt, formatDeg } from "./format";
+
+const TAPE_SPAN = 120;
+
+export function CompassTape(props: { heading: number | null; setpoint: number | null }): preact.JSX.Element {
+  const heading = props.heading === null ? Number.NaN : headingDeg(props.heading);
+  const setpoint = props.setpoint === null ? null : headingDeg(props.setpoint);
+  const ticks = compassTicks(heading, TAPE_SPAN, 5);
+  const bug = bugPosition(heading, setpoint, TAPE_SPAN);
+  const pos = (offset: number): string => `${50 + (offset / TAPE_SPAN) * 100}%`;
+  return (
+    <div class="compass" data-testid="compass" role="img" aria-label={`heading ${formatHeading(props.heading ?? Number.NaN)} degrees`}>
+      {ticks.map((t) => (
+        <span key={t.deg} class={t.major ? "tick major" : "tick"} style={{ left: pos(t.offset) }}>
+          {t.label !== null && <span class="tick-label">{t.label}</span>}
+        </span>
+      ))}
+      {bug && (
+        <span
+          class={bug.clamped ? "bug clamped" : "bug"}
+          data-testid="heading-bug"
+          style={{ left: pos(bug.offset) }}
+          title={`heading setpoint ${setpoint?.toFixed(1) ?? ""}°`}
+        />
+      )}
+      <span class="lubber" aria-hidden="true" />
+      <span class="compass-readout" id="hud-heading" data-testid="hud-heading">
+        {formatHeading(props.heading ?? Number.NaN)}°
+      </span>
+    </div>
+  );
+}
+
+export function Attitude(props: { roll: number; pitch: number }): preact.JSX.Element {
+  const roll = Number.isFinite(props.roll) ? radToDeg(props.roll) : 0;
+  const pitch = Number.isFinite(props.pitch) ? radToDeg(props.pitch) : 0;
+  // the horizon moves opposite to the vehicle: 1° of pitch = 1.5 % of the gauge
+  const shift = Math.max(-45, Math.min(45, pitch * 1.5));
+  return (
+    <div class="attitude" title="attitude (roll, pitch)">
+      <div class="horizon" style={{ transform: `rotate(${-roll}deg) translateY(${shift}%)` }} />
+      <span class="wings" aria-hidden="true" />
+      <div class="attitude-text">
+        <span>
+          roll <b id="hud-roll" data-testid="hud-roll">{formatDeg(props.roll, true)}</b>°
+        </span>
+        <span>
+          pitch <b id="hud-pitch" data-testid="hud-pitch">{formatDeg(props.pitch, true)}</b>°
+        </span>
+      </div>
+    </div>
+  );
+}
+
+function HudBox(props: { title: string; children: ComponentChildren; class?: string }): preact.JSX.Element {
+  return (
+    <div class={`hud-box ${props.class ?? ""}`}>
+      <span class="hud-title">{props.title}</span>
+      {props.children}
+    </div>
+  );
+}
+
+export function Camera(props: { camera: CameraInfo | null; rotation: Rotation; children?: ComponentChildren }): preact.JSX.Element {
+  const { camera, rotation } = props;
+  const style = { transform: `rotate(${rotation}deg)` };
+  return (
+    <div class="camera" data-testid="camera" data-rotation={rotation} data-camera={camera ? "on" : "none"}>
+      {camera === null ? (
+        <div class="no-camera" data-testid="no-camera">
+          <strong>No camera</strong>
+          <span>This vehicle publishes no video stream.</span>
+        </div>
+      ) : cameraElement(camera.url) === "video" ? (
+        <video class="feed" src={camera.url} style={style} autoplay muted playsInline />
+      ) : (
+        <img class="feed" src={camera.url} style={style} alt="camera image" draggable={false} />
+      )}
+      {props.children}
+    </div>
+  );
+}
+
+export function Hud(props: { s: OperatorState }): preact.JSX.Element {
+  const { s } = props;
+  const t = s.telemetry;
+  const m = t?.measurement;
+  const ap = s.control?.autopilot ?? null;
+  const apStatus = t?.autopilot ?? null;
+  const headingSp = ap?.heading ?? apStatus?.heading?.setpoint ?? null;
+  const depthSp = ap?.depth ?? apStatus?.depth?.setpoint ?? null;
+  const link = s.link;
+  return (
+    <div class="hud" data-stale={s.telemetryState !== "live"}>
+      <CompassTape heading={m ? m.heading : null} setpoint={headingSp} />
+      <div class="hud-left">
+        <Attitude roll={m?.roll ?? Number.NaN} pitch={m?.pitch ?? Number.NaN} />
+        <HudBox title="Crew">
+          <span data-testid="hud-pilot">pilot {s.pilotName ?? "nobody"}</span>
+          <span>{s.presence.reduce((n, e) => n + e.connections, 0)} watching</span>
+        </HudBox>
+        <HudBox title="Power">
+          <span>
+            <b data-testid="hud-voltage">{fmt(m?.voltage, 1)}</b> V · <b data-testid="hud-current">{fmt(m?.current, 2)}</b> A
+          </span>
+        </HudBox>
+      </div>
+      <div class="hud-right">
+        <HudBox title="Depth" class="depth-box">
+          <span class="big">
+            <b data-testid="hud-depth">{fmt(m?.depth, 2)}</b> m
+          </span>
+          <span class="setpoint" data-testid="hud-depth-setpoint">
+            {depthSp === null ? "autopilot off" : `set ${fmt(depthSp, 2)} m`}
+          </span>
+        </HudBox>
+        <HudBox title="Heading autopilot">
+          <span class="setpoint" data-testid="hud-heading-setpoint">
+            {headingSp === null ? "off" : `set ${formatHeading(headingSp)}°`}
+          </span>
+        </HudBox>
+        <HudBox title="Link">
+          <span data-testid="hud-link" data-state={s.status === "connected" ? (link && !link.up ? "down" : "up") : "down"}>
+            {s.status === "connected" ? "server ✓" : `server ${s.status}`}
+            {link ? ` · board ${link.up ? "✓" : `✗ ${link.reason ?? ""}`}` : ""}
+          </span>
+          <span>
+            RTT <b id="rtt" data-testid="rtt">{formatMs(s.latency.mean)}</b>
+            <small> (max {formatMs(s.latency.max)})</small>
+          </span>
+        </HudBox>
+        <HudBox title="Thrusters">
+          <span class="hud-thrusters" data-testid="hud-thrusters">
+            {(["port", "vertical", "starboard"] as const).map((k) => {
+              const v = t?.thrusters[k] ?? Number.NaN;
+              const g = barGeometry(Number.isFinite(v) ? v : 0);
+              return (
+                <span key={k} class="hud-thr">
+                  <span class="hud-thr-name">{k[0]?.toUpperCase()}</span>
+                  <span class="meter">
+                    <span class={g.reverse ? "fill reverse" : "fill"} style={{ left: `${g.left}%`, width: `${g.width}%` }} />
+                  </span>
+                  <span class="hud-thr-value">{fmt(v, 2, true)}</span>
+                </span>
+              );
+            })}
+          </span>
+        </HudBox>
+      </div>
+      {s.telemetryState === "stale" && (
+        <div class="hud-stale" role="status">
+          telemetry stale ({(s.telemetryAgeMs / 1000).toFixed(1)} s)
+        </div>
+      )}
+    </div>
+  );
+}

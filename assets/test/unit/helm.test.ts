@@ -1,0 +1,119 @@
+import { describe, expect, it } from "vitest";
+import { HelmTracker, helmView } from "../../src/lib/helm";
+import type { Grant, Helm, Party, Session } from "../../src/lib/protocol";
+
+const ada: Party = { id: "a", name: "ada", role: "pilot" };
+const bob: Party = { id: "b", name: "bob", role: "pilot" };
+const main: Party = { id: "m", name: "main", role: "main_station" };
+const olga: Party = { id: "o", name: "olga", role: "observer" };
+
+const session = (p: Party): Session => ({ ...p, mode: "secure" });
+
+const base: Helm = {
+  state: "free",
+  epoch: 0,
+  pilot: null,
+  request: null,
+  takeover: null,
+  deadman_ms: 500,
+  heartbeat_ms: 100,
+  request_timeout_ms: 10000,
+  takeover_ms: 3000,
+};
+const piloted = (p: Party, epoch = 1): Helm => ({ ...base, state: "piloted", epoch, pilot: { ...p, since: 0 } });
+const requested = (p: Party, from: Party): Helm => ({
+  ...piloted(p),
+  state: "requested",
+  request: { from, remaining_ms: 10000 },
+});
+const takeover = (p: Party, by: Party): Helm => ({
+  ...piloted(p),
+  state: "takeover",
+  takeover: { by, countdown_ms: 3000 },
+});
+
+describe("helmView", () => {
+  it("free: pilots and the main station may request, observers may not", () => {
+    expect(helmView(base, session(ada))).toMatchObject({ me: "watching", canRequest: true, canTake: false, canRelease: false });
+    expect(helmView(base, session(olga))).toMatchObject({ canRequest: false, canTake: false });
+    expect(helmView(base, session(main))).toMatchObject({ canRequest: true, canTake: false });
+    expect(helmView(base, session(ada)).summary).toBe("Free: nobody pilots");
+  });
+
+  it("piloted: the pilot may release; others request; the main station may also take", () => {
+    expect(helmView(piloted(ada), session(ada))).toMatchObject({
+      me: "pilot",
+      summary: "You pilot",
+      canRequest: false,
+      canRelease: true,
+      releaseLabel: "Release control",
+    });
+    expect(helmView(piloted(ada), session(bob))).toMatchObject({ me: "watching", summary: "ada pilots", canRequest: true });
+    expect(helmView(piloted(ada), session(main))).toMatchObject({ canRequest: true, canTake: true });
+    expect(helmView(piloted(ada), session(olga))).toMatchObject({ canRequest: false, canTake: false });
+  });
+
+  it("requested: the pilot gets a prompt with a countdown; others are busy", () => {
+    const h = requested(ada, bob);
+    const v = helmView(h, session(ada), 2500);
+    expect(v.prompt).toEqual({ from: bob, remainingMs: 7500 });
+    expect(v.summary).toBe("bob asks you for control (8 s)");
+    expect(helmView(h, session(bob))).toMatchObject({ me: "requesting", canRelease: true, releaseLabel: "Withdraw request", prompt: null });
+    expect(helmView(h, session({ ...bob, id: "c" }))).toMatchObject({ canRequest: false });
+    expect(helmView(h, session(main))).toMatchObject({ canTake: true });
+  });
+
+  it("takeover: a warning for both parties with the countdown", () => {
+    const h = takeover(ada, main);
+    expect(helmView(h, session(ada), 1000).takeover).toEqual({ by: main, remainingMs: 2000, concernsMe: true });
+    expect(helmView(h, session(main)).takeover?.concernsMe).toBe(true);
+    expect(helmView(h, session(main))).toMatchObject({ me: "taking_over", releaseLabel: "Cancel takeover", canTake: false });
+    expect(helmView(h, session(olga)).takeover?.concernsMe).toBe(false);
+    expect(helmView(h, session(olga), 1000).summary).toBe("Main station main takes control from ada in 2 s");
+  });
+
+  it("no helm yet", () => {
+    expect(helmView(null, null)).toMatchObject({ state: "unknown", canRequest: false });
+  });
+});
+
+describe("HelmTracker", () => {
+  const grant = (p: Party, epoch: number): Grant => ({
+    epoch,
+    pilot: { ...p, since: 0 },
+    control: { mode: "motion", gain: 0.5, lights: null, laser: null, tilt: null, run_mode: null, autopilot: null, command: { surge: 0, heave: 0, yaw: 0 } },
+    deadman_ms: 500,
+    heartbeat_ms: 100,
+  });
+
+  it("stamps commands with the grant's epoch, only while piloting", () => {
+    const t = new HelmTracker();
+    t.reset(piloted(bob, 4), session(ada), 0);
+    expect(t.stamp).toBeNull();
+    expect(t.onGrant(grant(ada, 5))).toBe(true);
+    // the same grant again (reply and event): not news
+    expect(t.onGrant(grant(ada, 5))).toBe(false);
+    expect(t.isPilot).toBe(true);
+    expect(t.stamp).toBe(5);
+    expect(t.onHelm(piloted(ada, 5), 1)).toEqual({ becamePilot: false, lostPilot: false, restamped: false });
+    expect(t.onHelm(piloted(bob, 6), 2)).toEqual({ becamePilot: false, lostPilot: true, restamped: false });
+    expect(t.stamp).toBeNull();
+  });
+
+  it("reports a deadman restamp while we pilot", () => {
+    const t = new HelmTracker();
+    t.reset(base, session(ada), 0);
+    expect(t.onHelm(piloted(ada, 1), 0)).toMatchObject({ becamePilot: true });
+    expect(t.stamp).toBe(1);
+    expect(t.onHelm(piloted(ada, 2), 1)).toEqual({ becamePilot: false, lostPilot: false, restamped: true });
+    expect(t.stamp).toBe(2);
+  });
+
+  it("counts down from when the helm arrived", () => {
+    const t = new HelmTracker();
+    t.reset(null, session(ada), 0);
+    t.onHelm(takeover(ada, main), 1000);
+    expect(t.view(2500).takeover?.remainingMs).toBe(1500);
+    expect(t.heartbeatMs).toBe(100);
+  });
+});

@@ -1,0 +1,131 @@
+// Browser test of the developer page (/dev.html): plots (uPlot) and the logger, against a
+// running Neptunus server, at 1920×1080 and 1024×768. See helpers.mjs for the set-up.
+
+import assert from "node:assert/strict";
+import { readFileSync } from "node:fs";
+import { after, before, test } from "node:test";
+import {
+  DESKTOP,
+  TABLET,
+  TEST_MS,
+  WAIT_MS,
+  assertNoPageProblems,
+  launch,
+  open,
+  screenshot,
+  takeHelm,
+  until,
+  waitTelemetry,
+} from "./helpers.mjs";
+
+let browser;
+
+before(async () => {
+  browser = await launch();
+});
+
+after(async () => {
+  await browser?.close().catch(() => undefined);
+});
+
+const plots = (page) => page.locator('[data-testid="plot"]');
+const samples = async (page) => Number(await page.locator("#buffer").getAttribute("data-samples"));
+
+test("developer page: add 3 plots, reset graphs, remove; CSV; logger categories (1920×1080 and 1024×768)", { timeout: TEST_MS }, async () => {
+  const dev = await open(browser, { ...DESKTOP, name: "e2e-dev", path: "/dev.html" });
+  const pilot = await open(browser, { ...TABLET, name: "e2e-dev-pilot" });
+  try {
+    const { page } = dev;
+    await waitTelemetry(pilot.page);
+    await page.locator('[data-testid="log-topic"][data-state="joined"]').waitFor();
+    await until(() => samples(page), (n) => n > 5, WAIT_MS, "recorded samples");
+    assert.match((await page.locator("#buffer").textContent()) ?? "", /12,000 samples/);
+
+    // plots: add three, each with its own series and a uPlot canvas
+    for (let i = 1; i <= 3; i++) {
+      await page.locator("#add-plot").click();
+      await until(() => plots(page).count(), (n) => n === i, WAIT_MS, `${i} plots`);
+    }
+    await page.locator('[data-testid="plot"] canvas').nth(2).waitFor();
+    const series = await plots(page).evaluateAll((els) => els.map((e) => e.getAttribute("data-series")));
+    assert.equal(series[0], "measurement.depth");
+    assert.ok(series.every((s) => s && s.length > 0), `every plot has series: ${series}`);
+    // overlay one more series on the first plot from the picker
+    await plots(page).first().locator("select.add-series").selectOption("measurement.heading");
+    await until(async () => plots(page).first().getAttribute("data-series"), (s) => s === "measurement.depth,measurement.heading", WAIT_MS, "two series overlaid");
+    // values under the cursor in the legend
+    await plots(page).first().locator(".u-over").hover();
+    await until(
+      async () => (await plots(page).first().locator(".u-legend .u-value").nth(1).textContent()) ?? "",
+      (t) => /\d/.test(t),
+      WAIT_MS,
+      "a value in the legend on hover",
+    );
+
+    // CSV of the buffer
+    const [download] = await Promise.all([page.waitForEvent("download"), page.locator("#download-csv").click()]);
+    const csv = readFileSync(await download.path(), "utf8").split("\n");
+    assert.match(csv[0], /^time,measurement\.depth,measurement\.roll,/);
+    assert.ok(csv.length > 5, "CSV rows");
+
+    // reset graphs: the data goes, the plots stay
+    await page.locator("#reset-graphs").click();
+    assert.equal(await plots(page).count(), 3);
+    assert.ok((await samples(page)) < 10, "reset kept the data");
+    await until(() => samples(page), (n) => n > 0, WAIT_MS, "recording goes on after a reset");
+
+    // remove one, then all
+    await plots(page).nth(1).locator('[data-testid="remove-plot"]').click();
+    await until(() => plots(page).count(), (n) => n === 2, WAIT_MS, "2 plots");
+    await page.locator("#add-plot").click();
+    await until(() => plots(page).count(), (n) => n === 3, WAIT_MS, "3 plots again");
+    await screenshot(page, "developer-1920x1080.png");
+
+    // logger: only "Stop" selected → stops show, control transfers do not
+    await page.locator("#cat-none").click();
+    await page.locator('[data-testid="cat-stop"]').check();
+    await takeHelm(pilot.page);
+    await pilot.page.evaluate(() => window.dispatchEvent(new Event("blur")));
+    const list = page.locator('[data-testid="log-list"]');
+    await list.locator('li[data-category="stop"]', { hasText: "stopped: window lost focus" }).waitFor();
+    assert.equal(await list.locator('li[data-category="transfer"]').count(), 0, "a deselected category is shown");
+    // select "Transfer of control" and "Safety" (the server's log topic): they show up
+    await page.locator('[data-testid="cat-transfer"]').check();
+    await page.locator('[data-testid="cat-safety"]').check();
+    await list.locator('li[data-category="transfer"]', { hasText: "e2e-dev-pilot pilots" }).first().waitFor();
+    await list.locator('li[data-category="safety"]', { hasText: "window lost focus" }).first().waitFor();
+    assert.match((await list.locator("li time").first().textContent()) ?? "", /^\d\d:\d\d:\d\d\.\d{3}$/);
+    // filter text and pause
+    await page.locator("#log-filter").fill("pilots");
+    await until(() => list.locator("li").count(), (n) => n >= 1, WAIT_MS, "filtered entries");
+    assert.equal(await list.locator('li[data-category="stop"]').count(), 0, "the filter let a stop through");
+    await page.locator("#log-filter").fill("");
+    await page.locator("#log-pause").click();
+    const frozen = await list.locator("li").count();
+    await pilot.page.locator("#release-control").click();
+    await page.locator("#log-pause", { hasText: /Resume \([1-9]\d* new\)/ }).waitFor();
+    assert.equal(await list.locator("li").count(), frozen, "entries arrived while paused");
+    await page.locator("#log-pause").click();
+    await until(() => list.locator("li").count(), (n) => n > frozen, WAIT_MS, "entries after resume");
+    const [logFile] = await Promise.all([page.waitForEvent("download"), page.locator("#log-download").click()]);
+    assert.match(readFileSync(await logFile.path(), "utf8"), /\tstop\twarning\tstopped: window lost focus/);
+    await page.locator("#log-clear").click();
+    assert.equal(await list.locator("li").count(), 0);
+
+    await page.locator("#remove-plots").click();
+    assert.equal(await plots(page).count(), 0);
+
+    // tablet layout: readable, nothing wider than the screen
+    await page.setViewportSize(TABLET);
+    for (let i = 0; i < 3; i++) await page.locator("#add-plot").click();
+    await page.locator("#cat-all").click();
+    await page.waitForTimeout(300);
+    const overflow = await page.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
+    assert.ok(overflow <= 0, `developer page is ${overflow}px wider than 1024px`);
+    await screenshot(page, "developer-1024x768.png");
+    assertNoPageProblems();
+  } finally {
+    await dev.context.close();
+    await pilot.context.close();
+  }
+});
