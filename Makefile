@@ -5,7 +5,7 @@ SHELL := /bin/bash
 .DEFAULT_GOAL := help
 
 APT_PACKAGES := elixir erlang-dev erlang-src erlang-yaws erlang-jiffy erlang-proper \
-                erlang-dialyzer socat chromium
+                erlang-dialyzer socat chromium gcc libc6-dev
 YAWS_DIR := $(firstword $(wildcard /usr/lib/yaws-*))
 ASSETS_STAMP := assets/node_modules/.package-lock.json
 
@@ -72,6 +72,8 @@ test: setup assets
 bench: setup assets
 	MIX_ENV=prod mix compile
 	bench/fanout
+	bench/protocol_fuzz
+	bench/control_latency
 
 clean:
 	rm -rf _build priv/static test/e2e/artifacts
