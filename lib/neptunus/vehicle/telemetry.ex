@@ -38,10 +38,21 @@ defmodule Neptunus.Vehicle.Telemetry do
             command: map(),
             thrusters: map(),
             control: map() | nil,
-            autopilot: map()
+            autopilot: map(),
+            link: %{up: boolean(), reason: String.t()}
           }
     @enforce_keys [:id, :topic, :periodic, :command, :thrusters, :autopilot]
-    defstruct [:id, :topic, :periodic, :sample, :command, :thrusters, :control, :autopilot]
+    defstruct [
+      :id,
+      :topic,
+      :periodic,
+      :sample,
+      :command,
+      :thrusters,
+      :control,
+      :autopilot,
+      link: %{up: false, reason: "not known yet"}
+    ]
   end
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -73,6 +84,11 @@ defmodule Neptunus.Vehicle.Telemetry do
   def control(id, %{command: _, thrusters: _, control: _, autopilot: _} = state),
     do: GenServer.cast(via(id), {:control, state})
 
+  @doc "Reports the board link's state (called by boards with a link when it changes)."
+  @spec link(String.t(), %{up: boolean(), reason: String.t()}) :: :ok
+  def link(id, %{up: up, reason: reason}),
+    do: GenServer.cast(via(id), {:link, %{up: up, reason: reason}})
+
   @doc "The latest telemetry payload, or nil before the first board sample."
   @spec latest(String.t()) :: map() | nil
   def latest(id), do: GenServer.call(via(id), :latest)
@@ -96,11 +112,26 @@ defmodule Neptunus.Vehicle.Telemetry do
     }
 
     Periodic.arm(state.periodic, :tick)
-    {:ok, state}
+    {:ok, state, {:continue, :link}}
+  end
+
+  # The board starts before us and announces changes with link/2; read where it stands now.
+  @impl true
+  def handle_continue(:link, state) do
+    link =
+      try do
+        Map.take(Board.link_status(state.id), [:up, :reason])
+      catch
+        :exit, _ -> %{up: false, reason: "board not running"}
+      end
+
+    {:noreply, %{state | link: link}}
   end
 
   @impl true
   def handle_cast({:sample, sample}, state), do: {:noreply, %{state | sample: sample}}
+
+  def handle_cast({:link, link}, state), do: {:noreply, %{state | link: link}}
 
   def handle_cast({:control, c}, state) do
     {:noreply,
@@ -143,7 +174,8 @@ defmodule Neptunus.Vehicle.Telemetry do
       command: state.command,
       thrusters: state.thrusters,
       control: state.control,
-      autopilot: state.autopilot
+      autopilot: state.autopilot,
+      link: state.link
     }
   end
 end

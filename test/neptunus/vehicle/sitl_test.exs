@@ -36,6 +36,8 @@ defmodule Neptunus.Vehicle.SITLTest do
     # telemetry through the real board path: measurements, no simulator truth
     assert_receive {:pubsub, _, "telemetry", %{sim: nil, measurement: m}}, 2_000
     assert_in_delta m.depth, 1.0, 0.01
+    # and the link's state rides along
+    assert_receive {:pubsub, _, "telemetry", %{link: %{up: true, reason: "open"}}}, 2_000
 
     start = truth(id)
     assert {:ok, %{thrusters: thr}} = Control.thrust(id, motion(1, 1, 0))

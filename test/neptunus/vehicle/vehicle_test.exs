@@ -63,6 +63,8 @@ defmodule Neptunus.VehicleTest do
     assert %{port: +0.0, port_us: 1500, vertical_us: 1500, starboard_us: 1500} = thr
     # the simulated board reads noisy sensors by default: measurement ≠ truth
     assert is_float(m.depth) and is_float(sim.z)
+    # the built-in simulator has no link to lose
+    assert first.link == %{up: true, reason: "no link"}
 
     # 20 Hz: ten more in about half a second (figures are for bench/, this only checks it runs)
     for _ <- 1..10, do: assert_receive({:pubsub, _, "telemetry", _}, 200)

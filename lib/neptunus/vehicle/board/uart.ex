@@ -359,6 +359,7 @@ defmodule Neptunus.Vehicle.Board.UART do
         else: Logger.warning("vehicle #{state.id}: board link down on #{state.device}: #{reason}")
 
       PubSub.broadcast(state.topic, "link", %{up: up, reason: reason})
+      Telemetry.link(state.id, %{up: up, reason: reason})
       %{state | announced: {up, reason}}
     end
   end

@@ -23,6 +23,8 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     pair = socat_pair!()
     board = open!(pair.a)
     {:ok, _} = Registry.register(Neptunus.Fleet.Registry, {Navigation, id}, nil)
+    # ... and for its telemetry process, which hears about link changes
+    {:ok, _} = Registry.register(Neptunus.Fleet.Registry, {Telemetry, id}, nil)
     PubSub.subscribe(Telemetry.topic(id))
     {:ok, id: id, pair: pair, board: board}
   end
@@ -153,6 +155,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
     hang_up!(ctx.pair)
     assert link_event(false) =~ "hangup"
+    assert_receive {:"$gen_cast", {:link, %{up: false, reason: "hangup" <> _}}}
     # while down: reopen attempts fail (the device is gone), commands are dropped
     wait_until(
       fn -> UART.link_status(ctx.id).reason =~ "No such file or directory" end,
