@@ -267,16 +267,10 @@ defmodule Neptunus.Scenario do
     with :ok <- V.object(map, path, [], fields) do
       map
       |> Enum.sort_by(fn {key, _} -> Enum.find_index(fields, &(&1 == key)) end)
-      |> Enum.reduce_while({:ok, []}, fn {key, value}, {:ok, acc} ->
-        case initial_field(key, value, V.join(path, key), params) do
-          {:ok, x} -> {:cont, {:ok, [{String.to_atom(key), x} | acc]}}
-          error -> {:halt, error}
-        end
+      |> V.map_ok(fn {key, value}, _ ->
+        with {:ok, x} <- initial_field(key, value, V.join(path, key), params),
+             do: {:ok, {String.to_atom(key), x}}
       end)
-      |> case do
-        {:ok, acc} -> {:ok, Enum.reverse(acc)}
-        error -> error
-      end
     end
   end
 

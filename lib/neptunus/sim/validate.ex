@@ -96,16 +96,23 @@ defmodule Neptunus.Sim.Validate do
     end
   end
 
-  @doc "A list of exactly `n` numbers, returned as floats. `opts` apply to each (see `number/3`)."
-  @spec vector(term(), path(), pos_integer(), keyword()) :: {:ok, [float()]} | error()
-  def vector(value, path, n, opts \\ [])
+  @doc """
+  Applies `fun.(item, index)` to each item in order and collects the `{:ok, value}` results,
+  stopping at the first error, which is returned as it is.
 
-  def vector(value, path, n, opts) when is_list(value) and length(value) == n do
-    value
+      iex> Neptunus.Sim.Validate.map_ok([1, 2], fn x, i -> {:ok, x + i} end)
+      {:ok, [1, 3]}
+      iex> Neptunus.Sim.Validate.map_ok([1, :x, :y], fn x, _ -> if is_integer(x), do: {:ok, x}, else: {:error, x} end)
+      {:error, :x}
+  """
+  @spec map_ok(Enumerable.t(), (term(), non_neg_integer() -> {:ok, term()} | term())) ::
+          {:ok, list()} | term()
+  def map_ok(items, fun) do
+    items
     |> Enum.with_index()
-    |> Enum.reduce_while({:ok, []}, fn {x, i}, {:ok, acc} ->
-      case number(x, join(path, i), opts) do
-        {:ok, f} -> {:cont, {:ok, [f | acc]}}
+    |> Enum.reduce_while({:ok, []}, fn {item, i}, {:ok, acc} ->
+      case fun.(item, i) do
+        {:ok, value} -> {:cont, {:ok, [value | acc]}}
         error -> {:halt, error}
       end
     end)
@@ -115,23 +122,20 @@ defmodule Neptunus.Sim.Validate do
     end
   end
 
+  @doc "A list of exactly `n` numbers, returned as floats. `opts` apply to each (see `number/3`)."
+  @spec vector(term(), path(), pos_integer(), keyword()) :: {:ok, [float()]} | error()
+  def vector(value, path, n, opts \\ [])
+
+  def vector(value, path, n, opts) when is_list(value) and length(value) == n do
+    map_ok(value, fn x, i -> number(x, join(path, i), opts) end)
+  end
+
   def vector(value, path, n, _opts), do: must(path, "be a list of #{n} numbers", value)
 
   @doc "An `rows`×`cols` matrix (list of rows) of numbers, returned as floats."
   @spec matrix(term(), path(), pos_integer(), pos_integer()) :: {:ok, [[float()]]} | error()
   def matrix(value, path, rows, cols) when is_list(value) and length(value) == rows do
-    value
-    |> Enum.with_index()
-    |> Enum.reduce_while({:ok, []}, fn {row, i}, {:ok, acc} ->
-      case vector(row, join(path, i), cols) do
-        {:ok, r} -> {:cont, {:ok, [r | acc]}}
-        error -> {:halt, error}
-      end
-    end)
-    |> case do
-      {:ok, acc} -> {:ok, Enum.reverse(acc)}
-      error -> error
-    end
+    map_ok(value, fn row, i -> vector(row, join(path, i), cols) end)
   end
 
   def matrix(value, path, rows, cols),
