@@ -8,17 +8,10 @@ defmodule NeptunusWeb.ControlWireTest do
   @moduletag :capture_log
 
   setup do
-    id = "ctlwire-#{System.unique_integer([:positive])}"
-    {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated})
-    on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
-    {:ok, id: id, topic: "vehicle:" <> id}
+    {:ok, start_vehicle!("ctlwire")}
   end
 
-  defp client(topic, name) do
-    ws = connect!(%{"name" => name})
-    {jr, snapshot} = join!(ws, topic)
-    %{ws: ws, jr: jr, topic: topic, snapshot: snapshot}
-  end
+  defp client(topic, name), do: client!(topic, %{"name" => name})
 
   defp push(c, event, payload \\ %{}), do: push_and_reply(c.ws, c.jr, c.topic, event, payload)
 

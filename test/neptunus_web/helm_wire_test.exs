@@ -35,11 +35,7 @@ defmodule NeptunusWeb.HelmWireTest do
   end
 
   # A client joined to the vehicle: %{ws, jr, topic, snapshot}
-  defp client(ctx, params) do
-    ws = connect!(params)
-    {jr, snapshot} = join!(ws, ctx.topic)
-    %{ws: ws, jr: jr, topic: ctx.topic, snapshot: snapshot}
-  end
+  defp client(ctx, params), do: client!(ctx.topic, params)
 
   defp local(ctx, name), do: client(ctx, %{"name" => name})
 

@@ -7,17 +7,10 @@ defmodule NeptunusWeb.SimWireTest do
   @moduletag :capture_log
 
   setup do
-    id = "simwire-#{System.unique_integer([:positive])}"
-    {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated})
-    on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
-    {:ok, id: id, topic: "vehicle:" <> id}
+    {:ok, start_vehicle!("simwire")}
   end
 
-  defp client(topic, name) do
-    ws = connect!(%{"name" => name})
-    {jr, _snapshot} = join!(ws, topic)
-    %{ws: ws, jr: jr, topic: topic}
-  end
+  defp client(topic, name), do: client!(topic, %{"name" => name})
 
   defp push(c, event, payload \\ %{}), do: push_and_reply(c.ws, c.jr, c.topic, event, payload)
 

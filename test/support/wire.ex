@@ -121,4 +121,29 @@ defmodule NeptunusWeb.Test.Wire do
     payload = %{"mode" => "motion", "surge" => surge, "heave" => 0, "yaw" => 0}
     if epoch, do: Map.put(payload, "epoch", epoch), else: payload
   end
+
+  @doc """
+  Starts a simulated vehicle named `prefix-N` for the calling test (stopped when the test
+  exits); returns `%{id: id, topic: "vehicle:" <> id}`. For `setup` blocks.
+  """
+  @spec start_vehicle!(String.t()) :: %{id: String.t(), topic: String.t()}
+  def start_vehicle!(prefix) do
+    id = "#{prefix}-#{System.unique_integer([:positive])}"
+    {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated})
+    ExUnit.Callbacks.on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
+    %{id: id, topic: "vehicle:" <> id}
+  end
+
+  @doc "Connects with `params` and joins `topic`: `%{ws, jr, topic, snapshot}`."
+  @spec client!(String.t(), map()) :: %{
+          ws: pid(),
+          jr: String.t(),
+          topic: String.t(),
+          snapshot: map()
+        }
+  def client!(topic, params) do
+    ws = connect!(params)
+    {jr, snapshot} = join!(ws, topic)
+    %{ws: ws, jr: jr, topic: topic, snapshot: snapshot}
+  end
 end
