@@ -95,6 +95,15 @@ defmodule Neptunus.Estimator do
   # sample times beyond this (s, ~30 000 years) are not times: ignored
   @max_time 1.0e12
 
+  # roll and pitch are filtered only to gate their readings, alike
+  @attitude_gate %{
+    q_free: 0.5,
+    min_r: 0.1 * :math.pi() / 180,
+    r: 0.2 * :math.pi() / 180,
+    max_rate: 3.0,
+    min_gate: 2.0 * :math.pi() / 180
+  }
+
   @defaults %{
     depth: %{q_model: 0.05, q_free: 0.3, min_r: 0.001, r: 0.01, max_rate: 2.0, min_gate: 0.03},
     heading: %{
@@ -105,20 +114,8 @@ defmodule Neptunus.Estimator do
       max_rate: 3.0,
       min_gate: 2.0 * :math.pi() / 180
     },
-    roll: %{
-      q_free: 0.5,
-      min_r: 0.1 * :math.pi() / 180,
-      r: 0.2 * :math.pi() / 180,
-      max_rate: 3.0,
-      min_gate: 2.0 * :math.pi() / 180
-    },
-    pitch: %{
-      q_free: 0.5,
-      min_r: 0.1 * :math.pi() / 180,
-      r: 0.2 * :math.pi() / 180,
-      max_rate: 3.0,
-      min_gate: 2.0 * :math.pi() / 180
-    }
+    roll: @attitude_gate,
+    pitch: @attitude_gate
   }
 
   defmodule Gate do
