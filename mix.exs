@@ -1,8 +1,10 @@
 defmodule Mix.Tasks.Compile.PortPrograms do
-  @shortdoc "Builds the C port programs in c_src/ into priv/"
+  @shortdoc "Builds the C port programs and NIF libraries in c_src/ into priv/"
   @moduledoc """
   Builds every `c_src/NAME.c` into `priv/NAME` with the system C compiler (`$CC`, else `cc`,
-  else `gcc`; `make setup` installs gcc) and `-Wall -Wextra -Werror -O2`. A program is rebuilt
+  else `gcc`; `make setup` installs gcc) and `-Wall -Wextra -Werror -O2`; a `c_src/NAME_nif.c`
+  becomes the shared library `priv/NAME_nif.so` (with Erlang's `erl_nif.h` from `erlang-dev`,
+  and `-ffp-contract=off` so its floating point matches the BEAM's). A program is rebuilt
   when it is missing or any file in `c_src/` is at least as new as it (mtimes have 1 s
   resolution, so "as new" rebuilds rather than misses a change made in the same second).
   The binary is written to a temporary name and renamed into place, so builds from several
@@ -31,7 +33,23 @@ defmodule Mix.Tasks.Compile.PortPrograms do
   @impl true
   def clean, do: Enum.each(Path.wildcard("c_src/*.c"), &File.rm(target(&1)))
 
-  defp target(source), do: Path.join("priv", Path.basename(source, ".c"))
+  defp target(source) do
+    name = Path.basename(source, ".c")
+    if nif?(source), do: Path.join("priv", name <> ".so"), else: Path.join("priv", name)
+  end
+
+  defp nif?(source), do: String.ends_with?(source, "_nif.c")
+
+  defp flags(source) do
+    if nif?(source) do
+      include = Path.join([:code.root_dir(), "usr", "include"])
+      @cflags ++ ~w(-ffp-contract=off -fPIC -shared -I) ++ [include]
+    else
+      @cflags
+    end
+  end
+
+  defp libs(source), do: if(nif?(source), do: ["-lm"], else: [])
 
   defp stale?(target, newest), do: not File.exists?(target) or mtime(target) <= newest
 
@@ -47,7 +65,10 @@ defmodule Mix.Tasks.Compile.PortPrograms do
     tmp = "#{target}.#{System.unique_integer([:positive])}.tmp"
 
     with cc when is_binary(cc) <- cc,
-         {_output, 0} <- System.cmd(cc, @cflags ++ ["-o", tmp, source], stderr_to_stdout: true) do
+         {_output, 0} <-
+           System.cmd(cc, flags(source) ++ ["-o", tmp, source] ++ libs(source),
+             stderr_to_stdout: true
+           ) do
       File.rename!(tmp, target)
       Mix.shell().info("Compiled #{source} -> #{target}")
       :ok

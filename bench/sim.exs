@@ -32,20 +32,36 @@ defmodule Bench.Sim do
 
   defp headless do
     IO.puts("## Headless, one vehicle, dt = 0.01 s (best of 3 runs of 100 000 steps)")
+    IO.puts("   loop: elixir = Neptunus.Dynamics on the BEAM; C = Neptunus.Dynamics.Native")
+
+    IO.puts(
+      "   (bit-identical results). C library loaded: #{Neptunus.Dynamics.Native.available?()}"
+    )
+
     cmd = %{port: 0.6, vertical: -0.3, starboard: 0.4}
 
-    for {label, opts} <- [
-          {"thesis-4dof, ideal sensors", [vehicle: "thesis-4dof"]},
-          {"neptunus, ideal sensors", [vehicle: "neptunus"]},
-          {"neptunus, noisy sensors, varying current",
-           [
-             vehicle: "neptunus",
-             noise: true,
-             current: {0.1, 0.0, 0.0},
-             current_variation: [sigma: 0.02, time_constant: 30]
-           ]}
-        ] do
-      sim = opts |> Sim.new() |> Sim.command(cmd) |> Sim.step(1_000)
+    cases = [
+      {"thesis-4dof, ideal sensors", [vehicle: "thesis-4dof"]},
+      {"neptunus, ideal sensors", [vehicle: "neptunus"]},
+      {"neptunus, noisy sensors (20 Hz)", [vehicle: "neptunus", noise: true]},
+      {"neptunus, ideal sensors, varying current",
+       [
+         vehicle: "neptunus",
+         current: {0.1, 0.0, 0.0},
+         current_variation: [sigma: 0.02, time_constant: 30]
+       ]},
+      {"neptunus, noisy sensors, varying current",
+       [
+         vehicle: "neptunus",
+         noise: true,
+         current: {0.1, 0.0, 0.0},
+         current_variation: [sigma: 0.02, time_constant: 30]
+       ]}
+    ]
+
+    for {label, opts} <- cases, {loop, native} <- [{"elixir", false}, {"C", true}] do
+      label = "#{label} [#{loop}]"
+      sim = (opts ++ [native: native]) |> Sim.new() |> Sim.command(cmd) |> Sim.step(1_000)
       n = 100_000
 
       us =
@@ -58,7 +74,7 @@ defmodule Bench.Sim do
       rate = n / (us / 1.0e6)
 
       IO.puts(
-        "  #{String.pad_trailing(label, 42)} #{fmt(rate, 0)} steps/s  = #{fmt(rate * 0.01, 0)}x real time  (#{fmt(us / n, 2)} µs/step)"
+        "  #{String.pad_trailing(label, 52)} #{fmt(rate, 0)} steps/s  = #{fmt(rate * 0.01, 0)}x real time  (#{fmt(us / n, 2)} µs/step)"
       )
     end
 

@@ -317,6 +317,15 @@ defmodule Neptunus.Dynamics do
     end
   end
 
+  @doc false
+  # raised where pitch reaches ±90° (here and by Neptunus.Sim's C loop)
+  @spec singular!(float()) :: no_return()
+  def singular!(theta) do
+    raise ArgumentError,
+          "pitch θ = #{theta} rad is at ±90°, where Euler angles are singular " <>
+            "(see Neptunus.Dynamics, Singularity)"
+  end
+
   # --- the integration loop, on 12-tuples ---
   #
   # Written out in scalars with `is_float` guards on every input: the compiler then keeps
@@ -406,11 +415,7 @@ defmodule Neptunus.Dynamics do
     spsi = :math.sin(psi)
     cpsi = :math.cos(psi)
 
-    if abs(cth) < 1.0e-6 do
-      raise ArgumentError,
-            "pitch θ = #{theta} rad is at ±90°, where Euler angles are singular " <>
-              "(see Neptunus.Dynamics, Singularity)"
-    end
+    if abs(cth) < 1.0e-6, do: singular!(theta)
 
     # R(Θ) = Rz(ψ) Ry(θ) Rx(φ), body → NED
     r11 = cpsi * cth

@@ -30,7 +30,7 @@ defmodule Neptunus.Sim do
   """
 
   alias Neptunus.{Allocation, Dynamics}
-  alias Neptunus.Dynamics.{Params, State, Thruster}
+  alias Neptunus.Dynamics.{Native, Params, State, Thruster}
   alias Neptunus.Sim.{Current, Sensors}
 
   @zero_tau {0.0, 0.0, 0.0, 0.0, 0.0, 0.0}
@@ -50,6 +50,7 @@ defmodule Neptunus.Sim do
     :measurement,
     sensor_every: 1,
     steps: 0,
+    native: false,
     tau_ext: @zero_tau
   ]
 
@@ -62,6 +63,7 @@ defmodule Neptunus.Sim do
   * `current` — the water current; `sensors` — sensor state, nil when ideal;
     `measurement` — the last sensor reading (nil when ideal)
   * `dt` — the integration step (s); `steps` — steps since start (t = steps · dt)
+  * `native` — whether `step/2` runs the C loop (`Neptunus.Dynamics.Native`)
   * `opts` — the options of `new/1` (with later `set_current/2`, `set_tether_length/2`),
     which `reset/1` starts from again
   """
@@ -79,6 +81,7 @@ defmodule Neptunus.Sim do
           measurement: Sensors.measurement() | nil,
           sensor_every: pos_integer(),
           steps: non_neg_integer(),
+          native: boolean(),
           tau_ext: Dynamics.tau()
         }
 
@@ -99,6 +102,9 @@ defmodule Neptunus.Sim do
     * `:sensors` — overrides of the vehicle's sensor settings: `rate`, `wild_rate`,
       `mixup_rate` and per-channel `%{noise:, bias:}` maps (merged)
     * `:seed` — integer seed of all randomness, default 0
+    * `:native` — step with the C loop (`Neptunus.Dynamics.Native`, bit-identical results,
+      about ten times faster) when it is loaded; default `false`. `true` falls back to
+      Elixir when the library is not available.
 
   Raises `ArgumentError` on invalid options (scenarios are validated before, see
   `Neptunus.Scenario`).
@@ -124,7 +130,8 @@ defmodule Neptunus.Sim do
       thrusters: Allocation.neutral(),
       forces: Enum.map(params.thrusters, fn _ -> 0.0 end),
       lags: Enum.map(params.thrusters, &Thruster.lag(&1, dt)),
-      current: current
+      current: current,
+      native: Keyword.get(opts, :native, false) == true and Native.available?()
     }
 
     sim = command(sim, Allocation.neutral())
@@ -178,8 +185,80 @@ defmodule Neptunus.Sim do
   @spec step(t(), pos_integer()) :: t()
   def step(%__MODULE__{} = sim, n \\ 1) when is_integer(n) and n >= 1, do: loop(sim, n)
 
+  # at most this many steps per call of the C loop (≈ 1 ms: a scheduler's timeslice)
+  @native_chunk 1_000
+
   defp loop(sim, 0), do: sim
+  defp loop(%__MODULE__{native: true} = sim, n), do: native_loop(sim, n)
   defp loop(sim, n), do: sim |> step_once() |> loop(n - 1)
+
+  # The same steps in C, as many at once as no sensor reading falls due. A varying current
+  # is stepped here first, and the C loop gets its value for each step.
+  defp native_loop(sim, 0), do: sim
+
+  defp native_loop(%__MODULE__{params: params} = sim, n) do
+    chunk = min(n, until_reading(sim))
+    {current, currents} = currents(sim.current, chunk)
+
+    case Native.run(
+           params.compiled.native,
+           dyn_tuple(sim.dyn),
+           sim.forces,
+           sim.targets,
+           sim.lags,
+           sim.tau_ext,
+           currents,
+           sim.dt,
+           chunk
+         ) do
+      {:singular, theta} ->
+        Dynamics.singular!(theta)
+
+      {dyn, forces} ->
+        steps = sim.steps + chunk
+        sim = %{sim | dyn: dyn_struct(dyn), forces: forces, current: current, steps: steps}
+        sim |> read_sensors() |> native_loop(n - chunk)
+    end
+  end
+
+  # the current after `n` steps, and the current of each step (one value if constant)
+  defp currents(%Current{sigma: sigma} = current, _n) when sigma == 0.0,
+    do: {current, Current.ned(current)}
+
+  defp currents(current, n) do
+    {values, current} =
+      Enum.map_reduce(1..n, current, fn _, c ->
+        c = Current.step(c)
+        {Current.ned(c), c}
+      end)
+
+    {current, values}
+  end
+
+  defp until_reading(%__MODULE__{sensors: nil}), do: @native_chunk
+
+  defp until_reading(%__MODULE__{steps: steps, sensor_every: every}),
+    do: min(every - rem(steps, every), @native_chunk)
+
+  defp dyn_tuple(%State{} = s),
+    do: {s.x, s.y, s.z, s.phi, s.theta, s.psi, s.u, s.v, s.w, s.p, s.q, s.r}
+
+  defp dyn_struct({x, y, z, phi, theta, psi, u, v, w, p, q, r}) do
+    %State{
+      x: x,
+      y: y,
+      z: z,
+      phi: phi,
+      theta: theta,
+      psi: psi,
+      u: u,
+      v: v,
+      w: w,
+      p: p,
+      q: q,
+      r: r
+    }
+  end
 
   defp step_once(%__MODULE__{params: params, dt: dt} = sim) do
     current = Current.step(sim.current)
@@ -187,10 +266,12 @@ defmodule Neptunus.Sim do
     tau = mean_forces |> Dynamics.tau_from_forces(params) |> Dynamics.add_tau(sim.tau_ext)
     dyn = sim.dyn |> Dynamics.step(tau, dt, params, Current.ned(current)) |> surface()
     steps = sim.steps + 1
-    sim = %{sim | dyn: dyn, forces: forces, current: current, steps: steps}
+    read_sensors(%{sim | dyn: dyn, forces: forces, current: current, steps: steps})
+  end
 
-    if sim.sensors != nil and rem(steps, sim.sensor_every) == 0 do
-      {measurement, sensors} = Sensors.measure(sim.sensors, truth(sim))
+  defp read_sensors(%__MODULE__{sensors: sensors, steps: steps} = sim) do
+    if sensors != nil and rem(steps, sim.sensor_every) == 0 do
+      {measurement, sensors} = Sensors.measure(sensors, truth(sim))
       %{sim | sensors: sensors, measurement: measurement}
     else
       sim

@@ -305,7 +305,28 @@ defmodule Neptunus.Dynamics.Params do
        {compiled.wb, compiled.gx, compiled.gy, compiled.gz}, compiled.coriolis, compiled.locked,
        compiled.tether_k, compiled.tether_at}
 
-    %{p | compiled: Map.put(compiled, :kernel, kernel)}
+    compiled =
+      compiled |> Map.put(:kernel, kernel) |> Map.put(:native, native_kernel(compiled, p))
+
+    %{p | compiled: compiled}
+  end
+
+  # The same constants as native-endian doubles for the C loop (Neptunus.Dynamics.Native;
+  # the layout is documented in c_src/neptunus_dynamics_nif.c).
+  defp native_kernel(c, %__MODULE__{thrusters: thrusters}) do
+    m = c.m || List.to_tuple(List.duplicate(0.0, 36))
+    flag = fn b -> if b, do: 1.0, else: 0.0 end
+
+    values =
+      Tuple.to_list(m) ++
+        Tuple.to_list(c.m_inv) ++
+        Tuple.to_list(c.d_l) ++
+        Tuple.to_list(c.d_q) ++
+        [c.wb, c.gx, c.gy, c.gz, flag.(c.coriolis), flag.(c.locked), c.tether_k] ++
+        Tuple.to_list(c.tether_at) ++
+        [length(thrusters) * 1.0] ++ Enum.flat_map(thrusters, &Tuple.to_list(&1.wrench))
+
+    for value <- values, into: <<>>, do: <<value * 1.0::float-64-native>>
   end
 
   defp coriolis_matrix(%__MODULE__{coriolis: :none}), do: nil

@@ -53,7 +53,7 @@ defmodule Neptunus.Scenario.Run do
   @spec rows(Scenario.t(), pos_integer()) :: Enumerable.t()
   def rows(%Scenario{} = scenario, every \\ 1) when is_integer(every) and every >= 1 do
     last = Scenario.steps(scenario)
-    sim = Sim.new(Scenario.sim_options(scenario))
+    sim = Sim.new(Scenario.sim_options(scenario) ++ [native: true])
     est = [vehicle: scenario.params] |> Estimator.new() |> observe(sim)
     control = %{core: Core.new(gain: scenario.gain), next_tick: 0} |> estimate(est, sim)
 
