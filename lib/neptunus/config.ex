@@ -12,6 +12,7 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_BIND`     | IPv4/IPv6 address to listen on           | `127.0.0.1`            |
   | `NEPTUNUS_VEHICLES` | comma-separated `id=board` pairs         | `neptunus-1=simulated` |
   | `NEPTUNUS_WIRING`   | comma-separated `id=wiring` pairs        | thesis wiring          |
+  | `NEPTUNUS_MODELS`   | comma-separated `id=model` pairs         | `neptunus`             |
 
   Boards: `simulated` (the built-in simulator), `sitl` (the simulator behind a pseudo-terminal
   speaking the OpenROV protocol, through the real board link), `uart:DEVICE[@BAUD]` (a real
@@ -22,6 +23,11 @@ defmodule Neptunus.Config do
   separated by `/`, `-` before a reversed one, optionally `/smooth` or `/nosmooth`; default
   `-port/vertical/starboard/smooth` (the thesis' Neptunus). Example:
   `NEPTUNUS_WIRING=rov=port/vertical/-starboard/nosmooth`.
+
+  Model: the vehicle's parameter set in `priv/vehicles/` (`neptunus`, `thesis-4dof`, …, see
+  `Neptunus.Dynamics.Params`): what its simulator flies (`simulated` and `sitl` boards, and
+  run mode simulator on a real board) and the model of its navigation filter. Example:
+  `NEPTUNUS_MODELS=a=thesis-4dof`.
 
   Security (`auth!/2`, `tls!/1`) and helm timing (`helm!/1`):
 
@@ -44,15 +50,26 @@ defmodule Neptunus.Config do
   """
 
   @type endpoint :: %{port: :inet.port_number(), bind: :inet.ip_address()}
+  @typedoc "A vehicle; `sim: [vehicle: name]` when `NEPTUNUS_MODELS` names its parameter set."
   @type vehicle ::
-          %{id: String.t(), board: :simulated}
-          | %{id: String.t(), board: :sitl, wiring: Neptunus.Wiring.t()}
+          %{
+            required(:id) => String.t(),
+            required(:board) => :simulated,
+            optional(:sim) => keyword()
+          }
           | %{
-              id: String.t(),
-              board: :uart,
-              device: String.t(),
-              baud: pos_integer(),
-              wiring: Neptunus.Wiring.t()
+              required(:id) => String.t(),
+              required(:board) => :sitl,
+              required(:wiring) => Neptunus.Wiring.t(),
+              optional(:sim) => keyword()
+            }
+          | %{
+              required(:id) => String.t(),
+              required(:board) => :uart,
+              required(:device) => String.t(),
+              required(:baud) => pos_integer(),
+              required(:wiring) => Neptunus.Wiring.t(),
+              optional(:sim) => keyword()
             }
 
   @default_vehicles "neptunus-1=simulated"
@@ -103,41 +120,35 @@ defmodule Neptunus.Config do
     ids = Enum.map(vehicles, & &1.id)
 
     case ids -- Enum.uniq(ids) do
-      [] -> wiring!(vehicles, Map.get(env, "NEPTUNUS_WIRING", ""))
-      [dup | _] -> bad!("NEPTUNUS_VEHICLES", spec, "unique vehicle ids (#{inspect(dup)} repeats)")
+      [] ->
+        vehicles
+        |> wiring!(Map.get(env, "NEPTUNUS_WIRING", ""))
+        |> models!(Map.get(env, "NEPTUNUS_MODELS", ""))
+
+      [dup | _] ->
+        bad!("NEPTUNUS_VEHICLES", spec, "unique vehicle ids (#{inspect(dup)} repeats)")
     end
   end
 
   # Every sitl/uart vehicle gets a wiring: the configured one or the default.
   defp wiring!(vehicles, spec) do
     configured =
-      spec
-      |> String.split(",", trim: true)
-      |> Enum.map(&String.trim/1)
-      |> Enum.reject(&(&1 == ""))
-      |> Map.new(fn pair ->
-        with [id, text] <- String.split(pair, "=", parts: 2),
-             id = String.trim(id),
-             %{board: board} <- Enum.find(vehicles, &(&1.id == id)) || {:unknown, id},
-             true <- board in [:sitl, :uart] || {:no_wiring, id, board},
-             {:ok, wiring} <- Neptunus.Wiring.parse(text) do
-          {id, wiring}
-        else
-          {:unknown, id} ->
-            bad!(
-              "NEPTUNUS_WIRING",
-              spec,
-              "ids of configured vehicles (no vehicle #{inspect(id)})"
-            )
-
-          {:no_wiring, id, board} ->
+      pairs!(
+        "NEPTUNUS_WIRING",
+        spec,
+        vehicles,
+        "id=wiring pairs, e.g. rov=-port/vertical/starboard"
+      )
+      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
+        cond do
+          board not in [:sitl, :uart] ->
             bad!("NEPTUNUS_WIRING", spec, "sitl or uart vehicles (#{id} is #{board})")
 
-          {:error, reason} ->
-            bad!("NEPTUNUS_WIRING", spec, "#{reason} in #{inspect(pair)}")
-
-          _ ->
-            bad!("NEPTUNUS_WIRING", spec, "id=wiring pairs, e.g. rov=-port/vertical/starboard")
+          true ->
+            case Neptunus.Wiring.parse(text) do
+              {:ok, wiring} -> {id, wiring}
+              {:error, reason} -> bad!("NEPTUNUS_WIRING", spec, "#{reason} in #{inspect(pair)}")
+            end
         end
       end)
 
@@ -147,6 +158,54 @@ defmodule Neptunus.Config do
 
       vehicle ->
         vehicle
+    end)
+  end
+
+  # A vehicle's parameter set, for the simulator (simulated and sitl boards, and run mode
+  # simulator on a real board) and for the navigation filter's model.
+  defp models!(vehicles, spec) do
+    configured =
+      pairs!("NEPTUNUS_MODELS", spec, vehicles, "id=model pairs, e.g. rov=thesis-4dof")
+      |> Map.new(fn {%{id: id}, _pair, name} ->
+        if name in Neptunus.Dynamics.Params.available() do
+          {id, name}
+        else
+          bad!(
+            "NEPTUNUS_MODELS",
+            spec,
+            "a parameter set of priv/vehicles/ for #{id}: one of " <>
+              Enum.join(Neptunus.Dynamics.Params.available(), ", ") <> " (got #{inspect(name)})"
+          )
+        end
+      end)
+
+    Enum.map(vehicles, fn %{id: id} = vehicle ->
+      case Map.fetch(configured, id) do
+        {:ok, name} -> Map.put(vehicle, :sim, vehicle: name)
+        :error -> vehicle
+      end
+    end)
+  end
+
+  # The `id=value` pairs of a per-vehicle variable as `{vehicle, pair, value}`; every id
+  # must be a configured vehicle.
+  defp pairs!(var, spec, vehicles, shape) do
+    spec
+    |> String.split(",", trim: true)
+    |> Enum.map(&String.trim/1)
+    |> Enum.reject(&(&1 == ""))
+    |> Enum.map(fn pair ->
+      with [id, text] <- String.split(pair, "=", parts: 2),
+           id = String.trim(id),
+           %{} = vehicle <- Enum.find(vehicles, &(&1.id == id)) || {:unknown, id} do
+        {vehicle, pair, String.trim(text)}
+      else
+        {:unknown, id} ->
+          bad!(var, spec, "ids of configured vehicles (no vehicle #{inspect(id)})")
+
+        _ ->
+          bad!(var, spec, shape)
+      end
     end)
   end
 

@@ -108,4 +108,35 @@ defmodule Neptunus.ConfigTest do
       end
     end
   end
+
+  describe "vehicles!/1 models (NEPTUNUS_MODELS)" do
+    test "names each vehicle's parameter set for its simulator and navigation filter" do
+      env = %{
+        "NEPTUNUS_VEHICLES" => "a=simulated,b=sitl,c=uart:/dev/ttyO1,d=simulated",
+        "NEPTUNUS_MODELS" => " a=thesis-4dof, c=neptunus ,b=thesis-4dof"
+      }
+
+      assert [a, b, c, d] = Config.vehicles!(env)
+      assert a.sim == [vehicle: "thesis-4dof"]
+      assert b.sim == [vehicle: "thesis-4dof"]
+      assert c.sim == [vehicle: "neptunus"]
+      refute Map.has_key?(d, :sim)
+    end
+
+    for {models, message} <- [
+          {"a=submarine", ~r/NEPTUNUS_MODELS=.*one of neptunus, thesis-4dof \(got "submarine"\)/},
+          {"b=neptunus", ~r/NEPTUNUS_MODELS=.*no vehicle "b"/},
+          {"a", ~r/id=model pairs, e.g. rov=thesis-4dof/},
+          {"a=", ~r/got ""/}
+        ] do
+      test "refuses #{inspect(models)}" do
+        assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
+          Config.vehicles!(%{
+            "NEPTUNUS_VEHICLES" => "a=simulated",
+            "NEPTUNUS_MODELS" => unquote(models)
+          })
+        end
+      end
+    end
+  end
 end

@@ -142,6 +142,7 @@ defmodule Neptunus.Vehicle.Control do
 
   @impl true
   def init(opts) do
+    if p = System.get_env("XP_PATH"), do: Process.flag(:priority, String.to_atom(p))
     id = Keyword.fetch!(opts, :id)
     control = Keyword.get(opts, :control, [])
     hz = Keyword.get(control, :hz, Application.get_env(:neptunus, :control_hz, @default_hz))
@@ -164,7 +165,7 @@ defmodule Neptunus.Vehicle.Control do
       topic: Telemetry.topic(id),
       core: core,
       periodic: Periodic.new(hz),
-      simulator_opts: Keyword.get(control, :simulator, [])
+      simulator_opts: simulator_opts(opts, control)
     }
 
     send(self(), :board_keepalive)
@@ -267,6 +268,14 @@ defmodule Neptunus.Vehicle.Control do
     end
 
     state
+  end
+
+  # the run-mode simulator flies the vehicle's own parameter set (`sim: [vehicle: …]`, from
+  # NEPTUNUS_MODELS) unless `control: [simulator: [sim: …]]` says otherwise
+  defp simulator_opts(opts, control) do
+    model = opts |> Keyword.get(:sim, []) |> Keyword.take([:vehicle])
+    simulator = Keyword.get(control, :simulator, [])
+    Keyword.put(simulator, :sim, Keyword.merge(model, Keyword.get(simulator, :sim, [])))
   end
 
   defp act({:run_mode, :simulator, seed}, %State{simulator: nil} = state) do
