@@ -9,7 +9,7 @@ import { useEffect, useRef, useState } from "preact/hooks";
 import uPlot from "uplot";
 import { LIVE_WINDOW_S, liveRange, panRange, zoomRange } from "./ranges";
 import type { SeriesRecorder } from "./recorder";
-import { GROUP_ORDER, displayValue, seriesGroup, seriesLabel } from "./series";
+import { GROUP_ORDER, breakWraps, displayValue, isWrappedAngle, seriesGroup, seriesLabel } from "./series";
 
 const COLORS = ["#4fc3f7", "#ffb74d", "#66bb6a", "#ef5350", "#ba68c8", "#fff176", "#4db6ac", "#f06292", "#90a4ae", "#aed581"];
 const HEIGHT = 200;
@@ -25,7 +25,13 @@ export interface PlotProps {
 }
 
 function plotData(recorder: SeriesRecorder, series: readonly string[]): uPlot.AlignedData {
-  return [recorder.times(), ...series.map((k) => recorder.values(k, (v) => displayValue(k, v)))];
+  return [
+    recorder.times(),
+    ...series.map((k) => {
+      const values = recorder.values(k, (v) => displayValue(k, v));
+      return isWrappedAngle(k) ? breakWraps(values) : values;
+    }),
+  ];
 }
 
 export function Plot(props: PlotProps): preact.JSX.Element {

@@ -101,6 +101,35 @@ export function displayValue(path: string, value: number): number {
   return isAngle(path) || isAngularRate(path) ? (value * 180) / Math.PI : value;
 }
 
+const WRAPPED_LEAVES = new Set(["heading", "psi", "phi"]);
+
+/**
+ * Angles kept wrapped to one turn (heading in [0, 360), psi and phi in [-180, 180)): a vehicle
+ * turning through north jumps by a whole turn between two samples.
+ */
+export function isWrappedAngle(path: string): boolean {
+  if (!isAngle(path)) return false;
+  const parts = path.split(".");
+  const leaf = parts[parts.length - 1] ?? "";
+  return WRAPPED_LEAVES.has(leaf) || (parts[0] === "autopilot" && parts[1] === "heading");
+}
+
+/**
+ * Plotted values (degrees) of a wrapped angle with a gap (null) where two consecutive samples
+ * differ by more than half a turn: the line breaks at north instead of crossing the whole
+ * plot. The sample after the jump is dropped from the line (it is still in the CSV download).
+ */
+export function breakWraps(values: readonly (number | null)[]): (number | null)[] {
+  const out: (number | null)[] = new Array<number | null>(values.length);
+  let previous: number | null = null;
+  for (let i = 0; i < values.length; i++) {
+    const v = values[i] ?? null;
+    out[i] = v !== null && previous !== null && Math.abs(v - previous) > 180 ? null : v;
+    if (v !== null) previous = v;
+  }
+  return out;
+}
+
 /** "measurement.depth [m]" */
 export function seriesLabel(path: string): string {
   const unit = seriesUnit(path);

@@ -1,6 +1,8 @@
 import { describe, expect, it } from "vitest";
 import {
+  breakWraps,
   displayValue,
+  isWrappedAngle,
   flattenNumeric,
   isAngle,
   seriesGroup,
@@ -86,5 +88,29 @@ describe("series metadata", () => {
     expect(
       sortSeries(["t", "sim.q", "sim.x", "command.heave", "measurement.heading", "command.surge", "measurement.depth", "measurement.extra", "sim.p"]),
     ).toEqual(["measurement.depth", "measurement.heading", "measurement.extra", "command.surge", "command.heave", "sim.x", "sim.q", "sim.p", "t"]);
+  });
+});
+
+describe("wrapped angles break at north instead of crossing the plot", () => {
+  it("knows which series wrap", () => {
+    for (const p of ["measurement.heading", "estimate.heading", "sim.psi", "sim.phi", "autopilot.heading.setpoint"])
+      expect(isWrappedAngle(p)).toBe(true);
+    for (const p of ["measurement.roll", "sim.theta", "sim.r", "estimate.yaw_rate", "command.yaw", "measurement.depth"])
+      expect(isWrappedAngle(p)).toBe(false);
+  });
+
+  it("puts a gap where consecutive samples jump by more than half a turn", () => {
+    expect(breakWraps([350, 355, 359, 2, 6, 10])).toEqual([350, 355, 359, null, 6, 10]);
+    expect(breakWraps([10, 3, 358, 351])).toEqual([10, 3, null, 351]);
+    expect(breakWraps([-175, -179, 179, 175])).toEqual([-175, -179, null, 175]);
+  });
+
+  it("keeps smooth turns, steps up to half a turn, and existing gaps", () => {
+    expect(breakWraps([0, 90, 180, 270])).toEqual([0, 90, 180, 270]);
+    expect(breakWraps([0, 180, 0])).toEqual([0, 180, 0]);
+    // a jump measured across a missing sample still breaks
+    expect(breakWraps([358, null, 3, 8])).toEqual([358, null, null, 8]);
+    expect(breakWraps([null, 5, 6])).toEqual([null, 5, 6]);
+    expect(breakWraps([])).toEqual([]);
   });
 });
