@@ -139,6 +139,6 @@ export function assertNoPageProblems() {
   assert.deepEqual(problems, [], `the pages reported errors:\n${problems.join("\n")}`);
 }
 
-export async function screenshot(page, name) {
-  await page.screenshot({ path: join(ARTIFACTS, name), fullPage: true });
+export async function screenshot(page, name, { fullPage = true } = {}) {
+  await page.screenshot({ path: join(ARTIFACTS, name), fullPage });
 }

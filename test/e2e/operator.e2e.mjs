@@ -130,6 +130,32 @@ test("keyboard: request control, keys drive the vehicle, request → deny → ac
       const overflow = await tablet.page.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
       assert.ok(overflow <= 0, `page is ${overflow}px wider than the 1024px viewport`);
       await screenshot(tablet.page, "operator-1024x768.png");
+
+      // On the tablet's screen: the whole side column (helm, input, vehicle settings) and the
+      // message bar; the settings scroll inside the column, the camera and the page stay.
+      const fit = await tablet.page.evaluate(() => {
+        window.scrollTo(0, 0);
+        const rect = (sel) => document.querySelector(sel).getBoundingClientRect();
+        const side = document.querySelector(".side-column");
+        const before = rect(".camera").top;
+        side.scrollTop = side.scrollHeight;
+        const rotation = rect("#rotation");
+        return {
+          height: window.innerHeight,
+          side: rect(".side-column").bottom,
+          message: rect("#message").bottom,
+          rotation: rotation.bottom,
+          rotationTop: rotation.top,
+          cameraMoved: rect(".camera").top - before,
+          pageScroll: window.scrollY,
+        };
+      });
+      assert.ok(fit.side <= fit.height, `side column ends at ${fit.side}px, below the ${fit.height}px screen`);
+      assert.ok(fit.message <= fit.height, `message bar ends at ${fit.message}px, below the screen`);
+      assert.ok(fit.rotationTop >= 0 && fit.rotation <= fit.height, `last setting not reachable: ${JSON.stringify(fit)}`);
+      assert.equal(fit.cameraMoved, 0, "scrolling the side column moved the camera");
+      assert.equal(fit.pageScroll, 0, "scrolling the side column scrolled the page");
+      await screenshot(tablet.page, "operator-1024x768-screen.png", { fullPage: false });
       await tablet.page.locator("#release-control").click();
       await until(() => helmState(page), (h) => h.state === "free", WAIT_MS, "helm free after release");
     } finally {
