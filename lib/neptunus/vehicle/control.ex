@@ -138,6 +138,14 @@ defmodule Neptunus.Vehicle.Control do
 
   defp via(id), do: Fleet.via(__MODULE__, id)
 
+  # the run-mode simulator flies the vehicle's own parameter set (`sim: [vehicle: …]`, from
+  # NEPTUNUS_MODELS) unless `control: [simulator: [sim: …]]` says otherwise
+  defp simulator_opts(opts, control) do
+    model = opts |> Keyword.get(:sim, []) |> Keyword.take([:vehicle])
+    simulator = Keyword.get(control, :simulator, [])
+    Keyword.put(simulator, :sim, Keyword.merge(model, Keyword.get(simulator, :sim, [])))
+  end
+
   # Callbacks
 
   @impl true
@@ -268,14 +276,6 @@ defmodule Neptunus.Vehicle.Control do
     end
 
     state
-  end
-
-  # the run-mode simulator flies the vehicle's own parameter set (`sim: [vehicle: …]`, from
-  # NEPTUNUS_MODELS) unless `control: [simulator: [sim: …]]` says otherwise
-  defp simulator_opts(opts, control) do
-    model = opts |> Keyword.get(:sim, []) |> Keyword.take([:vehicle])
-    simulator = Keyword.get(control, :simulator, [])
-    Keyword.put(simulator, :sim, Keyword.merge(model, Keyword.get(simulator, :sim, [])))
   end
 
   defp act({:run_mode, :simulator, seed}, %State{simulator: nil} = state) do
