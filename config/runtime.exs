@@ -13,6 +13,8 @@ import Config
 # loopback without a secret and users, the node refuses to start.
 # Helm (Neptunus.Config.helm!/1): NEPTUNUS_DEADMAN_MS, NEPTUNUS_REQUEST_TIMEOUT_MS,
 # NEPTUNUS_TAKEOVER_MS.
+# Recording (Neptunus.Config.recording!/2): NEPTUNUS_RECORDINGS (directory or off),
+# NEPTUNUS_RECORDING_MAX_MB.
 env = System.get_env()
 
 endpoint =
@@ -24,4 +26,9 @@ config :neptunus,
   endpoint: endpoint,
   vehicles: Neptunus.Config.vehicles!(env),
   auth: Neptunus.Config.auth!(env, endpoint),
-  helm: Neptunus.Config.helm!(env)
+  helm: Neptunus.Config.helm!(env),
+  recording:
+    Neptunus.Config.recording!(
+      env,
+      Application.get_env(:neptunus, :default_recordings, "recordings")
+    )

@@ -4,4 +4,5 @@ import Config
 # browser tests talk to it exactly as a browser would.
 config :neptunus, default_port: 4102
 
-config :logger, level: :warning
+# recording is off under test; the recorder and API tests record to their own directories
+config :neptunus, default_recordings: "off"

@@ -13,6 +13,8 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_VEHICLES` | comma-separated `id=board` pairs         | `neptunus-1=simulated` |
   | `NEPTUNUS_WIRING`   | comma-separated `id=wiring` pairs        | thesis wiring          |
   | `NEPTUNUS_MODELS`   | comma-separated `id=model` pairs         | `neptunus`             |
+  | `NEPTUNUS_RECORDINGS` | recordings directory, or `off`         | `recordings`           |
+  | `NEPTUNUS_RECORDING_MAX_MB` | one recording file's size (MiB)  | 256                    |
 
   Boards: `simulated` (the built-in simulator), `sitl` (the simulator behind a pseudo-terminal
   speaking the OpenROV protocol, through the real board link), `uart:DEVICE[@BAUD]` (a real
@@ -369,6 +371,51 @@ defmodule Neptunus.Config do
       request_timeout_ms: env_integer!(env, "NEPTUNUS_REQUEST_TIMEOUT_MS", 10_000, 1000..120_000),
       takeover_ms: env_integer!(env, "NEPTUNUS_TAKEOVER_MS", 3_000, 0..30_000)
     ]
+  end
+
+  @doc """
+  Recording (`config :neptunus, :recording`, see `Neptunus.Vehicle.Recorder`):
+  `NEPTUNUS_RECORDINGS` — the directory (relative to the working directory, created when
+  needed) or `off`; `NEPTUNUS_RECORDING_MAX_MB` — size of one file before the next is
+  started (1..65536, default 256).
+
+      iex> Neptunus.Config.recording!(%{}, "recordings")
+      %{dir: "recordings", max_bytes: 268435456}
+      iex> Neptunus.Config.recording!(%{"NEPTUNUS_RECORDINGS" => "off"}, "recordings").dir
+      nil
+  """
+  @spec recording!(%{optional(String.t()) => String.t()}, Path.t() | nil) :: %{
+          dir: Path.t() | nil,
+          max_bytes: pos_integer()
+        }
+  def recording!(env, default_dir) do
+    dir =
+      case env |> Map.get("NEPTUNUS_RECORDINGS", default_dir || "off") |> String.trim() do
+        "off" -> nil
+        "" -> bad!("NEPTUNUS_RECORDINGS", "", "a directory, or off")
+        dir -> recording_dir!(dir)
+      end
+
+    %{
+      dir: dir,
+      max_bytes: env_integer!(env, "NEPTUNUS_RECORDING_MAX_MB", 256, 1..65_536) * 1024 * 1024
+    }
+  end
+
+  defp recording_dir!(dir) do
+    case File.stat(dir) do
+      {:ok, %File.Stat{type: :directory}} ->
+        dir
+
+      {:ok, _} ->
+        bad!("NEPTUNUS_RECORDINGS", dir, "a directory (this is a file), or off")
+
+      {:error, :enoent} ->
+        dir
+
+      {:error, reason} ->
+        bad!("NEPTUNUS_RECORDINGS", dir, "a usable directory (#{reason}), or off")
+    end
   end
 
   defp loopback?({127, _, _, _}), do: true

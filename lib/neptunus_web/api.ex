@@ -11,6 +11,14 @@ defmodule NeptunusWeb.API do
     * `GET /api/session` (token in `Authorization: Bearer …` or `?token=`) →
       `{"mode", "anonymous_observers", "user": {"name", "role"} | null, "expires_at"}`;
       401 with the same fields and `error` for an invalid or expired token.
+    * `GET /api/recordings[?vehicle=id]` → `{"recording": bool, "recordings": [{"vehicle",
+      "name", "bytes", "started_at", "modified_at"}]}` (newest first; times in ms)
+    * `GET /api/recordings/<vehicle>/<name>[?format=csv|jsonl][&every=N]` → the telemetry
+      as CSV (a download), or every entry as JSON lines with only every N-th telemetry entry
+      (what the developer page replays); 404 for an unknown recording.
+
+  Recordings need what watching needs: local mode, a token (any role), or anonymous observers
+  allowed; 401 otherwise.
 
   See `NeptunusWeb.Auth` and docs/API.md.
   """
@@ -18,6 +26,7 @@ defmodule NeptunusWeb.API do
 
   require Logger
 
+  alias Neptunus.Recording
   alias NeptunusWeb.{Auth, Socket}
   alias NeptunusWeb.Channels.Wire
 
@@ -50,6 +59,14 @@ defmodule NeptunusWeb.API do
   defp route(_method, "/api/login", _arg), do: {405, %{error: "method not allowed: use POST"}}
   defp route(:GET, "/api/session", arg), do: session(arg)
   defp route(_method, "/api/session", _arg), do: {405, %{error: "method not allowed: use GET"}}
+  defp route(:GET, "/api/recordings", arg), do: authorized(arg, &recordings/1)
+
+  defp route(:GET, "/api/recordings/" <> rest, arg),
+    do: authorized(arg, &recording(&1, String.split(rest, "/")))
+
+  defp route(_method, "/api/recordings" <> _, _arg),
+    do: {405, %{error: "method not allowed: use GET"}}
+
   defp route(_method, path, _arg), do: {404, %{error: "no such API endpoint: #{path}"}}
 
   defp login(arg) do
@@ -69,25 +86,104 @@ defmodule NeptunusWeb.API do
   end
 
   defp session(arg) do
-    token =
-      case arg |> arg(:headers) |> headers(:authorization) do
-        {_user, _password, ~c"Bearer " ++ token} -> token |> to_string() |> String.trim()
-        _ -> query_token(arg)
-      end
-
-    case Auth.session(token) do
+    case Auth.session(token(arg)) do
       {:ok, session} -> {200, session}
       {:error, session} -> {401, session}
     end
   end
 
-  defp query_token(arg) do
+  defp token(arg) do
+    case arg |> arg(:headers) |> headers(:authorization) do
+      {_user, _password, ~c"Bearer " ++ token} -> token |> to_string() |> String.trim()
+      _ -> Map.get(query(arg), "token")
+    end
+  end
+
+  defp query(arg) do
     case arg(arg, :querydata) do
-      :undefined -> nil
-      query -> query |> to_string() |> URI.decode_query() |> Map.get("token")
+      :undefined -> %{}
+      query -> query |> to_string() |> URI.decode_query()
     end
   rescue
-    _ -> nil
+    _ -> %{}
+  end
+
+  # Recordings are for anyone who may watch: local mode, a valid token, or anonymous
+  # observers when they are allowed.
+  defp authorized(arg, fun) do
+    case Auth.session(token(arg)) do
+      {:ok, %{mode: "local"}} -> fun.(arg)
+      {:ok, %{user: %{}}} -> fun.(arg)
+      {:ok, %{anonymous_observers: true}} -> fun.(arg)
+      {:ok, _} -> {401, %{error: "log in to see recordings"}}
+      {:error, %{error: reason}} -> {401, %{error: reason}}
+    end
+  end
+
+  defp recording_dir, do: Map.get(Map.new(Application.get_env(:neptunus, :recording, [])), :dir)
+
+  defp recordings(arg) do
+    vehicle = Map.get(query(arg), "vehicle")
+
+    cond do
+      recording_dir() == nil ->
+        {200, %{recording: false, recordings: []}}
+
+      vehicle != nil and not Recording.valid?(vehicle, "00000000-000000Z-1.log") ->
+        {400, %{error: "vehicle must be a vehicle id"}}
+
+      true ->
+        {200, %{recording: true, recordings: Recording.list(recording_dir(), vehicle)}}
+    end
+  end
+
+  # GET /api/recordings/<vehicle>/<name>?format=csv|jsonl&every=N
+  defp recording(arg, [vehicle, name]) do
+    params = query(arg)
+    dir = recording_dir()
+
+    with true <- dir != nil || {404, %{error: "recording is off on this server"}},
+         true <- Recording.valid?(vehicle, name) || {404, %{error: "no such recording"}},
+         path = Recording.path(dir, vehicle, name),
+         true <- File.regular?(path) || {404, %{error: "no such recording: #{vehicle}/#{name}"}},
+         {:ok, format} <- format(Map.get(params, "format", "csv")),
+         {:ok, every} <- every(Map.get(params, "every", "1")) do
+      # what the vehicle's recorder still buffers goes to disk first
+      Neptunus.Vehicle.Recorder.sync(vehicle)
+      export(format, Recording.entries(path), every, vehicle, name)
+    end
+  end
+
+  defp recording(_arg, _parts), do: {404, %{error: "no such recording"}}
+
+  defp format(format) when format in ["csv", "jsonl"], do: {:ok, format}
+  defp format(other), do: {400, %{error: "format must be csv or jsonl, got #{inspect(other)}"}}
+
+  defp every(text) do
+    case Integer.parse(text) do
+      {n, ""} when n in 1..1_000_000 -> {:ok, n}
+      _ -> {400, %{error: "every must be an integer in 1..1000000, got #{inspect(text)}"}}
+    end
+  end
+
+  defp export("csv", entries, _every, vehicle, name) do
+    file = "#{vehicle}-#{Path.rootname(name)}.csv"
+
+    [
+      {:status, 200},
+      {:header, {:cache_control, ~c"no-store"}},
+      {:header,
+       {~c"Content-Disposition", String.to_charlist("attachment; filename=\"#{file}\"")}},
+      {:content, ~c"text/csv; charset=utf-8", Recording.csv(entries)}
+    ]
+  end
+
+  defp export("jsonl", entries, every, _vehicle, _name) do
+    [
+      {:status, 200},
+      {:header, {:cache_control, ~c"no-store"}},
+      {:content, ~c"application/x-ndjson", Recording.json_lines(entries, every)}
+    ]
   end
 
   defp body(arg) do
@@ -107,6 +203,7 @@ defmodule NeptunusWeb.API do
   defp text(:undefined), do: nil
   defp text(value), do: to_string(value)
 
+  defp respond([{:status, _} | _] = response), do: response
   defp respond({status, body}), do: respond({status, body, []})
 
   defp respond({status, body, headers}) do

@@ -139,4 +139,32 @@ defmodule Neptunus.ConfigTest do
       end
     end
   end
+
+  describe "recording!/2" do
+    test "a directory (created later when missing), off, and the file size" do
+      assert Config.recording!(%{"NEPTUNUS_RECORDINGS" => " /tmp/rec-x "}, "recordings") ==
+               %{dir: "/tmp/rec-x", max_bytes: 256 * 1024 * 1024}
+
+      assert Config.recording!(%{}, nil).dir == nil
+
+      assert Config.recording!(%{"NEPTUNUS_RECORDING_MAX_MB" => "2"}, "r").max_bytes ==
+               2 * 1024 * 1024
+    end
+
+    test "refuses a file, an empty value and a bad size" do
+      assert_raise ArgumentError, ~r/NEPTUNUS_RECORDINGS=.*a directory \(this is a file\)/, fn ->
+        Config.recording!(%{"NEPTUNUS_RECORDINGS" => "mix.exs"}, nil)
+      end
+
+      assert_raise ArgumentError, ~r/NEPTUNUS_RECORDINGS=.*a directory, or off/, fn ->
+        Config.recording!(%{"NEPTUNUS_RECORDINGS" => " "}, nil)
+      end
+
+      for bad <- ["0", "65537", "big"] do
+        assert_raise ArgumentError, ~r/NEPTUNUS_RECORDING_MAX_MB/, fn ->
+          Config.recording!(%{"NEPTUNUS_RECORDING_MAX_MB" => bad}, nil)
+        end
+      end
+    end
+  end
 end

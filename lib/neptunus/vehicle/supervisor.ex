@@ -9,7 +9,9 @@ defmodule Neptunus.Vehicle.Supervisor do
     3. `Neptunus.Vehicle.Telemetry` (latest state, telemetry broadcast),
     4. `Neptunus.Vehicle.Control` (commands → allocation → board; neutral on start),
     5. `Neptunus.Vehicle.Helm` (who is in control; authorises every command, deadman;
-       neutral on start).
+       neutral on start),
+    6. `Neptunus.Vehicle.Recorder` (everything on the vehicle's topic to disk; last, so its
+       failures restart nothing else).
 
   A crash restarts the crashed process and everything after it, so every crash ends with the
   thrusters neutral: a crash of the board, navigation, telemetry or control restarts Control
@@ -20,7 +22,7 @@ defmodule Neptunus.Vehicle.Supervisor do
   """
   use Supervisor
 
-  alias Neptunus.Vehicle.{Board, Control, Helm, Navigation, Telemetry}
+  alias Neptunus.Vehicle.{Board, Control, Helm, Navigation, Recorder, Telemetry}
 
   @spec start_link(Neptunus.Config.vehicle()) :: Supervisor.on_start()
   def start_link(%{id: id, board: board} = vehicle) do
@@ -42,7 +44,8 @@ defmodule Neptunus.Vehicle.Supervisor do
       {Navigation, opts},
       {Telemetry, opts},
       {Control, opts},
-      {Helm, opts}
+      {Helm, opts},
+      {Recorder, opts}
     ]
 
     Supervisor.init(children, strategy: :rest_for_one, max_restarts: 10, max_seconds: 10)

@@ -1,0 +1,259 @@
+defmodule Neptunus.Recording do
+  @moduledoc """
+  Recordings of a vehicle: everything published on its `"vehicle:<id>"` topic — telemetry at
+  its full rate, stops, helm and control events — written by `Neptunus.Vehicle.Recorder` to
+  `disk_log` files, one per recorder run:
+
+      <dir>/<vehicle id>/<YYYYMMDD-HHMMSS>Z-<n>.log
+
+  Each entry is `{at, event, payload}`: `at` the wall clock (ms since the Unix epoch),
+  `event` the topic's event name, `payload` the map as broadcast. This module is the pure
+  part and the file reading: names, listing, reading entries back, and the exports — CSV of
+  the telemetry (one column per numeric series, as the developer page plots them) and JSON
+  lines of every entry (what the developer page replays).
+  """
+
+  alias NeptunusWeb.Channels.Wire
+
+  @typedoc "A recorded entry: wall clock (ms), event, payload."
+  @type entry :: {integer(), String.t(), map()}
+
+  @typedoc "A recording file, as listed."
+  @type info :: %{
+          vehicle: String.t(),
+          name: String.t(),
+          bytes: non_neg_integer(),
+          started_at: integer() | nil,
+          modified_at: integer()
+        }
+
+  @name_re ~r/^\d{8}-\d{6}Z-\d+\.log$/
+  @id_re ~r/^[A-Za-z0-9_-]{1,32}$/
+
+  @doc """
+  The file name of a recording started at `datetime` (UTC), `n`-th of that second.
+
+      iex> Neptunus.Recording.file_name(~U[2026-11-22 13:05:09Z], 1)
+      "20261122-130509Z-1.log"
+  """
+  @spec file_name(DateTime.t(), pos_integer()) :: String.t()
+  def file_name(%DateTime{} = datetime, n) when is_integer(n) and n >= 1 do
+    Calendar.strftime(datetime, "%Y%m%d-%H%M%SZ") <> "-#{n}.log"
+  end
+
+  @doc """
+  Whether `vehicle` and `name` name a recording (and nothing else: no paths, no `..`).
+
+      iex> Neptunus.Recording.valid?("rov-1", "20261122-130509Z-1.log")
+      true
+      iex> Neptunus.Recording.valid?("rov-1", "../../etc/passwd")
+      false
+  """
+  @spec valid?(term(), term()) :: boolean()
+  def valid?(vehicle, name) when is_binary(vehicle) and is_binary(name),
+    do: Regex.match?(@id_re, vehicle) and Regex.match?(@name_re, name)
+
+  def valid?(_vehicle, _name), do: false
+
+  @doc "The path of a recording in `dir`."
+  @spec path(Path.t(), String.t(), String.t()) :: Path.t()
+  def path(dir, vehicle, name), do: Path.join([dir, vehicle, name])
+
+  @doc "The recordings in `dir`, newest first (optionally of one vehicle)."
+  @spec list(Path.t(), String.t() | nil) :: [info()]
+  def list(dir, vehicle \\ nil) do
+    vehicles =
+      if vehicle, do: [vehicle], else: dir |> ls() |> Enum.filter(&Regex.match?(@id_re, &1))
+
+    for v <- vehicles,
+        name <- ls(Path.join(dir, v)),
+        valid?(v, name),
+        {:ok, stat} <- [File.stat(path(dir, v, name), time: :posix)] do
+      %{
+        vehicle: v,
+        name: name,
+        bytes: stat.size,
+        started_at: started_at(name),
+        modified_at: stat.mtime * 1000
+      }
+    end
+    |> Enum.sort_by(&{&1.started_at || 0, &1.vehicle, &1.name}, :desc)
+  end
+
+  defp ls(dir) do
+    case File.ls(dir) do
+      {:ok, names} -> names
+      {:error, _} -> []
+    end
+  end
+
+  @doc """
+  When a recording started (ms since the epoch), from its name.
+
+      iex> Neptunus.Recording.started_at("20261122-130509Z-1.log")
+      1795352709000
+  """
+  @spec started_at(String.t()) :: integer() | nil
+  def started_at(
+        <<y::binary-4, mo::binary-2, d::binary-2, "-", h::binary-2, mi::binary-2, s::binary-2,
+          "Z-", _::binary>>
+      ) do
+    with {:ok, date} <- Date.from_iso8601("#{y}-#{mo}-#{d}"),
+         {:ok, time} <- Time.from_iso8601("#{h}:#{mi}:#{s}"),
+         {:ok, datetime} <- DateTime.new(date, time) do
+      DateTime.to_unix(datetime, :millisecond)
+    else
+      _ -> nil
+    end
+  end
+
+  def started_at(_name), do: nil
+
+  @doc """
+  The entries of the recording file at `path`, lazily, in order. A file that is still being
+  written is read as far as it is on disk; a torn last entry (a crash mid-write) is skipped.
+  Raises `File.Error` when the file cannot be opened.
+  """
+  @spec entries(Path.t()) :: Enumerable.t()
+  def entries(path) do
+    Stream.resource(
+      fn -> open!(path) end,
+      fn
+        {log, :eof} ->
+          {:halt, {log, :eof}}
+
+        {log, cont} ->
+          case :disk_log.chunk(log, cont) do
+            :eof -> {:halt, {log, :eof}}
+            {:error, _reason} -> {:halt, {log, :eof}}
+            {cont, terms} -> {terms, {log, cont}}
+            {cont, terms, _bad_bytes} -> {terms, {log, cont}}
+          end
+      end,
+      fn {log, _} -> :disk_log.close(log) end
+    )
+    |> Stream.filter(&match?({at, event, %{}} when is_integer(at) and is_binary(event), &1))
+  end
+
+  defp open!(path) do
+    name = {__MODULE__, :reader, make_ref()}
+
+    case :disk_log.open(name: name, file: String.to_charlist(path), mode: :read_only) do
+      {:ok, log} ->
+        {log, :start}
+
+      {:repaired, log, _recovered, _bad} ->
+        {log, :start}
+
+      {:error, {:file_error, _file, posix}} ->
+        raise File.Error, reason: posix, action: "read recording", path: path
+
+      {:error, reason} ->
+        raise File.Error, reason: reason, action: "read recording", path: path
+    end
+  end
+
+  @doc """
+  The numeric series of a payload as `{path, value}`, paths dotted (`"measurement.depth"`),
+  in payload order; booleans as 0/1, everything else left out. The same series as the
+  developer page's plots.
+
+      iex> Neptunus.Recording.flatten(%{t: 1.5, link: %{up: true, reason: "open"}, thrusters: %{port: 0.25}})
+      [{"link.up", 1}, {"t", 1.5}, {"thrusters.port", 0.25}]
+  """
+  @spec flatten(map()) :: [{String.t(), number()}]
+  def flatten(payload) when is_map(payload), do: payload |> flatten("") |> Enum.reverse()
+
+  defp flatten(map, prefix) when is_map(map) do
+    map
+    |> Enum.sort_by(fn {k, _} -> to_string(k) end)
+    |> Enum.reduce([], fn {key, value}, acc ->
+      path = if prefix == "", do: to_string(key), else: prefix <> "." <> to_string(key)
+
+      case value do
+        v when is_number(v) -> [{path, v} | acc]
+        true -> [{path, 1} | acc]
+        false -> [{path, 0} | acc]
+        %{} = nested -> flatten(nested, path) ++ acc
+        _ -> acc
+      end
+    end)
+  end
+
+  @doc """
+  The telemetry of `entries` as CSV (iodata): a header `time,<series…>` — `time` the wall
+  clock in ms, then every numeric series that appears anywhere in the recording, in order of
+  first appearance — and one row per telemetry entry (empty where a series has no value).
+  `entries` is enumerated twice (columns, then rows): pass a list or a re-readable stream.
+  """
+  @spec csv(Enumerable.t()) :: iodata()
+  def csv(entries) do
+    columns =
+      entries
+      |> Stream.filter(&telemetry?/1)
+      |> Enum.reduce({[], MapSet.new()}, fn {_, _, payload}, acc ->
+        payload
+        |> flatten()
+        |> Enum.reduce(acc, fn {path, _}, {order, seen} = acc ->
+          if MapSet.member?(seen, path),
+            do: acc,
+            else: {[path | order], MapSet.put(seen, path)}
+        end)
+      end)
+      |> elem(0)
+      |> Enum.reverse()
+
+    header = [Enum.map_intersperse(["time" | columns], ",", &csv_field/1), "\n"]
+
+    rows =
+      entries
+      |> Stream.filter(&telemetry?/1)
+      |> Enum.map(fn {at, _, payload} ->
+        values = Map.new(flatten(payload))
+
+        [
+          Integer.to_string(at),
+          Enum.map(columns, fn c -> ["," | number(Map.get(values, c))] end),
+          "\n"
+        ]
+      end)
+
+    [header | rows]
+  end
+
+  @doc """
+  Every `every`-th telemetry entry and every other entry, as JSON lines
+  `{"at": ms, "event": e, "payload": {…}}` (iodata).
+  """
+  @spec json_lines(Enumerable.t(), pos_integer()) :: iodata()
+  def json_lines(entries, every \\ 1) when is_integer(every) and every >= 1 do
+    entries
+    |> Stream.transform(0, fn entry, n ->
+      cond do
+        not telemetry?(entry) -> {[entry], n}
+        rem(n, every) == 0 -> {[entry], n + 1}
+        true -> {[], n + 1}
+      end
+    end)
+    |> Enum.map(fn {at, event, payload} ->
+      [Wire.encode_json(%{at: at, event: event, payload: payload}), "\n"]
+    end)
+  end
+
+  @doc "How many telemetry entries `entries` holds."
+  @spec telemetry_count(Enumerable.t()) :: non_neg_integer()
+  def telemetry_count(entries), do: Enum.count(entries, &telemetry?/1)
+
+  defp telemetry?({_, "telemetry", _}), do: true
+  defp telemetry?(_entry), do: false
+
+  defp number(nil), do: []
+  defp number(v) when is_integer(v), do: Integer.to_string(v)
+  defp number(v) when is_float(v), do: :erlang.float_to_binary(v, [:short])
+
+  defp csv_field(text) do
+    if String.contains?(text, [",", "\"", "\n"]),
+      do: ["\"", String.replace(text, "\"", "\"\""), "\""],
+      else: text
+  end
+end

@@ -1,0 +1,204 @@
+defmodule Neptunus.Vehicle.Recorder do
+  @moduledoc """
+  Records everything a vehicle publishes on `"vehicle:<id>"` — telemetry at its full rate,
+  stops, helm and control events — to disk (`Neptunus.Recording` for the format, the
+  listing and the exports).
+
+  One file per run of this process (`<dir>/<id>/<UTC start>-<n>.log`, a `disk_log` of
+  `{at, event, payload}` terms, written asynchronously so a slow disk never holds up the
+  vehicle). When a file reaches `max_bytes` (counted as the entries' external term size) it
+  is closed and the next one opened, so a long dive is never cut short and no entry is
+  refused. Nothing is dropped silently: when the disk refuses to write (full,
+  removed, read-only) recording stops and says so — a `log` entry (category `errors`) on
+  `"log:<id>"`, a `recording` event on the vehicle's topic and the server log — and `status/1`
+  tells why.
+
+  It is the last process of the vehicle's tree: its failures never restart the board,
+  control or helm. Options: `:id`; `:recording` — `dir` (nil or absent: recording is off;
+  default from `config :neptunus, :recording`) and `max_bytes` (default 256 MiB).
+  """
+  use GenServer
+
+  require Logger
+
+  alias Neptunus.{Fleet, PubSub, Recording}
+  alias Neptunus.Vehicle.{Control, Telemetry}
+
+  @default_max_bytes 256 * 1024 * 1024
+
+  defmodule State do
+    @moduledoc false
+    @type t :: %__MODULE__{
+            id: String.t(),
+            dir: Path.t() | nil,
+            max_bytes: pos_integer(),
+            log: term() | nil,
+            file: String.t() | nil,
+            files: [String.t()],
+            entries: non_neg_integer(),
+            bytes: non_neg_integer(),
+            error: String.t() | nil
+          }
+    @enforce_keys [:id, :dir, :max_bytes]
+    defstruct [:id, :dir, :max_bytes, :log, :file, :error, files: [], entries: 0, bytes: 0]
+  end
+
+  @spec start_link(keyword()) :: GenServer.on_start()
+  def start_link(opts) do
+    GenServer.start_link(__MODULE__, opts, name: Fleet.via(__MODULE__, Keyword.fetch!(opts, :id)))
+  end
+
+  @doc """
+  What the recorder is doing: `recording` (bool), the `file` being written and the `files` of
+  this run, the `entries` written, the `error` that stopped it (nil).
+  """
+  @spec status(String.t()) :: map()
+  def status(id), do: GenServer.call(Fleet.via(__MODULE__, id), :status)
+
+  @doc "Writes what is buffered to disk (before an export of the file being written)."
+  @spec sync(String.t()) :: :ok
+  def sync(id) do
+    GenServer.call(Fleet.via(__MODULE__, id), :sync)
+  catch
+    :exit, _ -> :ok
+  end
+
+  @impl true
+  def init(opts) do
+    id = Keyword.fetch!(opts, :id)
+    config = Keyword.get(opts, :recording, Application.get_env(:neptunus, :recording, []))
+    config = Map.new(config)
+
+    state = %State{
+      id: id,
+      dir: Map.get(config, :dir),
+      max_bytes: Map.get(config, :max_bytes, @default_max_bytes)
+    }
+
+    if state.dir, do: {:ok, state, {:continue, :open}}, else: {:ok, state}
+  end
+
+  @impl true
+  def handle_continue(:open, state) do
+    Process.flag(:trap_exit, true)
+    PubSub.subscribe(Telemetry.topic(state.id))
+    {:noreply, open_next(state)}
+  end
+
+  @impl true
+  def handle_info({:pubsub, _topic, _event, _payload}, %State{log: nil} = state),
+    do: {:noreply, state}
+
+  def handle_info({:pubsub, _topic, event, payload}, state) when is_map(payload) do
+    entry = {System.os_time(:millisecond), event, payload}
+    _ = :disk_log.alog(state.log, entry)
+    bytes = state.bytes + :erlang.external_size(entry)
+    state = %{state | entries: state.entries + 1, bytes: bytes}
+    # the next file before this one passes max_bytes: no entry is ever refused as "full"
+    state = if bytes >= state.max_bytes, do: state |> close() |> open_next(), else: state
+    {:noreply, state}
+  end
+
+  def handle_info({:pubsub, _topic, _event, _payload}, state), do: {:noreply, state}
+
+  # disk_log's notifications (notify: true)
+
+  def handle_info(
+        {:disk_log, _node, log, {:error_status, {:error, reason}}},
+        %State{log: log} = state
+      ) do
+    {:noreply, state |> close() |> failed("writing #{state.file} failed: #{inspect(reason)}")}
+  end
+
+  def handle_info({:disk_log, _node, _log, _info}, state), do: {:noreply, state}
+  def handle_info({:EXIT, _pid, _reason}, state), do: {:noreply, state}
+
+  @impl true
+  def handle_call(:status, _from, state) do
+    reply = %{
+      recording: state.log != nil,
+      dir: state.dir,
+      file: state.file,
+      files: Enum.reverse(state.files),
+      entries: state.entries,
+      error: state.error
+    }
+
+    {:reply, reply, state}
+  end
+
+  def handle_call(:sync, _from, %State{log: nil} = state), do: {:reply, :ok, state}
+
+  def handle_call(:sync, _from, state) do
+    _ = :disk_log.sync(state.log)
+    {:reply, :ok, state}
+  end
+
+  @impl true
+  def terminate(_reason, state) do
+    _ = close(state)
+    :ok
+  end
+
+  defp open_next(state) do
+    dir = Path.join(state.dir, state.id)
+
+    with :ok <- File.mkdir_p(dir),
+         name = free_name(dir),
+         path = Path.join(dir, name),
+         {:ok, log} <- open_log(state.id, path) do
+      %{state | log: log, file: path, files: [path | state.files], bytes: 0, error: nil}
+    else
+      {:error, reason} ->
+        failed(state, "cannot record to #{dir}: #{inspect(reason)}")
+    end
+  end
+
+  defp open_log(id, path) do
+    opts = [
+      name: {__MODULE__, id, path},
+      file: String.to_charlist(path),
+      type: :halt,
+      format: :internal,
+      size: :infinity,
+      notify: true,
+      mode: :read_write
+    ]
+
+    case :disk_log.open(opts) do
+      {:ok, log} -> {:ok, log}
+      {:repaired, log, _, _} -> {:ok, log}
+      {:error, reason} -> {:error, reason}
+    end
+  end
+
+  # the next free `<UTC now>-<n>.log` in dir
+  defp free_name(dir) do
+    now = DateTime.utc_now()
+
+    Stream.iterate(1, &(&1 + 1))
+    |> Stream.map(&Recording.file_name(now, &1))
+    |> Enum.find(&(not File.exists?(Path.join(dir, &1))))
+  end
+
+  defp close(%State{log: nil} = state), do: state
+
+  defp close(state) do
+    _ = :disk_log.close(state.log)
+    %{state | log: nil}
+  end
+
+  defp failed(state, message) do
+    Logger.error("vehicle #{state.id}: recording stopped: #{message}")
+
+    PubSub.broadcast(Control.log_topic(state.id), "log", %{
+      category: "errors",
+      level: "error",
+      message: "recording stopped: #{message}",
+      at: System.os_time(:millisecond)
+    })
+
+    PubSub.broadcast(Telemetry.topic(state.id), "recording", %{recording: false, error: message})
+    %{state | log: nil, error: message}
+  end
+end

@@ -1,0 +1,117 @@
+defmodule Neptunus.Vehicle.RecorderTest do
+  use ExUnit.Case, async: true
+
+  alias Neptunus.{PubSub, Recording}
+  alias Neptunus.Vehicle.{Control, Recorder, Telemetry}
+
+  @moduletag :tmp_dir
+  @moduletag :capture_log
+
+  defp start!(dir, opts \\ []) do
+    id = "rec-#{System.unique_integer([:positive])}"
+    recording = Keyword.merge([dir: dir], opts)
+    start_supervised!({Recorder, id: id, recording: recording})
+    # handle_continue has run (subscribed, file open) once a call is answered
+    _ = Recorder.status(id)
+    id
+  end
+
+  defp publish(id, event, payload), do: PubSub.broadcast(Telemetry.topic(id), event, payload)
+
+  defp entries(id) do
+    Recorder.sync(id)
+    Recorder.status(id).files |> Enum.flat_map(&Enum.to_list(Recording.entries(&1)))
+  end
+
+  test "records every event on the vehicle's topic, in order, with its wall clock", %{
+    tmp_dir: dir
+  } do
+    id = start!(dir)
+    before = System.os_time(:millisecond)
+
+    for i <- 1..50, do: publish(id, "telemetry", %{t: i * 0.05, measurement: %{depth: i / 100}})
+    publish(id, "stopped", %{reason: "deadman"})
+
+    recorded = entries(id)
+    assert length(recorded) == 51
+    assert {at, "telemetry", %{t: 0.05, measurement: %{depth: 0.01}}} = hd(recorded)
+    assert at >= before and at <= System.os_time(:millisecond)
+    assert {_, "stopped", %{reason: "deadman"}} = List.last(recorded)
+    assert Enum.map(recorded, &elem(&1, 0)) == Enum.sort(Enum.map(recorded, &elem(&1, 0)))
+
+    assert %{recording: true, entries: 51, error: nil, file: file} = Recorder.status(id)
+    assert [%{vehicle: ^id, name: name}] = Recording.list(dir, id)
+    assert Path.basename(file) == name
+  end
+
+  test "a full file is closed and the next one opened: nothing is refused", %{tmp_dir: dir} do
+    id = start!(dir, max_bytes: 4_000)
+    payload = %{t: 0.0, blob: String.duplicate("x", 300)}
+
+    for i <- 1..40, do: publish(id, "telemetry", %{payload | t: i * 1.0})
+
+    %{files: files} = Recorder.status(id)
+    assert length(files) >= 3
+    recorded = entries(id)
+    assert Enum.map(recorded, fn {_, _, p} -> p.t end) == Enum.map(1..40, &(&1 * 1.0))
+    assert length(Recording.list(dir, id)) == length(files)
+  end
+
+  test "a restart opens a new file and keeps the old one", %{tmp_dir: dir} do
+    id = start!(dir)
+    publish(id, "telemetry", %{t: 1.0})
+    Recorder.sync(id)
+    [first] = Recorder.status(id).files
+    stop_supervised!(Recorder)
+
+    start_supervised!({Recorder, id: id, recording: [dir: dir]})
+    publish(id, "telemetry", %{t: 2.0})
+    [second] = Recorder.status(id).files
+    assert first != second
+    assert [{_, "telemetry", %{t: 1.0}}] = Enum.to_list(Recording.entries(first))
+    assert length(Recording.list(dir, id)) == 2
+  end
+
+  test "when the directory cannot be used, recording stops and says so", %{tmp_dir: dir} do
+    blocker = Path.join(dir, "a-file")
+    File.write!(blocker, "not a directory")
+    id = "rec-#{System.unique_integer([:positive])}"
+    PubSub.subscribe(Control.log_topic(id))
+    PubSub.subscribe(Telemetry.topic(id))
+
+    start_supervised!({Recorder, id: id, recording: [dir: blocker]})
+
+    assert_receive {:pubsub, _, "log",
+                    %{category: "errors", message: "recording stopped: " <> why}}
+
+    assert why =~ "cannot record to"
+    assert_receive {:pubsub, _, "recording", %{recording: false, error: ^why}}
+    assert %{recording: false, error: ^why} = Recorder.status(id)
+    # still alive and harmless
+    publish(id, "telemetry", %{t: 1.0})
+    assert %{entries: 0} = Recorder.status(id)
+  end
+
+  test "recording off: no directory, no files, no subscription", %{tmp_dir: dir} do
+    id = "rec-#{System.unique_integer([:positive])}"
+    start_supervised!({Recorder, id: id, recording: [dir: nil]})
+    publish(id, "telemetry", %{t: 1.0})
+    assert %{recording: false, entries: 0, error: nil} = Recorder.status(id)
+    assert File.ls!(dir) == []
+  end
+
+  test "a vehicle started with recording on records its telemetry", %{tmp_dir: dir} do
+    id = "rec-#{System.unique_integer([:positive])}"
+
+    start_supervised!(
+      {Neptunus.Vehicle.Supervisor,
+       %{id: id, board: :simulated, recording: [dir: dir], helm: [tick_ms: 3_600_000]}}
+    )
+
+    PubSub.subscribe(Telemetry.topic(id))
+    assert_receive {:pubsub, _, "telemetry", _}, 2_000
+    assert_receive {:pubsub, _, "telemetry", _}, 2_000
+    recorded = entries(id)
+    assert Enum.count(recorded, &match?({_, "telemetry", %{t: _}}, &1)) >= 2
+  end
+end

@@ -1,0 +1,142 @@
+defmodule NeptunusWeb.RecordingsAPITest do
+  # /api/recordings against the running endpoint; the recording directory is switched at run
+  # time (the API reads it at every request) and restored after each test.
+  use ExUnit.Case, async: false
+
+  alias Neptunus.PubSub
+  alias Neptunus.Vehicle.{Recorder, Telemetry}
+  alias NeptunusWeb.Auth.Token
+
+  @moduletag :tmp_dir
+  @moduletag :capture_log
+  @secret "recordings-test-secret-" <> String.duplicate("y", 20)
+
+  setup %{tmp_dir: dir} do
+    recording = Application.get_env(:neptunus, :recording)
+    auth = Application.get_env(:neptunus, :auth)
+
+    on_exit(fn ->
+      Application.put_env(:neptunus, :recording, recording)
+      Application.put_env(:neptunus, :auth, auth)
+    end)
+
+    Application.put_env(:neptunus, :recording, %{dir: dir, max_bytes: 1_000_000})
+    id = "api-rec-#{System.unique_integer([:positive])}"
+    start_supervised!({Recorder, id: id, recording: [dir: dir]})
+    _ = Recorder.status(id)
+
+    for i <- 1..30 do
+      payload = %{t: i * 0.05, measurement: %{depth: i / 100, heading: 1.5}, link: %{up: true}}
+      PubSub.broadcast(Telemetry.topic(id), "telemetry", payload)
+    end
+
+    PubSub.broadcast(Telemetry.topic(id), "stopped", %{reason: "deadman"})
+    [file] = Recorder.status(id).files
+    {:ok, id: id, name: Path.basename(file)}
+  end
+
+  defp port, do: Application.fetch_env!(:neptunus, :endpoint).port
+
+  defp get(path, headers \\ []) do
+    url = ~c"http://127.0.0.1:#{port()}#{path}"
+
+    {:ok, {{_, status, _}, resp_headers, body}} =
+      :httpc.request(:get, {url, headers}, [], body_format: :binary)
+
+    {status, Map.new(resp_headers, fn {k, v} -> {to_string(k), to_string(v)} end), body}
+  end
+
+  defp json(body), do: :jiffy.decode(body, [:return_maps, {:null_term, nil}])
+
+  test "lists the recordings, of all vehicles or one", %{id: id, name: name} do
+    {200, _, body} = get("/api/recordings")
+    assert %{"recording" => true, "recordings" => list} = json(body)
+
+    assert %{"vehicle" => ^id, "name" => ^name, "bytes" => bytes} =
+             Enum.find(list, &(&1["vehicle"] == id))
+
+    assert bytes > 0
+
+    {200, _, body} = get("/api/recordings?vehicle=#{id}")
+    assert [%{"vehicle" => ^id}] = json(body)["recordings"]
+
+    {400, _, body} = get("/api/recordings?vehicle=../etc")
+    assert json(body)["error"] =~ "vehicle id"
+  end
+
+  test "exports the telemetry as CSV, including what the recorder still buffered", %{
+    id: id,
+    name: name
+  } do
+    {200, headers, csv} = get("/api/recordings/#{id}/#{name}")
+    assert headers["content-type"] =~ "text/csv"
+    assert headers["content-disposition"] =~ ~s(attachment; filename="#{id}-)
+
+    [header | rows] = String.split(csv, "\n", trim: true)
+    assert header == "time,link.up,measurement.depth,measurement.heading,t"
+    assert length(rows) == 30
+    assert rows |> hd() |> String.split(",") |> tl() == ["1", "0.01", "1.5", "0.05"]
+  end
+
+  test "exports JSON lines with every N-th telemetry entry and every event", %{id: id, name: name} do
+    {200, headers, body} = get("/api/recordings/#{id}/#{name}?format=jsonl&every=10")
+    assert headers["content-type"] =~ "ndjson"
+    lines = body |> String.split("\n", trim: true) |> Enum.map(&json/1)
+    assert Enum.map(lines, & &1["event"]) == ["telemetry", "telemetry", "telemetry", "stopped"]
+    assert Enum.map(Enum.take(lines, 3), & &1["payload"]["t"]) == [0.05, 0.55, 1.05]
+  end
+
+  test "bad requests change nothing and say why", %{id: id, name: name} do
+    for {path, status, message} <- [
+          {"/api/recordings/#{id}/#{name}?format=xml", 400, "format must be csv or jsonl"},
+          {"/api/recordings/#{id}/#{name}?every=0", 400, "every must be an integer"},
+          {"/api/recordings/#{id}/20200101-000000Z-1.log", 404, "no such recording"},
+          {"/api/recordings/#{id}/..%2F..%2Fetc%2Fpasswd", 404, "no such recording"},
+          {"/api/recordings/#{id}", 404, "no such recording"},
+          {"/api/recordings/#{id}/#{name}/x", 404, "no such recording"}
+        ] do
+      {^status, _, body} = get(path)
+      assert json(body)["error"] =~ message, "#{path}: #{body}"
+    end
+
+    {405, _, _} =
+      :httpc.request(:delete, {~c"http://127.0.0.1:#{port()}/api/recordings", []}, [],
+        body_format: :binary
+      )
+      |> then(fn {:ok, {{_, status, _}, h, b}} -> {status, h, b} end)
+  end
+
+  test "recording off: an empty list, exports 404" do
+    Application.put_env(:neptunus, :recording, %{dir: nil, max_bytes: 1})
+    {200, _, body} = get("/api/recordings")
+    assert json(body) == %{"recording" => false, "recordings" => []}
+    {404, _, body} = get("/api/recordings/a/20200101-000000Z-1.log")
+    assert json(body)["error"] =~ "recording is off"
+  end
+
+  test "in secure mode recordings need a token (any role)", %{id: id, name: name} do
+    users = %{"olga" => %{name: "olga", role: :observer, hash: "unused"}}
+
+    Application.put_env(:neptunus, :auth, %{
+      mode: :secure,
+      secret: @secret,
+      users: users,
+      anonymous_observers: false,
+      origins: [],
+      token_ttl_s: 600,
+      login_attempts_per_minute: 10
+    })
+
+    {401, _, body} = get("/api/recordings")
+    assert json(body)["error"] =~ "log in"
+    {401, _, _} = get("/api/recordings/#{id}/#{name}?token=forged")
+
+    token = Token.sign("olga", @secret, System.os_time(:second), 600)
+    {200, _, _} = get("/api/recordings?token=#{token}")
+
+    {200, _, _} =
+      get("/api/recordings/#{id}/#{name}", [
+        {~c"authorization", ~c"Bearer " ++ String.to_charlist(token)}
+      ])
+  end
+end
