@@ -13,9 +13,10 @@ defmodule NeptunusWeb.API do
       401 with the same fields and `error` for an invalid or expired token.
     * `GET /api/recordings[?vehicle=id]` → `{"recording": bool, "recordings": [{"vehicle",
       "name", "bytes", "started_at", "modified_at"}]}` (newest first; times in ms)
-    * `GET /api/recordings/<vehicle>/<name>[?format=csv|jsonl][&every=N]` → the telemetry
-      as CSV (a download), or every entry as JSON lines with only every N-th telemetry entry
-      (what the developer page replays); 404 for an unknown recording.
+    * `GET /api/recordings/<vehicle>/<name>[?format=csv|jsonl][&every=N][&max=M]` → the
+      telemetry as CSV (a download), or every entry as JSON lines with only every N-th
+      telemetry entry — or as few as keep at most M (what the developer page replays); 404
+      for an unknown recording.
 
   Recordings need what watching needs: local mode, a token (any role), or anonymous observers
   allowed; 401 otherwise.
@@ -137,7 +138,7 @@ defmodule NeptunusWeb.API do
     end
   end
 
-  # GET /api/recordings/<vehicle>/<name>?format=csv|jsonl&every=N
+  # GET /api/recordings/<vehicle>/<name>?format=csv|jsonl&every=N&max=M
   defp recording(arg, [vehicle, name]) do
     params = query(arg)
     dir = recording_dir()
@@ -147,12 +148,29 @@ defmodule NeptunusWeb.API do
          path = Recording.path(dir, vehicle, name),
          true <- File.regular?(path) || {404, %{error: "no such recording: #{vehicle}/#{name}"}},
          {:ok, format} <- format(Map.get(params, "format", "csv")),
-         {:ok, every} <- every(Map.get(params, "every", "1")) do
+         {:ok, every} <- every(Map.get(params, "every", "1")),
+         {:ok, max} <- max_rows(Map.get(params, "max")) do
       # what the vehicle's recorder still buffers goes to disk first
       Neptunus.Vehicle.Recorder.sync(vehicle)
-      export(format, Recording.entries(path), every, vehicle, name)
+      entries = Recording.entries(path)
+
+      every =
+        if max, do: max(every, ceil_div(Recording.telemetry_count(entries), max)), else: every
+
+      export(format, entries, every, vehicle, name)
     end
   end
+
+  defp max_rows(nil), do: {:ok, nil}
+
+  defp max_rows(text) do
+    case Integer.parse(text) do
+      {n, ""} when n in 1..1_000_000 -> {:ok, n}
+      _ -> {400, %{error: "max must be an integer in 1..1000000, got #{inspect(text)}"}}
+    end
+  end
+
+  defp ceil_div(a, b), do: max(1, div(a + b - 1, b))
 
   defp recording(_arg, _parts), do: {404, %{error: "no such recording"}}
 

@@ -86,10 +86,20 @@ defmodule NeptunusWeb.RecordingsAPITest do
     assert Enum.map(Enum.take(lines, 3), & &1["payload"]["t"]) == [0.05, 0.55, 1.05]
   end
 
+  test "max: JSON lines thinned to at most M telemetry entries", %{id: id, name: name} do
+    {200, _, body} = get("/api/recordings/#{id}/#{name}?format=jsonl&max=7")
+    lines = body |> String.split("\n", trim: true) |> Enum.map(&json/1)
+    telemetry = Enum.filter(lines, &(&1["event"] == "telemetry"))
+    # 30 entries, at most 7: every 5th
+    assert Enum.map(telemetry, &round(&1["payload"]["t"] * 100)) == [5, 30, 55, 80, 105, 130]
+    assert List.last(lines)["event"] == "stopped"
+  end
+
   test "bad requests change nothing and say why", %{id: id, name: name} do
     for {path, status, message} <- [
           {"/api/recordings/#{id}/#{name}?format=xml", 400, "format must be csv or jsonl"},
           {"/api/recordings/#{id}/#{name}?every=0", 400, "every must be an integer"},
+          {"/api/recordings/#{id}/#{name}?format=jsonl&max=x", 400, "max must be an integer"},
           {"/api/recordings/#{id}/20200101-000000Z-1.log", 404, "no such recording"},
           {"/api/recordings/#{id}/..%2F..%2Fetc%2Fpasswd", 404, "no such recording"},
           {"/api/recordings/#{id}", 404, "no such recording"},
