@@ -129,3 +129,43 @@ test("developer page: add 3 plots, reset graphs, remove; CSV; logger categories 
     await pilot.context.close();
   }
 });
+
+test("developer page: the server's recordings: list, CSV download, shown in the plots, back to live", { timeout: TEST_MS }, async () => {
+  const name = process.env.E2E_RECORDING;
+  assert.ok(name, "E2E_RECORDING names the recording the server holds (set by external_test.exs)");
+  const dev = await open(browser, { ...TABLET, name: "e2e-dev-rec", path: "/dev.html" });
+  try {
+    const { page } = dev;
+    await until(() => samples(page), (n) => n > 2, WAIT_MS, "live samples");
+    await page.locator("#recordings summary").click();
+    const item = page.locator(`[data-testid="recording-list"] li[data-name="${name}"]`);
+    await item.waitFor();
+
+    // the CSV export, as a download
+    const [download] = await Promise.all([page.waitForEvent("download"), item.locator("a", { hasText: "CSV" }).click()]);
+    const csv = readFileSync(await download.path(), "utf8").split("\n").filter((l) => l !== "");
+    assert.equal(csv[0], "time,measurement.depth,measurement.heading,sent_at,t");
+    assert.equal(csv.length, 301);
+
+    // shown in the plots instead of live telemetry
+    await item.locator("button.replay").click();
+    await page.locator('[data-testid="replay"][data-state="shown"]').waitFor();
+    assert.match((await page.locator("#replay").textContent()) ?? "", /300 samples, 1 event\./);
+    assert.equal(await samples(page), 300);
+    await page.waitForTimeout(500);
+    assert.equal(await samples(page), 300, "live samples were mixed into the recording");
+    await page.locator("#add-plot").click();
+    await plots(page).first().locator("canvas").waitFor();
+    assert.equal(await plots(page).first().getAttribute("data-series"), "measurement.depth");
+    await page.locator('[data-testid="log-list"] li[data-category="recording"]', { hasText: `showing recording ${name}` }).waitFor();
+    await screenshot(page, "developer-recording-1024x768.png", { fullPage: false });
+
+    // back to live: the buffer starts afresh and fills again
+    await page.locator("#back-to-live").click();
+    await until(() => samples(page), (n) => n > 0 && n < 300, WAIT_MS, "live samples again");
+    assert.equal(await page.locator("#replay").count(), 0);
+    assertNoPageProblems();
+  } finally {
+    await dev.context.close();
+  }
+});

@@ -40,13 +40,51 @@ defmodule Neptunus.E2E.ExternalTest do
     refute output =~ ~r/fail [1-9]/
   end
 
-  test "the developer page in Chromium: plots, reset, remove, CSV, logger categories" do
+  test "the developer page in Chromium: plots, reset, remove, CSV, logger, recordings" do
     unless File.exists?(Path.join(@root, "priv/static/dev.html")),
       do: flunk("priv/static is not built: run `make assets`")
 
-    output = node!(["--test", "--test-reporter=spec", "test/e2e/developer.e2e.mjs"])
-    assert output =~ ~r/pass \d+/
-    refute output =~ ~r/fail [1-9]/
+    # the server records to a scratch directory holding one recording of neptunus-1: 300
+    # samples of a dive to 3 m, ten minutes ago (the developer page lists and replays it)
+    dir =
+      Path.join(
+        System.tmp_dir!(),
+        "neptunus-e2e-recordings-#{System.unique_integer([:positive])}"
+      )
+
+    File.rm_rf!(dir)
+    previous = Application.get_env(:neptunus, :recording)
+    Application.put_env(:neptunus, :recording, %{dir: dir, max_bytes: 1_000_000})
+
+    try do
+      start = System.os_time(:millisecond) - 600_000
+      name = Neptunus.Recording.file_name(DateTime.from_unix!(start, :millisecond), 1)
+      path = Path.join([dir, "neptunus-1", name])
+      File.mkdir_p!(Path.dirname(path))
+      {:ok, log} = :disk_log.open(name: {__MODULE__, :e2e}, file: String.to_charlist(path))
+
+      entries =
+        for i <- 0..299 do
+          {start + i * 50, "telemetry",
+           %{t: i * 0.05, sent_at: start + i * 50, measurement: %{depth: i / 100, heading: 1.0}}}
+        end
+
+      :ok =
+        :disk_log.log_terms(log, entries ++ [{start + 15_000, "stopped", %{reason: "deadman"}}])
+
+      :ok = :disk_log.close(log)
+
+      output =
+        node!(["--test", "--test-reporter=spec", "test/e2e/developer.e2e.mjs"], [
+          {"E2E_RECORDING", name}
+        ])
+
+      assert output =~ ~r/pass \d+/
+      refute output =~ ~r/fail [1-9]/
+    after
+      Application.put_env(:neptunus, :recording, previous)
+      File.rm_rf!(dir)
+    end
   end
 
   test "login, roles and the main station's takeover in Chromium (secure mode)" do

@@ -3,6 +3,7 @@
 import { useEffect, useRef, useState } from "preact/hooks";
 import { CATEGORIES, categoryLabel, clockTime, formatLog } from "../logger/model";
 import { downloadText, fileStamp } from "../lib/download";
+import { formatBytes, recordingUrl } from "../lib/recordings";
 import { useStore } from "../lib/use_store";
 import { Plot } from "../plots/plot";
 import { sortSeries } from "../plots/series";
@@ -33,6 +34,66 @@ function Header({ s }: { s: DevState }): preact.JSX.Element {
   );
 }
 
+function Recordings({ s, c }: { s: DevState; c: DevController }): preact.JSX.Element {
+  const list = s.recordings;
+  const count = list?.recordings.length ?? 0;
+  return (
+    <details class="recordings" id="recordings" data-testid="recordings">
+      <summary>
+        Recordings on the server{list === null ? "" : list.recording ? ` (${count})` : " (recording is off)"}
+      </summary>
+      <div class="toolbar">
+        <button type="button" id="recordings-refresh" data-testid="recordings-refresh" onClick={() => void c.loadRecordings()}>
+          Refresh
+        </button>
+        {s.recordingsError !== null && (
+          <span class="field-status" data-state="error" role="alert">
+            {s.recordingsError}
+          </span>
+        )}
+      </div>
+      {list !== null && list.recording && count === 0 && <p class="note">No recordings of this vehicle yet.</p>}
+      {list !== null && !list.recording && <p class="note">This server does not record (NEPTUNUS_RECORDINGS=off).</p>}
+      {count > 0 && (
+        <ul class="recording-list" data-testid="recording-list">
+          {list?.recordings.map((r) => (
+            <li key={r.name} data-name={r.name}>
+              <span class="recording-name">{r.startedAt !== null ? new Date(r.startedAt).toLocaleString("en-GB") : r.name}</span>
+              <span class="note">
+                {formatBytes(r.bytes)} · last written {new Date(r.modifiedAt).toLocaleTimeString("en-GB")}
+              </span>
+              <a href={recordingUrl(r, "csv", c.tokenForLinks())} download>
+                CSV
+              </a>
+              <button type="button" class="replay" disabled={s.replay?.loading === true} onClick={() => void c.replay(r)}>
+                Show in plots
+              </button>
+            </li>
+          ))}
+        </ul>
+      )}
+    </details>
+  );
+}
+
+function ReplayBar({ s, c }: { s: DevState; c: DevController }): preact.JSX.Element | null {
+  const r = s.replay;
+  if (r === null) return null;
+  const text = r.loading
+    ? `Loading recording ${r.name}…`
+    : r.error !== null
+      ? `Cannot show recording ${r.name}: ${r.error}`
+      : `Showing recording ${r.name}: ${r.samples.toLocaleString("en")} samples, ${r.events} ${r.events === 1 ? "event" : "events"}. Live telemetry is not plotted meanwhile.`;
+  return (
+    <p class="replay-bar" id="replay" data-testid="replay" data-state={r.loading ? "loading" : r.error !== null ? "error" : "shown"} role="status">
+      {text}{" "}
+      <button type="button" id="back-to-live" data-testid="back-to-live" onClick={() => c.live()}>
+        Back to live
+      </button>
+    </p>
+  );
+}
+
 function Plots({ s, c }: { s: DevState; c: DevController }): preact.JSX.Element {
   const all = sortSeries(s.series);
   const seconds = Math.round(c.recorder.capacity / 20);
@@ -57,10 +118,13 @@ function Plots({ s, c }: { s: DevState; c: DevController }): preact.JSX.Element 
           Download CSV
         </button>
         <span class="buffer" id="buffer" data-testid="buffer" data-samples={c.recorder.size}>
-          {s.plots.length}/{MAX_PLOTS} plots · buffer {c.recorder.size.toLocaleString("en")} / {c.recorder.capacity.toLocaleString("en")} samples (≈ {Math.round(seconds / 60)} min at 20 Hz), recording since this page connected
+          {s.plots.length}/{MAX_PLOTS} plots · buffer {c.recorder.size.toLocaleString("en")} / {c.recorder.capacity.toLocaleString("en")} samples (≈ {Math.round(seconds / 60)} min at 20 Hz),{" "}
+          {s.replay === null ? "recording since this page connected" : `from recording ${s.replay.name}`}
           {c.recorder.dropped > 0 ? ` · ${c.recorder.dropped.toLocaleString("en")} oldest dropped` : ""} · {all.length} series
         </span>
       </div>
+      <ReplayBar s={s} c={c} />
+      <Recordings s={s} c={c} />
       {s.plots.length === 0 && <p class="note">No plots: “Add plot” shows one (up to {MAX_PLOTS}); each overlays any series.</p>}
       <div class="plot-list">
         {s.plots.map((p) => (

@@ -8,6 +8,8 @@ import { LogBook, entryFromServerLog, telemetryChanges, telemetryFacts } from ".
 import type { NewEntry, TelemetryFacts } from "../logger/model";
 import { SeriesRecorder } from "../plots/recorder";
 import { flattenNumeric } from "../plots/series";
+import { fetchRecording, fetchRecordings } from "../lib/recordings";
+import type { RecordingInfo, RecordingList } from "../lib/recordings";
 import type { Helm, Telemetry } from "../lib/protocol";
 import { AuthError, TOKEN_KEY, fetchSession, loadToken } from "../lib/session";
 import { Store } from "../lib/store";
@@ -34,6 +36,20 @@ export interface DevState {
   readonly series: readonly string[];
   readonly plots: readonly PlotSpec[];
   readonly message: string;
+  /** the server's recordings of this vehicle (null until listed) */
+  readonly recordings: RecordingList | null;
+  readonly recordingsError: string | null;
+  /** what the plots show: live telemetry, or a recording being loaded / loaded */
+  readonly replay: ReplayState | null;
+}
+
+export interface ReplayState {
+  readonly name: string;
+  readonly loading: boolean;
+  /** telemetry samples loaded, of the recording's (the server thins long ones) */
+  readonly samples: number;
+  readonly events: number;
+  readonly error: string | null;
 }
 
 const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
@@ -66,6 +82,7 @@ export class DevController {
   private lastHelm: Helm | null = null;
   private nextPlotId = 1;
   private starter = 0;
+  private token: string | null = null;
 
   constructor(params: URLSearchParams, capacity?: number) {
     this.params = params;
@@ -80,6 +97,9 @@ export class DevController {
       series: [],
       plots: [],
       message: "",
+      recordings: null,
+      recordingsError: null,
+      replay: null,
     });
   }
 
@@ -117,6 +137,7 @@ export class DevController {
       }
     }
 
+    this.token = token;
     const name = (this.params.get("name") ?? "").trim().slice(0, 40) || "developer";
     const client = new NeptunusClient({ name, ...(token !== null ? { token } : {}) });
     client.socket.onOpen(() => this.store.update({ status: "connected" }));
@@ -125,6 +146,7 @@ export class DevController {
     if (id === null) return;
     this.store.update({ vehicleId: id, message: "" });
     document.title = `Neptunus — developer — ${id}`;
+    void this.loadRecordings();
 
     const vehicle = client.vehicle(id, {
       snapshot: (snapshot) => {
@@ -195,7 +217,8 @@ export class DevController {
   }
 
   private onTelemetry(t: Telemetry): void {
-    this.recorder.add(t.sent_at / 1000, flattenNumeric(t.raw));
+    // while a recording is shown, live samples are not mixed into it
+    if (this.store.get().replay === null) this.recorder.add(t.sent_at / 1000, flattenNumeric(t.raw));
     const facts = telemetryFacts(t);
     for (const e of telemetryChanges(this.facts, facts, t.sent_at)) this.add(e);
     this.facts = facts;
@@ -267,6 +290,56 @@ export class DevController {
 
   setPlotSeries(id: number, series: readonly string[]): void {
     this.store.update((s) => ({ plots: s.plots.map((p) => (p.id === id ? { ...p, series } : p)) }));
+  }
+
+  // Recordings on the server
+
+  /** The token to put in download links (null in local mode or as an anonymous observer). */
+  tokenForLinks(): string | null {
+    return this.token;
+  }
+
+  /** Lists the server's recordings of this vehicle. */
+  async loadRecordings(): Promise<void> {
+    const id = this.store.get().vehicleId;
+    if (id === null) return;
+    try {
+      const recordings = await fetchRecordings(id, this.token);
+      this.store.update({ recordings, recordingsError: null });
+    } catch (err) {
+      this.store.update({ recordingsError: reasonOf(err) });
+    }
+  }
+
+  /**
+   * Shows a recording in the plots instead of live telemetry (the server thins it to the
+   * buffer's capacity); `live()` goes back.
+   */
+  async replay(info: RecordingInfo): Promise<void> {
+    this.store.update({ replay: { name: info.name, loading: true, samples: 0, events: 0, error: null } });
+    try {
+      const recording = await fetchRecording(info, this.token, this.recorder.capacity);
+      if (this.store.get().replay?.name !== info.name) return; // "live" was pressed meanwhile
+      this.recorder.clear();
+      let samples = 0;
+      for (const entry of recording.telemetry) if (this.recorder.add(entry.at / 1000, flattenNumeric(entry.payload))) samples += 1;
+      this.store.update({
+        replay: { name: info.name, loading: false, samples, events: recording.events.length, error: null },
+        dataVersion: this.recorder.version,
+        series: [...this.recorder.series],
+      });
+      const skipped = recording.bad > 0 ? `, ${recording.bad} unreadable lines skipped` : "";
+      this.add({ category: "recording", level: recording.bad > 0 ? "warning" : "info", message: `showing recording ${info.name}: ${samples} samples, ${recording.events.length} events${skipped}` });
+    } catch (err) {
+      this.store.update({ replay: { name: info.name, loading: false, samples: 0, events: 0, error: reasonOf(err) } });
+    }
+  }
+
+  /** Back to live telemetry (the buffer starts afresh). */
+  live(): void {
+    if (this.store.get().replay === null) return;
+    this.recorder.clear();
+    this.store.update({ replay: null, dataVersion: this.recorder.version });
   }
 
   /** Clears the recorded data; the plots stay with their series. */

@@ -24,6 +24,7 @@ export const CATEGORIES: readonly Category[] = [
   { id: "stop", label: "Stop" },
   { id: "safety", label: "Safety" },
   { id: "link", label: "Link" },
+  { id: "recording", label: "Recordings" },
   { id: "error", label: "Errors" },
 ];
 
@@ -60,6 +61,8 @@ const ALIASES: Readonly<Record<string, string>> = {
   safety: "safety",
   link: "link",
   board: "link",
+  recording: "recording",
+  recordings: "recording",
   error: "error",
   errors: "error",
 };

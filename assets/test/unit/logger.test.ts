@@ -32,7 +32,7 @@ function tel(over: Record<string, unknown> = {}): Telemetry {
 const entry = (category: string, message: string, at = 0): NewEntry => ({ at, category, level: "info", message });
 
 describe("categories", () => {
-  it("has the thesis' seven plus safety, link and errors", () => {
+  it("has the thesis' seven plus safety, link, recordings and errors", () => {
     expect(CATEGORIES.map((c) => c.label)).toEqual([
       "Gain change",
       "Thrust command (client)",
@@ -43,6 +43,7 @@ describe("categories", () => {
       "Stop",
       "Safety",
       "Link",
+      "Recordings",
       "Errors",
     ]);
   });
