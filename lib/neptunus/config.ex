@@ -13,6 +13,7 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_VEHICLES` | comma-separated `id=board` pairs         | `neptunus-1=simulated` |
   | `NEPTUNUS_WIRING`   | comma-separated `id=wiring` pairs        | thesis wiring          |
   | `NEPTUNUS_MODELS`   | comma-separated `id=model` pairs         | `neptunus`             |
+  | `NEPTUNUS_CAMERAS`  | comma-separated `id=source` pairs        | none                   |
   | `NEPTUNUS_RECORDINGS` | recordings directory, or `off`         | `recordings`           |
   | `NEPTUNUS_RECORDING_MAX_MB` | one recording file's size (MiB)  | 256                    |
 
@@ -30,6 +31,10 @@ defmodule Neptunus.Config do
   `Neptunus.Dynamics.Params`): what its simulator flies (`simulated` and `sitl` boards, and
   run mode simulator on a real board) and the model of its navigation filter. Example:
   `NEPTUNUS_MODELS=a=thesis-4dof`.
+
+  Camera (see `Neptunus.Camera.Source`): `v4l2:DEVICE[@WxH][@FPS]` (a webcam through ffmpeg,
+  its own MJPEG), `testsrc[@WxH][@FPS]` (ffmpeg's test pattern) or `exec:PROGRAM [ARGS]` (any
+  program writing MJPEG to its output). Example: `NEPTUNUS_CAMERAS=rov=v4l2:/dev/video0@1280x720@30`.
 
   Security (`auth!/2`, `tls!/1`) and helm timing (`helm!/1`):
 
@@ -63,7 +68,8 @@ defmodule Neptunus.Config do
               required(:id) => String.t(),
               required(:board) => :sitl,
               required(:wiring) => Neptunus.Wiring.t(),
-              optional(:sim) => keyword()
+              optional(:sim) => keyword(),
+              optional(:camera) => Neptunus.Camera.Source.t()
             }
           | %{
               required(:id) => String.t(),
@@ -71,7 +77,8 @@ defmodule Neptunus.Config do
               required(:device) => String.t(),
               required(:baud) => pos_integer(),
               required(:wiring) => Neptunus.Wiring.t(),
-              optional(:sim) => keyword()
+              optional(:sim) => keyword(),
+              optional(:camera) => Neptunus.Camera.Source.t()
             }
 
   @default_vehicles "neptunus-1=simulated"
@@ -126,6 +133,7 @@ defmodule Neptunus.Config do
         vehicles
         |> wiring!(Map.get(env, "NEPTUNUS_WIRING", ""))
         |> models!(Map.get(env, "NEPTUNUS_MODELS", ""))
+        |> cameras!(Map.get(env, "NEPTUNUS_CAMERAS", ""))
 
       [dup | _] ->
         bad!("NEPTUNUS_VEHICLES", spec, "unique vehicle ids (#{inspect(dup)} repeats)")
@@ -184,6 +192,25 @@ defmodule Neptunus.Config do
     Enum.map(vehicles, fn %{id: id} = vehicle ->
       case Map.fetch(configured, id) do
         {:ok, name} -> Map.put(vehicle, :sim, vehicle: name)
+        :error -> vehicle
+      end
+    end)
+  end
+
+  # A vehicle's camera source (Neptunus.Camera.Source).
+  defp cameras!(vehicles, spec) do
+    configured =
+      pairs!("NEPTUNUS_CAMERAS", spec, vehicles, "id=source pairs, e.g. rov=v4l2:/dev/video0")
+      |> Map.new(fn {%{id: id}, pair, text} ->
+        case Neptunus.Camera.Source.parse(text) do
+          {:ok, source} -> {id, source}
+          {:error, reason} -> bad!("NEPTUNUS_CAMERAS", spec, "#{reason} in #{inspect(pair)}")
+        end
+      end)
+
+    Enum.map(vehicles, fn %{id: id} = vehicle ->
+      case Map.fetch(configured, id) do
+        {:ok, source} -> Map.put(vehicle, :camera, source)
         :error -> vehicle
       end
     end)

@@ -109,15 +109,25 @@ defmodule NeptunusWeb.API do
     _ -> %{}
   end
 
-  # Recordings are for anyone who may watch: local mode, a valid token, or anonymous
-  # observers when they are allowed.
   defp authorized(arg, fun) do
+    case may_watch(arg) do
+      :ok -> fun.(arg)
+      {:error, reason} -> {401, %{error: reason}}
+    end
+  end
+
+  @doc """
+  Whether the request may see what observers see (recordings, the camera): local mode, a
+  valid token (`Authorization: Bearer …` or `?token=`), or anonymous observers allowed.
+  """
+  @spec may_watch(tuple()) :: :ok | {:error, String.t()}
+  def may_watch(arg) do
     case Auth.session(token(arg)) do
-      {:ok, %{mode: "local"}} -> fun.(arg)
-      {:ok, %{user: %{}}} -> fun.(arg)
-      {:ok, %{anonymous_observers: true}} -> fun.(arg)
-      {:ok, _} -> {401, %{error: "log in to see recordings"}}
-      {:error, %{error: reason}} -> {401, %{error: reason}}
+      {:ok, %{mode: "local"}} -> :ok
+      {:ok, %{user: %{}}} -> :ok
+      {:ok, %{anonymous_observers: true}} -> :ok
+      {:ok, _} -> {:error, "log in to see recordings and the camera"}
+      {:error, %{error: reason}} -> {:error, reason}
     end
   end
 
@@ -161,6 +171,8 @@ defmodule NeptunusWeb.API do
     end
   end
 
+  defp recording(_arg, _parts), do: {404, %{error: "no such recording"}}
+
   defp max_rows(nil), do: {:ok, nil}
 
   defp max_rows(text) do
@@ -171,8 +183,6 @@ defmodule NeptunusWeb.API do
   end
 
   defp ceil_div(a, b), do: max(1, div(a + b - 1, b))
-
-  defp recording(_arg, _parts), do: {404, %{error: "no such recording"}}
 
   defp format(format) when format in ["csv", "jsonl"], do: {:ok, format}
   defp format(other), do: {400, %{error: "format must be csv or jsonl, got #{inspect(other)}"}}
@@ -221,10 +231,12 @@ defmodule NeptunusWeb.API do
   defp text(:undefined), do: nil
   defp text(value), do: to_string(value)
 
-  defp respond([{:status, _} | _] = response), do: response
-  defp respond({status, body}), do: respond({status, body, []})
+  def respond([{:status, _} | _] = response), do: response
+  @doc false
+  # a JSON error or answer as yaws' out/1 result (also for NeptunusWeb.CameraStream)
+  def respond({status, body}), do: respond({status, body, []})
 
-  defp respond({status, body, headers}) do
+  def respond({status, body, headers}) do
     [
       {:status, status},
       {:header, {:cache_control, ~c"no-store"}}

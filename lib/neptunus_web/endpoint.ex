@@ -4,7 +4,8 @@ defmodule NeptunusWeb.Endpoint do
 
     * `priv/static` (the operator page and its assets) at `/`,
     * the HTTP API (`NeptunusWeb.API`) under `/api`,
-    * the Phoenix Channels v2 WebSocket (`NeptunusWeb.Socket`) at `/socket/websocket`.
+    * the Phoenix Channels v2 WebSocket (`NeptunusWeb.Socket`) at `/socket/websocket`,
+    * the vehicles' cameras (`NeptunusWeb.CameraStream`) at `/camera/<id>.mjpg`.
 
   It starts last in the application and so stops first. Options come from
   `config :neptunus, :endpoint` (`%{port, bind, tls}`, validated by `Neptunus.Config`):
@@ -56,7 +57,11 @@ defmodule NeptunusWeb.Endpoint do
       listen: bind,
       servername: ~c"neptunus",
       docroot: docroot,
-      appmods: [{~c"/api", NeptunusWeb.API}, {~c"/socket", NeptunusWeb.Socket}],
+      appmods: [
+        {~c"/api", NeptunusWeb.API},
+        {~c"/socket", NeptunusWeb.Socket},
+        {~c"/camera", NeptunusWeb.CameraStream}
+      ],
       flags: [access_log: false, auth_log: false],
       # Accepted sockets inherit these. Without nodelay, Nagle holds each small reply until
       # the client's delayed ACK (~40 ms): measured reply p90 43 ms → 1.4 ms with it.

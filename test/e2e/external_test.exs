@@ -35,9 +35,26 @@ defmodule Neptunus.E2E.ExternalTest do
     unless File.exists?(Path.join(@root, "priv/static/index.html")),
       do: flunk("priv/static is not built: run `make assets`")
 
-    output = node!(["--test", "--test-reporter=spec", "test/e2e/operator.e2e.mjs"])
-    assert output =~ ~r/pass \d+/
-    refute output =~ ~r/fail [1-9]/
+    # a second vehicle whose camera is the fake camera program (two JPEG images in turn)
+    # (named to sort after neptunus-1: pages without ?vehicle= open the first vehicle)
+    camera_vehicle = "z-e2e-cam-#{System.unique_integer([:positive])}"
+    script = Path.join(@root, "test/fixtures/camera/fake_camera.sh")
+    camera = %{kind: :exec, program: "/bin/sh", args: [script, "0"]}
+
+    {:ok, _} =
+      Neptunus.Fleet.start_vehicle(%{id: camera_vehicle, board: :simulated, camera: camera})
+
+    try do
+      output =
+        node!(["--test", "--test-reporter=spec", "test/e2e/operator.e2e.mjs"], [
+          {"E2E_CAMERA_VEHICLE", camera_vehicle}
+        ])
+
+      assert output =~ ~r/pass \d+/
+      refute output =~ ~r/fail [1-9]/
+    after
+      Neptunus.Fleet.stop_vehicle(camera_vehicle)
+    end
   end
 
   test "the developer page in Chromium: plots, reset, remove, CSV, logger, recordings" do

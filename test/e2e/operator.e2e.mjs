@@ -11,6 +11,7 @@
 import assert from "node:assert/strict";
 import { after, before, test } from "node:test";
 import {
+  BASE,
   DESKTOP,
   TABLET,
   TEST_MS,
@@ -376,5 +377,33 @@ test("settings: values go to the server and its reason is shown in the form; cam
     assertNoPageProblems();
   } finally {
     await context.close();
+  }
+});
+
+test("camera: the vehicle's MJPEG stream fills the camera area; a vehicle without one says so", { timeout: TEST_MS }, async () => {
+  const id = process.env.E2E_CAMERA_VEHICLE;
+  assert.ok(id, "E2E_CAMERA_VEHICLE names a vehicle with a camera (set by external_test.exs)");
+  const viewer = await open(browser, { ...TABLET, name: "e2e-cam", path: `/?vehicle=${encodeURIComponent(id)}&name=e2e-cam` });
+  try {
+    const { page } = viewer;
+    await page.locator('[data-testid="camera"][data-camera="on"] img.feed').waitFor();
+    // frames decode: the fixture images are 160×120
+    await until(
+      () => page.locator("img.feed").evaluate((img) => img.naturalWidth),
+      (w) => w === 160,
+      WAIT_MS,
+      "a decoded camera frame",
+    );
+    assert.match(await page.locator("img.feed").getAttribute("src"), new RegExp(`^/camera/${id}\\.mjpg`));
+    const box = await page.locator("img.feed").boundingBox();
+    const area = await page.locator('[data-testid="camera"]').boundingBox();
+    assert.ok(box && area && box.width >= area.width - 2, "the image does not fill the camera area's width");
+    await screenshot(page, "operator-camera-1024x768.png", { fullPage: false });
+
+    await page.goto(`${BASE}/?vehicle=neptunus-1&name=e2e-cam`);
+    await page.locator('[data-testid="no-camera"]').waitFor();
+    assertNoPageProblems();
+  } finally {
+    await viewer.context.close();
   }
 });

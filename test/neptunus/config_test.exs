@@ -167,4 +167,34 @@ defmodule Neptunus.ConfigTest do
       end
     end
   end
+
+  describe "vehicles!/1 cameras (NEPTUNUS_CAMERAS)" do
+    test "parses each vehicle's camera source" do
+      env = %{
+        "NEPTUNUS_VEHICLES" => "a=simulated,b=uart:/dev/ttyO1",
+        "NEPTUNUS_CAMERAS" => "b=v4l2:/dev/video0@1280x720@30, a=testsrc"
+      }
+
+      assert [a, b] = Config.vehicles!(env)
+      assert a.camera == %{kind: :testsrc, width: 640, height: 480, fps: 15}
+      assert b.camera == %{kind: :v4l2, device: "/dev/video0", width: 1280, height: 720, fps: 30}
+      refute Map.has_key?(hd(Config.vehicles!(%{"NEPTUNUS_VEHICLES" => "a=simulated"})), :camera)
+    end
+
+    for {cameras, message} <- [
+          {"a=webcam", ~r/NEPTUNUS_CAMERAS=.*a camera source: v4l2:DEVICE.* in "a=webcam"/},
+          {"a=v4l2:/dev/video0@99", ~r/frame rate is 1..60/},
+          {"z=testsrc", ~r/no vehicle "z"/},
+          {"a", ~r/id=source pairs/}
+        ] do
+      test "refuses #{inspect(cameras)}" do
+        assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
+          Config.vehicles!(%{
+            "NEPTUNUS_VEHICLES" => "a=simulated",
+            "NEPTUNUS_CAMERAS" => unquote(cameras)
+          })
+        end
+      end
+    end
+  end
 end

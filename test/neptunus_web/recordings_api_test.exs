@@ -138,7 +138,7 @@ defmodule NeptunusWeb.RecordingsAPITest do
     })
 
     {401, _, body} = get("/api/recordings")
-    assert json(body)["error"] =~ "log in"
+    assert json(body)["error"] =~ "log in to see recordings"
     {401, _, _} = get("/api/recordings/#{id}/#{name}?token=forged")
 
     token = Token.sign("olga", @secret, System.os_time(:second), 600)

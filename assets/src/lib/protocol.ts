@@ -134,6 +134,17 @@ export interface CameraInfo {
   readonly url: string;
 }
 
+/**
+ * The camera address an `<img>` can load: our own server's stream (a path) needs the login
+ * token in the query, since an image request carries no Authorization header. Other sites'
+ * addresses are left alone (the token is never sent elsewhere).
+ */
+export function cameraWithToken(camera: CameraInfo | null, token: string | null): CameraInfo | null {
+  if (camera === null || token === null || !camera.url.startsWith("/") || camera.url.startsWith("//")) return camera;
+  const separator = camera.url.includes("?") ? "&" : "?";
+  return { url: `${camera.url}${separator}token=${encodeURIComponent(token)}` };
+}
+
 export interface Telemetry {
   /** s, vehicle monotonic clock */
   readonly t: number;

@@ -43,6 +43,7 @@ import {
   saveRotation,
 } from "../lib/prefs";
 import type { Rotation } from "../lib/prefs";
+import { cameraWithToken } from "../lib/protocol";
 import type {
   AuthMode,
   CameraInfo,
@@ -357,7 +358,7 @@ export class OperatorController {
         this.helm.reset(snapshot.helm, snapshot.session, performance.now());
         this.store.update({
           pilotName: snapshot.pilot?.name ?? null,
-          camera: snapshot.camera,
+          camera: cameraWithToken(snapshot.camera, this.token),
           control: snapshot.control,
           sent: null,
         });

@@ -1,5 +1,6 @@
 import { describe, expect, it } from "vitest";
 import {
+  cameraWithToken,
   decodeCamera,
   decodeControlReply,
   decodeControlSettings,
@@ -321,5 +322,16 @@ describe("barGeometry", () => {
     expect(barGeometry(1)).toEqual({ left: 50, width: 50, reverse: false });
     expect(barGeometry(-0.5)).toEqual({ left: 25, width: 25, reverse: true });
     expect(barGeometry(-3)).toEqual({ left: 0, width: 50, reverse: true });
+  });
+});
+
+describe("camera address for an <img>", () => {
+  it("adds the token to our own server's stream only", () => {
+    expect(cameraWithToken({ url: "/camera/rov.mjpg" }, "v1.a+b")).toEqual({ url: "/camera/rov.mjpg?token=v1.a%2Bb" });
+    expect(cameraWithToken({ url: "/camera/rov.mjpg?x=1" }, "t")).toEqual({ url: "/camera/rov.mjpg?x=1&token=t" });
+    expect(cameraWithToken({ url: "/camera/rov.mjpg" }, null)).toEqual({ url: "/camera/rov.mjpg" });
+    expect(cameraWithToken({ url: "http://cam.example/video.mjpg" }, "t")).toEqual({ url: "http://cam.example/video.mjpg" });
+    expect(cameraWithToken({ url: "//cam.example/video.mjpg" }, "t")).toEqual({ url: "//cam.example/video.mjpg" });
+    expect(cameraWithToken(null, "t")).toBeNull();
   });
 });

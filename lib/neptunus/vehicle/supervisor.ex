@@ -10,8 +10,11 @@ defmodule Neptunus.Vehicle.Supervisor do
     4. `Neptunus.Vehicle.Control` (commands → allocation → board; neutral on start),
     5. `Neptunus.Vehicle.Helm` (who is in control; authorises every command, deadman;
        neutral on start),
-    6. `Neptunus.Vehicle.Recorder` (everything on the vehicle's topic to disk; last, so its
-       failures restart nothing else).
+    6. `Neptunus.Vehicle.Recorder` (everything on the vehicle's topic to disk),
+    7. `Neptunus.Vehicle.Camera` (the camera program and its frames).
+
+  The recorder and the camera come last, so their failures restart nothing that moves
+  the vehicle.
 
   A crash restarts the crashed process and everything after it, so every crash ends with the
   thrusters neutral: a crash of the board, navigation, telemetry or control restarts Control
@@ -22,7 +25,7 @@ defmodule Neptunus.Vehicle.Supervisor do
   """
   use Supervisor
 
-  alias Neptunus.Vehicle.{Board, Control, Helm, Navigation, Recorder, Telemetry}
+  alias Neptunus.Vehicle.{Board, Camera, Control, Helm, Navigation, Recorder, Telemetry}
 
   @spec start_link(Neptunus.Config.vehicle()) :: Supervisor.on_start()
   def start_link(%{id: id, board: board} = vehicle) do
@@ -45,7 +48,8 @@ defmodule Neptunus.Vehicle.Supervisor do
       {Telemetry, opts},
       {Control, opts},
       {Helm, opts},
-      {Recorder, opts}
+      {Recorder, opts},
+      {Camera, opts}
     ]
 
     Supervisor.init(children, strategy: :rest_for_one, max_restarts: 10, max_seconds: 10)

@@ -5,7 +5,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `Neptunus.Vehicle.Helm` (which checks that the sender is the pilot and carries the
   command out) and relays the answers. Payloads and error reasons: `docs/API.md`.
 
-  Join reply (state snapshot): `%{vehicle, telemetry, helm, pilot, control, session}`,
+  Join reply (state snapshot): `%{vehicle, telemetry, helm, pilot, control, camera, session}`
+  (`camera`: `%{url}` of the MJPEG stream, or nil),
   followed by `presence_state`. Joining never depends on control: observers join like
   pilots, and being refused control is an event, never a closed channel.
 
@@ -143,6 +144,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
       helm: helm,
       pilot: helm.pilot && %{name: helm.pilot.name},
       control: Control.status(id),
+      camera: camera(id),
       session: %{
         id: socket.user.id,
         name: socket.user.name,
@@ -150,6 +152,13 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
         mode: Atom.to_string(Auth.mode())
       }
     }
+  end
+
+  defp camera(id) do
+    case Neptunus.Vehicle.Camera.url(id) do
+      nil -> nil
+      url -> %{url: url}
+    end
   end
 
   # This connection as the helm sees it; the helm's targeted events come back to this

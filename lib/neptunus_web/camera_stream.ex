@@ -1,0 +1,107 @@
+defmodule NeptunusWeb.CameraStream do
+  @moduledoc """
+  `GET /camera/<id>.mjpg` (a yaws appmod): the vehicle's camera as a
+  `multipart/x-mixed-replace` Motion JPEG stream, which browsers show in an `<img>`. Who may
+  watch the vehicle may watch its camera (`NeptunusWeb.API.may_watch/1`: the token in
+  `?token=` for an `<img>`).
+
+  Each viewer is one streaming process: it sends the newest frame at once, then every new
+  one. A viewer that cannot keep up gets the newest frame, not a queue: frames that arrived
+  while it was writing are dropped for it alone. It ends when the client goes away.
+  """
+  import NeptunusWeb.Yaws
+
+  alias Neptunus.PubSub
+  alias Neptunus.Camera.MJPEG
+  alias Neptunus.Vehicle.Camera
+  alias NeptunusWeb.API
+
+  @doc false
+  def out(arg) do
+    path = arg(arg, :server_path) |> to_string()
+
+    with {:ok, id} <- vehicle(path),
+         :ok <- allowed(arg),
+         true <- Camera.configured?(id) || {404, %{error: "vehicle #{id} has no camera"}} do
+      socket = arg(arg, :clisock)
+      pid = spawn(fn -> start(id, socket) end)
+      {:streamcontent_from_pid, String.to_charlist(MJPEG.content_type()), pid}
+    else
+      {status, body} -> API.respond({status, body})
+    end
+  end
+
+  defp vehicle("/camera/" <> file) do
+    case String.split(file, ".") do
+      [id, "mjpg"] when id != "" -> {:ok, URI.decode(id)}
+      _ -> {404, %{error: "no such camera: use /camera/<vehicle id>.mjpg"}}
+    end
+  end
+
+  defp vehicle(_path), do: {404, %{error: "no such camera: use /camera/<vehicle id>.mjpg"}}
+
+  defp allowed(arg) do
+    case API.may_watch(arg) do
+      :ok -> :ok
+      {:error, reason} -> {401, %{error: reason}}
+    end
+  end
+
+  # yaws hands the socket over with {ok, YawsPid} (or {discard, YawsPid} for HEAD)
+  defp start(id, socket) do
+    receive do
+      {:ok, yaws} ->
+        PubSub.subscribe(Camera.topic(id))
+        ref = Process.monitor(yaws)
+
+        case Camera.latest(id) do
+          nil ->
+            stream(socket, yaws, ref)
+
+          frame ->
+            if send_frame(socket, frame) == :ok,
+              do: stream(socket, yaws, ref),
+              else: done(socket, yaws)
+        end
+
+      {:discard, yaws} ->
+        :yaws_api.stream_process_end(socket, yaws)
+    after
+      10_000 -> :ok
+    end
+  end
+
+  defp stream(socket, yaws, ref) do
+    receive do
+      {:pubsub, _topic, "frame", %{jpeg: frame}} ->
+        frame = newest(frame)
+
+        case send_frame(socket, frame) do
+          :ok -> stream(socket, yaws, ref)
+          {:error, _} -> done(socket, yaws)
+        end
+
+      {:DOWN, ^ref, :process, _, _} ->
+        :ok
+    end
+  end
+
+  # the newest of the frames waiting in the mailbox
+  defp newest(frame) do
+    receive do
+      {:pubsub, _topic, "frame", %{jpeg: newer}} -> newest(newer)
+    after
+      0 -> frame
+    end
+  end
+
+  # HTTP/1.1 without a length: yaws announced chunked transfer encoding, one chunk per frame
+  defp send_frame(socket, frame) do
+    case :yaws_api.stream_process_deliver_chunk(socket, MJPEG.part(frame)) do
+      :ok -> :ok
+      {:error, reason} -> {:error, reason}
+    end
+  end
+
+  defp done(_socket, yaws), do: :yaws_api.stream_process_end(:closed, yaws)
+end

@@ -1,0 +1,91 @@
+defmodule Neptunus.Vehicle.CameraTest do
+  use ExUnit.Case, async: true
+
+  alias Neptunus.PubSub
+  alias Neptunus.Vehicle.{Camera, Control}
+
+  @moduletag :capture_log
+
+  @script Path.expand("../../fixtures/camera/fake_camera.sh", __DIR__)
+  @frame1 File.read!("test/fixtures/camera/frame1.jpg")
+  @frame2 File.read!("test/fixtures/camera/frame2.jpg")
+
+  defp start!(source) do
+    id = "cam-#{System.unique_integer([:positive])}"
+    PubSub.subscribe(Camera.topic(id))
+    PubSub.subscribe(Control.log_topic(id))
+    start_supervised!({Camera, id: id, camera: source})
+    id
+  end
+
+  defp fake(count), do: %{kind: :exec, program: "/bin/sh", args: [@script, "#{count}"]}
+
+  test "frames from the camera program reach subscribers whole, in order" do
+    id = start!(fake(0))
+    assert_receive {:pubsub, _, "frame", %{jpeg: first}}, 2_000
+    assert first in [@frame1, @frame2]
+    assert_receive {:pubsub, _, "frame", %{jpeg: second}}, 1_000
+    assert Enum.sort([first, second]) == Enum.sort([@frame1, @frame2])
+
+    assert Camera.latest(id) in [@frame1, @frame2]
+
+    assert %{configured: true, running: true, error: nil, skipped: 0, frames: n} =
+             Camera.status(id)
+
+    assert n >= 2
+    assert Camera.url(id) == "/camera/#{id}.mjpg"
+  end
+
+  test "when the program exits the camera says why and starts it again" do
+    id = start!(fake(1))
+    assert_receive {:pubsub, _, "frame", _}, 2_000
+
+    assert_receive {:pubsub, _, "log",
+                    %{category: "errors", message: "camera: the camera program exited (status 0)"}},
+                   2_000
+
+    assert %{running: false, error: "the camera program exited (status 0)"} = Camera.status(id)
+    # restarted after 1 s: frames again
+    flush_frames()
+    assert_receive {:pubsub, _, "frame", _}, 3_000
+    assert %{running: true, restarts: 1} = Camera.status(id)
+  end
+
+  test "a missing program is reported, never a crash" do
+    id = start!(%{kind: :exec, program: "/nonexistent/camera", args: []})
+
+    assert_receive {:pubsub, _, "log",
+                    %{message: "camera: camera program /nonexistent/camera not found"}},
+                   1_000
+
+    assert %{running: false, configured: true} = Camera.status(id)
+  end
+
+  test "no camera configured: idle, no url" do
+    id = start!(nil)
+    assert %{configured: false, running: false} = Camera.status(id)
+    assert Camera.url(id) == nil
+    assert Camera.latest(id) == nil
+    assert Camera.url("no-such-vehicle") == nil
+  end
+
+  test "stopping the camera stops its program" do
+    id = start!(fake(0))
+    assert_receive {:pubsub, _, "frame", _}, 2_000
+    {:os_pid, os_pid} = Port.info(:sys.get_state(Neptunus.Fleet.via(Camera, id)).port, :os_pid)
+    stop_supervised!(Camera)
+    # the shell gets EOF/SIGPIPE on its next write and exits
+    assert Enum.any?(1..50, fn _ ->
+             Process.sleep(20)
+             not File.exists?("/proc/#{os_pid}")
+           end)
+  end
+
+  defp flush_frames do
+    receive do
+      {:pubsub, _, "frame", _} -> flush_frames()
+    after
+      0 -> :ok
+    end
+  end
+end

@@ -1,0 +1,169 @@
+defmodule NeptunusWeb.CameraStreamTest do
+  # /camera/<id>.mjpg against the running endpoint, for a vehicle whose camera is the fake
+  # camera program (test/fixtures/camera/fake_camera.sh).
+  use ExUnit.Case, async: false
+
+  import NeptunusWeb.Test.Wire
+
+  alias NeptunusWeb.Auth.Token
+
+  @moduletag :capture_log
+  @script Path.expand("../fixtures/camera/fake_camera.sh", __DIR__)
+  @frames [
+    File.read!("test/fixtures/camera/frame1.jpg"),
+    File.read!("test/fixtures/camera/frame2.jpg")
+  ]
+  @secret "camera-test-secret-" <> String.duplicate("z", 20)
+
+  setup do
+    auth = Application.get_env(:neptunus, :auth)
+    on_exit(fn -> Application.put_env(:neptunus, :auth, auth) end)
+    id = "camv-#{System.unique_integer([:positive])}"
+    camera = %{kind: :exec, program: "/bin/sh", args: [@script, "0"]}
+    {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated, camera: camera})
+    on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
+    {:ok, id: id}
+  end
+
+  # a raw HTTP/1.1 GET: status line and headers, and the socket to read the body from
+  defp open(path) do
+    {:ok, socket} =
+      :gen_tcp.connect(~c"127.0.0.1", port(), [:binary, active: false, packet: :raw])
+
+    :ok = :gen_tcp.send(socket, "GET #{path} HTTP/1.1\r\nHost: 127.0.0.1:#{port()}\r\n\r\n")
+    {head, body} = read_head(socket, <<>>)
+    [status_line | header_lines] = String.split(head, "\r\n")
+    [_, status | _] = String.split(status_line, " ")
+
+    headers =
+      Map.new(header_lines, fn line ->
+        [k, v] = String.split(line, ":", parts: 2)
+        {String.downcase(k), String.trim(v)}
+      end)
+
+    {String.to_integer(status), headers, body, socket}
+  end
+
+  defp read_head(socket, acc) do
+    case :binary.split(acc, "\r\n\r\n") do
+      [head, rest] ->
+        {head, rest}
+
+      [_] ->
+        {:ok, data} = :gen_tcp.recv(socket, 0, 5_000)
+        read_head(socket, acc <> data)
+    end
+  end
+
+  # The body, de-chunked (Transfer-Encoding: chunked): {data, undecoded rest}
+  defp dechunk(raw, acc \\ <<>>) do
+    case :binary.split(raw, "\r\n") do
+      [size_line, rest] ->
+        {size, ""} = Integer.parse(size_line, 16)
+
+        if byte_size(rest) >= size + 2 do
+          <<chunk::binary-size(size), "\r\n", more::binary>> = rest
+          dechunk(more, acc <> chunk)
+        else
+          {acc, raw}
+        end
+
+      [_] ->
+        {acc, raw}
+    end
+  end
+
+  # the next multipart part's JPEG from the de-chunked body: {frame, {data, raw}}
+  defp next_part(socket, {data, raw}) do
+    case Regex.run(
+           ~r/\A--neptunusframe\r\nContent-Type: image\/jpeg\r\nContent-Length: (\d+)\r\n\r\n/,
+           data,
+           return: :index
+         ) do
+      [{0, len}, {ls, ll}] ->
+        size = data |> binary_part(ls, ll) |> String.to_integer()
+
+        if byte_size(data) >= len + size + 2 do
+          <<_::binary-size(len), frame::binary-size(size), "\r\n", rest::binary>> = data
+          {frame, {rest, raw}}
+        else
+          more(socket, {data, raw})
+        end
+
+      nil ->
+        assert byte_size(data) < 80,
+               "not a part: #{inspect(binary_part(data, 0, min(80, byte_size(data))))}"
+
+        more(socket, {data, raw})
+    end
+  end
+
+  defp more(socket, {data, raw}) do
+    {:ok, bytes} = :gen_tcp.recv(socket, 0, 5_000)
+    {new, raw} = dechunk(raw <> bytes)
+    next_part(socket, {data <> new, raw})
+  end
+
+  defp stream_start(headers, body) do
+    assert headers["transfer-encoding"] == "chunked"
+    dechunk(body)
+  end
+
+  test "streams the camera's frames as multipart JPEG, several viewers at once", %{id: id} do
+    {200, headers, body, socket} = open("/camera/#{id}.mjpg")
+    assert headers["content-type"] == "multipart/x-mixed-replace; boundary=neptunusframe"
+    {200, headers2, body2, socket2} = open("/camera/#{id}.mjpg")
+
+    {frames, _} =
+      Enum.map_reduce(1..6, stream_start(headers, body), fn _, buffer ->
+        next_part(socket, buffer)
+      end)
+
+    assert Enum.all?(frames, &(&1 in @frames))
+    assert Enum.uniq(frames) |> length() == 2
+    {frame, _} = next_part(socket2, stream_start(headers2, body2))
+    assert frame in @frames
+
+    :gen_tcp.close(socket)
+    :gen_tcp.close(socket2)
+  end
+
+  test "the snapshot gives the camera's address; a vehicle without camera has none", %{id: id} do
+    %{snapshot: snapshot} = client!("vehicle:" <> id, %{"name" => "cam-viewer"})
+    assert snapshot["camera"] == %{"url" => "/camera/#{id}.mjpg"}
+
+    other = start_vehicle!("nocam")
+    %{snapshot: snapshot} = client!(other.topic, %{"name" => "cam-viewer"})
+    assert snapshot["camera"] == nil
+    {404, _, body, _} = open("/camera/#{other.id}.mjpg")
+    assert body =~ "has no camera"
+  end
+
+  test "wrong addresses are 404 with a reason" do
+    for path <- ["/camera/", "/camera/x", "/camera/x.jpg", "/camera/nope.mjpg"] do
+      {404, _, body, socket} = open(path)
+      :gen_tcp.close(socket)
+      assert body =~ "camera", "#{path}: #{body}"
+    end
+  end
+
+  test "secure mode: the token in the query opens the stream", %{id: id} do
+    Application.put_env(:neptunus, :auth, %{
+      mode: :secure,
+      secret: @secret,
+      users: %{"olga" => %{name: "olga", role: :observer, hash: "unused"}},
+      anonymous_observers: false,
+      origins: [],
+      token_ttl_s: 600,
+      login_attempts_per_minute: 10
+    })
+
+    {401, _, body, _} = open("/camera/#{id}.mjpg")
+    assert body =~ "log in"
+    token = Token.sign("olga", @secret, System.os_time(:second), 600)
+    {200, headers, body, socket} = open("/camera/#{id}.mjpg?token=#{URI.encode_www_form(token)}")
+    {frame, _} = next_part(socket, stream_start(headers, body))
+    assert frame in @frames
+    :gen_tcp.close(socket)
+  end
+end
