@@ -9,7 +9,7 @@ APT_PACKAGES := elixir erlang-dev erlang-src erlang-yaws erlang-jiffy erlang-pro
 YAWS_DIR := $(firstword $(wildcard /usr/lib/yaws-*))
 ASSETS_STAMP := assets/node_modules/.package-lock.json
 
-.PHONY: help setup setup-apt setup-links setup-npm assets compile run test bench clean
+.PHONY: help setup setup-apt setup-links setup-npm assets compile run test bench release clean
 
 help:
 	@echo "make run    - install what is missing, build, start the server (http://127.0.0.1:4000)"
@@ -17,6 +17,7 @@ help:
 	@echo "make setup  - install Debian and npm dependencies (idempotent)"
 	@echo "make assets - build the browser code into priv/static"
 	@echo "make bench  - benchmarks (figures, not assertions)"
+	@echo "make release - the deployable node in _build/prod/rel/neptunus (see rel/neptunus.service)"
 	@echo "make clean  - remove build output"
 
 setup: setup-apt setup-links setup-npm
@@ -74,6 +75,11 @@ bench: setup assets
 	bench/fanout
 	bench/protocol_fuzz
 	bench/control_latency
+
+# Build it on the machine it runs on (the BeagleBone's Debian): the release carries that
+# machine's Erlang runtime and our C programs compiled for it.
+release: setup assets
+	MIX_ENV=prod mix release --overwrite
 
 clean:
 	rm -rf _build priv/static test/e2e/artifacts
