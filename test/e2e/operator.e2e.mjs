@@ -22,6 +22,7 @@ import {
   launch,
   num,
   open,
+  pageProblems,
   screenshot,
   takeHelm,
   thrusterValues,
@@ -399,6 +400,23 @@ test("camera: the vehicle's MJPEG stream fills the camera area; a vehicle withou
     const area = await page.locator('[data-testid="camera"]').boundingBox();
     assert.ok(box && area && box.width >= area.width - 2, "the image does not fill the camera area's width");
     await screenshot(page, "operator-camera-1024x768.png", { fullPage: false });
+
+    // a broken stream is said over the image and asked for again until it is back
+    await page.route("**/camera/**", (route) => route.abort());
+    await page.reload();
+    await page.locator('[data-testid="camera-lost"]').waitFor();
+    await page.unroute("**/camera/**");
+    await until(
+      () => page.locator("img.feed").evaluate((img) => img.naturalWidth),
+      (w) => w === 160,
+      WAIT_MS,
+      "the camera back after a retry",
+    );
+    await page.locator('[data-testid="camera-lost"]').waitFor({ state: "detached" });
+    assert.match(await page.locator("img.feed").getAttribute("src"), /retry=\d+/);
+    // the aborted requests were ours: the browser logged them as failed loads, nothing else
+    const expected = pageProblems.splice(0);
+    assert.ok(expected.every((p) => p.includes("Failed to load resource")), `unexpected: ${expected}`);
 
     await page.goto(`${BASE}/?vehicle=neptunus-1&name=e2e-cam`);
     await page.locator('[data-testid="no-camera"]').waitFor();

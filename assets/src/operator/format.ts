@@ -20,6 +20,17 @@ export function fmt(value: number | null | undefined, decimals: number, signed =
 }
 
 /** Video files play in <video>; anything else (MJPEG streams, snapshots) in <img>. */
+/** How long a broken camera stream waits before it is asked for again. */
+export const CAMERA_RETRY_MS = 3000;
+
+/** The feed's address for the n-th attempt (a fresh request; the first is the address itself). */
+export function retryUrl(url: string, attempt: number): string {
+  if (attempt <= 0) return url;
+  const [path, hash] = url.split("#", 2) as [string, string | undefined];
+  const separator = path.includes("?") ? "&" : "?";
+  return `${path}${separator}retry=${attempt}${hash !== undefined ? `#${hash}` : ""}`;
+}
+
 export function cameraElement(url: string): "video" | "img" {
   return /\.(mp4|webm|ogv|m3u8)(\?|#|$)/i.test(url) ? "video" : "img";
 }

@@ -4,13 +4,14 @@
  */
 
 import type { ComponentChildren } from "preact";
+import { useEffect, useState } from "preact/hooks";
 import { bugPosition, compassTicks } from "../lib/compass";
 import { formatMs } from "../lib/latency";
 import type { Rotation } from "../lib/prefs";
 import type { CameraInfo } from "../lib/protocol";
 import { formatHeading, headingDeg, radToDeg } from "../lib/units";
 import type { OperatorState } from "./controller";
-import { barGeometry, cameraElement, fmt, formatDeg } from "./format";
+import { CAMERA_RETRY_MS, barGeometry, cameraElement, fmt, formatDeg, retryUrl } from "./format";
 
 const TAPE_SPAN = 120;
 
@@ -86,10 +87,41 @@ export function Camera(props: { camera: CameraInfo | null; rotation: Rotation; c
       ) : cameraElement(camera.url) === "video" ? (
         <video class="feed" src={camera.url} style={style} autoplay muted playsInline />
       ) : (
-        <img class="feed" src={camera.url} style={style} alt="camera image" draggable={false} />
+        <ImageFeed key={camera.url} url={camera.url} style={style} />
       )}
       {props.children}
     </div>
+  );
+}
+
+/** An MJPEG/JPEG feed that says so when the stream breaks and asks for it again every 3 s. */
+function ImageFeed(props: { url: string; style: { transform: string } }): preact.JSX.Element {
+  const [attempt, setAttempt] = useState(0);
+  const [failed, setFailed] = useState(false);
+  useEffect(() => {
+    if (!failed) return undefined;
+    const timer = window.setTimeout(() => {
+      setFailed(false);
+      setAttempt((a) => a + 1);
+    }, CAMERA_RETRY_MS);
+    return () => window.clearTimeout(timer);
+  }, [failed]);
+  return (
+    <>
+      <img
+        class="feed"
+        src={retryUrl(props.url, attempt)}
+        style={props.style}
+        alt="camera image"
+        draggable={false}
+        onError={() => setFailed(true)}
+      />
+      {failed && (
+        <div class="camera-lost" data-testid="camera-lost" role="status">
+          Camera stream interrupted — retrying…
+        </div>
+      )}
+    </>
   );
 }
 

@@ -17,7 +17,7 @@ import {
   saveRotation,
 } from "../../src/lib/prefs";
 import { Store } from "../../src/lib/store";
-import { cameraElement, downFor, formatDeg } from "../../src/operator/format";
+import { cameraElement, downFor, formatDeg, retryUrl } from "../../src/operator/format";
 
 describe("demands", () => {
   it("only the selected input mode drives, never the headset, never in DP", () => {
@@ -227,5 +227,14 @@ describe("store and display helpers", () => {
     expect(downFor(75_000)).toBe("1 min 15 s");
     expect(formatDeg(Math.PI / 2, true)).toBe("+90.0");
     expect(formatDeg(null)).toBe("—");
+  });
+});
+
+describe("camera feed retries", () => {
+  it("asks for the stream again with a fresh address each attempt", () => {
+    expect(retryUrl("/camera/rov.mjpg", 0)).toBe("/camera/rov.mjpg");
+    expect(retryUrl("/camera/rov.mjpg", 1)).toBe("/camera/rov.mjpg?retry=1");
+    expect(retryUrl("/camera/rov.mjpg?token=t", 2)).toBe("/camera/rov.mjpg?token=t&retry=2");
+    expect(retryUrl("http://cam/x.jpg#f", 3)).toBe("http://cam/x.jpg?retry=3#f");
   });
 });
