@@ -399,6 +399,9 @@ test("camera: the vehicle's MJPEG stream fills the camera area; a vehicle withou
     const box = await page.locator("img.feed").boundingBox();
     const area = await page.locator('[data-testid="camera"]').boundingBox();
     assert.ok(box && area && box.width >= area.width - 2, "the image does not fill the camera area's width");
+    // the HUD says the camera runs (frame rate) and that this test server does not record
+    await until(() => page.locator('[data-testid="hud-camera"]').textContent(), (t) => /cam \d+ fps/.test(t ?? ""), WAIT_MS, "camera fps in the HUD");
+    assert.equal(await page.locator('[data-testid="hud-recording"]').getAttribute("data-state"), "off");
     await screenshot(page, "operator-camera-1024x768.png", { fullPage: false });
 
     // a broken stream is said over the image and asked for again until it is back

@@ -139,6 +139,14 @@ defmodule NeptunusWeb.CameraStreamTest do
     assert body =~ "has no camera"
   end
 
+  test "telemetry carries the camera's state", %{id: id} do
+    Neptunus.PubSub.subscribe("vehicle:" <> id)
+
+    assert_receive {:pubsub, _, "telemetry", %{camera: %{running: true, fps: fps, error: nil}}}
+                   when fps > 0,
+                   3_000
+  end
+
   test "wrong addresses are 404 with a reason" do
     for path <- ["/camera/", "/camera/x", "/camera/x.jpg", "/camera/nope.mjpg"] do
       {404, _, body, socket} = open(path)

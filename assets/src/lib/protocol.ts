@@ -164,6 +164,10 @@ export interface Telemetry {
   readonly estimate: Estimate | null;
   readonly link: LinkStatus | null;
   readonly wild_points: WildPoints | null;
+  /** whether the server records this vehicle (null: the server does not say) */
+  readonly recording: RecordingStatus | null;
+  /** the vehicle's camera (null: it has none) */
+  readonly camera_status: CameraStatus | null;
   /** the payload as received (plots derive their series from it) */
   readonly raw: Readonly<Record<string, unknown>>;
 }
@@ -374,6 +378,30 @@ export function decodeLinkStatus(value: unknown): LinkStatus | null {
   return { up: value["up"], reason: typeof reason === "string" ? reason : null };
 }
 
+export interface RecordingStatus {
+  readonly on: boolean;
+  /** why recording stopped (null: it is on, or off by configuration) */
+  readonly error: string | null;
+}
+
+export interface CameraStatus {
+  readonly running: boolean;
+  readonly fps: number;
+  readonly error: string | null;
+}
+
+export function decodeRecordingStatus(value: unknown): RecordingStatus | null {
+  if (!isRecord(value) || typeof value["on"] !== "boolean") return null;
+  const error = value["error"];
+  return { on: value["on"], error: typeof error === "string" ? error : null };
+}
+
+export function decodeCameraStatus(value: unknown): CameraStatus | null {
+  if (!isRecord(value) || typeof value["running"] !== "boolean" || !isFiniteNumber(value["fps"])) return null;
+  const error = value["error"];
+  return { running: value["running"], fps: value["fps"], error: typeof error === "string" ? error : null };
+}
+
 export function decodeWildPoints(value: unknown): WildPoints | null {
   if (!isRecord(value) || !isFiniteNumber(value["total"])) return null;
   const byField: Record<string, number> = {};
@@ -414,6 +442,8 @@ export function decodeTelemetry(value: unknown): Telemetry | null {
     estimate,
     link: decodeLinkStatus(value["link"]),
     wild_points: decodeWildPoints(value["wild_points"]),
+    recording: decodeRecordingStatus(value["recording"]),
+    camera_status: decodeCameraStatus(value["camera"]),
     raw: value,
   };
 }

@@ -196,7 +196,7 @@ export function App({ controller }: { controller: OperatorController }): preact.
       <Banner s={s} c={controller} />
       <main class="layout">
         <div class="view-column">
-          <Camera camera={s.camera} rotation={s.rotation}>
+          <Camera camera={s.camera} rotation={s.rotation} status={s.telemetry?.camera_status ?? null}>
             <Hud s={s} />
             <StopBanner s={s} />
             {s.inputMode === "touch" && <TouchPad controller={controller} touch={s.touch} mode={mode} />}

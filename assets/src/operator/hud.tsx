@@ -8,7 +8,7 @@ import { useEffect, useState } from "preact/hooks";
 import { bugPosition, compassTicks } from "../lib/compass";
 import { formatMs } from "../lib/latency";
 import type { Rotation } from "../lib/prefs";
-import type { CameraInfo } from "../lib/protocol";
+import type { CameraInfo, CameraStatus, RecordingStatus } from "../lib/protocol";
 import { formatHeading, headingDeg, radToDeg } from "../lib/units";
 import type { OperatorState } from "./controller";
 import { CAMERA_RETRY_MS, barGeometry, cameraElement, fmt, formatDeg, retryUrl } from "./format";
@@ -74,8 +74,15 @@ function HudBox(props: { title: string; children: ComponentChildren; class?: str
   );
 }
 
-export function Camera(props: { camera: CameraInfo | null; rotation: Rotation; children?: ComponentChildren }): preact.JSX.Element {
+export function Camera(props: {
+  camera: CameraInfo | null;
+  rotation: Rotation;
+  /** the server's word on the camera (from telemetry) */
+  status?: CameraStatus | null;
+  children?: ComponentChildren;
+}): preact.JSX.Element {
   const { camera, rotation } = props;
+  const down = props.status && !props.status.running && props.status.error !== null ? props.status.error : null;
   const style = { transform: `rotate(${rotation}deg)` };
   return (
     <div class="camera" data-testid="camera" data-rotation={rotation} data-camera={camera ? "on" : "none"}>
@@ -88,6 +95,11 @@ export function Camera(props: { camera: CameraInfo | null; rotation: Rotation; c
         <video class="feed" src={camera.url} style={style} autoplay muted playsInline />
       ) : (
         <ImageFeed key={camera.url} url={camera.url} style={style} />
+      )}
+      {camera !== null && down !== null && (
+        <div class="camera-lost camera-down" data-testid="camera-down" role="status">
+          Camera: {down}
+        </div>
       )}
       {props.children}
     </div>
@@ -122,6 +134,31 @@ function ImageFeed(props: { url: string; style: { transform: string } }): preact
         </div>
       )}
     </>
+  );
+}
+
+/** "● REC" while the server records the vehicle, "not recording" (and why) when it does not; the camera's frame rate. */
+function RecCamera(props: { recording: RecordingStatus | null; camera: CameraStatus | null }): preact.JSX.Element | null {
+  const { recording, camera } = props;
+  if (recording === null && camera === null) return null;
+  return (
+    <span class="hud-rec">
+      {recording !== null && (
+        <span
+          data-testid="hud-recording"
+          data-state={recording.on ? "on" : recording.error !== null ? "error" : "off"}
+          title={recording.error ?? (recording.on ? "the server records everything this vehicle sends" : "recording is off on this server")}
+        >
+          {recording.on ? "● REC" : recording.error !== null ? "⚠ not recording" : "not recording"}
+        </span>
+      )}
+      {camera !== null && (
+        <span data-testid="hud-camera" data-state={camera.running && camera.fps > 0 ? "on" : "off"} title={camera.error ?? ""}>
+          {recording !== null ? " · " : ""}
+          {camera.running && camera.fps > 0 ? `cam ${camera.fps} fps` : "cam ✗"}
+        </span>
+      )}
+    </span>
   );
 }
 
@@ -172,6 +209,7 @@ export function Hud(props: { s: OperatorState }): preact.JSX.Element {
             RTT <b id="rtt" data-testid="rtt">{formatMs(s.latency.mean)}</b>
             <small> (max {formatMs(s.latency.max)})</small>
           </span>
+          <RecCamera recording={t?.recording ?? null} camera={t?.camera_status ?? null} />
         </HudBox>
         <HudBox title="Thrusters">
           <span class="hud-thrusters" data-testid="hud-thrusters">

@@ -1,6 +1,8 @@
 import { describe, expect, it } from "vitest";
 import {
   cameraWithToken,
+  decodeCameraStatus,
+  decodeRecordingStatus,
   decodeCamera,
   decodeControlReply,
   decodeControlSettings,
@@ -56,6 +58,8 @@ const plain = (input: Record<string, unknown>, over: Record<string, unknown> = {
   estimate: null,
   link: null,
   wild_points: null,
+  recording: null,
+  camera_status: null,
   raw: input,
   ...over,
 });
@@ -333,5 +337,17 @@ describe("camera address for an <img>", () => {
     expect(cameraWithToken({ url: "http://cam.example/video.mjpg" }, "t")).toEqual({ url: "http://cam.example/video.mjpg" });
     expect(cameraWithToken({ url: "//cam.example/video.mjpg" }, "t")).toEqual({ url: "//cam.example/video.mjpg" });
     expect(cameraWithToken(null, "t")).toBeNull();
+  });
+});
+
+describe("recording and camera state in telemetry", () => {
+  it("decodes them, and null when absent or malformed", () => {
+    expect(decodeRecordingStatus({ on: true, error: null })).toEqual({ on: true, error: null });
+    expect(decodeRecordingStatus({ on: false, error: "disk full" })).toEqual({ on: false, error: "disk full" });
+    expect(decodeRecordingStatus({ on: "yes" })).toBeNull();
+    expect(decodeRecordingStatus(undefined)).toBeNull();
+    expect(decodeCameraStatus({ running: true, fps: 15, error: null })).toEqual({ running: true, fps: 15, error: null });
+    expect(decodeCameraStatus({ running: false, fps: 0, error: "ffmpeg is not installed" })?.error).toBe("ffmpeg is not installed");
+    expect(decodeCameraStatus({ running: true })).toBeNull();
   });
 });

@@ -7,7 +7,8 @@ defmodule Neptunus.Vehicle.Camera do
   every viewer, never copied or re-encoded per viewer.
 
   When the program exits or cannot start, the camera says why (`status/1`, a `log` entry on
-  `"log:<id>"`) and starts it again after 1, 2, 4 … 30 s. It is the last process of the
+  `"log:<id>"`) and starts it again after 1, 2, 4 … 30 s. Telemetry carries its state as
+  `camera: %{running, fps, error}`, updated every second. It is the last process of the
   vehicle's tree: a camera problem never restarts the board, control or helm.
 
   Options: `:id`, `:camera` — a source string or parsed source (none: no camera; this
@@ -19,7 +20,7 @@ defmodule Neptunus.Vehicle.Camera do
 
   alias Neptunus.{Fleet, PubSub}
   alias Neptunus.Camera.{MJPEG, Source}
-  alias Neptunus.Vehicle.Control
+  alias Neptunus.Vehicle.{Control, Telemetry}
 
   @max_backoff_ms 30_000
 
@@ -117,7 +118,10 @@ defmodule Neptunus.Vehicle.Camera do
   end
 
   @impl true
-  def handle_continue(:start, state), do: {:noreply, start(state)}
+  def handle_continue(:start, state) do
+    :timer.send_interval(1_000, :report)
+    {:noreply, state |> start() |> report()}
+  end
 
   @impl true
   def handle_info({port, {:data, data}}, %State{port: port} = state) do
@@ -151,12 +155,15 @@ defmodule Neptunus.Vehicle.Camera do
   end
 
   def handle_info({port, {:exit_status, code}}, %State{port: port} = state) do
-    {:noreply,
-     state |> Map.put(:port, nil) |> stopped("the camera program exited (status #{code})")}
+    state = state |> Map.put(:port, nil) |> stopped("the camera program exited (status #{code})")
+    {:noreply, report(state)}
   end
 
   def handle_info(:restart, %State{port: nil} = state),
-    do: {:noreply, start(%{state | restarts: state.restarts + 1})}
+    do: {:noreply, report(start(%{state | restarts: state.restarts + 1}))}
+
+  # the camera's state in telemetry, once a second
+  def handle_info(:report, state), do: {:noreply, report(state)}
 
   def handle_info(_other, state), do: {:noreply, state}
 
@@ -165,14 +172,12 @@ defmodule Neptunus.Vehicle.Camera do
   def handle_call(:latest, _from, state), do: {:reply, state.frame, state}
 
   def handle_call(:status, _from, state) do
-    now = System.monotonic_time(:millisecond)
-
     reply = %{
       configured: state.source != nil,
       running: state.port != nil,
       frames: state.frames,
       skipped: state.skipped,
-      fps: Enum.count(state.window, &(&1 > now - 1_000)),
+      fps: fps(state),
       error: state.error,
       restarts: state.restarts
     }
@@ -189,6 +194,21 @@ defmodule Neptunus.Vehicle.Camera do
   end
 
   def terminate(_reason, _state), do: :ok
+
+  defp fps(state) do
+    now = System.monotonic_time(:millisecond)
+    Enum.count(state.window, &(&1 > now - 1_000))
+  end
+
+  defp report(state) do
+    Telemetry.report(state.id, :camera, %{
+      running: state.port != nil,
+      fps: fps(state),
+      error: state.error
+    })
+
+    state
+  end
 
   defp start(state) do
     case Source.command(state.source) do

@@ -13,7 +13,8 @@ defmodule Neptunus.Vehicle.Recorder do
   `"log:<id>"`, a `recording` event on the vehicle's topic and the server log — and `status/1`
   tells why.
 
-  It is the last process of the vehicle's tree: its failures never restart the board,
+  Its state is in every telemetry payload as `recording: %{on, error}`. It comes after the
+  helm in the vehicle's tree: its failures never restart the board,
   control or helm. Options: `:id`; `:recording` — `dir` (nil or absent: recording is off;
   default from `config :neptunus, :recording`) and `max_bytes` (default 256 MiB).
   """
@@ -75,7 +76,12 @@ defmodule Neptunus.Vehicle.Recorder do
       max_bytes: Map.get(config, :max_bytes, @default_max_bytes)
     }
 
-    if state.dir, do: {:ok, state, {:continue, :open}}, else: {:ok, state}
+    if state.dir do
+      {:ok, state, {:continue, :open}}
+    else
+      Telemetry.report(id, :recording, %{on: false, error: nil})
+      {:ok, state}
+    end
   end
 
   @impl true
@@ -147,6 +153,7 @@ defmodule Neptunus.Vehicle.Recorder do
          name = free_name(dir),
          path = Path.join(dir, name),
          {:ok, log} <- open_log(state.id, path) do
+      Telemetry.report(state.id, :recording, %{on: true, error: nil})
       %{state | log: log, file: path, files: [path | state.files], bytes: 0, error: nil}
     else
       {:error, reason} ->
@@ -199,6 +206,7 @@ defmodule Neptunus.Vehicle.Recorder do
     })
 
     PubSub.broadcast(Telemetry.topic(state.id), "recording", %{recording: false, error: message})
+    Telemetry.report(state.id, :recording, %{on: false, error: message})
     %{state | log: nil, error: message}
   end
 end

@@ -15,7 +15,10 @@ defmodule Neptunus.Vehicle.Telemetry do
         thrusters: %{port, vertical, starboard, port_us, vertical_us, starboard_us},
         control: %{mode, gain, lights, laser, tilt, run_mode, autopilot: %{depth, heading, position}},
         autopilot: %{depth: %{setpoint, output, overridden} | nil, heading: … | nil,
-                     position: %{x, y, heading, phase, distance, output} | nil}}
+                     position: %{x, y, heading, phase, distance, output} | nil},
+        link: %{up, reason},
+        recording: %{on, error},            # from the vehicle's recorder
+        camera: %{running, fps, error}}     # only for a vehicle with a camera
 
   SI units (m, m/s, rad, rad/s, V, A); heading in [0, 2π). `t` is the vehicle's clock,
   `sent_at` the wall clock at broadcast (for latency measurements only).
@@ -39,7 +42,8 @@ defmodule Neptunus.Vehicle.Telemetry do
             thrusters: map(),
             control: map() | nil,
             autopilot: map(),
-            link: %{up: boolean(), reason: String.t()}
+            link: %{up: boolean(), reason: String.t()},
+            reports: %{optional(:recording | :camera) => map()}
           }
     @enforce_keys [:id, :topic, :periodic, :command, :thrusters, :autopilot]
     defstruct [
@@ -51,7 +55,8 @@ defmodule Neptunus.Vehicle.Telemetry do
       :thrusters,
       :control,
       :autopilot,
-      link: %{up: false, reason: "not known yet"}
+      link: %{up: false, reason: "not known yet"},
+      reports: %{}
     ]
   end
 
@@ -88,6 +93,15 @@ defmodule Neptunus.Vehicle.Telemetry do
   @spec link(String.t(), %{up: boolean(), reason: String.t()}) :: :ok
   def link(id, %{up: up, reason: reason}),
     do: GenServer.cast(via(id), {:link, %{up: up, reason: reason}})
+
+  @doc """
+  Reports the state of one of the vehicle's other parts, carried in every payload under its
+  name until the next report: `:recording` (`Neptunus.Vehicle.Recorder`: `%{on, error}`) and
+  `:camera` (`Neptunus.Vehicle.Camera`: `%{running, fps, error}`).
+  """
+  @spec report(String.t(), :recording | :camera, map()) :: :ok
+  def report(id, part, status) when part in [:recording, :camera] and is_map(status),
+    do: GenServer.cast(via(id), {:report, part, status})
 
   @doc "The latest telemetry payload, or nil before the first board sample."
   @spec latest(String.t()) :: map() | nil
@@ -133,6 +147,9 @@ defmodule Neptunus.Vehicle.Telemetry do
 
   def handle_cast({:link, link}, state), do: {:noreply, %{state | link: link}}
 
+  def handle_cast({:report, part, status}, state),
+    do: {:noreply, %{state | reports: Map.put(state.reports, part, status)}}
+
   def handle_cast({:control, c}, state) do
     {:noreply,
      %{
@@ -177,5 +194,6 @@ defmodule Neptunus.Vehicle.Telemetry do
       autopilot: state.autopilot,
       link: state.link
     }
+    |> Map.merge(state.reports)
   end
 end

@@ -113,5 +113,33 @@ defmodule Neptunus.Vehicle.RecorderTest do
     assert_receive {:pubsub, _, "telemetry", _}, 2_000
     recorded = entries(id)
     assert Enum.count(recorded, &match?({_, "telemetry", %{t: _}}, &1)) >= 2
+    # and says so in its telemetry
+    assert {_, "telemetry", %{recording: %{on: true, error: nil}}} = List.last(recorded)
+  end
+
+  test "telemetry says when a vehicle does not record, and why", %{tmp_dir: dir} do
+    off = "rec-#{System.unique_integer([:positive])}"
+    PubSub.subscribe(Telemetry.topic(off))
+
+    start_supervised!(
+      {Neptunus.Vehicle.Supervisor, %{id: off, board: :simulated, recording: [dir: nil]}},
+      id: :off
+    )
+
+    assert_receive {:pubsub, _, "telemetry", %{recording: %{on: false, error: nil}}}, 2_000
+
+    blocked = "rec-#{System.unique_integer([:positive])}"
+    file = Path.join(dir, "not-a-dir")
+    File.write!(file, "")
+    PubSub.subscribe(Telemetry.topic(blocked))
+
+    start_supervised!(
+      {Neptunus.Vehicle.Supervisor, %{id: blocked, board: :simulated, recording: [dir: file]}},
+      id: :blocked
+    )
+
+    assert_receive {:pubsub, "vehicle:" <> ^blocked, "telemetry",
+                    %{recording: %{on: false, error: "cannot record to" <> _}}},
+                   2_000
   end
 end
