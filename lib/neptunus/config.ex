@@ -23,9 +23,10 @@ defmodule Neptunus.Config do
   1..32 characters of `a-z A-Z 0-9 _ -`.
 
   Wiring (`sitl` and `uart` vehicles, see `Neptunus.Wiring`): the motors in `go()` order
-  separated by `/`, `-` before a reversed one, optionally `/smooth` or `/nosmooth`; default
-  `-port/vertical/starboard/smooth` (the thesis' Neptunus). Example:
-  `NEPTUNUS_WIRING=rov=port/vertical/-starboard/nosmooth`.
+  separated by `/`, `-` before a reversed one, optionally `/direct` (`go()`'s 4th argument
+  1: the firmware applies the values at once) or `/ramp` (0: the firmware ramps the power);
+  default `-port/vertical/starboard/direct` (the thesis' Neptunus). Example:
+  `NEPTUNUS_WIRING=rov=port/vertical/-starboard/ramp`.
 
   Model: the vehicle's parameter set in `priv/vehicles/` (`neptunus`, `thesis-4dof`, …, see
   `Neptunus.Dynamics.Params`): what its simulator flies (`simulated` and `sitl` boards, and

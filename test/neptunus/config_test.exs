@@ -77,12 +77,12 @@ defmodule Neptunus.ConfigTest do
     test "baud rate and wiring as configured" do
       env = %{
         "NEPTUNUS_VEHICLES" => "a=uart:/dev/ttyUSB0@57600,b=sitl",
-        "NEPTUNUS_WIRING" => " a=starboard/-vertical/port/nosmooth , b=port/vertical/starboard"
+        "NEPTUNUS_WIRING" => " a=starboard/-vertical/port/ramp , b=port/vertical/starboard"
       }
 
       assert [%{baud: 57_600, wiring: wa}, %{wiring: wb}] = Config.vehicles!(env)
-      assert Wiring.to_string(wa) == "starboard/-vertical/port/nosmooth"
-      assert Wiring.to_string(wb) == "port/vertical/starboard/smooth"
+      assert Wiring.to_string(wa) == "starboard/-vertical/port/ramp"
+      assert Wiring.to_string(wb) == "port/vertical/starboard/direct"
     end
 
     for {vehicles, wiring, message} <- [

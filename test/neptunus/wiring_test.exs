@@ -15,8 +15,8 @@ defmodule Neptunus.WiringTest do
              "go(1500,1500,1500,1);"
   end
 
-  test "order and smoothing" do
-    w = %Wiring{order: [:vertical, :starboard, :port], reversed: [:starboard], smoothing: false}
+  test "order and the flag: ramp sends 0" do
+    w = %Wiring{order: [:vertical, :starboard, :port], reversed: [:starboard], direct: false}
 
     assert Wiring.go_command(w, %{port: 1.0, vertical: -1.0, starboard: 0.5}) ==
              "go(1000,1250,2000,0);"
@@ -24,9 +24,9 @@ defmodule Neptunus.WiringTest do
 
   test "parse and to_string" do
     for text <- [
-          "-port/vertical/starboard/smooth",
-          "port/vertical/starboard/nosmooth",
-          "-starboard/-port/-vertical/smooth"
+          "-port/vertical/starboard/direct",
+          "port/vertical/starboard/ramp",
+          "-starboard/-port/-vertical/direct"
         ] do
       assert {:ok, w} = Wiring.parse(text)
       assert Wiring.to_string(w) == text
@@ -37,7 +37,10 @@ defmodule Neptunus.WiringTest do
     for {bad, message} <- [
           {"", ~r/three motors/},
           {"port/vertical", ~r/three motors/},
-          {"port/vertical/starboard/fast", ~r/smooth or nosmooth/},
+          {"port/vertical/starboard/fast", ~r/direct or ramp, not "fast"/},
+          {"port/vertical/starboard/smooth",
+           ~r/meant the opposite of what the OpenROV firmware does/},
+          {"port/vertical/starboard/nosmooth", ~r/direct sends 1, ramp sends 0/},
           {"port/vertical/bow", ~r/exactly once/},
           {"port/vertical/vertical", ~r/exactly once/},
           {"+port/vertical/starboard", ~r/exactly once/}
@@ -55,8 +58,8 @@ defmodule Neptunus.WiringTest do
       bind(
         {:proper_types.elements(permutations(motors)),
          :proper_types.list(:proper_types.elements(motors)), :proper_types.bool()},
-        fn {order, reversed, smoothing} ->
-          %Wiring{order: order, reversed: Enum.uniq(reversed), smoothing: smoothing}
+        fn {order, reversed, direct} ->
+          %Wiring{order: order, reversed: Enum.uniq(reversed), direct: direct}
         end
       )
 

@@ -6,7 +6,7 @@ defmodule Neptunus.Protocol.OpenROV do
 
   ## Commands (server → board)
 
-  `;`-terminated, no newline: `go(port,vertical,starboard,smoothing);` with each motor in
+  `;`-terminated, no newline: `go(port,vertical,starboard,flag);` with each motor in
   1000..2000 µs (1500 neutral) in the order the motors are wired (see `Neptunus.Wiring`),
   `ligt(0..255);`, `claser(0..255);`, `tilt(µs);`, `ping(n);`, `stop();`. The encoders take
   values already in range and raise `FunctionClauseError` otherwise: validating a pilot's
@@ -128,15 +128,17 @@ defmodule Neptunus.Protocol.OpenROV do
   # Commands ------------------------------------------------------------------------------
 
   @doc """
-  `go(port,vertical,starboard,smoothing);` with the motors' pulse widths in `go()` order.
+  `go(port,vertical,starboard,flag);` with the motors' pulse widths in `go()` order; the
+  flag is 1 for `direct` (the firmware bypasses its smoothing ramp), 0 to let it ramp (see
+  `Neptunus.Wiring`).
 
       iex> Neptunus.Protocol.OpenROV.go({1500, 1750, 1000}, true)
       "go(1500,1750,1000,1);"
   """
   @spec go({us(), us(), us()}, boolean()) :: binary()
-  def go({a, b, c}, smoothing)
-      when a in 1000..2000 and b in 1000..2000 and c in 1000..2000 and is_boolean(smoothing) do
-    "go(#{a},#{b},#{c},#{if smoothing, do: 1, else: 0});"
+  def go({a, b, c}, direct)
+      when a in 1000..2000 and b in 1000..2000 and c in 1000..2000 and is_boolean(direct) do
+    "go(#{a},#{b},#{c},#{if direct, do: 1, else: 0});"
   end
 
   @doc """
@@ -191,7 +193,7 @@ defmodule Neptunus.Protocol.OpenROV do
       iex> Neptunus.Protocol.OpenROV.parse_command("go(1500,1600,1400,1);")
       {:ok, {:go, 1500, 1600, 1400, 1}}
       iex> Neptunus.Protocol.OpenROV.parse_command("go(900,1500,1500,0)")
-      {:error, "go: motor values must be 1000..2000 and smoothing 0 or 1"}
+      {:error, "go: motor values must be 1000..2000 and the flag 0 or 1"}
   """
   @spec parse_command(binary()) :: {:ok, command()} | {:error, String.t()}
   def parse_command(text) when is_binary(text) do
@@ -244,7 +246,7 @@ defmodule Neptunus.Protocol.OpenROV do
        when a in 1000..2000 and b in 1000..2000 and c in 1000..2000 and s in [0, 1],
        do: {:ok, {:go, a, b, c, s}}
 
-  defp command("go", _), do: {:error, "go: motor values must be 1000..2000 and smoothing 0 or 1"}
+  defp command("go", _), do: {:error, "go: motor values must be 1000..2000 and the flag 0 or 1"}
   defp command("ligt", [n]) when n in 0..255, do: {:ok, {:ligt, n}}
   defp command("claser", [n]) when n in 0..255, do: {:ok, {:claser, n}}
   defp command("tilt", [n]) when n in 1000..2000, do: {:ok, {:tilt, n}}

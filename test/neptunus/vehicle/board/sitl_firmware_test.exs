@@ -44,7 +44,7 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
   end
 
   test "the firmware honours the vehicle's wiring" do
-    w = %Wiring{order: [:starboard, :vertical, :port], reversed: [], smoothing: false}
+    w = %Wiring{order: [:starboard, :vertical, :port], reversed: [], direct: true}
 
     {fw, _} =
       Firmware.receive(
@@ -77,5 +77,64 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
 
     assert_in_delta fields.board_time, sample.t, 1.0e-3
     assert_in_delta fields.pressure, (1013.25 + 100.55 * sample.measurement.depth) * 100, 1.0
+  end
+
+  describe "go()'s flag: 1 at once, 0 ramped like the OpenROV firmware" do
+    # a wiring without reversal, so pulse widths read directly
+    defp fw,
+      do:
+        Firmware.new(0,
+          wiring: %Wiring{order: [:port, :vertical, :starboard], reversed: [], direct: true}
+        )
+
+    defp ramp_trace(fw, times) do
+      Enum.map_reduce(times, fw, fn t, fw ->
+        {fw, ""} = Firmware.tick(fw, t)
+        {fw.out_us, fw}
+      end)
+    end
+
+    test "flag 1: the motors take the values at once" do
+      {fw, _} = Firmware.receive(fw(), "ping(1);go(2000,1000,1600,1);", 0)
+      assert fw.out_us == {2000, 1000, 1600}
+      assert fw.thrusters == %{port: 1.0, vertical: -1.0, starboard: 0.2}
+    end
+
+    test "flag 0: 40 µs further from neutral every 50 ms, until the target" do
+      {fw, _} = Firmware.receive(fw(), "ping(1);go(2000,1000,1520,0);", 0)
+      assert fw.out_us == {1500, 1500, 1500}
+      {trace, fw} = ramp_trace(fw, [0, 10, 50, 100, 150])
+
+      assert trace == [
+               {1540, 1460, 1520},
+               {1540, 1460, 1520},
+               {1580, 1420, 1520},
+               {1620, 1380, 1520},
+               {1660, 1340, 1520}
+             ]
+
+      # 13 steps from 1500 to 2000: there at 600 ms, and no further steps
+      {fw, ""} = Firmware.tick(fw, 600)
+      assert fw.out_us == {2000, 1000, 1520}
+      assert fw.ramp_at == nil
+      assert fw.thrusters == %{port: 1.0, vertical: -1.0, starboard: 0.04}
+    end
+
+    test "flag 0: less power at once; a reversal goes through neutral first" do
+      {fw, _} = Firmware.receive(fw(), "ping(1);go(2000,2000,2000,1);", 0)
+      {fw, _} = Firmware.receive(fw, "go(1700,1000,2000,0);", 100)
+      {[first, second], _} = ramp_trace(fw, [100, 150])
+      assert first == {1700, 1500, 2000}
+      assert second == {1700, 1460, 2000}
+    end
+
+    test "stop and the deadman are immediate whatever the flag" do
+      {fw, _} = Firmware.receive(fw(), "ping(1);go(2000,2000,2000,0);", 0)
+      {fw, _} = Firmware.tick(fw, 0)
+      {stopped, _} = Firmware.receive(fw, "stop();", 10)
+      assert stopped.out_us == {1500, 1500, 1500} and stopped.ramp_at == nil
+      {tripped, "deadman:1;\n"} = Firmware.tick(fw, 3_001)
+      assert tripped.out_us == {1500, 1500, 1500} and tripped.ramp_at == nil
+    end
   end
 end

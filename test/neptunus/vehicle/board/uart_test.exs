@@ -63,11 +63,11 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     assert c.opens == 1 and c.commands == 1
   end
 
-  test "another wiring: order, directions and smoothing as configured", ctx do
+  test "another wiring: order, directions and the ramp flag as configured", ctx do
     wiring = %Wiring{
       order: [:starboard, :vertical, :port],
       reversed: [:vertical],
-      smoothing: false
+      direct: false
     }
 
     start_uart(ctx, wiring: wiring)
