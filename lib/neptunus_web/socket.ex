@@ -25,6 +25,13 @@ defmodule NeptunusWeb.Socket do
   (or, in local mode, a `Host`) that is not allowed and with 401 for a missing, invalid or
   expired token (see `NeptunusWeb.Auth`). A refused upgrade is the only refusal that closes
   anything: who may *command* is decided per command by the vehicle's helm.
+
+  Priority: a connection process runs at process priority `:low`, and at `:normal` while it
+  pilots a vehicle (between the helm's `control_granted` and `control_lost` for that topic).
+  Every telemetry broadcast makes all the observers' connections runnable at once; the
+  pilot's commands go first, then through the vehicle's control path at `:high` (see
+  `Neptunus.Vehicle.Helm`). `:low` is not starved: it runs whenever nothing more urgent is
+  runnable, and interleaved with `:normal` work when there is.
   """
   require Logger
 
@@ -44,10 +51,11 @@ defmodule NeptunusWeb.Socket do
             user: NeptunusWeb.Auth.user(),
             channels: %{optional(String.t()) => joined()},
             last_seen: integer(),
-            idle_timeout: pos_integer()
+            idle_timeout: pos_integer(),
+            piloting: MapSet.t(String.t())
           }
     @enforce_keys [:user, :last_seen, :idle_timeout]
-    defstruct [:user, :last_seen, :idle_timeout, channels: %{}]
+    defstruct [:user, :last_seen, :idle_timeout, channels: %{}, piloting: MapSet.new()]
   end
 
   # yaws appmod: upgrade /socket/websocket
@@ -131,6 +139,8 @@ defmodule NeptunusWeb.Socket do
     idle_timeout =
       Application.get_env(:neptunus, :socket_idle_timeout_ms, @default_idle_timeout_ms)
 
+    # an observer until the helm grants this connection control (see the moduledoc)
+    Process.flag(:priority, :low)
     :timer.send_interval(max(div(idle_timeout, 4), 10), :check_idle)
     {:ok, %State{user: user, last_seen: now_ms(), idle_timeout: idle_timeout}}
   end
@@ -273,23 +283,20 @@ defmodule NeptunusWeb.Socket do
 
   # Messages to the connection process
 
-  defp handle_other({:channel_info, topic, msg}, state) do
-    case Map.fetch(state.channels, topic) do
-      {:ok, %{module: module, socket: socket} = joined} ->
-        in_channel(state, topic, joined, fn ->
-          case module.handle_info(msg, socket) do
-            {:noreply, socket} ->
-              {[], socket}
+  # The helm's grant and loss of control, on their way to the vehicle channel: a connection
+  # that pilots a vehicle runs at :normal, any other at :low (see the moduledoc).
+  defp handle_other({:channel_info, topic, {:helm, event, _} = msg}, state)
+       when event in ["control_granted", "control_lost"] do
+    piloting =
+      if event == "control_granted",
+        do: MapSet.put(state.piloting, topic),
+        else: MapSet.delete(state.piloting, topic)
 
-            {:push, event, payload, socket} ->
-              {[Wire.encode(socket.join_ref, nil, topic, event, payload)], socket}
-          end
-        end)
-
-      :error ->
-        {:noreply, state}
-    end
+    Process.flag(:priority, if(MapSet.size(piloting) == 0, do: :low, else: :normal))
+    channel_info(topic, msg, %{state | piloting: piloting})
   end
+
+  defp handle_other({:channel_info, topic, msg}, state), do: channel_info(topic, msg, state)
 
   defp handle_other(:check_idle, state) do
     if now_ms() - state.last_seen > state.idle_timeout do
@@ -307,6 +314,24 @@ defmodule NeptunusWeb.Socket do
   defp handle_other(msg, state) do
     Logger.debug("socket ignored message #{inspect(msg)}")
     {:noreply, state}
+  end
+
+  defp channel_info(topic, msg, state) do
+    case Map.fetch(state.channels, topic) do
+      {:ok, %{module: module, socket: socket} = joined} ->
+        in_channel(state, topic, joined, fn ->
+          case module.handle_info(msg, socket) do
+            {:noreply, socket} ->
+              {[], socket}
+
+            {:push, event, payload, socket} ->
+              {[Wire.encode(socket.join_ref, nil, topic, event, payload)], socket}
+          end
+        end)
+
+      :error ->
+        {:noreply, state}
+    end
   end
 
   # Channel plumbing

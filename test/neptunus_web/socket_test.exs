@@ -257,6 +257,54 @@ defmodule NeptunusWeb.SocketTest do
     for p <- accepted, do: assert({:ok, [nodelay: true]} = :inet.getopts(p, [:nodelay]))
   end
 
+  test "priorities: connections :low, the pilot's :normal while in control, helm and control :high",
+       %{id: id, topic: topic} do
+    ada = connect!("Ada")
+    {ada_jr, _} = join!(ada, topic)
+    [ada_pid] = connections(topic)
+    bob = connect!("Bob")
+    {_bob_jr, _} = join!(bob, topic)
+    [bob_pid] = connections(topic) -- [ada_pid]
+
+    assert priority(ada_pid) == :low and priority(bob_pid) == :low
+    assert priority(Neptunus.Vehicle.Helm, id) == :high
+    assert priority(Neptunus.Vehicle.Control, id) == :high
+
+    assert {"ok", %{"status" => "granted"}} =
+             push_and_reply(ada, ada_jr, topic, "request_control", %{})
+
+    # the connection acts on the grant before it pushes control_granted to its client
+    WSClient.recv_until(ada, &match?([_, _, ^topic, "control_granted", _], &1))
+    assert priority(ada_pid) == :normal and priority(bob_pid) == :low
+
+    assert {"ok", _} = push_and_reply(ada, ada_jr, topic, "release_control", %{})
+    WSClient.recv_until(ada, &match?([_, _, ^topic, "control_lost", _], &1))
+    assert priority(ada_pid) == :low
+
+    # a pilot that leaves the topic is back at :low too
+    assert {"ok", %{"status" => "granted"}} =
+             push_and_reply(ada, ada_jr, topic, "request_control", %{})
+
+    WSClient.recv_until(ada, &match?([_, _, ^topic, "control_granted", _], &1))
+    assert priority(ada_pid) == :normal
+    assert {"ok", _} = push_and_reply(ada, ada_jr, topic, "phx_leave", %{})
+    # control_lost is handled after the leave's reply: a heartbeat's reply comes after it
+    WSClient.push(ada, nil, "hb", "phoenix", "heartbeat", %{})
+    reply_to(ada, "hb")
+    assert priority(ada_pid) == :low
+  end
+
+  # the server-side connection processes subscribed to `topic`
+  defp connections(topic), do: :pg.get_local_members(Neptunus.PubSub, {:fastlane, topic})
+
+  defp priority(pid) do
+    {:priority, priority} = Process.info(pid, :priority)
+    priority
+  end
+
+  defp priority(module, id),
+    do: module |> Neptunus.Fleet.via(id) |> GenServer.whereis() |> priority()
+
   test "GET /api/health" do
     {:ok, {{_, 200, _}, headers, body}} =
       :httpc.request(~c"http://127.0.0.1:#{port()}/api/health")

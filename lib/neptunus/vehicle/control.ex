@@ -150,7 +150,8 @@ defmodule Neptunus.Vehicle.Control do
 
   @impl true
   def init(opts) do
-    if p = System.get_env("XP_PATH"), do: Process.flag(:priority, String.to_atom(p))
+    # the control path runs before the web fan-out (see Neptunus.Vehicle.Helm)
+    Process.flag(:priority, :high)
     id = Keyword.fetch!(opts, :id)
     control = Keyword.get(opts, :control, [])
     hz = Keyword.get(control, :hz, Application.get_env(:neptunus, :control_hz, @default_hz))

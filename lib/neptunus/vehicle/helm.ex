@@ -28,6 +28,17 @@ defmodule Neptunus.Vehicle.Helm do
   matters; `notify.(event, payload)` delivers a targeted event to that connection
   (`control_request`, `control_granted`, `control_lost`, `request_denied`).
 
+  ## Priority
+
+  The vehicle's control path runs at process priority `:high`: this process,
+  `Neptunus.Vehicle.Control` and the board link `Neptunus.Vehicle.Board.UART`. Each broadcast
+  of telemetry makes every observer's connection process runnable at once (1 000 of them for
+  a few milliseconds of both cores); a command must not wait behind them. Their work is
+  bounded — commands come only through the pilot's connection (which runs at `:normal`, see
+  `NeptunusWeb.Socket`), the rest on fixed-rate timers and the board's serial line — so they
+  cannot starve `:normal` and `:low` processes. Other connections run at `:low`, which still
+  runs whenever nothing more urgent is runnable.
+
   ## Options
 
   `:id` (required) and `:helm`, a keyword list overriding the application's `:helm`
@@ -175,6 +186,9 @@ defmodule Neptunus.Vehicle.Helm do
 
   @impl true
   def init(opts) do
+    # The control path — this process, Control and the board link — runs at :high, so a
+    # pilot's command is not queued behind the telemetry fan-out (see the moduledoc).
+    Process.flag(:priority, :high)
     id = Keyword.fetch!(opts, :id)
 
     config =

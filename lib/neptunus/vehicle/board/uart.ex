@@ -167,6 +167,8 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   @impl true
   def init(opts) do
+    # the control path runs before the web fan-out (see Neptunus.Vehicle.Helm)
+    Process.flag(:priority, :high)
     Process.flag(:trap_exit, true)
     id = Keyword.fetch!(opts, :id)
     now = now_ms()

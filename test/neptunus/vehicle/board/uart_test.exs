@@ -48,7 +48,9 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
   end
 
   test "neutral on open, then go commands with the vehicle's wiring", ctx do
-    start_uart(ctx)
+    uart = start_uart(ctx)
+    # the board link is on the control path: it runs before the web fan-out
+    assert Process.info(uart, :priority) == {:priority, :high}
     assert link_event(true) == "open"
     assert recv_until(ctx.board, &(&1 == @neutral)) == @neutral
 
