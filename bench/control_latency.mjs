@@ -7,18 +7,22 @@
 // OBSERVERS is a comma-separated list of observer counts, measured in turn (default "0,1000");
 // SAMPLES is the number of commands per measurement (default 1000).
 //
-// This process is the board on the other end of the pty: it sends telemetry lines like an
-// OpenROV board (navigation data at 50 Hz, status at 10 Hz) so the vehicle publishes telemetry
-// to every observer at 20 Hz while we measure, and it reads the go(...) commands the server
-// writes. The pilot's socket and the pty live in the main thread; the observers' sockets in a
-// worker thread, so their 20 000 messages/s do not delay the main thread's event loop.
+// This process is the pilot and the board on the other end of the pty: it sends telemetry
+// lines like an OpenROV board (navigation data at 50 Hz, status at 10 Hz) so the vehicle
+// publishes telemetry to every observer at 20 Hz while we measure, and it reads the go(...)
+// commands the server writes. The observers' sockets live in a separate OS process (this
+// script again, started with LAT_ROLE=observers and run under `nice -n LAT_OBSERVER_NICE`),
+// so their 20 000 messages/s neither share this process' event loop nor its threads; in
+// reality they are browsers on other machines.
 //
 // Environment: LAT_URL (ws://127.0.0.1:4211), LAT_PTY (required), LAT_VEHICLE (rov),
-// LAT_SERVER_PID (for CPU figures), LAT_CLK_TCK (100), LAT_WINDOW (100 joins in flight).
+// LAT_SERVER_PID (for CPU figures), LAT_CLK_TCK (100), LAT_WINDOW (100 joins in flight),
+// LAT_OBSERVER_NICE (0: the observer process' nice value, 0..19).
 
 import { createRequire } from 'node:module';
-import { Worker, isMainThread, parentPort, workerData } from 'node:worker_threads';
+import { spawn } from 'node:child_process';
 import { openSync, readFileSync, writeSync } from 'node:fs';
+import os from 'node:os';
 import tty from 'node:tty';
 import { fileURLToPath } from 'node:url';
 import { performance, monitorEventLoopDelay } from 'node:perf_hooks';
@@ -31,10 +35,10 @@ const VEHICLE = process.env.LAT_VEHICLE ?? 'rov';
 const TOPIC = `vehicle:${VEHICLE}`;
 const wsUrl = (name) => `${URL_BASE}/socket/websocket?vsn=2.0.0&name=${encodeURIComponent(name)}`;
 
-if (isMainThread) {
-  await main();
+if (process.env.LAT_ROLE === 'observers') {
+  await observers();
 } else {
-  await observers(workerData);
+  await main();
 }
 
 // ---------------------------------------------------------------------------------------
@@ -48,13 +52,27 @@ async function main() {
   if (!PTY) throw new Error('LAT_PTY (the far end of the board pty) is required');
 
   const out = (label, value) => console.log(`${(label + ':').padEnd(46)} ${value}`);
-  const cpuTicks = () => {
-    if (!SERVER_PID) return null;
+  const OBSERVER_NICE = Number(process.env.LAT_OBSERVER_NICE ?? 0);
+  // utime + stime of a process (all its threads), in clock ticks
+  const cpuTicks = (pid) => {
+    if (!pid) return null;
     try {
-      const s = readFileSync(`/proc/${SERVER_PID}/stat`, 'utf8');
+      const s = readFileSync(`/proc/${pid}/stat`, 'utf8');
       const f = s.slice(s.lastIndexOf(')') + 2).split(' ');
       return Number(f[11]) + Number(f[12]);
     } catch { return null; }
+  };
+  // whole machine: [busy, total] ticks, and CPU pressure (some, total µs)
+  const machine = () => {
+    const f = readFileSync('/proc/stat', 'utf8').split('\n')[0].trim().split(/\s+/).slice(1).map(Number);
+    const total = f.reduce((a, b) => a + b, 0);
+    const idle = f[3] + f[4];
+    let pressure = null;
+    try {
+      const m = /some avg10=\S+ avg60=\S+ avg300=\S+ total=(\d+)/.exec(readFileSync('/proc/pressure/cpu', 'utf8'));
+      if (m) pressure = Number(m[1]);
+    } catch { /* no PSI */ }
+    return { busy: total - idle, total, pressure };
   };
 
   // The board's end of the line: read with a tty stream (raw), write with a second descriptor.
@@ -103,7 +121,17 @@ async function main() {
   };
   const heartbeat = setInterval(() => pilot.push(TOPIC, 'heartbeat', {}).catch(() => {}), 100);
 
-  const worker = new Worker(fileURLToPath(import.meta.url), { workerData: {} });
+  // The observers: a separate OS process (this script, LAT_ROLE=observers), under nice.
+  const script = fileURLToPath(import.meta.url);
+  let closing = false;
+  // nice -n is relative to our own nice value
+  const worker = spawn('nice', ['-n', String(OBSERVER_NICE - os.getPriority()), process.execPath, script], {
+    stdio: ['ignore', 'inherit', 'inherit', 'ipc'],
+    env: { ...process.env, LAT_ROLE: 'observers' },
+  });
+  worker.on('exit', (code, signal) => {
+    if (!closing) { console.error(`observer process exited (${code ?? signal})`); process.exit(1); }
+  });
   const fromWorker = (type) => new Promise((resolve) => {
     const h = (m) => { if (m.type === type) { worker.off('message', h); resolve(m); } };
     worker.on('message', h);
@@ -112,18 +140,22 @@ async function main() {
 
   console.log(`# control latency: pilot thrust over the WebSocket -> go(...) bytes on the pty (${PTY})`);
   console.log(`# ${SAMPLES} commands per run, vehicle ${VEHICLE}, server ${URL_BASE}`);
+  console.log(`# observers: a separate node process (os pid ${worker.pid}) at nice ${OBSERVER_NICE}; ` +
+    `pilot + board: this process (os pid ${process.pid}) at nice ${os.getPriority()}`);
+  console.log(`# load average at start: ${os.loadavg().map((x) => x.toFixed(2)).join(' ')}`);
 
   for (const n of counts) {
     if (n > observing) {
-      worker.postMessage({ type: 'open', count: n - observing });
+      worker.send({ type: 'open', count: n - observing });
       const m = await fromWorker('opened');
       observing = m.joined;
       await sleep(2000); // let the presence traffic of the joins settle
     }
 
-    worker.postMessage({ type: 'count' });
+    worker.send({ type: 'count' });
     const before = await fromWorker('counted');
-    const cpu0 = cpuTicks();
+    const cpu0 = cpuTicks(SERVER_PID), obs0 = cpuTicks(worker.pid), self0 = process.cpuUsage();
+    const m0 = machine();
     const t0 = performance.now();
     const loop = monitorEventLoopDelay({ resolution: 1 });
     loop.enable();
@@ -150,8 +182,9 @@ async function main() {
 
     loop.disable();
     const secs = (performance.now() - t0) / 1000;
-    const cpu1 = cpuTicks();
-    worker.postMessage({ type: 'count' });
+    const cpu1 = cpuTicks(SERVER_PID), obs1 = cpuTicks(worker.pid), self1 = process.cpuUsage(self0);
+    const m1 = machine();
+    worker.send({ type: 'count' });
     const after = await fromWorker('counted');
 
     console.log(`\n## ${observing} observers`);
@@ -162,14 +195,24 @@ async function main() {
     out('command -> reply     p50 / p90 / p99 / max', stats(toReply));
     out('client event-loop delay p50 / p99', `${(loop.percentile(50) / 1e6).toFixed(2)} / ${(loop.percentile(99) / 1e6).toFixed(2)} ms`);
     out('telemetry received by observers', `${after.messages - before.messages} (${((after.messages - before.messages) / secs).toFixed(0)}/s)`);
-    if (cpu0 != null && cpu1 != null) {
-      out('server CPU', `${((cpu1 - cpu0) / CLK_TCK / secs * 100).toFixed(1)} % of one core`);
-    }
+    const pct = (ticks) => `${(ticks / CLK_TCK / secs * 100).toFixed(1)} %`;
+    out('CPU (% of one core): server / pilot+board / observers',
+      `${cpu0 != null && cpu1 != null ? pct(cpu1 - cpu0) : 'n/a'} / ` +
+      `${((self1.user + self1.system) / 1e4 / secs).toFixed(1)} % / ` +
+      `${obs0 != null && obs1 != null ? pct(obs1 - obs0) : 'n/a'}`);
+    const cores = os.cpus().length;
+    const ours = (cpu1 ?? 0) - (cpu0 ?? 0) + (obs1 ?? 0) - (obs0 ?? 0) + (self1.user + self1.system) / 1e6 * CLK_TCK;
+    out('machine CPU busy / CPU pressure (some)',
+      `${((m1.busy - m0.busy) / (m1.total - m0.total) * 100).toFixed(0)} % of ${cores} cores / ` +
+      (m0.pressure != null ? `${((m1.pressure - m0.pressure) / 1e4 / secs).toFixed(0)} %` : 'n/a'));
+    out('  of which not server or client processes', `${pct(m1.busy - m0.busy - ours)} of one core ` +
+      '(kernel softirq, socat, port program, other work on the machine)');
   }
 
   clearInterval(heartbeat);
   clearInterval(board);
-  worker.postMessage({ type: 'close' });
+  closing = true;
+  worker.send({ type: 'close' });
   await fromWorker('closed');
   pilot.close();
   line.destroy();
@@ -212,7 +255,7 @@ function connect(name) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Worker: the observers.
+// The observer process (LAT_ROLE=observers): its own OS process, commanded over IPC.
 
 async function observers() {
   const sockets = [];
@@ -234,7 +277,9 @@ async function observers() {
     setInterval(() => { if (ws.readyState === 1) ws.send(JSON.stringify([null, 'hb', 'phoenix', 'heartbeat', {}])); }, 30000).unref();
   });
 
-  parentPort.on('message', async (m) => {
+  const parentPort = { postMessage: (m) => process.send(m) };
+  process.on('disconnect', () => process.exit(0)); // the pilot's process is gone
+  process.on('message', async (m) => {
     if (m.type === 'open') {
       let next = 0, joined = 0;
       const total = m.count, base = sockets.length;
@@ -248,6 +293,8 @@ async function observers() {
       for (const ws of sockets) ws.close(1000);
       await sleep(500);
       parentPort.postMessage({ type: 'closed' });
+      process.disconnect();
+      process.exit(0);
     }
   });
 }
