@@ -62,8 +62,12 @@ assets: setup-npm
 compile: setup-links
 	mix compile --warnings-as-errors
 
+# The VM flags of the release (rel/vm.args.eex): schedulers do not busy-wait, leaving the CPU
+# to the serial port program, ffmpeg and the browsers' clients (bench/README.md, control latency).
+VM_FLAGS := +sbwt none +sbwtdcpu none +sbwtdio none
+
 run: setup assets compile
-	mix run --no-halt
+	ELIXIR_ERL_OPTIONS="$${ELIXIR_ERL_OPTIONS-$(VM_FLAGS)}" mix run --no-halt
 
 test: setup assets
 	cd assets && npm run --silent typecheck && npm run --silent test
