@@ -13,7 +13,7 @@ ASSETS_STAMP := assets/node_modules/.package-lock.json
 
 help:
 	@echo "make run    - install what is missing, build, start the server (http://127.0.0.1:4000)"
-	@echo "make test   - the whole test suite (ExUnit, vitest, Node protocol test, Playwright)"
+	@echo "make test   - the whole test suite (ExUnit, vitest, Node protocol test, Playwright, dialyzer)"
 	@echo "make setup  - install Debian and npm dependencies (idempotent)"
 	@echo "make assets - build the browser code into priv/static"
 	@echo "make bench  - benchmarks (figures, not assertions)"
@@ -73,6 +73,7 @@ test: setup assets
 	cd assets && npm run --silent typecheck && npm run --silent test
 	MIX_ENV=test mix compile --warnings-as-errors
 	mix test
+	mix neptunus.dialyzer
 
 bench: setup assets
 	MIX_ENV=prod mix compile

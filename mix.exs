@@ -124,6 +124,8 @@ defmodule Neptunus.MixProject do
       # c_src/neptunus_uart.c → priv/neptunus_uart (the serial port program), see above
       compilers: Mix.compilers() ++ [:port_programs],
       deps: [],
+      # dev tooling that is not part of the running application (mix neptunus.dialyzer)
+      xref: [exclude: [:dialyzer]],
       aliases: aliases(),
       releases: releases()
     ]

@@ -225,13 +225,14 @@ defmodule Neptunus.Config do
     |> Enum.map(&String.trim/1)
     |> Enum.reject(&(&1 == ""))
     |> Enum.map(fn pair ->
-      with [id, text] <- String.split(pair, "=", parts: 2),
-           id = String.trim(id),
-           %{} = vehicle <- Enum.find(vehicles, &(&1.id == id)) || {:unknown, id} do
-        {vehicle, pair, String.trim(text)}
-      else
-        {:unknown, id} ->
-          bad!(var, spec, "ids of configured vehicles (no vehicle #{inspect(id)})")
+      case String.split(pair, "=", parts: 2) do
+        [id, text] ->
+          id = String.trim(id)
+
+          case Enum.find(vehicles, &(&1.id == id)) do
+            nil -> bad!(var, spec, "ids of configured vehicles (no vehicle #{inspect(id)})")
+            vehicle -> {vehicle, pair, String.trim(text)}
+          end
 
         _ ->
           bad!(var, spec, shape)
@@ -240,29 +241,33 @@ defmodule Neptunus.Config do
   end
 
   defp vehicle!(pair, spec) do
-    with [id, board] <- String.split(pair, "=", parts: 2),
-         id = String.trim(id),
-         true <- Regex.match?(~r/^[A-Za-z0-9_-]{1,32}$/, id) || {:bad_id, id},
-         {:ok, board} <- board(String.trim(board)) do
-      Map.put(board, :id, id)
-    else
-      {:bad_id, id} ->
-        bad!(
-          "NEPTUNUS_VEHICLES",
-          spec,
-          "vehicle ids of 1..32 characters a-z A-Z 0-9 _ - (got #{inspect(id)})"
-        )
+    case String.split(pair, "=", parts: 2) do
+      [id, board] ->
+        id = String.trim(id)
 
-      {:bad_uart, why} ->
-        bad!("NEPTUNUS_VEHICLES", spec, "uart:DEVICE[@BAUD] in #{inspect(pair)}: #{why}")
+        unless Regex.match?(~r/^[A-Za-z0-9_-]{1,32}$/, id) do
+          bad!(
+            "NEPTUNUS_VEHICLES",
+            spec,
+            "vehicle ids of 1..32 characters a-z A-Z 0-9 _ - (got #{inspect(id)})"
+          )
+        end
 
-      :error ->
-        bad!(
-          "NEPTUNUS_VEHICLES",
-          spec,
-          "a known board in #{inspect(pair)}: one of " <>
-            "#{Enum.join(Map.keys(@boards), ", ")}, uart:DEVICE[@BAUD]"
-        )
+        case board(String.trim(board)) do
+          {:ok, board} ->
+            Map.put(board, :id, id)
+
+          {:bad_uart, why} ->
+            bad!("NEPTUNUS_VEHICLES", spec, "uart:DEVICE[@BAUD] in #{inspect(pair)}: #{why}")
+
+          :error ->
+            bad!(
+              "NEPTUNUS_VEHICLES",
+              spec,
+              "a known board in #{inspect(pair)}: one of " <>
+                "#{Enum.join(Map.keys(@boards), ", ")}, uart:DEVICE[@BAUD]"
+            )
+        end
 
       _ ->
         bad!("NEPTUNUS_VEHICLES", spec, "id=board pairs separated by commas, e.g. rov=simulated")

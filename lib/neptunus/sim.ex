@@ -73,7 +73,7 @@ defmodule Neptunus.Sim do
           thrusters: Allocation.thrusters(),
           dt: float(),
           opts: keyword(),
-          targets: [float()],
+          targets: [float()] | nil,
           forces: [float()],
           lags: [{float(), float()}],
           current: Current.t(),

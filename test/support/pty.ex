@@ -39,7 +39,12 @@ defmodule Neptunus.Test.Pty do
       ])
 
     {:os_pid, os_pid} = Port.info(port, :os_pid)
-    ExUnit.Callbacks.on_exit(fn -> kill_os_pid(os_pid) && File.rm_rf(dir) end)
+
+    ExUnit.Callbacks.on_exit(fn ->
+      kill_os_pid(os_pid)
+      File.rm_rf(dir)
+    end)
+
     wait_until(fn -> File.exists?(a) and File.exists?(b) end, "socat links #{a} #{b}")
     %{dir: dir, a: a, b: b, port: port, os_pid: os_pid}
   end

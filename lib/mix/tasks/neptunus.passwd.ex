@@ -27,21 +27,19 @@ defmodule Mix.Tasks.Neptunus.Passwd do
     {opts, positional, invalid} =
       OptionParser.parse(args, strict: [iterations: :integer, inline: :boolean])
 
-    with [] <- invalid,
-         [name, role] <- positional,
-         true <- role in @roles || {:role, role},
-         true <- Regex.match?(~r/^[A-Za-z0-9_.@-]{1,40}$/, name) || {:name, name} do
-      password = read_password("Password for #{name}: ")
-      if password == "", do: Mix.raise("empty password")
-      hash = Password.hash(password, Keyword.take(opts, [:iterations]))
-      separator = if opts[:inline], do: ":", else: " "
-      Mix.shell().info(Enum.join([name, role, hash], separator))
-    else
-      {:role, role} ->
-        Mix.raise("unknown role #{inspect(role)}: use one of #{Enum.join(@roles, ", ")}")
+    case {invalid, positional} do
+      {[], [name, role]} ->
+        unless role in @roles,
+          do: Mix.raise("unknown role #{inspect(role)}: use one of #{Enum.join(@roles, ", ")}")
 
-      {:name, name} ->
-        Mix.raise("bad user name #{inspect(name)}: 1..40 of a-z A-Z 0-9 _ . @ -")
+        unless Regex.match?(~r/^[A-Za-z0-9_.@-]{1,40}$/, name),
+          do: Mix.raise("bad user name #{inspect(name)}: 1..40 of a-z A-Z 0-9 _ . @ -")
+
+        password = read_password("Password for #{name}: ")
+        if password == "", do: Mix.raise("empty password")
+        hash = Password.hash(password, Keyword.take(opts, [:iterations]))
+        separator = if opts[:inline], do: ":", else: " "
+        Mix.shell().info(Enum.join([name, role, hash], separator))
 
       _ ->
         Mix.raise("usage: mix neptunus.passwd [--iterations N] [--inline] NAME ROLE")

@@ -124,7 +124,7 @@ defmodule Neptunus.Dynamics.Params do
           tether: tether(),
           sensors: sensors(),
           power: power(),
-          compiled: map()
+          compiled: map() | nil
         }
 
   @channels ~w(depth heading roll pitch voltage current)

@@ -37,7 +37,7 @@ defmodule Neptunus.Vehicle.Telemetry do
             id: String.t(),
             topic: String.t(),
             periodic: Periodic.t(),
-            sample: Board.sample() | nil,
+            sample: Neptunus.Vehicle.Telemetry.sample() | nil,
             command: map(),
             thrusters: map(),
             control: map() | nil,
@@ -60,6 +60,18 @@ defmodule Neptunus.Vehicle.Telemetry do
     ]
   end
 
+  @typedoc """
+  What navigation reports: a board sample (`t:Neptunus.Vehicle.Board.sample/0`) whose
+  `measurement` holds the accepted values (nil before the first), with `estimate` and
+  `wild_points`.
+  """
+  @type sample :: %{
+          required(:t) => float(),
+          required(:measurement) => %{optional(atom()) => float() | nil},
+          required(:sim) => map() | nil,
+          optional(atom()) => term()
+        }
+
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts) do
     GenServer.start_link(__MODULE__, opts, name: via(Keyword.fetch!(opts, :id)))
@@ -73,7 +85,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   Reports a board sample (called by `Neptunus.Vehicle.Navigation`, with the filtered
   `measurement`, the `estimate` and the `wild_points` counts).
   """
-  @spec sample(String.t(), Board.sample()) :: :ok
+  @spec sample(String.t(), sample()) :: :ok
   def sample(id, sample), do: GenServer.cast(via(id), {:sample, sample})
 
   @doc """

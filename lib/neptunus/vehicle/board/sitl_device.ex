@@ -139,7 +139,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   end
 
   def handle_info(:tick, state) do
-    now = System.monotonic_time(:native)
+    now = System.monotonic_time()
     {due, periodic} = Periodic.advance(state.periodic, now)
     steps = min(due, @max_catch_up)
 
