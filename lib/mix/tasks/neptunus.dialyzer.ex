@@ -7,7 +7,8 @@ defmodule Mix.Tasks.Neptunus.Dialyzer do
       mix neptunus.dialyzer
 
   The PLT (the analysed OTP, Elixir, yaws and jiffy modules) is built once per machine into
-  `_build/neptunus-<OTP release>.plt` (a few minutes on two cores) and reused. `make test`
+  the build directory (`_build/dev/neptunus-<OTP release>.plt`; a few minutes on two cores)
+  and reused. `make test`
   runs this task after the tests.
   """
   use Mix.Task
