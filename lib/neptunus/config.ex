@@ -16,6 +16,7 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_CAMERAS`  | comma-separated `id=source` pairs        | none                   |
   | `NEPTUNUS_RECORDINGS` | recordings directory, or `off`         | `recordings`           |
   | `NEPTUNUS_RECORDING_MAX_MB` | one recording file's size (MiB)  | 256                    |
+  | `NEPTUNUS_RECORDING_MIN_FREE_MB` | stop recording below this free disk (MiB) | 512 |
 
   Boards: `simulated` (the built-in simulator), `sitl` (the simulator behind a pseudo-terminal
   speaking the OpenROV protocol, through the real board link), `uart:DEVICE[@BAUD]` (a real
@@ -409,11 +410,12 @@ defmodule Neptunus.Config do
   @doc """
   Recording (`config :neptunus, :recording`, see `Neptunus.Vehicle.Recorder`):
   `NEPTUNUS_RECORDINGS` — the directory (relative to the working directory, created when
-  needed) or `off`; `NEPTUNUS_RECORDING_MAX_MB` — size of one file before the next is
+  needed) or `off`; `NEPTUNUS_RECORDING_MIN_FREE_MB` — recording stops while less disk is
+  free (default 512); `NEPTUNUS_RECORDING_MAX_MB` — size of one file before the next is
   started (1..65536, default 256).
 
       iex> Neptunus.Config.recording!(%{}, "recordings")
-      %{dir: "recordings", max_bytes: 268435456}
+      %{dir: "recordings", max_bytes: 268435456, min_free_bytes: 536870912}
       iex> Neptunus.Config.recording!(%{"NEPTUNUS_RECORDINGS" => "off"}, "recordings").dir
       nil
   """
@@ -431,7 +433,9 @@ defmodule Neptunus.Config do
 
     %{
       dir: dir,
-      max_bytes: env_integer!(env, "NEPTUNUS_RECORDING_MAX_MB", 256, 1..65_536) * 1024 * 1024
+      max_bytes: env_integer!(env, "NEPTUNUS_RECORDING_MAX_MB", 256, 1..65_536) * 1024 * 1024,
+      min_free_bytes:
+        env_integer!(env, "NEPTUNUS_RECORDING_MIN_FREE_MB", 512, 0..1_048_576) * 1024 * 1024
     }
   end
 

@@ -240,6 +240,39 @@ defmodule Neptunus.Recording do
     end)
   end
 
+  @doc """
+  Free bytes on the file system holding `dir` (by `df -Pk`, which every Debian has); nil when
+  it cannot be told.
+  """
+  @spec free_bytes(Path.t()) :: non_neg_integer() | nil
+  def free_bytes(dir) do
+    case System.cmd("df", ["-Pk", dir], stderr_to_stdout: true) do
+      {output, 0} -> parse_df(output)
+      _ -> nil
+    end
+  rescue
+    _ -> nil
+  end
+
+  @doc """
+  The available bytes from `df -Pk` output (POSIX format: 1024-byte blocks).
+
+      iex> Neptunus.Recording.parse_df("Filesystem 1024-blocks Used Available Capacity Mounted on\\n/dev/vda 264212084 13382120 82119144 15% /\\n")
+      84090003456
+      iex> Neptunus.Recording.parse_df("df: nope")
+      nil
+  """
+  @spec parse_df(String.t()) :: non_neg_integer() | nil
+  def parse_df(output) do
+    with [_header, line | _] <- String.split(output, "\n", trim: true),
+         [_fs, _blocks, _used, available | _] <- String.split(line),
+         {kib, ""} <- Integer.parse(available) do
+      kib * 1024
+    else
+      _ -> nil
+    end
+  end
+
   @doc "How many telemetry entries `entries` holds."
   @spec telemetry_count(Enumerable.t()) :: non_neg_integer()
   def telemetry_count(entries), do: Enum.count(entries, &telemetry?/1)

@@ -143,7 +143,11 @@ defmodule Neptunus.ConfigTest do
   describe "recording!/2" do
     test "a directory (created later when missing), off, and the file size" do
       assert Config.recording!(%{"NEPTUNUS_RECORDINGS" => " /tmp/rec-x "}, "recordings") ==
-               %{dir: "/tmp/rec-x", max_bytes: 256 * 1024 * 1024}
+               %{
+                 dir: "/tmp/rec-x",
+                 max_bytes: 256 * 1024 * 1024,
+                 min_free_bytes: 512 * 1024 * 1024
+               }
 
       assert Config.recording!(%{}, nil).dir == nil
 
@@ -165,6 +169,13 @@ defmodule Neptunus.ConfigTest do
           Config.recording!(%{"NEPTUNUS_RECORDING_MAX_MB" => bad}, nil)
         end
       end
+
+      assert_raise ArgumentError, ~r/NEPTUNUS_RECORDING_MIN_FREE_MB/, fn ->
+        Config.recording!(%{"NEPTUNUS_RECORDING_MIN_FREE_MB" => "-1"}, nil)
+      end
+
+      assert Config.recording!(%{"NEPTUNUS_RECORDING_MIN_FREE_MB" => "0"}, nil).min_free_bytes ==
+               0
     end
   end
 

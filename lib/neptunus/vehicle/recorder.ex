@@ -8,15 +8,18 @@ defmodule Neptunus.Vehicle.Recorder do
   `{at, event, payload}` terms, written asynchronously so a slow disk never holds up the
   vehicle). When a file reaches `max_bytes` (counted as the entries' external term size) it
   is closed and the next one opened, so a long dive is never cut short and no entry is
-  refused. Nothing is dropped silently: when the disk refuses to write (full,
-  removed, read-only) recording stops and says so — a `log` entry (category `errors`) on
+  refused. Recording also stops before the disk fills — less than `min_free_bytes` (default
+  512 MiB) free, checked at start and every minute — and starts a new file when there is
+  room again. Nothing is dropped silently: when the disk refuses to write (full, removed,
+  read-only) or is nearly full, recording stops and says so — a `log` entry (category `errors`) on
   `"log:<id>"`, a `recording` event on the vehicle's topic and the server log — and `status/1`
   tells why.
 
   Its state is in every telemetry payload as `recording: %{on, error}`. It comes after the
   helm in the vehicle's tree: its failures never restart the board,
   control or helm. Options: `:id`; `:recording` — `dir` (nil or absent: recording is off;
-  default from `config :neptunus, :recording`) and `max_bytes` (default 256 MiB).
+  default from `config :neptunus, :recording`), `max_bytes` (default 256 MiB),
+  `min_free_bytes` and, for tests, `free_bytes` (a function of the directory).
   """
   use GenServer
 
@@ -26,6 +29,8 @@ defmodule Neptunus.Vehicle.Recorder do
   alias Neptunus.Vehicle.{Control, Telemetry}
 
   @default_max_bytes 256 * 1024 * 1024
+  @default_min_free_bytes 512 * 1024 * 1024
+  @disk_check %{every_ms: 60_000}
 
   defmodule State do
     @moduledoc false
@@ -38,10 +43,26 @@ defmodule Neptunus.Vehicle.Recorder do
             files: [String.t()],
             entries: non_neg_integer(),
             bytes: non_neg_integer(),
-            error: String.t() | nil
+            error: String.t() | nil,
+            min_free_bytes: non_neg_integer(),
+            free_bytes: (Path.t() -> non_neg_integer() | nil),
+            low_disk: boolean()
           }
-    @enforce_keys [:id, :dir, :max_bytes]
-    defstruct [:id, :dir, :max_bytes, :log, :file, :error, files: [], entries: 0, bytes: 0]
+    @enforce_keys [:id, :dir, :max_bytes, :min_free_bytes, :free_bytes]
+    defstruct [
+      :id,
+      :dir,
+      :max_bytes,
+      :log,
+      :file,
+      :error,
+      :min_free_bytes,
+      :free_bytes,
+      files: [],
+      entries: 0,
+      bytes: 0,
+      low_disk: false
+    ]
   end
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -73,7 +94,9 @@ defmodule Neptunus.Vehicle.Recorder do
     state = %State{
       id: id,
       dir: Map.get(config, :dir),
-      max_bytes: Map.get(config, :max_bytes, @default_max_bytes)
+      max_bytes: Map.get(config, :max_bytes, @default_max_bytes),
+      min_free_bytes: Map.get(config, :min_free_bytes, @default_min_free_bytes),
+      free_bytes: Map.get(config, :free_bytes, &Recording.free_bytes/1)
     }
 
     if state.dir do
@@ -88,7 +111,8 @@ defmodule Neptunus.Vehicle.Recorder do
   def handle_continue(:open, state) do
     Process.flag(:trap_exit, true)
     PubSub.subscribe(Telemetry.topic(state.id))
-    {:noreply, open_next(state)}
+    :timer.send_interval(Map.get(@disk_check, :every_ms), :check_disk)
+    {:noreply, check_disk(state)}
   end
 
   @impl true
@@ -117,6 +141,7 @@ defmodule Neptunus.Vehicle.Recorder do
   end
 
   def handle_info({:disk_log, _node, _log, _info}, state), do: {:noreply, state}
+  def handle_info(:check_disk, state), do: {:noreply, check_disk(state)}
   def handle_info({:EXIT, _pid, _reason}, state), do: {:noreply, state}
 
   @impl true
@@ -144,6 +169,31 @@ defmodule Neptunus.Vehicle.Recorder do
   def terminate(_reason, state) do
     _ = close(state)
     :ok
+  end
+
+  # Recording stops before the disk fills (a full disk on the vehicle's computer breaks more
+  # than recording) and resumes in a new file once there is room again.
+  defp check_disk(%State{dir: dir} = state) do
+    free = state.free_bytes.(dir) || state.free_bytes.(Path.dirname(Path.expand(dir)))
+    low? = free != nil and free < state.min_free_bytes
+
+    cond do
+      low? and not state.low_disk ->
+        mb = div(free, 1_048_576)
+        limit = div(state.min_free_bytes, 1_048_576)
+        state = close(state)
+        %{failed(state, "disk nearly full: #{mb} MB free (below #{limit} MB)") | low_disk: true}
+
+      not low? and state.low_disk ->
+        open_next(%{state | low_disk: false})
+
+      not low? and state.log == nil and state.error == nil ->
+        # the first check, at start
+        open_next(state)
+
+      true ->
+        state
+    end
   end
 
   defp open_next(state) do

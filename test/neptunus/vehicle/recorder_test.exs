@@ -142,4 +142,40 @@ defmodule Neptunus.Vehicle.RecorderTest do
                     %{recording: %{on: false, error: "cannot record to" <> _}}},
                    2_000
   end
+
+  test "stops before the disk fills and resumes in a new file when there is room", %{tmp_dir: dir} do
+    free = start_supervised!({Agent, fn -> 10 * 1_048_576 end}, id: :free)
+    id = "rec-#{System.unique_integer([:positive])}"
+    PubSub.subscribe(Control.log_topic(id))
+    PubSub.subscribe(Telemetry.topic(id))
+
+    recording = [
+      dir: dir,
+      min_free_bytes: 100 * 1_048_576,
+      free_bytes: fn _dir -> Agent.get(free, & &1) end
+    ]
+
+    start_supervised!({Recorder, id: id, recording: recording})
+
+    # 10 MB free, 100 MB needed: no file at all, and it says why
+    assert_receive {:pubsub, _, "log",
+                    %{category: "errors", message: "recording stopped: " <> why}}
+
+    assert why == "disk nearly full: 10 MB free (below 100 MB)"
+    assert %{recording: false, error: ^why, files: []} = Recorder.status(id)
+    publish(id, "telemetry", %{t: 1.0})
+    assert %{entries: 0} = Recorder.status(id)
+
+    # room again: the next check opens a file and recording goes on
+    Agent.update(free, fn _ -> 1_000 * 1_048_576 end)
+    send(GenServer.whereis(Neptunus.Fleet.via(Recorder, id)), :check_disk)
+    assert %{recording: true, error: nil, files: [file]} = Recorder.status(id)
+    publish(id, "telemetry", %{t: 2.0})
+
+    # nearly full again: the file is closed with what it holds
+    Agent.update(free, fn _ -> 1_048_576 end)
+    send(GenServer.whereis(Neptunus.Fleet.via(Recorder, id)), :check_disk)
+    assert %{recording: false, error: "disk nearly full: 1 MB free" <> _} = Recorder.status(id)
+    assert [{_, "telemetry", %{t: 2.0}}] = Enum.to_list(Recording.entries(file))
+  end
 end
