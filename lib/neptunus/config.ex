@@ -421,7 +421,8 @@ defmodule Neptunus.Config do
   """
   @spec recording!(%{optional(String.t()) => String.t()}, Path.t() | nil) :: %{
           dir: Path.t() | nil,
-          max_bytes: pos_integer()
+          max_bytes: pos_integer(),
+          min_free_bytes: non_neg_integer()
         }
   def recording!(env, default_dir) do
     dir =
