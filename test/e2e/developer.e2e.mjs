@@ -158,6 +158,8 @@ test("developer page: the server's recordings: list, CSV download, shown in the 
     await plots(page).first().locator("canvas").waitFor();
     assert.equal(await plots(page).first().getAttribute("data-series"), "measurement.depth");
     await page.locator('[data-testid="log-list"] li[data-category="recording"]', { hasText: `showing recording ${name}` }).waitFor();
+    // and its events in the logger, marked as recorded
+    await page.locator('[data-testid="log-list"] li[data-category="stop"]', { hasText: "[recorded] stopped: deadman" }).waitFor();
     await screenshot(page, "developer-recording-1024x768.png", { fullPage: false });
 
     // back to live: the buffer starts afresh and fills again

@@ -4,12 +4,13 @@
  * the logger from the vehicle topic and the `log:<id>` topic.
  */
 
-import { LogBook, entryFromServerLog, telemetryChanges, telemetryFacts } from "../logger/model";
+import { LogBook, entryFromRecordedEvent, entryFromServerLog, telemetryChanges, telemetryFacts } from "../logger/model";
 import type { NewEntry, TelemetryFacts } from "../logger/model";
 import { SeriesRecorder } from "../plots/recorder";
 import { flattenNumeric } from "../plots/series";
 import { fetchRecording, fetchRecordings } from "../lib/recordings";
-import type { RecordingInfo, RecordingList } from "../lib/recordings";
+import type { ParsedRecording, RecordingInfo, RecordingList } from "../lib/recordings";
+import { decodeTelemetry } from "../lib/protocol";
 import type { Helm, Telemetry } from "../lib/protocol";
 import { AuthError, TOKEN_KEY, fetchSession, loadToken } from "../lib/session";
 import { Store } from "../lib/store";
@@ -328,11 +329,36 @@ export class DevController {
         dataVersion: this.recorder.version,
         series: [...this.recorder.series],
       });
+      this.logRecording(recording);
       const skipped = recording.bad > 0 ? `, ${recording.bad} unreadable lines skipped` : "";
       this.add({ category: "recording", level: recording.bad > 0 ? "warning" : "info", message: `showing recording ${info.name}: ${samples} samples, ${recording.events.length} events${skipped}` });
     } catch (err) {
       this.store.update({ replay: { name: info.name, loading: false, samples: 0, events: 0, error: reasonOf(err) } });
     }
+  }
+
+  /**
+   * The recording's history in the logger, marked "[recorded]": its events (stops, link,
+   * helm, recording) and what changed in its telemetry (commands, gain, autopilots), in time
+   * order, at most the logger's capacity (the newest).
+   */
+  private logRecording(recording: ParsedRecording): void {
+    const entries: NewEntry[] = [];
+    for (const e of recording.events) {
+      const entry = entryFromRecordedEvent(e.event, e.payload, e.at);
+      if (entry) entries.push(entry);
+    }
+    let facts: TelemetryFacts | null = null;
+    for (const e of recording.telemetry) {
+      const t = decodeTelemetry(e.payload);
+      if (t === null) continue;
+      const next = telemetryFacts(t);
+      for (const change of telemetryChanges(facts, next, e.at)) entries.push({ ...change, message: `[recorded] ${change.message}` });
+      facts = next;
+    }
+    entries.sort((a, b) => a.at - b.at);
+    for (const entry of entries.slice(-this.log.capacity)) this.log.add(entry);
+    this.bumpLog();
   }
 
   /** Back to live telemetry (the buffer starts afresh). */

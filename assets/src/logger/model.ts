@@ -101,6 +101,36 @@ export function entryFromServerLog(payload: unknown, now: number): NewEntry | nu
   return { at, category: categoryOf(payload["category"]), level, message: text === "" ? "(empty)" : text };
 }
 
+/**
+ * The logger's entry for an event of a server recording (`stopped`, `link`, `helm`,
+ * `recording`), marked "[recorded]"; null for events the logger does not show (presence,
+ * control updates) or malformed ones.
+ */
+export function entryFromRecordedEvent(event: string, payload: unknown, at: number): NewEntry | null {
+  if (!isRecord(payload)) return null;
+  const text = (s: unknown): string => (typeof s === "string" ? s : "");
+  switch (event) {
+    case "stopped":
+      return { at, category: "stop", level: "warning", message: `[recorded] stopped: ${text(payload["reason"]) || "?"}` };
+    case "link": {
+      const up = payload["up"] === true;
+      const reason = text(payload["reason"]);
+      return { at, category: "link", level: up ? "info" : "warning", message: `[recorded] board link ${up ? "up" : "down"}${reason ? `: ${reason}` : ""}` };
+    }
+    case "helm": {
+      const state = text(payload["state"]);
+      if (state === "") return null;
+      const pilot = isRecord(payload["pilot"]) ? text(payload["pilot"]["name"]) : "";
+      const epoch = typeof payload["epoch"] === "number" ? ` (epoch ${payload["epoch"]})` : "";
+      return { at, category: "transfer", level: state === "takeover" ? "warning" : "info", message: `[recorded] helm ${state}${pilot ? `: ${pilot} pilots` : ""}${epoch}` };
+    }
+    case "recording":
+      return { at, category: "recording", level: "error", message: `[recorded] recording stopped: ${text(payload["error"]) || "?"}` };
+    default:
+      return null;
+  }
+}
+
 const signed = (v: number | undefined): string => formatFixed(v ?? Number.NaN, 2, true);
 
 function commandText(command: Readonly<Record<string, number>>): string {

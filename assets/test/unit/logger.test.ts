@@ -5,6 +5,7 @@ import {
   categoryLabel,
   categoryOf,
   clockTime,
+  entryFromRecordedEvent,
   entryFromServerLog,
   formatLog,
   telemetryChanges,
@@ -170,5 +171,23 @@ describe("LogBook", () => {
 
   it("shows times with milliseconds", () => {
     expect(clockTime(new Date(2026, 0, 1, 9, 5, 7, 42).getTime())).toBe("09:05:07.042");
+  });
+});
+
+describe("a server recording's events in the logger", () => {
+  it("marks them [recorded] in the logger's categories", () => {
+    expect(entryFromRecordedEvent("stopped", { reason: "deadman" }, 5)).toEqual({ at: 5, category: "stop", level: "warning", message: "[recorded] stopped: deadman" });
+    expect(entryFromRecordedEvent("link", { up: false, reason: "hangup" }, 6)?.message).toBe("[recorded] board link down: hangup");
+    expect(entryFromRecordedEvent("link", { up: true }, 6)?.level).toBe("info");
+    expect(entryFromRecordedEvent("helm", { state: "piloted", pilot: { name: "ada" }, epoch: 3 }, 7)?.message).toBe("[recorded] helm piloted: ada pilots (epoch 3)");
+    expect(entryFromRecordedEvent("helm", { state: "takeover", pilot: null, epoch: 4 }, 7)?.level).toBe("warning");
+    expect(entryFromRecordedEvent("recording", { recording: false, error: "disk nearly full" }, 8)?.category).toBe("recording");
+  });
+
+  it("leaves out what the logger does not show, and malformed events", () => {
+    expect(entryFromRecordedEvent("presence_diff", { joins: {}, leaves: {} }, 1)).toBeNull();
+    expect(entryFromRecordedEvent("control", { gain: 0.5 }, 1)).toBeNull();
+    expect(entryFromRecordedEvent("helm", { epoch: 1 }, 1)).toBeNull();
+    expect(entryFromRecordedEvent("stopped", "deadman", 1)).toBeNull();
   });
 });
