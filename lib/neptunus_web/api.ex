@@ -21,6 +21,10 @@ defmodule NeptunusWeb.API do
   Recordings need what watching needs: local mode, a token (any role), or anonymous observers
   allowed; 401 otherwise.
 
+    * `DELETE /api/recordings/<vehicle>/<name>` → `{"deleted": {"vehicle", "name"}}`; local
+      mode, a pilot or the main station only (403 for observers), 409 for the file being
+      recorded now, 404 for an unknown recording.
+
   See `NeptunusWeb.Auth` and docs/API.md.
   """
   import NeptunusWeb.Yaws
@@ -65,8 +69,11 @@ defmodule NeptunusWeb.API do
   defp route(:GET, "/api/recordings/" <> rest, arg),
     do: authorized(arg, &recording(&1, String.split(rest, "/")))
 
+  defp route(:DELETE, "/api/recordings/" <> rest, arg),
+    do: delete_recording(arg, String.split(rest, "/"))
+
   defp route(_method, "/api/recordings" <> _, _arg),
-    do: {405, %{error: "method not allowed: use GET"}}
+    do: {405, %{error: "method not allowed: use GET (or DELETE for one recording)"}}
 
   defp route(_method, path, _arg), do: {404, %{error: "no such API endpoint: #{path}"}}
 
@@ -172,6 +179,57 @@ defmodule NeptunusWeb.API do
   end
 
   defp recording(_arg, _parts), do: {404, %{error: "no such recording"}}
+
+  # DELETE /api/recordings/<vehicle>/<name>: who may pilot may delete (local mode, a pilot or
+  # the main station); never the file being written.
+  defp delete_recording(arg, [vehicle, name]) do
+    dir = recording_dir()
+
+    with :ok <- may_delete(arg),
+         true <- dir != nil || {404, %{error: "recording is off on this server"}},
+         true <- Recording.valid?(vehicle, name) || {404, %{error: "no such recording"}},
+         path = Recording.path(dir, vehicle, name),
+         true <- File.regular?(path) || {404, %{error: "no such recording: #{vehicle}/#{name}"}},
+         :ok <-
+           if(writing?(vehicle, path),
+             do: {409, %{error: "#{name} is being recorded now"}},
+             else: :ok
+           ),
+         :ok <- File.rm(path) do
+      Logger.info("recording #{vehicle}/#{name} deleted")
+      {200, %{deleted: %{vehicle: vehicle, name: name}}}
+    else
+      {:error, posix} when is_atom(posix) -> {500, %{error: "cannot delete: #{posix}"}}
+      {status, body} -> {status, body}
+    end
+  end
+
+  defp delete_recording(_arg, _parts), do: {404, %{error: "no such recording"}}
+
+  defp may_delete(arg) do
+    case Auth.session(token(arg)) do
+      {:ok, %{mode: "local"}} ->
+        :ok
+
+      {:ok, %{user: %{role: role}}} when role in ["pilot", "main_station"] ->
+        :ok
+
+      {:ok, %{user: %{}}} ->
+        {403, %{error: "only a pilot or the main station may delete recordings"}}
+
+      {:ok, _} ->
+        {401, %{error: "log in to delete recordings"}}
+
+      {:error, %{error: reason}} ->
+        {401, %{error: reason}}
+    end
+  end
+
+  defp writing?(vehicle, path) do
+    Neptunus.Vehicle.Recorder.status(vehicle).file == path
+  catch
+    :exit, _ -> false
+  end
 
   defp max_rows(nil), do: {:ok, nil}
 

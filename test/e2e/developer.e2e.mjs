@@ -166,6 +166,12 @@ test("developer page: the server's recordings: list, CSV download, shown in the 
     await page.locator("#back-to-live").click();
     await until(() => samples(page), (n) => n > 0 && n < 300, WAIT_MS, "live samples again");
     assert.equal(await page.locator("#replay").count(), 0);
+
+    // delete it (after the confirmation dialog): gone from the server's list
+    page.once("dialog", (dialog) => dialog.accept());
+    await item.locator("button.delete-recording").click();
+    await item.waitFor({ state: "detached" });
+    await page.locator('[data-testid="log-list"] li[data-category="recording"]', { hasText: `deleted recording ${name}` }).waitFor();
     assertNoPageProblems();
   } finally {
     await dev.context.close();

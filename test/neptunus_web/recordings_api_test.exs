@@ -149,4 +149,79 @@ defmodule NeptunusWeb.RecordingsAPITest do
         {~c"authorization", ~c"Bearer " ++ String.to_charlist(token)}
       ])
   end
+
+  defp delete(path, headers \\ []) do
+    url = ~c"http://127.0.0.1:#{port()}#{path}"
+
+    {:ok, {{_, status, _}, _headers, body}} =
+      :httpc.request(:delete, {url, headers}, [], body_format: :binary)
+
+    {status, json(body)}
+  end
+
+  # a finished recording of the vehicle, older than the one being written
+  defp old_recording!(dir, id) do
+    name = "20200101-000000Z-1.log"
+    path = Path.join([dir, id, name])
+    {:ok, log} = :disk_log.open(name: {__MODULE__, make_ref()}, file: String.to_charlist(path))
+    :ok = :disk_log.log(log, {1, "telemetry", %{t: 0.0}})
+    :ok = :disk_log.close(log)
+    {name, path}
+  end
+
+  test "DELETE removes a finished recording, never the one being written", %{
+    id: id,
+    name: name,
+    tmp_dir: dir
+  } do
+    {old, path} = old_recording!(dir, id)
+
+    assert {200, %{"deleted" => %{"vehicle" => ^id, "name" => ^old}}} =
+             delete("/api/recordings/#{id}/#{old}")
+
+    refute File.exists?(path)
+    {200, _, body} = get("/api/recordings?vehicle=#{id}")
+    assert [%{"name" => ^name}] = json(body)["recordings"]
+
+    assert {409, %{"error" => error}} = delete("/api/recordings/#{id}/#{name}")
+    assert error =~ "being recorded now"
+    assert File.exists?(Path.join([dir, id, name]))
+
+    assert {404, _} = delete("/api/recordings/#{id}/#{old}")
+    assert {404, _} = delete("/api/recordings/#{id}/..%2F..%2Fetc%2Fpasswd")
+    assert {404, _} = delete("/api/recordings/#{id}")
+  end
+
+  test "in secure mode only a pilot or the main station may delete", %{id: id, tmp_dir: dir} do
+    {old, path} = old_recording!(dir, id)
+
+    users = %{
+      "olga" => %{name: "olga", role: :observer, hash: "unused"},
+      "ada" => %{name: "ada", role: :pilot, hash: "unused"}
+    }
+
+    Application.put_env(:neptunus, :auth, %{
+      mode: :secure,
+      secret: @secret,
+      users: users,
+      anonymous_observers: true,
+      origins: [],
+      token_ttl_s: 600,
+      login_attempts_per_minute: 10
+    })
+
+    bearer = fn user ->
+      token = Token.sign(user, @secret, System.os_time(:second), 600)
+      [{~c"authorization", ~c"Bearer " ++ String.to_charlist(token)}]
+    end
+
+    assert {401, %{"error" => "log in to delete recordings"}} =
+             delete("/api/recordings/#{id}/#{old}")
+
+    assert {403, %{"error" => error}} = delete("/api/recordings/#{id}/#{old}", bearer.("olga"))
+    assert error =~ "only a pilot or the main station"
+    assert File.exists?(path)
+    assert {200, _} = delete("/api/recordings/#{id}/#{old}", bearer.("ada"))
+    refute File.exists?(path)
+  end
 end

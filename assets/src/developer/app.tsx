@@ -68,6 +68,15 @@ function Recordings({ s, c }: { s: DevState; c: DevController }): preact.JSX.Ele
               <button type="button" class="replay" disabled={s.replay?.loading === true} onClick={() => void c.replay(r)}>
                 Show in plots
               </button>
+              <button
+                type="button"
+                class="delete-recording danger"
+                onClick={() => {
+                  if (window.confirm(`Delete the recording ${r.name} (${formatBytes(r.bytes)}) from the server? This cannot be undone.`)) void c.deleteRecording(r);
+                }}
+              >
+                Delete
+              </button>
             </li>
           ))}
         </ul>

@@ -8,7 +8,7 @@ import { LogBook, entryFromRecordedEvent, entryFromServerLog, telemetryChanges, 
 import type { NewEntry, TelemetryFacts } from "../logger/model";
 import { SeriesRecorder } from "../plots/recorder";
 import { flattenNumeric } from "../plots/series";
-import { fetchRecording, fetchRecordings } from "../lib/recordings";
+import { deleteRecording, fetchRecording, fetchRecordings } from "../lib/recordings";
 import type { ParsedRecording, RecordingInfo, RecordingList } from "../lib/recordings";
 import { decodeTelemetry } from "../lib/protocol";
 import type { Helm, Telemetry } from "../lib/protocol";
@@ -359,6 +359,18 @@ export class DevController {
     entries.sort((a, b) => a.at - b.at);
     for (const entry of entries.slice(-this.log.capacity)) this.log.add(entry);
     this.bumpLog();
+  }
+
+  /** Deletes a recording on the server (after the page asked), then lists them again. */
+  async deleteRecording(info: RecordingInfo): Promise<void> {
+    try {
+      await deleteRecording(info, this.token);
+      this.add({ category: "recording", level: "info", message: `deleted recording ${info.name}` });
+      this.store.update({ recordingsError: null });
+    } catch (err) {
+      this.store.update({ recordingsError: `cannot delete ${info.name}: ${reasonOf(err)}` });
+    }
+    await this.loadRecordings();
   }
 
   /** Back to live telemetry (the buffer starts afresh). */

@@ -129,3 +129,11 @@ export async function fetchRecording(info: RecordingInfo, token: string | null, 
   if (!response.ok) throw new Error(await errorOf(response));
   return parseRecordingLines(await response.text());
 }
+
+/** `DELETE /api/recordings/<vehicle>/<name>`. Rejects with the server's reason. */
+export async function deleteRecording(info: Pick<RecordingInfo, "vehicle" | "name">, token: string | null, fetchFn: Fetch = fetch): Promise<void> {
+  const headers: Record<string, string> = {};
+  if (token !== null) headers["authorization"] = `Bearer ${token}`;
+  const response = await fetchFn(`/api/recordings/${encodeURIComponent(info.vehicle)}/${encodeURIComponent(info.name)}`, { method: "DELETE", headers });
+  if (!response.ok) throw new Error(await errorOf(response));
+}

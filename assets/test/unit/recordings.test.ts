@@ -1,5 +1,6 @@
 import { describe, expect, it } from "vitest";
 import {
+  deleteRecording,
   decodeRecordingList,
   fetchRecording,
   fetchRecordings,
@@ -92,5 +93,20 @@ describe("fetching", () => {
     expect(asked).toContain("format=jsonl&max=500");
     expect(parsed.telemetry).toHaveLength(1);
     await expect(fetchRecording({ vehicle: "a", name: "b", bytes: 1, startedAt: null, modifiedAt: 0 }, null, 5, async () => reply(404, JSON.stringify({ error: "no such recording" })))).rejects.toThrow("no such recording");
+  });
+});
+
+describe("deleting", () => {
+  it("sends DELETE with the token and rejects with the server's reason", async () => {
+    let seen: RequestInit | undefined;
+    await deleteRecording({ vehicle: "rov-1", name: "x.log" }, "tok", async (_url, init) => {
+      seen = init;
+      return reply(200, JSON.stringify({ deleted: {} }));
+    });
+    expect(seen?.method).toBe("DELETE");
+    expect((seen?.headers as Record<string, string>)["authorization"]).toBe("Bearer tok");
+    await expect(
+      deleteRecording({ vehicle: "rov-1", name: "x.log" }, null, async () => reply(409, JSON.stringify({ error: "x.log is being recorded now" }))),
+    ).rejects.toThrow("being recorded now");
   });
 });
