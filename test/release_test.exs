@@ -4,17 +4,12 @@ defmodule Neptunus.ReleaseTest do
   # the systemd unit in rel/ verifies against it.
   use ExUnit.Case, async: false
 
+  import Neptunus.Test.Vehicles, only: [free_port: 0]
+
   @moduletag :external
   @moduletag timeout: 600_000
 
   @root Path.expand("..", __DIR__)
-
-  defp free_port do
-    {:ok, socket} = :gen_tcp.listen(0, ip: {127, 0, 0, 1})
-    {:ok, port} = :inet.port(socket)
-    :gen_tcp.close(socket)
-    port
-  end
 
   defp get(port, path) do
     case :httpc.request(:get, {~c"http://127.0.0.1:#{port}#{path}", []}, [timeout: 2_000],

@@ -48,6 +48,30 @@ defmodule Neptunus.Dynamics.State do
   @doc "The field names in order: `η` then `ν`."
   @spec fields() :: [atom()]
   def fields, do: [:x, :y, :z, :phi, :theta, :psi, :u, :v, :w, :p, :q, :r]
+
+  @doc "The state from a 12-tuple in the order of `fields/0`."
+  @spec from_tuple(tuple()) :: t()
+  def from_tuple({x, y, z, phi, theta, psi, u, v, w, p, q, r}) do
+    %__MODULE__{
+      x: x,
+      y: y,
+      z: z,
+      phi: phi,
+      theta: theta,
+      psi: psi,
+      u: u,
+      v: v,
+      w: w,
+      p: p,
+      q: q,
+      r: r
+    }
+  end
+
+  @doc "The state as a 12-tuple in the order of `fields/0`."
+  @spec to_tuple(t()) :: tuple()
+  def to_tuple(%__MODULE__{} = s),
+    do: {s.x, s.y, s.z, s.phi, s.theta, s.psi, s.u, s.v, s.w, s.p, s.q, s.r}
 end
 
 defmodule Neptunus.Dynamics do
@@ -210,25 +234,8 @@ defmodule Neptunus.Dynamics do
   Returns a `State` whose fields hold the derivatives (`x` holds `ẋ`, `u` holds `u̇`, …).
   """
   @spec derivative(State.t(), tau() | tau4(), Params.t(), current()) :: State.t()
-  def derivative(%State{} = s, tau, %Params{compiled: k}, current \\ @still) do
-    {xd, yd, zd, phid, thd, psid, ud, vd, wd, pd, qd, rd} =
-      f(to_tuple(s), tau6(tau), kernel(k), float3(current))
-
-    %State{
-      x: xd,
-      y: yd,
-      z: zd,
-      phi: phid,
-      theta: thd,
-      psi: psid,
-      u: ud,
-      v: vd,
-      w: wd,
-      p: pd,
-      q: qd,
-      r: rd
-    }
-  end
+  def derivative(%State{} = s, tau, %Params{compiled: k}, current \\ @still),
+    do: State.from_tuple(f(to_tuple(s), tau6(tau), kernel(k), float3(current)))
 
   @doc """
   Advances the state by `dt` seconds with one classical RK4 step, `tau` and `current`
@@ -237,23 +244,8 @@ defmodule Neptunus.Dynamics do
   @spec step(State.t(), tau() | tau4(), number(), Params.t(), current()) :: State.t()
   def step(%State{} = s, tau, dt, %Params{compiled: k}, current \\ @still)
       when is_number(dt) and dt > 0 do
-    {x, y, z, phi, theta, psi, u, v, w, p, q, r} =
-      rk4(to_tuple(s), tau6(tau), dt * 1.0, k, float3(current))
-
-    %State{
-      x: x,
-      y: y,
-      z: z,
-      phi: wrap_pi(phi),
-      theta: theta,
-      psi: wrap_pi(psi),
-      u: u,
-      v: v,
-      w: w,
-      p: p,
-      q: q,
-      r: r
-    }
+    state = State.from_tuple(rk4(to_tuple(s), tau6(tau), dt * 1.0, k, float3(current)))
+    %State{state | phi: wrap_pi(state.phi), psi: wrap_pi(state.psi)}
   end
 
   @doc """

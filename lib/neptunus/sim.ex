@@ -202,7 +202,7 @@ defmodule Neptunus.Sim do
 
     case Native.run(
            params.compiled.native,
-           dyn_tuple(sim.dyn),
+           State.to_tuple(sim.dyn),
            sim.forces,
            sim.targets,
            sim.lags,
@@ -216,7 +216,7 @@ defmodule Neptunus.Sim do
 
       {dyn, forces} ->
         steps = sim.steps + chunk
-        sim = %{sim | dyn: dyn_struct(dyn), forces: forces, current: current, steps: steps}
+        sim = %{sim | dyn: State.from_tuple(dyn), forces: forces, current: current, steps: steps}
         sim |> read_sensors() |> native_loop(n - chunk)
     end
   end
@@ -239,26 +239,6 @@ defmodule Neptunus.Sim do
 
   defp until_reading(%__MODULE__{steps: steps, sensor_every: every}),
     do: min(every - rem(steps, every), @native_chunk)
-
-  defp dyn_tuple(%State{} = s),
-    do: {s.x, s.y, s.z, s.phi, s.theta, s.psi, s.u, s.v, s.w, s.p, s.q, s.r}
-
-  defp dyn_struct({x, y, z, phi, theta, psi, u, v, w, p, q, r}) do
-    %State{
-      x: x,
-      y: y,
-      z: z,
-      phi: phi,
-      theta: theta,
-      psi: psi,
-      u: u,
-      v: v,
-      w: w,
-      p: p,
-      q: q,
-      r: r
-    }
-  end
 
   defp step_once(%__MODULE__{params: params, dt: dt} = sim) do
     current = Current.step(sim.current)

@@ -3,6 +3,8 @@ defmodule NeptunusWeb.BootTest do
   # code of this test run) with the environment under test: secure by default, and TLS.
   use ExUnit.Case, async: false
 
+  import Neptunus.Test.Vehicles, only: [free_port: 0]
+
   alias NeptunusWeb.Auth.Password
 
   @moduletag :boot
@@ -26,13 +28,6 @@ defmodule NeptunusWeb.BootTest do
       env: env,
       stderr_to_stdout: true
     )
-  end
-
-  defp free_port do
-    {:ok, socket} = :gen_tcp.listen(0, ip: {127, 0, 0, 1})
-    {:ok, port} = :inet.port(socket)
-    :gen_tcp.close(socket)
-    port
   end
 
   @tag :tmp_dir

@@ -3,17 +3,12 @@ defmodule Neptunus.Dynamics.NativeTest do
   # is exact (==), over random states, commands, currents, forces and parameter sets.
   use ExUnit.Case, async: true
 
+  import Neptunus.Test.Vehicles, only: [variant: 1]
+
   alias Neptunus.{Dynamics, Sim}
   alias Neptunus.Dynamics.{Native, Params, State}
 
   @cases 60
-
-  defp variant(fun) do
-    path = Path.join(:code.priv_dir(:neptunus), "vehicles/neptunus.json")
-    {:ok, map} = path |> File.read!() |> NeptunusWeb.Channels.Wire.decode_json()
-    {:ok, params} = map |> fun.() |> Params.from_map()
-    params
-  end
 
   # every kind of parameter set the loop distinguishes: 4-DOF, each Coriolis model, with
   # and without tether, thrusters with and without lag

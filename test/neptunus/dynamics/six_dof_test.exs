@@ -1,6 +1,8 @@
 defmodule Neptunus.Dynamics.SixDofTest do
   use ExUnit.Case, async: true
 
+  import Neptunus.Test.Vehicles, only: [variant: 1]
+
   alias Neptunus.{Dynamics, Sim}
   alias Neptunus.Dynamics.{Linear, Params, State}
 
@@ -9,14 +11,6 @@ defmodule Neptunus.Dynamics.SixDofTest do
   @neptunus Dynamics.params(:neptunus)
   @dt 0.01
   @zero {0.0, 0.0, 0.0, 0.0, 0.0, 0.0}
-
-  # neptunus' parameter document with changes (a function of the decoded map)
-  defp variant(fun) do
-    path = Path.join(:code.priv_dir(:neptunus), "vehicles/neptunus.json")
-    {:ok, map} = path |> File.read!() |> NeptunusWeb.Channels.Wire.decode_json()
-    {:ok, params} = map |> fun.() |> Params.from_map()
-    params
-  end
 
   defp run(state, tau, seconds, params, current \\ {0.0, 0.0, 0.0}, dt \\ @dt) do
     Enum.reduce(1..round(seconds / dt), state, fn _, s ->
