@@ -20,11 +20,7 @@ defmodule Mix.Tasks.Neptunus.Dialyzer do
   def run(_args) do
     Mix.Task.run("compile")
 
-    plt =
-      Path.join(
-        Mix.Project.build_path() |> Path.dirname(),
-        "neptunus-#{System.otp_release()}.plt"
-      )
+    plt = Path.join(Mix.Project.build_path(), "neptunus-#{System.otp_release()}.plt")
 
     unless File.exists?(plt) do
       Mix.shell().info("Building the dialyzer PLT #{plt} (once per machine)…")
