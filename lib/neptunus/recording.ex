@@ -184,41 +184,24 @@ defmodule Neptunus.Recording do
   The telemetry of `entries` as CSV (iodata): a header `time,<series…>` — `time` the wall
   clock in ms, then every numeric series that appears anywhere in the recording, in order of
   first appearance — and one row per telemetry entry (empty where a series has no value).
-  `entries` is enumerated twice (columns, then rows): pass a list or a re-readable stream.
+  `entries` is read once.
   """
   @spec csv(Enumerable.t()) :: iodata()
   def csv(entries) do
+    rows = for {at, "telemetry", payload} <- entries, do: {at, flatten(payload)}
+
     columns =
-      entries
-      |> Stream.filter(&telemetry?/1)
-      |> Enum.reduce({[], MapSet.new()}, fn {_, _, payload}, acc ->
-        payload
-        |> flatten()
-        |> Enum.reduce(acc, fn {path, _}, {order, seen} = acc ->
-          if MapSet.member?(seen, path),
-            do: acc,
-            else: {[path | order], MapSet.put(seen, path)}
-        end)
-      end)
-      |> elem(0)
-      |> Enum.reverse()
+      rows |> Enum.flat_map(fn {_, series} -> Enum.map(series, &elem(&1, 0)) end) |> Enum.uniq()
 
     header = [Enum.map_intersperse(["time" | columns], ",", &csv_field/1), "\n"]
 
-    rows =
-      entries
-      |> Stream.filter(&telemetry?/1)
-      |> Enum.map(fn {at, _, payload} ->
-        values = Map.new(flatten(payload))
-
-        [
-          Integer.to_string(at),
-          Enum.map(columns, fn c -> ["," | number(Map.get(values, c))] end),
-          "\n"
-        ]
+    lines =
+      Enum.map(rows, fn {at, series} ->
+        values = Map.new(series)
+        [Integer.to_string(at), Enum.map(columns, &["," | number(Map.get(values, &1))]), "\n"]
       end)
 
-    [header | rows]
+    [header | lines]
   end
 
   @doc """

@@ -169,7 +169,8 @@ defmodule NeptunusWeb.API do
          {:ok, max} <- max_rows(Map.get(params, "max")) do
       # what the vehicle's recorder still buffers goes to disk first
       Neptunus.Vehicle.Recorder.sync(vehicle)
-      entries = Recording.entries(path)
+      # read once: the count (for max) and the export use the same entries
+      entries = path |> Recording.entries() |> Enum.to_list()
 
       every =
         if max, do: max(every, ceil_div(Recording.telemetry_count(entries), max)), else: every

@@ -61,7 +61,7 @@ defmodule NeptunusWeb.CameraStream do
           frame ->
             if send_frame(socket, frame) == :ok,
               do: stream(socket, yaws, ref),
-              else: done(socket, yaws)
+              else: done(yaws)
         end
 
       {:discard, yaws} ->
@@ -78,7 +78,7 @@ defmodule NeptunusWeb.CameraStream do
 
         case send_frame(socket, frame) do
           :ok -> stream(socket, yaws, ref)
-          {:error, _} -> done(socket, yaws)
+          {:error, _} -> done(yaws)
         end
 
       {:DOWN, ^ref, :process, _, _} ->
@@ -103,5 +103,5 @@ defmodule NeptunusWeb.CameraStream do
     end
   end
 
-  defp done(_socket, yaws), do: :yaws_api.stream_process_end(:closed, yaws)
+  defp done(yaws), do: :yaws_api.stream_process_end(:closed, yaws)
 end
