@@ -180,7 +180,7 @@ defmodule Neptunus.Config do
       pairs!("NEPTUNUS_MODELS", spec, vehicles, "id=model pairs, e.g. rov=thesis-4dof")
       |> Map.new(fn {%{id: id}, _pair, name} ->
         if name in Neptunus.Dynamics.Params.available() do
-          {id, name}
+          {id, [vehicle: name]}
         else
           bad!(
             "NEPTUNUS_MODELS",
@@ -191,12 +191,7 @@ defmodule Neptunus.Config do
         end
       end)
 
-    Enum.map(vehicles, fn %{id: id} = vehicle ->
-      case Map.fetch(configured, id) do
-        {:ok, name} -> Map.put(vehicle, :sim, vehicle: name)
-        :error -> vehicle
-      end
-    end)
+    put_configured(vehicles, configured, :sim)
   end
 
   # A vehicle's camera source (Neptunus.Camera.Source).
@@ -210,9 +205,14 @@ defmodule Neptunus.Config do
         end
       end)
 
+    put_configured(vehicles, configured, :camera)
+  end
+
+  # each vehicle with a configured value (by id) gets it under `key`
+  defp put_configured(vehicles, configured, key) do
     Enum.map(vehicles, fn %{id: id} = vehicle ->
       case Map.fetch(configured, id) do
-        {:ok, source} -> Map.put(vehicle, :camera, source)
+        {:ok, value} -> Map.put(vehicle, key, value)
         :error -> vehicle
       end
     end)
