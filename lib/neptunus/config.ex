@@ -164,13 +164,13 @@ defmodule Neptunus.Config do
         end
       end)
 
-    Enum.map(vehicles, fn
-      %{board: board, id: id} = vehicle when board in [:sitl, :uart] ->
-        Map.put(vehicle, :wiring, Map.get(configured, id, Neptunus.Wiring.default()))
+    defaults =
+      for %{board: board, id: id} <- vehicles,
+          board in [:sitl, :uart],
+          into: %{},
+          do: {id, Neptunus.Wiring.default()}
 
-      vehicle ->
-        vehicle
-    end)
+    put_configured(vehicles, Map.merge(defaults, configured), :wiring)
   end
 
   # A vehicle's parameter set, for the simulator (simulated and sitl boards, and run mode
