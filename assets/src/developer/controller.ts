@@ -4,7 +4,7 @@
  * the logger from the vehicle topic and the `log:<id>` topic.
  */
 
-import { LogBook, entryFromRecordedEvent, entryFromServerLog, telemetryChanges, telemetryFacts } from "../logger/model";
+import { LogBook, entryFromRecordedEvent, entryFromServerLog, linkEntry, recorded, stopEntry, telemetryChanges, telemetryFacts } from "../logger/model";
 import type { NewEntry, TelemetryFacts } from "../logger/model";
 import { SeriesRecorder } from "../plots/recorder";
 import { flattenNumeric } from "../plots/series";
@@ -156,13 +156,8 @@ export class DevController {
       },
       telemetry: (t) => this.onTelemetry(t),
       helm: (h) => this.onHelm(h),
-      stopped: (reason) => this.add({ category: "stop", level: "warning", message: `stopped: ${reason}` }),
-      link: (link) =>
-        this.add({
-          category: "link",
-          level: link.up ? "info" : "warning",
-          message: `board link ${link.up ? "up" : "down"}${link.reason ? `: ${link.reason}` : ""}`,
-        }),
+      stopped: (reason) => this.add(stopEntry(reason, Date.now())),
+      link: (link) => this.add(linkEntry(link.up, link.reason, Date.now())),
       status: (status) => {
         const was = this.store.get().status;
         this.store.update({ status });
@@ -353,7 +348,7 @@ export class DevController {
       const t = decodeTelemetry(e.payload);
       if (t === null) continue;
       const next = telemetryFacts(t);
-      for (const change of telemetryChanges(facts, next, e.at)) entries.push({ ...change, message: `[recorded] ${change.message}` });
+      for (const change of telemetryChanges(facts, next, e.at)) entries.push(recorded(change));
       facts = next;
     }
     entries.sort((a, b) => a.at - b.at);

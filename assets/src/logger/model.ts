@@ -101,6 +101,19 @@ export function entryFromServerLog(payload: unknown, now: number): NewEntry | nu
   return { at, category: categoryOf(payload["category"]), level, message: text === "" ? "(empty)" : text };
 }
 
+/** The entry for a safety stop (the vehicle's `stopped` event). */
+export function stopEntry(reason: string, at: number): NewEntry {
+  return { at, category: "stop", level: "warning", message: `stopped: ${reason}` };
+}
+
+/** The entry for a board link change (the vehicle's `link` event). */
+export function linkEntry(up: boolean, reason: string | null, at: number): NewEntry {
+  return { at, category: "link", level: up ? "info" : "warning", message: `board link ${up ? "up" : "down"}${reason ? `: ${reason}` : ""}` };
+}
+
+/** An entry marked as coming from a server recording. */
+export const recorded = (entry: NewEntry): NewEntry => ({ ...entry, message: `[recorded] ${entry.message}` });
+
 /**
  * The logger's entry for an event of a server recording (`stopped`, `link`, `helm`,
  * `recording`), marked "[recorded]"; null for events the logger does not show (presence,
@@ -111,12 +124,9 @@ export function entryFromRecordedEvent(event: string, payload: unknown, at: numb
   const text = (s: unknown): string => (typeof s === "string" ? s : "");
   switch (event) {
     case "stopped":
-      return { at, category: "stop", level: "warning", message: `[recorded] stopped: ${text(payload["reason"]) || "?"}` };
-    case "link": {
-      const up = payload["up"] === true;
-      const reason = text(payload["reason"]);
-      return { at, category: "link", level: up ? "info" : "warning", message: `[recorded] board link ${up ? "up" : "down"}${reason ? `: ${reason}` : ""}` };
-    }
+      return recorded(stopEntry(text(payload["reason"]) || "?", at));
+    case "link":
+      return recorded(linkEntry(payload["up"] === true, text(payload["reason"]) || null, at));
     case "helm": {
       const state = text(payload["state"]);
       if (state === "") return null;
