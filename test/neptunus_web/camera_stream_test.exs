@@ -156,15 +156,7 @@ defmodule NeptunusWeb.CameraStreamTest do
   end
 
   test "secure mode: the token in the query opens the stream", %{id: id} do
-    Application.put_env(:neptunus, :auth, %{
-      mode: :secure,
-      secret: @secret,
-      users: %{"olga" => %{name: "olga", role: :observer, hash: "unused"}},
-      anonymous_observers: false,
-      origins: [],
-      token_ttl_s: 600,
-      login_attempts_per_minute: 10
-    })
+    secure!(@secret, %{"olga" => %{name: "olga", role: :observer, hash: "unused"}})
 
     {401, _, body, _} = open("/camera/#{id}.mjpg")
     assert body =~ "log in"

@@ -3,6 +3,8 @@ defmodule NeptunusWeb.RecordingsAPITest do
   # time (the API reads it at every request) and restored after each test.
   use ExUnit.Case, async: false
 
+  import NeptunusWeb.Test.Wire, only: [secure!: 2, secure!: 3]
+
   alias Neptunus.PubSub
   alias Neptunus.Vehicle.{Recorder, Telemetry}
   alias NeptunusWeb.Auth.Token
@@ -127,15 +129,7 @@ defmodule NeptunusWeb.RecordingsAPITest do
   test "in secure mode recordings need a token (any role)", %{id: id, name: name} do
     users = %{"olga" => %{name: "olga", role: :observer, hash: "unused"}}
 
-    Application.put_env(:neptunus, :auth, %{
-      mode: :secure,
-      secret: @secret,
-      users: users,
-      anonymous_observers: false,
-      origins: [],
-      token_ttl_s: 600,
-      login_attempts_per_minute: 10
-    })
+    secure!(@secret, users)
 
     {401, _, body} = get("/api/recordings")
     assert json(body)["error"] =~ "log in to see recordings"
@@ -200,15 +194,7 @@ defmodule NeptunusWeb.RecordingsAPITest do
       "ada" => %{name: "ada", role: :pilot, hash: "unused"}
     }
 
-    Application.put_env(:neptunus, :auth, %{
-      mode: :secure,
-      secret: @secret,
-      users: users,
-      anonymous_observers: true,
-      origins: [],
-      token_ttl_s: 600,
-      login_attempts_per_minute: 10
-    })
+    secure!(@secret, users, %{anonymous_observers: true})
 
     bearer = fn user ->
       token = Token.sign(user, @secret, System.os_time(:second), 600)

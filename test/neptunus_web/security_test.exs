@@ -32,21 +32,7 @@ defmodule NeptunusWeb.SecurityTest do
       "olga" => %{name: "olga", role: :observer, hash: hash}
     }
 
-    config =
-      Map.merge(
-        %{
-          mode: :secure,
-          secret: @secret,
-          users: users,
-          anonymous_observers: false,
-          origins: [],
-          token_ttl_s: 600,
-          login_attempts_per_minute: 10
-        },
-        overrides
-      )
-
-    Application.put_env(:neptunus, :auth, config)
+    NeptunusWeb.Test.Wire.secure!(@secret, users, overrides)
   end
 
   defp token(name, issued_ago_s \\ 0, ttl_s \\ 600),

@@ -146,4 +146,24 @@ defmodule NeptunusWeb.Test.Wire do
     {jr, snapshot} = join!(ws, topic)
     %{ws: ws, jr: jr, topic: topic, snapshot: snapshot}
   end
+
+  @doc """
+  Switches the running application to secure mode with `secret` and `users`
+  (`%{name => %{name, role, hash}}`); `overrides` change other settings. Restore the
+  previous `:auth` environment in the test's `on_exit`.
+  """
+  @spec secure!(String.t(), map(), map()) :: :ok
+  def secure!(secret, users, overrides \\ %{}) do
+    config = %{
+      mode: :secure,
+      secret: secret,
+      users: users,
+      anonymous_observers: false,
+      origins: [],
+      token_ttl_s: 600,
+      login_attempts_per_minute: 10
+    }
+
+    Application.put_env(:neptunus, :auth, Map.merge(config, overrides))
+  end
 end
