@@ -46,7 +46,7 @@ defmodule Mix.Tasks.Neptunus.Simulate do
     Mix.Task.run("app.config")
 
     scenario =
-      with {:ok, json} <- read(file),
+      with {:ok, json} <- Neptunus.Sim.Validate.read_file(file),
            {:ok, scenario} <- Scenario.parse(json) do
         scenario
       else
@@ -60,13 +60,6 @@ defmodule Mix.Tasks.Neptunus.Simulate do
   end
 
   defp usage, do: "usage: mix neptunus.simulate SCENARIO.json [--out run.csv] [--every N]"
-
-  defp read(file) do
-    case File.read(file) do
-      {:ok, json} -> {:ok, json}
-      {:error, reason} -> {:error, "cannot read: #{:file.format_error(reason)}"}
-    end
-  end
 
   defp write_file(scenario, every, out) do
     tmp =

@@ -166,7 +166,7 @@ defmodule Neptunus.Dynamics.Params do
   @doc "Loads and validates a parameter file; `name`, if given, must match its `name` field."
   @spec load_file(Path.t(), String.t() | nil) :: {:ok, t()} | {:error, String.t()}
   def load_file(file, name \\ nil) do
-    with {:ok, json} <- read(file),
+    with {:ok, json} <- V.read_file(file),
          {:ok, map} <- NeptunusWeb.Channels.Wire.decode_json(json),
          {:ok, params} <- from_map(map),
          :ok <- check_name(params, name) do
@@ -541,13 +541,6 @@ defmodule Neptunus.Dynamics.Params do
 
   defp check_name(%{name: other}, name),
     do: {:error, "name must match the file name #{inspect(name)}, got #{inspect(other)}"}
-
-  defp read(file) do
-    case File.read(file) do
-      {:ok, json} -> {:ok, json}
-      {:error, reason} -> {:error, "cannot read: #{:file.format_error(reason)}"}
-    end
-  end
 
   defp path(name), do: Path.join(dir(), name <> ".json")
 

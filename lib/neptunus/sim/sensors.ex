@@ -27,14 +27,7 @@ defmodule Neptunus.Sim.Sensors do
   defstruct [:config, :rand, counts: %{wild: 0, mixup: 0}]
 
   @typedoc "A set of the six measured values (SI units, heading in [0, 2π))."
-  @type measurement :: %{
-          depth: float(),
-          heading: float(),
-          roll: float(),
-          pitch: float(),
-          voltage: float(),
-          current: float()
-        }
+  @type measurement :: Neptunus.Vehicle.Board.measurement()
 
   @type t :: %__MODULE__{
           config: Neptunus.Dynamics.Params.sensors(),

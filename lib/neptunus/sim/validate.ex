@@ -203,4 +203,13 @@ defmodule Neptunus.Sim.Validate do
       do: x |> trunc() |> Integer.to_string(),
       else: :erlang.float_to_binary(x, [:short])
   end
+
+  @doc "A file's contents, or a readable error (`cannot read: no such file or directory`)."
+  @spec read_file(Path.t()) :: {:ok, binary()} | {:error, String.t()}
+  def read_file(file) do
+    case File.read(file) do
+      {:ok, data} -> {:ok, data}
+      {:error, reason} -> {:error, "cannot read: #{:file.format_error(reason)}"}
+    end
+  end
 end

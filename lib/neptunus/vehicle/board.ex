@@ -35,6 +35,16 @@ defmodule Neptunus.Vehicle.Board do
 
   alias Neptunus.Allocation
 
+  @typedoc "What a board measures (SI units, heading in [0, 2π))."
+  @type measurement :: %{
+          depth: float(),
+          heading: float(),
+          roll: float(),
+          pitch: float(),
+          voltage: float(),
+          current: float()
+        }
+
   @typedoc """
   A board sample: time (s, vehicle clock), measurements, and the simulator's truth if any.
   A real board (`Board.UART`) adds its other fields under `board` (e.g. `yaw`, `temperature`,
@@ -42,14 +52,7 @@ defmodule Neptunus.Vehicle.Board do
   """
   @type sample :: %{
           required(:t) => float(),
-          required(:measurement) => %{
-            depth: float(),
-            heading: float(),
-            roll: float(),
-            pitch: float(),
-            voltage: float(),
-            current: float()
-          },
+          required(:measurement) => measurement(),
           required(:sim) => map() | nil,
           optional(:board) => map()
         }
