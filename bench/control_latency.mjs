@@ -17,7 +17,8 @@
 //
 // Environment: LAT_URL (ws://127.0.0.1:4211), LAT_PTY (required), LAT_VEHICLE (rov),
 // LAT_SERVER_PID (for CPU figures), LAT_CLK_TCK (100), LAT_WINDOW (100 joins in flight),
-// LAT_OBSERVER_NICE (0: the observer process' nice value, 0..19).
+// LAT_OBSERVER_NICE (0: the observer process' nice value, 0..19), LAT_OBSERVER_CPUS (unset: any
+// CPU; e.g. "1": the observer process runs on those CPUs only, see bench/README.md).
 
 import { createRequire } from 'node:module';
 import { spawn } from 'node:child_process';
@@ -125,7 +126,12 @@ async function main() {
   const script = fileURLToPath(import.meta.url);
   let closing = false;
   // nice -n is relative to our own nice value
-  const worker = spawn('nice', ['-n', String(OBSERVER_NICE - os.getPriority()), process.execPath, script], {
+  const niced = ['nice', '-n', String(OBSERVER_NICE - os.getPriority()), process.execPath, script];
+  // LAT_OBSERVER_CPUS: the observers' process on these CPUs only (taskset), standing for
+  // browsers on other machines
+  const OBSERVER_CPUS = process.env.LAT_OBSERVER_CPUS;
+  const argv = OBSERVER_CPUS ? ['taskset', '-c', OBSERVER_CPUS, ...niced] : niced;
+  const worker = spawn(argv[0], argv.slice(1), {
     stdio: ['ignore', 'inherit', 'inherit', 'ipc'],
     env: { ...process.env, LAT_ROLE: 'observers' },
   });
@@ -140,7 +146,8 @@ async function main() {
 
   console.log(`# control latency: pilot thrust over the WebSocket -> go(...) bytes on the pty (${PTY})`);
   console.log(`# ${SAMPLES} commands per run, vehicle ${VEHICLE}, server ${URL_BASE}`);
-  console.log(`# observers: a separate node process (os pid ${worker.pid}) at nice ${OBSERVER_NICE}; ` +
+  console.log(`# observers: a separate node process (os pid ${worker.pid}) at nice ${OBSERVER_NICE}` +
+    `${OBSERVER_CPUS ? ` on CPUs ${OBSERVER_CPUS}` : ''}; ` +
     `pilot + board: this process (os pid ${process.pid}) at nice ${os.getPriority()}`);
   console.log(`# load average at start: ${os.loadavg().map((x) => x.toFixed(2)).join(' ')}`);
 

@@ -10,9 +10,22 @@ defmodule Neptunus.PubSub do
       where `frame` is the wire frame (a binary) for that broadcast, **encoded once per
       broadcast** with `encoder.encode_broadcast(topic, event, payload)` and the same binary
       sent to every fastlane subscriber (binaries over 64 bytes are shared, not copied, on
-      the local node). WebSocket connection processes use this.
+      the local node). WebSocket connection processes use this. A fastlane subscriber can
+      ask to be served **first** (`prioritize/2`): the pilot's connection does, so its
+      telemetry never waits behind the observers'.
 
   Subscriptions end when the subscriber exits (`:pg` monitors members).
+
+  ## Paced broadcasts
+
+  A broadcast to a thousand observers makes a thousand connection processes runnable at
+  once, and each one's send costs the kernel more than the BEAM: a burst of ≈ 10 ms of CPU
+  on a small vehicle computer, during which everything else on it (the serial port program,
+  the kernel's tty work) waits for a core. `broadcast_paced/5` delivers the frame to the
+  fastlane subscribers in slices instead: term subscribers and prioritized subscribers at
+  once, then the others `slice` at a time, one slice every `gap_ms`, from the calling
+  process' own timers (it passes each `t:slice_message/0` it receives to `deliver_slice/1`).
+  A topic with no more than `slice` subscribers is served at once, as by `broadcast/4`.
   """
 
   @scope __MODULE__
@@ -20,6 +33,15 @@ defmodule Neptunus.PubSub do
 
   @type topic :: String.t()
   @type event :: String.t()
+
+  @typedoc "A later slice of a paced broadcast, sent by the broadcaster to itself."
+  @type slice_message :: {__MODULE__, :slice, topic(), binary(), [pid()]}
+
+  @typedoc """
+  How a paced broadcast is spread: `slice` subscribers at a time, a slice every `gap_ms`,
+  and the whole spread within `spread_ms` (slices grow when there are too many of them).
+  """
+  @type pace :: %{slice: pos_integer(), gap_ms: pos_integer(), spread_ms: non_neg_integer()}
 
   @doc "Child spec: the `:pg` scope. Start it before anything that subscribes."
   @spec child_spec(term()) :: Supervisor.child_spec()
@@ -35,10 +57,29 @@ defmodule Neptunus.PubSub do
   @spec subscribe_fastlane(topic()) :: :ok
   def subscribe_fastlane(topic), do: :pg.join(@scope, {:fastlane, topic}, self())
 
-  @doc "Removes the calling process' subscriptions (both kinds) to `topic`."
+  @doc """
+  Serves the calling fastlane subscriber of `topic` first (`true`) or with the others
+  (`false`) in paced broadcasts. No effect on a process that is not subscribed to `topic`.
+  """
+  @spec prioritize(topic(), boolean()) :: :ok
+  def prioritize(topic, first?) when is_boolean(first?) do
+    {from, to} =
+      if first?,
+        do: {{:fastlane, topic}, {:fastlane_first, topic}},
+        else: {{:fastlane_first, topic}, {:fastlane, topic}}
+
+    if self() in :pg.get_local_members(@scope, from) do
+      :ok = :pg.join(@scope, to, self())
+      :ok = :pg.leave(@scope, from, self())
+    end
+
+    :ok
+  end
+
+  @doc "Removes the calling process' subscriptions (all kinds) to `topic`."
   @spec unsubscribe(topic()) :: :ok
   def unsubscribe(topic) do
-    for group <- [{:term, topic}, {:fastlane, topic}] do
+    for group <- groups(topic) do
       if self() in :pg.get_local_members(@scope, group), do: :pg.leave(@scope, group, self())
     end
 
@@ -53,24 +94,92 @@ defmodule Neptunus.PubSub do
   """
   @spec broadcast(topic(), event(), map(), module()) :: :ok
   def broadcast(topic, event, payload, encoder \\ @default_encoder) do
+    case send_terms_and_first(topic, event, payload, encoder) do
+      nil -> :ok
+      {frame, others} -> deliver(topic, frame, others)
+    end
+  end
+
+  @doc """
+  Broadcasts like `broadcast/4`, but serves the fastlane subscribers that are not
+  prioritized in slices (see "Paced broadcasts" above): the first slice now, the others from
+  timers of the calling process, which must pass each `t:slice_message/0` it receives to
+  `deliver_slice/1`.
+  """
+  @spec broadcast_paced(topic(), event(), map(), pace(), module()) :: :ok
+  def broadcast_paced(topic, event, payload, pace, encoder \\ @default_encoder) do
+    case send_terms_and_first(topic, event, payload, encoder) do
+      nil ->
+        :ok
+
+      {frame, others} ->
+        {slice, gap_ms} = plan(length(others), pace)
+
+        others
+        |> Enum.chunk_every(slice)
+        |> Enum.with_index()
+        |> Enum.each(fn
+          {pids, 0} ->
+            deliver(topic, frame, pids)
+
+          {pids, k} ->
+            Process.send_after(self(), {__MODULE__, :slice, topic, frame, pids}, k * gap_ms)
+        end)
+    end
+  end
+
+  @doc "Delivers a later slice of a paced broadcast (see `broadcast_paced/5`)."
+  @spec deliver_slice(slice_message()) :: :ok
+  def deliver_slice({__MODULE__, :slice, topic, frame, pids}), do: deliver(topic, frame, pids)
+
+  @doc """
+  How `count` subscribers are sliced (pure): `{slice size, gap in ms}`. Slices are
+  `pace.slice` long unless that would spread them beyond `pace.spread_ms`; then they grow
+  so that the last one goes out by then.
+
+      iex> Neptunus.PubSub.plan(1000, %{slice: 50, gap_ms: 2, spread_ms: 40})
+      {50, 2}
+      iex> Neptunus.PubSub.plan(1000, %{slice: 50, gap_ms: 2, spread_ms: 20})
+      {91, 2}
+      iex> Neptunus.PubSub.plan(10, %{slice: 50, gap_ms: 2, spread_ms: 0})
+      {50, 2}
+  """
+  @spec plan(non_neg_integer(), pace()) :: {pos_integer(), pos_integer()}
+  def plan(count, %{slice: slice, gap_ms: gap_ms, spread_ms: spread_ms})
+      when is_integer(count) and count >= 0 and is_integer(slice) and slice > 0 and
+             is_integer(gap_ms) and gap_ms > 0 and is_integer(spread_ms) and spread_ms >= 0 do
+    slices = div(spread_ms, gap_ms) + 1
+    {max(slice, ceil_div(count, slices)), gap_ms}
+  end
+
+  defp ceil_div(a, b), do: div(a + b - 1, b)
+
+  # Term subscribers and prioritized fastlane subscribers get the broadcast now; returns
+  # the frame and the other fastlane subscribers (nil when there is no fastlane subscriber).
+  defp send_terms_and_first(topic, event, payload, encoder) do
     for pid <- :pg.get_members(@scope, {:term, topic}) do
       send(pid, {:pubsub, topic, event, payload})
     end
 
-    case :pg.get_members(@scope, {:fastlane, topic}) do
-      [] ->
-        :ok
+    case {:pg.get_members(@scope, {:fastlane_first, topic}),
+          :pg.get_members(@scope, {:fastlane, topic})} do
+      {[], []} ->
+        nil
 
-      pids ->
+      {first, others} ->
         frame = encoder.encode_broadcast(topic, event, payload)
-        Enum.each(pids, &send(&1, {:pubsub_frame, topic, frame}))
+        deliver(topic, frame, first)
+        {frame, others}
     end
   end
 
-  @doc "Number of subscribers (both kinds) of `topic` on all nodes."
+  defp deliver(topic, frame, pids), do: Enum.each(pids, &send(&1, {:pubsub_frame, topic, frame}))
+
+  @doc "Number of subscribers (all kinds) of `topic` on all nodes."
   @spec subscriber_count(topic()) :: non_neg_integer()
   def subscriber_count(topic) do
-    length(:pg.get_members(@scope, {:term, topic})) +
-      length(:pg.get_members(@scope, {:fastlane, topic}))
+    topic |> groups() |> Enum.map(&length(:pg.get_members(@scope, &1))) |> Enum.sum()
   end
+
+  defp groups(topic), do: [{:term, topic}, {:fastlane_first, topic}, {:fastlane, topic}]
 end

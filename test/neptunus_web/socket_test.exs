@@ -257,7 +257,7 @@ defmodule NeptunusWeb.SocketTest do
     for p <- accepted, do: assert({:ok, [nodelay: true]} = :inet.getopts(p, [:nodelay]))
   end
 
-  test "priorities: connections :low, the pilot's :normal while in control, helm and control :high",
+  test "priorities: connections :low, the pilot's :high and served first while in control",
        %{id: id, topic: topic} do
     ada = connect!("Ada")
     {ada_jr, _} = join!(ada, topic)
@@ -269,33 +269,88 @@ defmodule NeptunusWeb.SocketTest do
     assert priority(ada_pid) == :low and priority(bob_pid) == :low
     assert priority(Neptunus.Vehicle.Helm, id) == :high
     assert priority(Neptunus.Vehicle.Control, id) == :high
+    assert first(topic) == []
 
     assert {"ok", %{"status" => "granted"}} =
              push_and_reply(ada, ada_jr, topic, "request_control", %{})
 
     # the connection acts on the grant before it pushes control_granted to its client
     WSClient.recv_until(ada, &match?([_, _, ^topic, "control_granted", _], &1))
-    assert priority(ada_pid) == :normal and priority(bob_pid) == :low
+    assert priority(ada_pid) == :high and priority(bob_pid) == :low
+    assert first(topic) == [ada_pid]
+    # telemetry still reaches both
+    WSClient.recv_until(ada, &match?([_, _, ^topic, "telemetry", _], &1))
+    WSClient.recv_until(bob, &match?([_, _, ^topic, "telemetry", _], &1))
 
     assert {"ok", _} = push_and_reply(ada, ada_jr, topic, "release_control", %{})
     WSClient.recv_until(ada, &match?([_, _, ^topic, "control_lost", _], &1))
     assert priority(ada_pid) == :low
+    assert first(topic) == []
 
     # a pilot that leaves the topic is back at :low too
     assert {"ok", %{"status" => "granted"}} =
              push_and_reply(ada, ada_jr, topic, "request_control", %{})
 
     WSClient.recv_until(ada, &match?([_, _, ^topic, "control_granted", _], &1))
-    assert priority(ada_pid) == :normal
+    assert priority(ada_pid) == :high
     assert {"ok", _} = push_and_reply(ada, ada_jr, topic, "phx_leave", %{})
     # control_lost is handled after the leave's reply: a heartbeat's reply comes after it
     WSClient.push(ada, nil, "hb", "phoenix", "heartbeat", %{})
     reply_to(ada, "hb")
     assert priority(ada_pid) == :low
+    assert first(topic) == [] and connections(topic) == [bob_pid]
   end
 
-  # the server-side connection processes subscribed to `topic`
-  defp connections(topic), do: :pg.get_local_members(Neptunus.PubSub, {:fastlane, topic})
+  test "a pilot that sends more frames than its budget runs at :normal until the next second",
+       %{topic: topic} do
+    Application.put_env(:neptunus, :pilot_frames_per_s, 20)
+    on_exit(fn -> Application.delete_env(:neptunus, :pilot_frames_per_s) end)
+    ada = connect!("Ada")
+    {ada_jr, _} = join!(ada, topic)
+    [ada_pid] = connections(topic)
+
+    assert {"ok", %{"status" => "granted"}} =
+             push_and_reply(ada, ada_jr, topic, "request_control", %{})
+
+    WSClient.recv_until(ada, &match?([_, _, ^topic, "control_granted", _], &1))
+    assert priority(ada_pid) == :high
+
+    for i <- 1..30, do: WSClient.push(ada, nil, "f#{i}", "phoenix", "heartbeat", %{})
+    reply_to(ada, "f30")
+    assert priority(ada_pid) == :normal
+    # still the pilot, still served: only its priority changed
+    assert {"ok", _} = push_and_reply(ada, ada_jr, topic, "heartbeat", %{})
+
+    # a frame in a later second finds a fresh budget
+    Process.sleep(1_050)
+    WSClient.push(ada, nil, "later", "phoenix", "heartbeat", %{})
+    reply_to(ada, "later")
+    assert priority(ada_pid) == :high
+  end
+
+  test "a broadcast frame for a topic the connection has left is not sent", %{topic: topic} do
+    ws = connect!()
+    {join_ref, _} = join!(ws, topic)
+    [pid] = connections(topic)
+    assert {"ok", _} = push_and_reply(ws, join_ref, topic, "phx_leave", %{})
+    # e.g. the later slice of a paced broadcast, delivered after the leave
+    send(pid, {:pubsub_frame, topic, ~s([null,null,"#{topic}","telemetry",{"late":true}])})
+    WSClient.push(ws, nil, "hb", "phoenix", "heartbeat", %{})
+    refute Enum.any?(frames_until(ws, "hb"), &match?([_, _, _, _, %{"late" => true}], &1))
+  end
+
+  defp frames_until(ws, ref, acc \\ []) do
+    case WSClient.recv_frame(ws) do
+      [_, ^ref, _, "phx_reply", _] -> Enum.reverse(acc)
+      frame -> frames_until(ws, ref, [frame | acc])
+    end
+  end
+
+  # the server-side connection processes subscribed to `topic` (served first or not)
+  defp connections(topic),
+    do: :pg.get_local_members(Neptunus.PubSub, {:fastlane, topic}) ++ first(topic)
+
+  defp first(topic), do: :pg.get_local_members(Neptunus.PubSub, {:fastlane_first, topic})
 
   defp priority(pid) do
     {:priority, priority} = Process.info(pid, :priority)

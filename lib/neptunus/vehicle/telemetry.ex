@@ -22,6 +22,12 @@ defmodule Neptunus.Vehicle.Telemetry do
 
   SI units (m, m/s, rad, rad/s, V, A); heading in [0, 2π). `t` is the vehicle's clock,
   `sent_at` the wall clock at broadcast (for latency measurements only).
+
+  The broadcast is paced (`Neptunus.PubSub.broadcast_paced/5`): the recorder and the pilot's
+  connection get it at once; with many observers, their connections get it in slices of
+  `:fanout_slice` (default 50) every `:fanout_gap_ms` (default 2 ms), all within 80 % of the
+  period, so a thousand observers never hold the vehicle computer's cores for a whole
+  burst while a pilot's command waits for one (`bench/control_latency`).
   """
   use GenServer
 
@@ -37,6 +43,7 @@ defmodule Neptunus.Vehicle.Telemetry do
             id: String.t(),
             topic: String.t(),
             periodic: Periodic.t(),
+            pace: PubSub.pace(),
             sample: Neptunus.Vehicle.Telemetry.sample() | nil,
             command: map(),
             thrusters: map(),
@@ -45,11 +52,12 @@ defmodule Neptunus.Vehicle.Telemetry do
             link: %{up: boolean(), reason: String.t()},
             reports: %{optional(:recording | :camera) => map()}
           }
-    @enforce_keys [:id, :topic, :periodic, :command, :thrusters, :autopilot]
+    @enforce_keys [:id, :topic, :periodic, :pace, :command, :thrusters, :autopilot]
     defstruct [
       :id,
       :topic,
       :periodic,
+      :pace,
       :sample,
       :command,
       :thrusters,
@@ -132,6 +140,13 @@ defmodule Neptunus.Vehicle.Telemetry do
       id: id,
       topic: topic(id),
       periodic: Periodic.new(hz),
+      pace: %{
+        slice:
+          Keyword.get(opts, :fanout_slice, Application.get_env(:neptunus, :fanout_slice, 50)),
+        gap_ms:
+          Keyword.get(opts, :fanout_gap_ms, Application.get_env(:neptunus, :fanout_gap_ms, 2)),
+        spread_ms: div(800, hz)
+      },
       command: %{surge: 0.0, heave: 0.0, yaw: 0.0},
       thrusters: Allocation.with_us(Allocation.neutral()),
       autopilot: @no_autopilot
@@ -177,10 +192,15 @@ defmodule Neptunus.Vehicle.Telemetry do
   def handle_call(:latest, _from, state), do: {:reply, payload(state), state}
 
   @impl true
+  def handle_info({PubSub, :slice, _, _, _} = slice, state) do
+    PubSub.deliver_slice(slice)
+    {:noreply, state}
+  end
+
   def handle_info(:tick, state) do
     case payload(state) do
       nil -> :ok
-      payload -> PubSub.broadcast(state.topic, "telemetry", payload)
+      payload -> PubSub.broadcast_paced(state.topic, "telemetry", payload, state.pace)
     end
 
     # one broadcast per tick; ticks missed during a stall are skipped, not replayed

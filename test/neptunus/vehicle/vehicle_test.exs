@@ -53,6 +53,43 @@ defmodule Neptunus.VehicleTest do
   defp board_thrusters(id), do: Board.Simulated.state(id).sim.thrusters
   defp advance(clock, ms), do: Agent.update(clock, &(&1 + ms))
 
+  test "telemetry reaches every connection, the prioritized one first, observers in slices" do
+    id = "paced-#{System.unique_integer([:positive])}"
+    topic = Telemetry.topic(id)
+    test = self()
+
+    subscribe = fn name, first? ->
+      spawn_link(fn ->
+        PubSub.subscribe_fastlane(topic)
+        if first?, do: PubSub.prioritize(topic, true)
+        send(test, {:subscribed, name})
+        telemetry = ~s([null,null,"#{topic}","telemetry")
+
+        receive do
+          {:pubsub_frame, ^topic,
+           <<^telemetry::binary-size(byte_size(telemetry)), _::binary>> = frame} ->
+            send(test, {:frame, name, frame})
+        end
+      end)
+
+      assert_receive {:subscribed, ^name}
+    end
+
+    subscribe.(:pilot, true)
+    for name <- 1..7, do: subscribe.(name, false)
+
+    start_supervised!(
+      {Neptunus.Vehicle.Supervisor,
+       %{id: id, board: :simulated, fanout_slice: 2, fanout_gap_ms: 5}},
+      id: :paced
+    )
+
+    assert_receive {:frame, :pilot, frame}, 1_000
+    names = for _ <- 1..7, do: assert_receive({:frame, name, ^frame}, 1_000) && name
+    assert Enum.sort(names) == Enum.to_list(1..7)
+    assert [:null, :null, ^topic, "telemetry", %{"t" => _}] = :jiffy.decode(frame, [:return_maps])
+  end
+
   test "telemetry arrives at the configured rate with the documented shape", %{id: id} do
     assert_receive {:pubsub, _, "telemetry", first}, 500
     assert %{t: t, sent_at: sent_at, measurement: m, sim: sim, command: c, thrusters: thr} = first
