@@ -1,13 +1,19 @@
 // Control latency benchmark client: pilot command over the WebSocket → go(...) bytes read on
 // the far side of the board's serial line (a pty). Prints figures, asserts nothing.
-// Started by bench/control_latency (which starts socat and the server); can run alone:
+// Started by bench/control_latency, which starts the server once this process has created the
+// board's pty (LAT_LINK) and writes the server's OS pid to LAT_SERVER_PID_FILE when it answers:
 //
-//   LAT_URL=ws://127.0.0.1:4211 LAT_PTY=/tmp/x/a node bench/control_latency.mjs [OBSERVERS] [SAMPLES]
+//   LAT_URL=ws://127.0.0.1:4211 LAT_LINK=/tmp/x/board LAT_SERVER_PID_FILE=/tmp/x/server.pid \
+//     node bench/control_latency.mjs [OBSERVERS] [SAMPLES]
 //
 // OBSERVERS is a comma-separated list of observer counts, measured in turn (default "0,1000");
 // SAMPLES is the number of commands per measurement (default 1000).
 //
-// This process is the pilot and the board on the other end of the pty: it sends telemetry
+// This process is the pilot and the board on the other end of the pty. The pty is created by the
+// server's own port program in pty mode (priv/neptunus_uart pty LINK, as for a SITL board),
+// which this process runs and speaks to in its {packet, 2} frames: 'w' DATA to write to the
+// line, 'r' DATA for bytes read from it. So the bytes cross one pty, as from a real UART's
+// driver to the board, and no relay (socat) sits in the measured path. It sends telemetry
 // lines like an OpenROV board (navigation data at 50 Hz, status at 10 Hz) so the vehicle
 // publishes telemetry to every observer at 20 Hz while we measure, and it reads the go(...)
 // commands the server writes. The observers' sockets live in a separate OS process (this
@@ -15,16 +21,16 @@
 // so their 20 000 messages/s neither share this process' event loop nor its threads; in
 // reality they are browsers on other machines.
 //
-// Environment: LAT_URL (ws://127.0.0.1:4211), LAT_PTY (required), LAT_VEHICLE (rov),
-// LAT_SERVER_PID (for CPU figures), LAT_CLK_TCK (100), LAT_WINDOW (100 joins in flight),
+// Environment: LAT_URL (ws://127.0.0.1:4211), LAT_LINK and LAT_SERVER_PID_FILE (required),
+// LAT_DONE_FILE (written when the figures are out; then this process waits for SIGTERM),
+// LAT_VEHICLE (rov), LAT_UART (priv/neptunus_uart), LAT_CLK_TCK (100), LAT_WINDOW (100 joins in flight),
 // LAT_OBSERVER_NICE (0: the observer process' nice value, 0..19), LAT_OBSERVER_CPUS (unset: any
 // CPU; e.g. "1": the observer process runs on those CPUs only, see bench/README.md).
 
 import { createRequire } from 'node:module';
 import { spawn } from 'node:child_process';
-import { openSync, readFileSync, writeSync } from 'node:fs';
+import { existsSync, readFileSync, writeFileSync } from 'node:fs';
 import os from 'node:os';
-import tty from 'node:tty';
 import { fileURLToPath } from 'node:url';
 import { performance, monitorEventLoopDelay } from 'node:perf_hooks';
 
@@ -47,10 +53,11 @@ if (process.env.LAT_ROLE === 'observers') {
 async function main() {
   const counts = (process.argv[2] ?? process.env.LAT_OBSERVERS ?? '0,1000').split(',').map(Number);
   const SAMPLES = Number(process.argv[3] ?? process.env.LAT_SAMPLES ?? 1000);
-  const PTY = process.env.LAT_PTY;
-  const SERVER_PID = Number(process.env.LAT_SERVER_PID ?? 0);
+  const LINK = process.env.LAT_LINK;
+  const PID_FILE = process.env.LAT_SERVER_PID_FILE;
+  const UART = process.env.LAT_UART ?? fileURLToPath(new URL('../priv/neptunus_uart', import.meta.url));
   const CLK_TCK = Number(process.env.LAT_CLK_TCK ?? 100);
-  if (!PTY) throw new Error('LAT_PTY (the far end of the board pty) is required');
+  if (!LINK || !PID_FILE) throw new Error('LAT_LINK and LAT_SERVER_PID_FILE are required');
 
   const out = (label, value) => console.log(`${(label + ':').padEnd(46)} ${value}`);
   const OBSERVER_NICE = Number(process.env.LAT_OBSERVER_NICE ?? 0);
@@ -76,15 +83,13 @@ async function main() {
     return { busy: total - idle, total, pressure };
   };
 
-  // The board's end of the line: read with a tty stream (raw), write with a second descriptor.
-  const readFd = openSync(PTY, 'r+');
-  const writeFd = openSync(PTY, 'r+');
-  const line = new tty.ReadStream(readFd);
-  line.setRawMode(true);
+  // The board's end of the line: the port program on the pty's master end.
+  const board = uartPty(UART, LINK);
+  await board.opened;
   let rx = '';
   let waiter = null; // {expect, resolve}
   let goLines = 0;
-  line.on('data', (chunk) => {
+  board.onData = (chunk) => {
     const now = performance.now();
     rx += chunk.toString('latin1');
     let i;
@@ -96,16 +101,20 @@ async function main() {
         if (waiter && cmd === waiter.expect) { const w = waiter; waiter = null; w.resolve(now); }
       }
     }
-  });
+  };
+
+  // The server starts now; its OS pid arrives when it answers.
+  while (!existsSync(PID_FILE)) await sleep(100);
+  const SERVER_PID = Number(readFileSync(PID_FILE, 'utf8').trim()) || 0;
 
   // Telemetry like an OpenROV board.
   let tick = 0;
-  const board = setInterval(() => {
+  const telemetry = setInterval(() => {
     tick++;
     const hdg = (tick * 0.5) % 360;
     let text = `hdgd:${hdg.toFixed(2)};deap:1.000;pitc:0.00;roll:0.00;yaw:0.00;fthr:0;\r\n`;
     if (tick % 5 === 0) text += 'vout:12.10;iout:0.50;time:1000;pres:1113.80;temp:10.0;\r\n';
-    try { writeSync(writeFd, text); } catch { /* the server's end may be reopening */ }
+    board.write(text);
   }, 20);
 
   // The pilot.
@@ -144,7 +153,7 @@ async function main() {
   });
   let observing = 0;
 
-  console.log(`# control latency: pilot thrust over the WebSocket -> go(...) bytes on the pty (${PTY})`);
+  console.log(`# control latency: pilot thrust over the WebSocket -> go(...) bytes on the pty's master end (${LINK} -> ${board.slave})`);
   console.log(`# ${SAMPLES} commands per run, vehicle ${VEHICLE}, server ${URL_BASE}`);
   console.log(`# observers: a separate node process (os pid ${worker.pid}) at nice ${OBSERVER_NICE}` +
     `${OBSERVER_CPUS ? ` on CPUs ${OBSERVER_CPUS}` : ''}; ` +
@@ -213,16 +222,25 @@ async function main() {
       `${((m1.busy - m0.busy) / (m1.total - m0.total) * 100).toFixed(0)} % of ${cores} cores / ` +
       (m0.pressure != null ? `${((m1.pressure - m0.pressure) / 1e4 / secs).toFixed(0)} %` : 'n/a'));
     out('  of which not server or client processes', `${pct(m1.busy - m0.busy - ours)} of one core ` +
-      '(kernel softirq, socat, port program, other work on the machine)');
+      '(kernel softirq, the two port programs, other work on the machine)');
   }
 
   clearInterval(heartbeat);
-  clearInterval(board);
+  clearInterval(telemetry);
   closing = true;
   worker.send({ type: 'close' });
   await fromWorker('closed');
   pilot.close();
-  line.destroy();
+  // Keep the pty until bench/control_latency has stopped the server (its end of the line would
+  // otherwise hang up under it): say we are done and wait for SIGTERM.
+  const DONE_FILE = process.env.LAT_DONE_FILE;
+  if (DONE_FILE) {
+    process.on('SIGTERM', () => { board.close(); process.exit(0); });
+    writeFileSync(DONE_FILE, 'done\n');
+    setInterval(() => {}, 60_000);
+    return;
+  }
+  board.close();
   process.exit(0);
 }
 
@@ -234,6 +252,46 @@ function stats(xs) {
 }
 
 function sleep(ms) { return new Promise((r) => setTimeout(r, ms)); }
+
+// The port program in pty mode: `opened` resolves when the pty exists (its 'o' frame),
+// `write(text)` sends bytes to the line, `onData(buffer)` gets the bytes read from it.
+function uartPty(program, link) {
+  const child = spawn(program, ['pty', link], { stdio: ['pipe', 'pipe', 'inherit'] });
+  let buf = Buffer.alloc(0);
+  let opened;
+  const port = {
+    slave: null,
+    onData: null,
+    opened: new Promise((resolve) => { opened = resolve; }),
+    write(text) {
+      const data = Buffer.from(text, 'latin1');
+      const frame = Buffer.alloc(3 + data.length);
+      frame.writeUInt16BE(1 + data.length, 0);
+      frame[2] = 0x77; // 'w'
+      data.copy(frame, 3);
+      child.stdin.write(frame);
+    },
+    close() { child.stdin.end(); },
+  };
+  child.on('exit', (code, signal) => {
+    if (!port.closed) { console.error(`port program exited (${code ?? signal})`); process.exit(1); }
+  });
+  child.stdout.on('data', (chunk) => {
+    buf = buf.length ? Buffer.concat([buf, chunk]) : chunk;
+    while (buf.length >= 2 && buf.length >= 2 + buf.readUInt16BE(0)) {
+      const len = buf.readUInt16BE(0);
+      const tag = String.fromCharCode(buf[2]);
+      const data = buf.subarray(3, 2 + len);
+      buf = buf.subarray(2 + len);
+      if (tag === 'r' && port.onData) port.onData(data);
+      else if (tag === 'o') { port.slave = data.toString(); opened(); }
+      else if (tag === 'e') { console.error(`port program: ${data.toString()}`); }
+    }
+  });
+  const close = port.close;
+  port.close = () => { port.closed = true; close(); };
+  return port;
+}
 
 // A raw Phoenix Channels v2 socket: push() resolves with the phx_reply payload.
 function connect(name) {
