@@ -180,46 +180,106 @@ defmodule Neptunus.Recording do
     end)
   end
 
-  @doc """
-  The telemetry of `entries` as CSV (iodata): a header `time,<series…>` — `time` the wall
-  clock in ms, then every numeric series that appears anywhere in the recording, in order of
-  first appearance — and one row per telemetry entry (empty where a series has no value).
-  `entries` is read once.
+  @typedoc """
+  What one pass over a recording's entries found (`scan/1`): the CSV columns (every numeric
+  series of its telemetry, in order of first appearance), how many telemetry entries and how
+  many entries in all.
   """
-  @spec csv(Enumerable.t()) :: iodata()
-  def csv(entries) do
-    rows = for {at, "telemetry", payload} <- entries, do: {at, flatten(payload)}
+  @type summary :: %{
+          columns: [String.t()],
+          telemetry: non_neg_integer(),
+          entries: non_neg_integer()
+        }
 
-    columns =
-      rows |> Enum.flat_map(fn {_, series} -> Enum.map(series, &elem(&1, 0)) end) |> Enum.uniq()
+  @doc """
+  Reads `entries` once and keeps only what a streamed export needs to know first (its memory
+  is the column names, whatever the length of the recording).
 
+      iex> Neptunus.Recording.scan([{1, "telemetry", %{t: 0.0}}, {2, "stopped", %{}},
+      ...>   {3, "telemetry", %{t: 0.1, depth: 1.0}}])
+      %{columns: ["t", "depth"], telemetry: 2, entries: 3}
+  """
+  @spec scan(Enumerable.t()) :: summary()
+  def scan(entries) do
+    {_seen, columns, telemetry, count} =
+      Enum.reduce(entries, {MapSet.new(), [], 0, 0}, fn
+        {_at, "telemetry", payload}, {seen, columns, telemetry, count} ->
+          {seen, columns} =
+            payload
+            |> flatten()
+            |> Enum.reduce({seen, columns}, fn {path, _}, {seen, columns} ->
+              if MapSet.member?(seen, path),
+                do: {seen, columns},
+                else: {MapSet.put(seen, path), [path | columns]}
+            end)
+
+          {seen, columns, telemetry + 1, count + 1}
+
+        _entry, {seen, columns, telemetry, count} ->
+          {seen, columns, telemetry, count + 1}
+      end)
+
+    %{columns: Enum.reverse(columns), telemetry: telemetry, entries: count}
+  end
+
+  @doc """
+  The telemetry of `entries` as CSV, lazily, one iodata element per line: a header
+  `time,<columns…>` — `time` the wall clock in ms, then `columns` (from `scan/1`) — and one
+  row per `every`-th telemetry entry (empty where a series has no value).
+  """
+  @spec csv_stream(Enumerable.t(), [String.t()], pos_integer()) :: Enumerable.t()
+  def csv_stream(entries, columns, every \\ 1) when is_integer(every) and every >= 1 do
     header = [Enum.map_intersperse(["time" | columns], ",", &csv_field/1), "\n"]
 
-    lines =
-      Enum.map(rows, fn {at, series} ->
-        values = Map.new(series)
+    rows =
+      entries
+      |> decimate(every)
+      |> Stream.filter(&telemetry?/1)
+      |> Stream.map(fn {at, _event, payload} ->
+        values = payload |> flatten() |> Map.new()
         [Integer.to_string(at), Enum.map(columns, &["," | number(Map.get(values, &1))]), "\n"]
       end)
 
-    [header | lines]
+    Stream.concat([header], rows)
+  end
+
+  @doc """
+  The telemetry of `entries` as CSV (iodata, `csv_stream/3` of every entry with the columns
+  of `scan/1`). For entries in memory; a file is exported with the two passes.
+  """
+  @spec csv(Enumerable.t()) :: iodata()
+  def csv(entries) do
+    entries = Enum.to_list(entries)
+    entries |> csv_stream(scan(entries).columns) |> Enum.to_list()
   end
 
   @doc """
   Every `every`-th telemetry entry and every other entry, as JSON lines
-  `{"at": ms, "event": e, "payload": {…}}` (iodata).
+  `{"at": ms, "event": e, "payload": {…}}`, lazily, one iodata element per line.
   """
-  @spec json_lines(Enumerable.t(), pos_integer()) :: iodata()
-  def json_lines(entries, every \\ 1) when is_integer(every) and every >= 1 do
+  @spec json_lines_stream(Enumerable.t(), pos_integer()) :: Enumerable.t()
+  def json_lines_stream(entries, every \\ 1) when is_integer(every) and every >= 1 do
     entries
-    |> Stream.transform(0, fn entry, n ->
+    |> decimate(every)
+    |> Stream.map(fn {at, event, payload} ->
+      [Wire.encode_json(%{at: at, event: event, payload: payload}), "\n"]
+    end)
+  end
+
+  @doc "`json_lines_stream/2` as iodata."
+  @spec json_lines(Enumerable.t(), pos_integer()) :: iodata()
+  def json_lines(entries, every \\ 1), do: entries |> json_lines_stream(every) |> Enum.to_list()
+
+  # every entry that is not telemetry, and every `every`-th telemetry entry
+  defp decimate(entries, 1), do: entries
+
+  defp decimate(entries, every) do
+    Stream.transform(entries, 0, fn entry, n ->
       cond do
         not telemetry?(entry) -> {[entry], n}
         rem(n, every) == 0 -> {[entry], n + 1}
         true -> {[], n + 1}
       end
-    end)
-    |> Enum.map(fn {at, event, payload} ->
-      [Wire.encode_json(%{at: at, event: event, payload: payload}), "\n"]
     end)
   end
 
@@ -255,10 +315,6 @@ defmodule Neptunus.Recording do
       _ -> nil
     end
   end
-
-  @doc "How many telemetry entries `entries` holds."
-  @spec telemetry_count(Enumerable.t()) :: non_neg_integer()
-  def telemetry_count(entries), do: Enum.count(entries, &telemetry?/1)
 
   defp telemetry?({_, "telemetry", _}), do: true
   defp telemetry?(_entry), do: false

@@ -13,10 +13,12 @@ defmodule NeptunusWeb.API do
       401 with the same fields and `error` for an invalid or expired token.
     * `GET /api/recordings[?vehicle=id]` → `{"recording": bool, "recordings": [{"vehicle",
       "name", "bytes", "started_at", "modified_at"}]}` (newest first; times in ms)
-    * `GET /api/recordings/<vehicle>/<name>[?format=csv|jsonl][&every=N][&max=M]` → the
-      telemetry as CSV (a download), or every entry as JSON lines with only every N-th
-      telemetry entry — or as few as keep at most M (what the developer page replays); 404
-      for an unknown recording.
+    * `GET /api/recordings/<vehicle>/<name>[?format=csv|jsonl][&every=N][&max=M]` → every
+      N-th telemetry entry as CSV (a download), or every entry as JSON lines with only every
+      N-th telemetry entry — or as few as keep at most M telemetry entries (what the
+      developer page replays); 404 for an unknown recording. Exports are streamed (chunked):
+      the file is read twice (columns and counts, then the rows), never held in memory, so a
+      recording of many hours exports on a vehicle computer with little memory.
 
   Recordings need what watching needs: local mode, a token (any role), or anonymous observers
   allowed; 401 otherwise.
@@ -169,13 +171,12 @@ defmodule NeptunusWeb.API do
          {:ok, max} <- max_rows(Map.get(params, "max")) do
       # what the vehicle's recorder still buffers goes to disk first
       Neptunus.Vehicle.Recorder.sync(vehicle)
-      # read once: the count (for max) and the export use the same entries
-      entries = path |> Recording.entries() |> Enum.to_list()
-
-      every =
-        if max, do: max(every, ceil_div(Recording.telemetry_count(entries), max)), else: every
-
-      export(format, entries, every, vehicle, name)
+      # first pass: the columns and counts; the second pass (streamed) stops where this one
+      # did, though the recorder may have written more since
+      summary = path |> Recording.entries() |> Recording.scan()
+      every = if max, do: max(every, ceil_div(summary.telemetry, max)), else: every
+      entries = path |> Recording.entries() |> Stream.take(summary.entries)
+      export(arg, format, entries, summary.columns, every, "#{vehicle}-#{Path.rootname(name)}")
     end
   end
 
@@ -253,24 +254,79 @@ defmodule NeptunusWeb.API do
     end
   end
 
-  defp export("csv", entries, _every, vehicle, name) do
-    file = "#{vehicle}-#{Path.rootname(name)}.csv"
-
+  defp export(arg, "csv", entries, columns, every, file) do
     [
       {:status, 200},
       {:header, {:cache_control, ~c"no-store"}},
       {:header,
-       {~c"Content-Disposition", String.to_charlist("attachment; filename=\"#{file}\"")}},
-      {:content, ~c"text/csv; charset=utf-8", Recording.csv(entries)}
+       {~c"Content-Disposition", String.to_charlist("attachment; filename=\"#{file}.csv\"")}}
+      | stream(arg, ~c"text/csv; charset=utf-8", Recording.csv_stream(entries, columns, every))
     ]
   end
 
-  defp export("jsonl", entries, every, _vehicle, _name) do
+  defp export(arg, "jsonl", entries, _columns, every, _file) do
     [
       {:status, 200},
-      {:header, {:cache_control, ~c"no-store"}},
-      {:content, ~c"application/x-ndjson", Recording.json_lines(entries, every)}
+      {:header, {:cache_control, ~c"no-store"}}
+      | stream(arg, ~c"application/x-ndjson", Recording.json_lines_stream(entries, every))
     ]
+  end
+
+  @export_chunk_bytes 65_536
+
+  # The body from `lines` (a lazy enumerable of iodata), sent by a process of its own in
+  # chunks of about 64 KiB (HTTP/1.1 chunked encoding), at the pace the client reads.
+  defp stream(arg, mime, lines) do
+    socket = arg(arg, :clisock)
+    pid = spawn(fn -> stream_body(socket, lines) end)
+    [{:streamcontent_from_pid, mime, pid}]
+  end
+
+  defp stream_body(socket, lines) do
+    receive do
+      {:ok, yaws} ->
+        case deliver(socket, lines) do
+          :ok ->
+            :yaws_api.stream_process_deliver_final_chunk(socket, [])
+            :yaws_api.stream_process_end(socket, yaws)
+
+          {:error, reason} ->
+            Logger.warning("recording export ended early: #{inspect(reason)}")
+            :yaws_api.stream_process_end(:closed, yaws)
+        end
+
+      {:discard, yaws} ->
+        :yaws_api.stream_process_end(socket, yaws)
+    after
+      30_000 -> :ok
+    end
+  end
+
+  defp deliver(socket, lines) do
+    lines
+    |> Stream.chunk_while(
+      {[], 0},
+      fn line, {acc, size} ->
+        size = size + IO.iodata_length(line)
+
+        if size >= @export_chunk_bytes,
+          do: {:cont, Enum.reverse([line | acc]), {[], 0}},
+          else: {:cont, {[line | acc], size}}
+      end,
+      fn
+        {[], _} -> {:cont, {[], 0}}
+        {acc, _} -> {:cont, Enum.reverse(acc), {[], 0}}
+      end
+    )
+    |> Enum.reduce_while(:ok, fn chunk, :ok ->
+      case :yaws_api.stream_process_deliver_chunk(socket, chunk) do
+        :ok -> {:cont, :ok}
+        {:error, reason} -> {:halt, {:error, reason}}
+      end
+    end)
+  rescue
+    # the file went away or broke between the two passes
+    error in [File.Error, ErlangError] -> {:error, Exception.message(error)}
   end
 
   defp body(arg) do

@@ -95,6 +95,17 @@ defmodule Neptunus.RecordingTest do
              """
   end
 
+  test "CSV stream: every N-th telemetry row, lazily" do
+    entries = for i <- 0..9, do: {i, "telemetry", %{t: i}}
+    stream = Recording.csv_stream(entries, ["t"], 4)
+    assert Enum.map(stream, &IO.iodata_to_binary/1) == ["time,t\n", "0,0\n", "4,4\n", "8,8\n"]
+
+    # nothing is read beyond what is taken
+    endless = Stream.map(Stream.iterate(0, &(&1 + 1)), &{&1, "telemetry", %{t: &1}})
+    assert endless |> Recording.csv_stream(["t"]) |> Enum.take(3) |> length() == 3
+    assert endless |> Recording.json_lines_stream(2) |> Enum.take(2) |> length() == 2
+  end
+
   test "JSON lines keep every event and every N-th telemetry entry" do
     entries =
       for i <- 0..9 do
@@ -116,6 +127,6 @@ defmodule Neptunus.RecordingTest do
            ]
 
     assert hd(lines)["payload"] == %{"t" => 0}
-    assert Recording.telemetry_count(entries) == 9
+    assert %{telemetry: 9, entries: 10, columns: ["t"]} = Recording.scan(entries)
   end
 end

@@ -48,6 +48,29 @@ defmodule NeptunusWeb.RecordingsAPITest do
     {status, Map.new(resp_headers, fn {k, v} -> {to_string(k), to_string(v)} end), body}
   end
 
+  # the status line and headers of a GET, read from the socket (httpc hides the encoding)
+  defp raw_head(path) do
+    {:ok, sock} = :gen_tcp.connect(~c"127.0.0.1", port(), [:binary, active: false])
+
+    :ok =
+      :gen_tcp.send(sock, "GET #{path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n")
+
+    head = recv_head(sock, "")
+    :gen_tcp.close(sock)
+    head
+  end
+
+  defp recv_head(sock, acc) do
+    case String.split(acc, "\r\n\r\n", parts: 2) do
+      [head, _body] ->
+        head
+
+      [_] ->
+        {:ok, data} = :gen_tcp.recv(sock, 0, 5_000)
+        recv_head(sock, acc <> data)
+    end
+  end
+
   defp json(body), do: :jiffy.decode(body, [:return_maps, {:null_term, nil}])
 
   test "lists the recordings, of all vehicles or one", %{id: id, name: name} do
@@ -86,6 +109,51 @@ defmodule NeptunusWeb.RecordingsAPITest do
     lines = body |> String.split("\n", trim: true) |> Enum.map(&json/1)
     assert Enum.map(lines, & &1["event"]) == ["telemetry", "telemetry", "telemetry", "stopped"]
     assert Enum.map(Enum.take(lines, 3), & &1["payload"]["t"]) == [0.05, 0.55, 1.05]
+  end
+
+  test "CSV honours every and max too", %{id: id, name: name} do
+    {200, _, csv} = get("/api/recordings/#{id}/#{name}?every=10")
+    [_header | rows] = String.split(csv, "\n", trim: true)
+    assert Enum.map(rows, &(&1 |> String.split(",") |> List.last())) == ["0.05", "0.55", "1.05"]
+
+    {200, _, csv} = get("/api/recordings/#{id}/#{name}?max=7")
+    assert csv |> String.split("\n", trim: true) |> length() == 1 + 6
+  end
+
+  test "a long recording is streamed in chunks, the same bytes as the export in memory", %{
+    tmp_dir: dir,
+    id: id
+  } do
+    long = "api-long-#{System.unique_integer([:positive])}"
+    start_supervised!({Recorder, id: long, recording: [dir: dir]}, id: :long)
+    _ = Recorder.status(long)
+
+    # ≈ 10 000 entries, several 64 KiB chunks of CSV; one event in the middle
+    for i <- 1..10_000 do
+      if i == 5_000, do: PubSub.broadcast(Telemetry.topic(long), "stopped", %{reason: "test"})
+
+      payload = %{t: i * 0.05, measurement: %{depth: i / 1000, heading: 0.5}, extra: %{n: i}}
+      PubSub.broadcast(Telemetry.topic(long), "telemetry", payload)
+    end
+
+    [file] = Recorder.status(long).files
+    name = Path.basename(file)
+    {200, _headers, csv} = get("/api/recordings/#{long}/#{name}")
+    assert byte_size(csv) > 3 * 65_536
+    assert raw_head("/api/recordings/#{long}/#{name}") =~ ~r/transfer-encoding: chunked/i
+    Recorder.sync(long)
+
+    assert csv ==
+             file
+             |> Neptunus.Recording.entries()
+             |> Neptunus.Recording.csv()
+             |> IO.iodata_to_binary()
+
+    assert csv |> String.split("\n", trim: true) |> length() == 10_001
+
+    {200, _, jsonl} = get("/api/recordings/#{long}/#{name}?format=jsonl")
+    assert jsonl |> String.split("\n", trim: true) |> length() == 10_001
+    _ = id
   end
 
   test "max: JSON lines thinned to at most M telemetry entries", %{id: id, name: name} do
