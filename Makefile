@@ -80,6 +80,7 @@ bench: setup assets
 	bench/fanout
 	bench/protocol_fuzz
 	bench/control_latency
+	bench/recording_export
 
 # Build it on the machine it runs on (the BeagleBone's Debian): the release carries that
 # machine's Erlang runtime and our C programs compiled for it.

@@ -53,6 +53,9 @@ if (process.env.LAT_ROLE === 'observers') {
 async function main() {
   const counts = (process.argv[2] ?? process.env.LAT_OBSERVERS ?? '0,1000').split(',').map(Number);
   const SAMPLES = Number(process.argv[3] ?? process.env.LAT_SAMPLES ?? 1000);
+  // LAT_CLIENT_NICE: this process (the instrument: the pilot's machine and the board) and its
+  // port program at another OS priority, e.g. -10 (root only). The server keeps its own.
+  if (process.env.LAT_CLIENT_NICE) os.setPriority(0, Number(process.env.LAT_CLIENT_NICE));
   const LINK = process.env.LAT_LINK;
   const PID_FILE = process.env.LAT_SERVER_PID_FILE;
   const UART = process.env.LAT_UART ?? fileURLToPath(new URL('../priv/neptunus_uart', import.meta.url));

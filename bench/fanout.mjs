@@ -8,7 +8,9 @@
 // Environment: FANOUT_N, FANOUT_SECONDS, FANOUT_URL (default ws://127.0.0.1:4210),
 // FANOUT_VEHICLE (neptunus-1), FANOUT_WORKERS (2), FANOUT_WINDOW (100 connections or
 // joins in flight at once), FANOUT_HZ (20, the expected telemetry rate),
-// FANOUT_SERVER_PID (for RSS/CPU figures), FANOUT_CLK_TCK (100).
+// FANOUT_SERVER_PID (for RSS/CPU figures), FANOUT_CLK_TCK (100), FANOUT_PILOT (1: one more
+// connection, in this thread, takes control of the vehicle before the measurement, so the
+// telemetry is paced to the observers as during a dive; its own frames are not counted).
 
 import { createRequire } from 'node:module';
 import { Worker, isMainThread, parentPort, workerData } from 'node:worker_threads';
@@ -157,6 +159,13 @@ async function main() {
   const joinLat = Float64Array.from(join.flatMap((r) => r.latencies)).sort();
   out('  join reply p50 / p99 / max', `${f1(pct(joinLat, 50))} / ${f1(pct(joinLat, 99))} / ${f1(joinLat[joinLat.length - 1])} ms`);
 
+  // The pilot (FANOUT_PILOT=1): with someone in control, observers get telemetry in slices.
+  let pilot = null;
+  if (process.env.FANOUT_PILOT === '1') {
+    pilot = await takeControl(`${URL_BASE}/socket/websocket?vsn=2.0.0&name=pilot`, `vehicle:${VEHICLE}`);
+    out('pilot', 'in control (telemetry to observers is paced)');
+  }
+
   // Settle: presence_diff storm of the joins (each join is broadcast to everyone joined
   // before) must drain before we measure; wait until no presence frame for 1 s (max 60 s).
   t = performance.now();
@@ -244,6 +253,29 @@ function pct(sorted, p) {
 }
 function tally(xs) { const o = {}; for (const x of xs) o[x] = (o[x] || 0) + 1; return o; }
 function sleep(ms) { return new Promise((r) => setTimeout(r, ms)); }
+
+// A socket that joins `topic` and requests control; resolves once granted. It heartbeats every
+// 20 s so the server keeps it; its telemetry is ignored.
+function takeControl(url, topic) {
+  return new Promise((resolve, reject) => {
+    const ws = new WebSocket(url, { perMessageDeflate: false });
+    ws.on('error', reject);
+    ws.on('open', () => ws.send(JSON.stringify(['p', 'p1', topic, 'phx_join', {}])));
+    ws.on('message', (data) => {
+      const [, ref, , event, payload] = JSON.parse(data.toString());
+      if (event !== 'phx_reply') return;
+      if (ref === 'p1') ws.send(JSON.stringify(['p', 'p2', topic, 'request_control', {}]));
+      if (ref === 'p2') {
+        if (payload.status !== 'ok' || payload.response.status !== 'granted') {
+          reject(new Error(`request_control: ${JSON.stringify(payload)}`));
+          return;
+        }
+        setInterval(() => ws.send(JSON.stringify([null, 'hb', 'phoenix', 'heartbeat', {}])), 20_000).unref();
+        resolve(ws);
+      }
+    });
+  });
+}
 
 // ---------------------------------------------------------------------------
 // Worker thread: owns a share of the sockets.

@@ -7,9 +7,10 @@ config :neptunus,
   telemetry_hz: 20,
   # simulator integration rate (Hz)
   sim_hz: 100,
-  # observers' telemetry goes out in slices of this many connections, one slice every
-  # fanout_gap_ms, so a crowd of observers never holds the cores for a whole burst
-  # (Neptunus.PubSub.broadcast_paced/5; the pilot's connection is served first)
+  # while someone pilots, observers' telemetry goes out in slices of at least this many
+  # connections, one slice every fanout_gap_ms, within half the period, so a crowd of
+  # observers never holds the cores for a whole burst (Neptunus.PubSub.broadcast_paced/5;
+  # the pilot's connection is served first)
   fanout_slice: 50,
   fanout_gap_ms: 2,
   # a piloting connection runs at :high while it sends at most this many frames per second

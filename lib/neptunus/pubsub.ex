@@ -25,7 +25,11 @@ defmodule Neptunus.PubSub do
   fastlane subscribers in slices instead: term subscribers and prioritized subscribers at
   once, then the others `slice` at a time, one slice every `gap_ms`, from the calling
   process' own timers (it passes each `t:slice_message/0` it receives to `deliver_slice/1`).
-  A topic with no more than `slice` subscribers is served at once, as by `broadcast/4`.
+
+  Pacing is for a prioritized subscriber's sake (the pilot's commands travel through the
+  same cores), and costs the others up to `spread_ms` of delay. So a topic without a
+  prioritized subscriber, or with no more than `slice` others, is served at once, as by
+  `broadcast/4`.
   """
 
   @scope __MODULE__
@@ -96,13 +100,13 @@ defmodule Neptunus.PubSub do
   def broadcast(topic, event, payload, encoder \\ @default_encoder) do
     case send_terms_and_first(topic, event, payload, encoder) do
       nil -> :ok
-      {frame, others} -> deliver(topic, frame, others)
+      {frame, others, _first} -> deliver(topic, frame, others)
     end
   end
 
   @doc """
-  Broadcasts like `broadcast/4`, but serves the fastlane subscribers that are not
-  prioritized in slices (see "Paced broadcasts" above): the first slice now, the others from
+  Broadcasts like `broadcast/4`, but, while a fastlane subscriber is prioritized, serves the
+  others in slices (see "Paced broadcasts" above): the first slice now, the others from
   timers of the calling process, which must pass each `t:slice_message/0` it receives to
   `deliver_slice/1`.
   """
@@ -112,7 +116,10 @@ defmodule Neptunus.PubSub do
       nil ->
         :ok
 
-      {frame, others} ->
+      {frame, others, []} ->
+        deliver(topic, frame, others)
+
+      {frame, others, _first} ->
         {slice, gap_ms} = plan(length(others), pace)
 
         others
@@ -155,7 +162,8 @@ defmodule Neptunus.PubSub do
   defp ceil_div(a, b), do: div(a + b - 1, b)
 
   # Term subscribers and prioritized fastlane subscribers get the broadcast now; returns
-  # the frame and the other fastlane subscribers (nil when there is no fastlane subscriber).
+  # the frame, the other fastlane subscribers and the prioritized ones (nil when there is no
+  # fastlane subscriber).
   defp send_terms_and_first(topic, event, payload, encoder) do
     for pid <- :pg.get_members(@scope, {:term, topic}) do
       send(pid, {:pubsub, topic, event, payload})
@@ -169,7 +177,7 @@ defmodule Neptunus.PubSub do
       {first, others} ->
         frame = encoder.encode_broadcast(topic, event, payload)
         deliver(topic, frame, first)
-        {frame, others}
+        {frame, others, first}
     end
   end
 

@@ -107,11 +107,20 @@ defmodule Neptunus.PubSubTest do
     assert Process.get(:encodings) == 1
   end
 
-  test "broadcast_paced: no more than one slice of subscribers goes out at once" do
+  test "broadcast_paced: without a prioritized subscriber, everyone at once" do
+    t = topic()
+    for name <- 1..5, do: subscriber(t, name)
+    assert :ok = PubSub.broadcast_paced(t, "ev", %{n: 1}, pace(2, 1, 100), Encoder)
+    for _ <- 1..5, do: assert_receive({:frame, _, _, _})
+    refute_receive {PubSub, :slice, _, _, _}, 20
+  end
+
+  test "broadcast_paced: no more others than one slice, everyone at once" do
     t = topic()
     for name <- 1..3, do: subscriber(t, name)
+    subscriber(t, :pilot, first: true)
     assert :ok = PubSub.broadcast_paced(t, "ev", %{n: 1}, pace(3, 1, 0), Encoder)
-    for _ <- 1..3, do: assert_receive({:frame, _, _, _})
+    for _ <- 1..4, do: assert_receive({:frame, _, _, _})
     refute_receive {PubSub, :slice, _, _, _}, 20
   end
 

@@ -23,11 +23,12 @@ defmodule Neptunus.Vehicle.Telemetry do
   SI units (m, m/s, rad, rad/s, V, A); heading in [0, 2π). `t` is the vehicle's clock,
   `sent_at` the wall clock at broadcast (for latency measurements only).
 
-  The broadcast is paced (`Neptunus.PubSub.broadcast_paced/5`): the recorder and the pilot's
-  connection get it at once; with many observers, their connections get it in slices of
-  `:fanout_slice` (default 50) every `:fanout_gap_ms` (default 2 ms), all within 80 % of the
-  period, so a thousand observers never hold the vehicle computer's cores for a whole
-  burst while a pilot's command waits for one (`bench/control_latency`).
+  The broadcast is paced while someone pilots (`Neptunus.PubSub.broadcast_paced/5`): the
+  recorder and the pilot's connection get it at once; with many observers, their
+  connections get it in slices of `:fanout_slice` (default 50) every `:fanout_gap_ms`
+  (default 2 ms), all within half the period (25 ms at 20 Hz), so a thousand observers
+  never hold the vehicle computer's cores for a whole burst while a pilot's command waits
+  for one (`bench/control_latency`). Without a pilot, everyone gets it at once.
   """
   use GenServer
 
@@ -145,7 +146,7 @@ defmodule Neptunus.Vehicle.Telemetry do
           Keyword.get(opts, :fanout_slice, Application.get_env(:neptunus, :fanout_slice, 50)),
         gap_ms:
           Keyword.get(opts, :fanout_gap_ms, Application.get_env(:neptunus, :fanout_gap_ms, 2)),
-        spread_ms: div(800, hz)
+        spread_ms: div(500, hz)
       },
       command: %{surge: 0.0, heave: 0.0, yaw: 0.0},
       thrusters: Allocation.with_us(Allocation.neutral()),

@@ -1,0 +1,180 @@
+# Recording export benchmark: time and peak memory of exporting a long recording, streamed (as
+# GET /api/recordings/… does) against reading it whole into memory (as it did before).
+#
+#   bench/recording_export [MINUTES]      (default 60: a recording of one hour at 20 Hz)
+#
+# Writes a disk_log file like the recorder's (telemetry payloads of a live vehicle's shape) to a
+# temporary directory, then exports it. Peak memory is the VM's total, sampled every 5 ms by
+# another process. Prints figures, never asserts.
+
+defmodule Bench.RecordingExport do
+  alias Neptunus.Recording
+
+  def main(args) do
+    minutes =
+      case args do
+        [m] -> String.to_integer(m)
+        [] -> String.to_integer(System.get_env("EXPORT_MINUTES", "60"))
+      end
+
+    dir = Path.join(System.tmp_dir!(), "neptunus-export-#{System.unique_integer([:positive])}")
+    File.mkdir_p!(dir)
+
+    try do
+      path = Path.join(dir, "20261122-120000Z-1.log")
+      entries = minutes * 60 * 20
+      {write_us, _} = :timer.tc(fn -> write(path, entries) end)
+
+      IO.puts(
+        "Neptunus recording export benchmark — #{minutes} min at 20 Hz: #{entries} telemetry " <>
+          "entries, #{mb(File.stat!(path).size)} on disk (written in #{s(write_us)})\n"
+      )
+
+      :erlang.garbage_collect()
+      baseline = :erlang.memory(:total)
+      IO.puts("VM memory before each run: #{mb(baseline)}\n")
+
+      row("streamed CSV (two passes, 64 KiB chunks)", baseline, fn -> streamed_csv(path) end)
+      row("streamed JSON lines", baseline, fn -> streamed_jsonl(path) end)
+      row("CSV of the whole file in memory (before)", baseline, fn -> eager_csv(path) end)
+    after
+      File.rm_rf!(dir)
+    end
+  end
+
+  defp write(path, count) do
+    {:ok, log} =
+      :disk_log.open(
+        name: :bench_export,
+        file: String.to_charlist(path),
+        type: :halt,
+        format: :internal,
+        size: :infinity
+      )
+
+    Enum.each(1..count, fn i ->
+      :ok = :disk_log.log(log, {1_795_000_000_000 + i * 50, "telemetry", payload(i)})
+    end)
+
+    :ok = :disk_log.close(log)
+  end
+
+  # the shape of a live vehicle's telemetry (Neptunus.Vehicle.Telemetry)
+  defp payload(i) do
+    t = i * 0.05
+    f = fn k -> :math.sin(t / k) end
+
+    %{
+      t: t,
+      sent_at: 1_795_000_000_000 + i * 50.0,
+      measurement: %{
+        depth: f.(3),
+        heading: f.(5) + 1,
+        roll: f.(7),
+        pitch: f.(11),
+        voltage: 12.1,
+        current: 0.5
+      },
+      estimate: %{depth: f.(3), depth_rate: f.(13), heading: f.(5) + 1, yaw_rate: f.(17)},
+      wild_points: %{
+        total: 3,
+        by_field: %{depth: 1, heading: 2},
+        by_reason: %{out_of_range: 1, rate_of_change: 2},
+        reacquired: 0
+      },
+      sim: %{
+        x: f.(19),
+        y: f.(23),
+        z: f.(3),
+        phi: 0.0,
+        theta: 0.0,
+        psi: f.(5),
+        u: 0.1,
+        v: 0.0,
+        w: 0.0,
+        p: 0.0,
+        q: 0.0,
+        r: 0.0
+      },
+      command: %{surge: 0.2, heave: 0.0, yaw: f.(29)},
+      thrusters: %{
+        port: 0.1,
+        vertical: 0.0,
+        starboard: 0.1,
+        port_us: 1550,
+        vertical_us: 1500,
+        starboard_us: 1550
+      },
+      control: %{
+        mode: "motion",
+        gain: 0.5,
+        lights: 0,
+        laser: 0,
+        tilt: 0.0,
+        run_mode: "normal",
+        autopilot: %{depth: 1.0, heading: nil, position: nil}
+      },
+      autopilot: %{
+        depth: %{setpoint: 1.0, output: f.(31), overridden: false},
+        heading: nil,
+        position: nil
+      },
+      link: %{up: true, reason: "open"},
+      recording: %{on: true, error: nil}
+    }
+  end
+
+  defp streamed_csv(path) do
+    summary = path |> Recording.entries() |> Recording.scan()
+
+    path
+    |> Recording.entries()
+    |> Stream.take(summary.entries)
+    |> Recording.csv_stream(summary.columns)
+    |> sink()
+  end
+
+  defp streamed_jsonl(path),
+    do: path |> Recording.entries() |> Recording.json_lines_stream() |> sink()
+
+  defp eager_csv(path) do
+    path |> Recording.entries() |> Enum.to_list() |> Recording.csv() |> IO.iodata_length()
+  end
+
+  # what the HTTP side does with a stream: 64 KiB chunks, each sent and dropped
+  defp sink(lines) do
+    lines
+    |> Stream.chunk_every(500)
+    |> Enum.reduce(0, fn chunk, bytes -> bytes + IO.iodata_length(chunk) end)
+  end
+
+  defp row(label, baseline, fun) do
+    :erlang.garbage_collect()
+    sampler = spawn_link(fn -> sample(baseline) end)
+    {us, bytes} = :timer.tc(fn -> Task.async(fun) |> Task.await(:infinity) end)
+    send(sampler, {:report, self()})
+
+    peak =
+      receive do
+        {:peak, peak} -> peak
+      end
+
+    IO.puts(
+      "#{String.pad_trailing(label <> ":", 46)} #{mb(bytes)} in #{s(us)} " <>
+        "(#{Float.round(bytes / 1_048_576 / (us / 1_000_000), 1)} MB/s), peak VM memory +#{mb(peak - baseline)}"
+    )
+  end
+
+  defp sample(peak) do
+    receive do
+      {:report, to} -> send(to, {:peak, max(peak, :erlang.memory(:total))})
+    after
+      5 -> sample(max(peak, :erlang.memory(:total)))
+    end
+  end
+
+  defp mb(bytes), do: "#{Float.round(bytes / 1_048_576, 1)} MB"
+  defp s(us), do: "#{Float.round(us / 1_000_000, 2)} s"
+end
+
+Bench.RecordingExport.main(System.argv())
