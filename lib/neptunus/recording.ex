@@ -162,22 +162,35 @@ defmodule Neptunus.Recording do
       [{"link.up", 1}, {"t", 1.5}, {"thrusters.port", 0.25}]
   """
   @spec flatten(map()) :: [{String.t(), number()}]
-  def flatten(payload) when is_map(payload), do: payload |> flatten("") |> Enum.reverse()
+  def flatten(payload) when is_map(payload),
+    do: payload |> flatten_into("", []) |> Enum.reverse()
 
-  defp flatten(map, prefix) when is_map(map) do
+  # pushes the series of `map` onto `acc` (reversed), keys in order at each level
+  defp flatten_into(map, prefix, acc) do
     map
-    |> Enum.sort_by(fn {k, _} -> to_string(k) end)
-    |> Enum.reduce([], fn {key, value}, acc ->
-      path = if prefix == "", do: to_string(key), else: prefix <> "." <> to_string(key)
-
+    |> sorted_pairs()
+    |> Enum.reduce(acc, fn {key, value}, acc ->
       case value do
-        v when is_number(v) -> [{path, v} | acc]
-        true -> [{path, 1} | acc]
-        false -> [{path, 0} | acc]
-        %{} = nested -> flatten(nested, path) ++ acc
+        v when is_number(v) -> [{path(prefix, key), v} | acc]
+        true -> [{path(prefix, key), 1} | acc]
+        false -> [{path(prefix, key), 0} | acc]
+        %{} = nested -> flatten_into(nested, path(prefix, key), acc)
         _ -> acc
       end
     end)
+  end
+
+  defp path("", key), do: to_string(key)
+  defp path(prefix, key), do: prefix <> "." <> to_string(key)
+
+  # ordered by the keys' text; atoms (what recorded payloads have) compare by their text
+  # already, except nil, true and false, whose text `to_string/1` gives differently
+  defp sorted_pairs(map) do
+    pairs = :maps.to_list(map)
+
+    if Enum.all?(pairs, fn {k, _} -> is_atom(k) and k not in [nil, true, false] end),
+      do: List.keysort(pairs, 0),
+      else: Enum.sort_by(pairs, fn {k, _} -> to_string(k) end)
   end
 
   @typedoc """

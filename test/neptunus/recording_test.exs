@@ -3,6 +3,8 @@ defmodule Neptunus.RecordingTest do
 
   alias Neptunus.Recording
 
+  import Neptunus.Test.Properties, only: [check: 3, bind: 2]
+
   doctest Neptunus.Recording
 
   @moduletag :tmp_dir
@@ -93,6 +95,58 @@ defmodule Neptunus.RecordingTest do
              200,1,0.005,1.0,0.05,0.01,
              250,,,,0.1,,2
              """
+  end
+
+  # The first flatten (sorting every level by the keys' text, appending nested lists): the
+  # faster one must give the same series in the same order.
+  defp reference_flatten(payload), do: payload |> reference_flatten("") |> Enum.reverse()
+
+  defp reference_flatten(map, prefix) do
+    map
+    |> Enum.sort_by(fn {k, _} -> to_string(k) end)
+    |> Enum.reduce([], fn {key, value}, acc ->
+      path = if prefix == "", do: to_string(key), else: prefix <> "." <> to_string(key)
+
+      case value do
+        v when is_number(v) -> [{path, v} | acc]
+        true -> [{path, 1} | acc]
+        false -> [{path, 0} | acc]
+        %{} = nested -> reference_flatten(nested, path) ++ acc
+        _ -> acc
+      end
+    end)
+  end
+
+  defp payload_gen do
+    key =
+      :proper_types.oneof([
+        :proper_types.elements([:t, :depth, :a, :ab, :"a.b", :"a-b", :Z, :é, nil, true, false]),
+        :proper_types.elements(["a", "b", "a-b", "Z", "é", ""]),
+        :proper_unicode.utf8(3)
+      ])
+
+    leaf =
+      :proper_types.oneof([
+        :proper_types.integer(),
+        :proper_types.float(),
+        :proper_types.boolean(),
+        :proper_types.exactly(nil),
+        :proper_types.exactly("text")
+      ])
+
+    level = fn inner ->
+      bind(:proper_types.list({key, :proper_types.oneof([leaf, inner])}), &Map.new/1)
+    end
+
+    level.(level.(level.(leaf)))
+  end
+
+  test "flatten gives the series of the first implementation, in its order (property)" do
+    check(
+      payload_gen(),
+      fn payload -> Recording.flatten(payload) == reference_flatten(payload) end,
+      1_000
+    )
   end
 
   test "CSV stream: every N-th telemetry row, lazily" do
