@@ -34,10 +34,11 @@ defmodule Neptunus.Vehicle.Helm do
   `Neptunus.Vehicle.Control` and the board link `Neptunus.Vehicle.Board.UART`. Each broadcast
   of telemetry makes every observer's connection process runnable at once (1 000 of them for
   a few milliseconds of both cores); a command must not wait behind them. Their work is
-  bounded — commands come only through the pilot's connection (which runs at `:normal`, see
-  `NeptunusWeb.Socket`), the rest on fixed-rate timers and the board's serial line — so they
-  cannot starve `:normal` and `:low` processes. Other connections run at `:low`, which still
-  runs whenever nothing more urgent is runnable.
+  bounded — commands come only through the pilot's connection (which runs at `:high` too,
+  within a frame budget, see `NeptunusWeb.Socket` and `NeptunusWeb.PilotBudget`), the rest
+  on fixed-rate timers and the board's serial line — so they cannot starve `:normal` and
+  `:low` processes. Other connections run at `:low`, which still runs whenever nothing more
+  urgent is runnable.
 
   ## Options
 
