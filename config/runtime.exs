@@ -14,7 +14,7 @@ import Config
 # Helm (Neptunus.Config.helm!/1): NEPTUNUS_DEADMAN_MS, NEPTUNUS_REQUEST_TIMEOUT_MS,
 # NEPTUNUS_TAKEOVER_MS.
 # Recording (Neptunus.Config.recording!/2): NEPTUNUS_RECORDINGS (directory or off),
-# NEPTUNUS_RECORDING_MAX_MB.
+# NEPTUNUS_RECORDING_MAX_MB, NEPTUNUS_RECORDING_MIN_FREE_MB, NEPTUNUS_RECORDING_KEEP_DAYS.
 env = System.get_env()
 
 endpoint =

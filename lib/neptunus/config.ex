@@ -17,6 +17,7 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_RECORDINGS` | recordings directory, or `off`         | `recordings`           |
   | `NEPTUNUS_RECORDING_MAX_MB` | one recording file's size (MiB)  | 256                    |
   | `NEPTUNUS_RECORDING_MIN_FREE_MB` | stop recording below this free disk (MiB) | 512 |
+  | `NEPTUNUS_RECORDING_KEEP_DAYS` | delete recordings older than this (days), or `forever` | `forever` |
 
   Boards: `simulated` (the built-in simulator), `sitl` (the simulator behind a pseudo-terminal
   speaking the OpenROV protocol, through the real board link), `uart:DEVICE[@BAUD]` (a real
@@ -412,17 +413,22 @@ defmodule Neptunus.Config do
   `NEPTUNUS_RECORDINGS` — the directory (relative to the working directory, created when
   needed) or `off`; `NEPTUNUS_RECORDING_MIN_FREE_MB` — recording stops while less disk is
   free (default 512); `NEPTUNUS_RECORDING_MAX_MB` — size of one file before the next is
-  started (1..65536, default 256).
+  started (1..65536, default 256); `NEPTUNUS_RECORDING_KEEP_DAYS` — each vehicle's recorder
+  deletes its recordings last written more than this many days ago (1..3650), or `forever`
+  (the default: nothing is deleted by the server).
 
       iex> Neptunus.Config.recording!(%{}, "recordings")
-      %{dir: "recordings", max_bytes: 268435456, min_free_bytes: 536870912}
+      %{dir: "recordings", max_bytes: 268435456, min_free_bytes: 536870912, keep_ms: nil}
+      iex> Neptunus.Config.recording!(%{"NEPTUNUS_RECORDING_KEEP_DAYS" => "30"}, "recordings").keep_ms
+      2592000000
       iex> Neptunus.Config.recording!(%{"NEPTUNUS_RECORDINGS" => "off"}, "recordings").dir
       nil
   """
   @spec recording!(%{optional(String.t()) => String.t()}, Path.t() | nil) :: %{
           dir: Path.t() | nil,
           max_bytes: pos_integer(),
-          min_free_bytes: non_neg_integer()
+          min_free_bytes: non_neg_integer(),
+          keep_ms: pos_integer() | nil
         }
   def recording!(env, default_dir) do
     dir =
@@ -436,8 +442,24 @@ defmodule Neptunus.Config do
       dir: dir,
       max_bytes: env_integer!(env, "NEPTUNUS_RECORDING_MAX_MB", 256, 1..65_536) * 1024 * 1024,
       min_free_bytes:
-        env_integer!(env, "NEPTUNUS_RECORDING_MIN_FREE_MB", 512, 0..1_048_576) * 1024 * 1024
+        env_integer!(env, "NEPTUNUS_RECORDING_MIN_FREE_MB", 512, 0..1_048_576) * 1024 * 1024,
+      keep_ms: keep_ms!(Map.get(env, "NEPTUNUS_RECORDING_KEEP_DAYS", "forever"))
     }
+  end
+
+  defp keep_ms!(value) do
+    trimmed = String.trim(value)
+
+    case Integer.parse(trimmed) do
+      _ when trimmed == "forever" ->
+        nil
+
+      {days, ""} when days in 1..3650 ->
+        days * 86_400_000
+
+      _ ->
+        bad!("NEPTUNUS_RECORDING_KEEP_DAYS", value, "a number of days in 1..3650, or forever")
+    end
   end
 
   defp recording_dir!(dir) do

@@ -146,7 +146,8 @@ defmodule Neptunus.ConfigTest do
                %{
                  dir: "/tmp/rec-x",
                  max_bytes: 256 * 1024 * 1024,
-                 min_free_bytes: 512 * 1024 * 1024
+                 min_free_bytes: 512 * 1024 * 1024,
+                 keep_ms: nil
                }
 
       assert Config.recording!(%{}, nil).dir == nil
@@ -176,6 +177,19 @@ defmodule Neptunus.ConfigTest do
 
       assert Config.recording!(%{"NEPTUNUS_RECORDING_MIN_FREE_MB" => "0"}, nil).min_free_bytes ==
                0
+    end
+
+    test "retention: days, forever, or a clear error" do
+      keep = &Config.recording!(%{"NEPTUNUS_RECORDING_KEEP_DAYS" => &1}, nil).keep_ms
+      assert keep.(" 1 ") == 86_400_000
+      assert keep.("3650") == 3650 * 86_400_000
+      assert keep.("forever") == nil and keep.(" forever ") == nil
+
+      for bad <- ["0", "3651", "-5", "7d", "", "never", "1.5"] do
+        assert_raise ArgumentError,
+                     ~r/NEPTUNUS_RECORDING_KEEP_DAYS=.* expected a number of days in 1..3650, or forever/,
+                     fn -> keep.(bad) end
+      end
     end
   end
 

@@ -15,11 +15,18 @@ defmodule Neptunus.Vehicle.Recorder do
   `"log:<id>"`, a `recording` event on the vehicle's topic and the server log — and `status/1`
   tells why.
 
+  Retention is opt-in (`keep_ms`, from `NEPTUNUS_RECORDING_KEEP_DAYS`; nil keeps everything):
+  at start and every minute, the recorder deletes its vehicle's recordings last written more
+  than `keep_ms` ago, never the file it is writing. Each deletion is said — an `info` entry
+  (category `recording`) on `"log:<id>"` and the server log; a file that cannot be deleted is
+  an `errors` entry.
+
   Its state is in every telemetry payload as `recording: %{on, error}`. It comes after the
   helm in the vehicle's tree: its failures never restart the board,
   control or helm. Options: `:id`; `:recording` — `dir` (nil or absent: recording is off;
   default from `config :neptunus, :recording`), `max_bytes` (default 256 MiB),
-  `min_free_bytes` and, for tests, `free_bytes` (a function of the directory).
+  `min_free_bytes`, `keep_ms` and, for tests, `free_bytes` (a function of the directory)
+  and `now_ms` (the wall clock in ms, a function).
   """
   use GenServer
 
@@ -46,9 +53,11 @@ defmodule Neptunus.Vehicle.Recorder do
             error: String.t() | nil,
             min_free_bytes: non_neg_integer(),
             free_bytes: (Path.t() -> non_neg_integer() | nil),
+            keep_ms: pos_integer() | nil,
+            now_ms: (() -> integer()),
             low_disk: boolean()
           }
-    @enforce_keys [:id, :dir, :max_bytes, :min_free_bytes, :free_bytes]
+    @enforce_keys [:id, :dir, :max_bytes, :min_free_bytes, :free_bytes, :now_ms]
     defstruct [
       :id,
       :dir,
@@ -58,6 +67,8 @@ defmodule Neptunus.Vehicle.Recorder do
       :error,
       :min_free_bytes,
       :free_bytes,
+      :keep_ms,
+      :now_ms,
       files: [],
       entries: 0,
       bytes: 0,
@@ -96,7 +107,9 @@ defmodule Neptunus.Vehicle.Recorder do
       dir: Map.get(config, :dir),
       max_bytes: Map.get(config, :max_bytes, @default_max_bytes),
       min_free_bytes: Map.get(config, :min_free_bytes, @default_min_free_bytes),
-      free_bytes: Map.get(config, :free_bytes, &Recording.free_bytes/1)
+      free_bytes: Map.get(config, :free_bytes, &Recording.free_bytes/1),
+      keep_ms: Map.get(config, :keep_ms),
+      now_ms: Map.get(config, :now_ms, fn -> System.os_time(:millisecond) end)
     }
 
     if state.dir do
@@ -112,7 +125,7 @@ defmodule Neptunus.Vehicle.Recorder do
     Process.flag(:trap_exit, true)
     PubSub.subscribe(Telemetry.topic(state.id))
     :timer.send_interval(Map.get(@disk_check, :every_ms), :check_disk)
-    {:noreply, check_disk(state)}
+    {:noreply, state |> check_disk() |> expire()}
   end
 
   @impl true
@@ -141,7 +154,7 @@ defmodule Neptunus.Vehicle.Recorder do
   end
 
   def handle_info({:disk_log, _node, _log, _info}, state), do: {:noreply, state}
-  def handle_info(:check_disk, state), do: {:noreply, check_disk(state)}
+  def handle_info(:check_disk, state), do: {:noreply, state |> check_disk() |> expire()}
   def handle_info({:EXIT, _pid, _reason}, state), do: {:noreply, state}
 
   @impl true
@@ -169,6 +182,48 @@ defmodule Neptunus.Vehicle.Recorder do
   def terminate(_reason, state) do
     _ = close(state)
     :ok
+  end
+
+  # Retention (opt-in): the vehicle's recordings last written more than keep_ms ago go, each
+  # one said on the log topic; never the file being written.
+  defp expire(%State{keep_ms: nil} = state), do: state
+
+  defp expire(%State{dir: dir, id: id} = state) do
+    dir
+    |> Recording.list(id)
+    |> Recording.expired(dir, state.now_ms.(), state.keep_ms, state.file)
+    |> Enum.each(fn %{name: name, modified_at: at} ->
+      days = div(state.keep_ms, 86_400_000)
+
+      case File.rm(Recording.path(dir, id, name)) do
+        :ok ->
+          message = "recording #{name} deleted: older than #{days} days (retention)"
+          Logger.info("vehicle #{id}: #{message}")
+          log(state, "info", message, %{name: name, modified_at: at})
+
+        {:error, reason} ->
+          message =
+            "recording #{name} is older than #{days} days but cannot be deleted: #{reason}"
+
+          Logger.error("vehicle #{id}: #{message}")
+          log(state, "error", message, %{name: name, modified_at: at})
+      end
+    end)
+
+    state
+  end
+
+  defp log(state, level, message, fields) do
+    PubSub.broadcast(
+      Control.log_topic(state.id),
+      "log",
+      Map.merge(fields, %{
+        category: if(level == "error", do: "errors", else: "recording"),
+        level: level,
+        message: message,
+        at: System.os_time(:millisecond)
+      })
+    )
   end
 
   # Recording stops before the disk fills (a full disk on the vehicle's computer breaks more
@@ -247,13 +302,7 @@ defmodule Neptunus.Vehicle.Recorder do
 
   defp failed(state, message) do
     Logger.error("vehicle #{state.id}: recording stopped: #{message}")
-
-    PubSub.broadcast(Control.log_topic(state.id), "log", %{
-      category: "errors",
-      level: "error",
-      message: "recording stopped: #{message}",
-      at: System.os_time(:millisecond)
-    })
+    log(state, "error", "recording stopped: #{message}", %{})
 
     PubSub.broadcast(Telemetry.topic(state.id), "recording", %{recording: false, error: message})
     Telemetry.report(state.id, :recording, %{on: false, error: message})

@@ -143,6 +143,66 @@ defmodule Neptunus.Vehicle.RecorderTest do
                    2_000
   end
 
+  test "retention: deletes the vehicle's recordings older than keep_ms, each one said", %{
+    tmp_dir: dir
+  } do
+    id = "rec-#{System.unique_integer([:positive])}"
+    now = System.os_time(:second)
+    day = 86_400
+
+    old = fn vehicle, name, age_s ->
+      path = Path.join([dir, vehicle, name])
+      File.mkdir_p!(Path.dirname(path))
+      File.write!(path, "x")
+      File.touch!(path, now - age_s)
+      path
+    end
+
+    expired = old.(id, "20260101-000000Z-1.log", 20 * day)
+    also_expired = old.(id, "20260102-000000Z-1.log", 11 * day)
+    recent = old.(id, "20261120-000000Z-1.log", 1 * day)
+    other_vehicle = old.("other-#{id}", "20260101-000000Z-1.log", 20 * day)
+    # a directory with a recording's name cannot be deleted as a file: said, not hidden
+    stuck = Path.join([dir, id, "20260103-000000Z-1.log"])
+    File.mkdir_p!(Path.join(stuck, "x"))
+    File.touch!(stuck, now - 30 * day)
+
+    PubSub.subscribe(Control.log_topic(id))
+    start_supervised!({Recorder, id: id, recording: [dir: dir, keep_ms: 10 * day * 1000]})
+    %{file: current, recording: true} = Recorder.status(id)
+
+    for name <- ["20260101-000000Z-1.log", "20260102-000000Z-1.log"] do
+      assert_receive {:pubsub, _, "log",
+                      %{category: "recording", level: "info", name: ^name, message: message}}
+
+      assert message == "recording #{name} deleted: older than 10 days (retention)"
+    end
+
+    assert_receive {:pubsub, _, "log",
+                    %{category: "errors", name: "20260103-000000Z-1.log", message: message}}
+
+    assert message =~ "cannot be deleted"
+    refute File.exists?(expired) or File.exists?(also_expired)
+    assert File.exists?(recent) and File.exists?(other_vehicle) and File.exists?(current)
+
+    # the file being written is never deleted, however old it looks
+    File.touch!(current, now - 100 * day)
+    send(GenServer.whereis(Neptunus.Fleet.via(Recorder, id)), :check_disk)
+    assert %{recording: true, file: ^current} = Recorder.status(id)
+    assert File.exists?(current)
+  end
+
+  test "no retention by default: nothing is deleted", %{tmp_dir: dir} do
+    id = "rec-#{System.unique_integer([:positive])}"
+    path = Path.join([dir, id, "20200101-000000Z-1.log"])
+    File.mkdir_p!(Path.dirname(path))
+    File.write!(path, "x")
+    File.touch!(path, System.os_time(:second) - 3650 * 86_400)
+    start_supervised!({Recorder, id: id, recording: [dir: dir]})
+    _ = Recorder.status(id)
+    assert File.exists?(path)
+  end
+
   test "stops before the disk fills and resumes in a new file when there is room", %{tmp_dir: dir} do
     free = start_supervised!({Agent, fn -> 10 * 1_048_576 end}, id: :free)
     id = "rec-#{System.unique_integer([:positive])}"
