@@ -68,7 +68,7 @@ defmodule Neptunus.Recording do
     for v <- vehicles,
         name <- ls(Path.join(dir, v)),
         valid?(v, name),
-        {:ok, stat} <- [File.stat(path(dir, v, name), time: :posix)] do
+        {:ok, %File.Stat{type: :regular} = stat} <- [File.stat(path(dir, v, name), time: :posix)] do
       %{
         vehicle: v,
         name: name,

@@ -25,8 +25,8 @@ defmodule Neptunus.Vehicle.Recorder do
   helm in the vehicle's tree: its failures never restart the board,
   control or helm. Options: `:id`; `:recording` — `dir` (nil or absent: recording is off;
   default from `config :neptunus, :recording`), `max_bytes` (default 256 MiB),
-  `min_free_bytes`, `keep_ms` and, for tests, `free_bytes` (a function of the directory)
-  and `now_ms` (the wall clock in ms, a function).
+  `min_free_bytes`, `keep_ms` and, for tests, `free_bytes` (a function of the directory),
+  `now_ms` (the wall clock in ms, a function) and `rm` (deletes a file, like `File.rm/1`).
   """
   use GenServer
 
@@ -55,9 +55,10 @@ defmodule Neptunus.Vehicle.Recorder do
             free_bytes: (Path.t() -> non_neg_integer() | nil),
             keep_ms: pos_integer() | nil,
             now_ms: (() -> integer()),
+            rm: (Path.t() -> :ok | {:error, File.posix()}),
             low_disk: boolean()
           }
-    @enforce_keys [:id, :dir, :max_bytes, :min_free_bytes, :free_bytes, :now_ms]
+    @enforce_keys [:id, :dir, :max_bytes, :min_free_bytes, :free_bytes, :now_ms, :rm]
     defstruct [
       :id,
       :dir,
@@ -69,6 +70,7 @@ defmodule Neptunus.Vehicle.Recorder do
       :free_bytes,
       :keep_ms,
       :now_ms,
+      :rm,
       files: [],
       entries: 0,
       bytes: 0,
@@ -109,7 +111,8 @@ defmodule Neptunus.Vehicle.Recorder do
       min_free_bytes: Map.get(config, :min_free_bytes, @default_min_free_bytes),
       free_bytes: Map.get(config, :free_bytes, &Recording.free_bytes/1),
       keep_ms: Map.get(config, :keep_ms),
-      now_ms: Map.get(config, :now_ms, fn -> System.os_time(:millisecond) end)
+      now_ms: Map.get(config, :now_ms, fn -> System.os_time(:millisecond) end),
+      rm: Map.get(config, :rm, &File.rm/1)
     }
 
     if state.dir do
@@ -195,7 +198,7 @@ defmodule Neptunus.Vehicle.Recorder do
     |> Enum.each(fn %{name: name, modified_at: at} ->
       days = div(state.keep_ms, 86_400_000)
 
-      case File.rm(Recording.path(dir, id, name)) do
+      case state.rm.(Recording.path(dir, id, name)) do
         :ok ->
           message = "recording #{name} deleted: older than #{days} days (retention)"
           Logger.info("vehicle #{id}: #{message}")
