@@ -25,35 +25,7 @@ defmodule NeptunusWeb.CameraStreamTest do
     {:ok, id: id}
   end
 
-  # a raw HTTP/1.1 GET: status line and headers, and the socket to read the body from
-  defp open(path) do
-    {:ok, socket} =
-      :gen_tcp.connect(~c"127.0.0.1", port(), [:binary, active: false, packet: :raw])
-
-    :ok = :gen_tcp.send(socket, "GET #{path} HTTP/1.1\r\nHost: 127.0.0.1:#{port()}\r\n\r\n")
-    {head, body} = read_head(socket, <<>>)
-    [status_line | header_lines] = String.split(head, "\r\n")
-    [_, status | _] = String.split(status_line, " ")
-
-    headers =
-      Map.new(header_lines, fn line ->
-        [k, v] = String.split(line, ":", parts: 2)
-        {String.downcase(k), String.trim(v)}
-      end)
-
-    {String.to_integer(status), headers, body, socket}
-  end
-
-  defp read_head(socket, acc) do
-    case :binary.split(acc, "\r\n\r\n") do
-      [head, rest] ->
-        {head, rest}
-
-      [_] ->
-        {:ok, data} = :gen_tcp.recv(socket, 0, 5_000)
-        read_head(socket, acc <> data)
-    end
-  end
+  defp open(path), do: NeptunusWeb.Test.Wire.raw_get(path)
 
   # The body, de-chunked (Transfer-Encoding: chunked): {data, undecoded rest}
   defp dechunk(raw, acc \\ <<>>) do

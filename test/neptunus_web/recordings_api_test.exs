@@ -3,7 +3,7 @@ defmodule NeptunusWeb.RecordingsAPITest do
   # time (the API reads it at every request) and restored after each test.
   use ExUnit.Case, async: false
 
-  import NeptunusWeb.Test.Wire, only: [secure!: 2, secure!: 3]
+  import NeptunusWeb.Test.Wire, only: [secure!: 2, secure!: 3, raw_get: 1]
 
   alias Neptunus.PubSub
   alias Neptunus.Vehicle.{Recorder, Telemetry}
@@ -46,29 +46,6 @@ defmodule NeptunusWeb.RecordingsAPITest do
       :httpc.request(:get, {url, headers}, [], body_format: :binary)
 
     {status, Map.new(resp_headers, fn {k, v} -> {to_string(k), to_string(v)} end), body}
-  end
-
-  # the status line and headers of a GET, read from the socket (httpc hides the encoding)
-  defp raw_head(path) do
-    {:ok, sock} = :gen_tcp.connect(~c"127.0.0.1", port(), [:binary, active: false])
-
-    :ok =
-      :gen_tcp.send(sock, "GET #{path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n")
-
-    head = recv_head(sock, "")
-    :gen_tcp.close(sock)
-    head
-  end
-
-  defp recv_head(sock, acc) do
-    case String.split(acc, "\r\n\r\n", parts: 2) do
-      [head, _body] ->
-        head
-
-      [_] ->
-        {:ok, data} = :gen_tcp.recv(sock, 0, 5_000)
-        recv_head(sock, acc <> data)
-    end
   end
 
   defp json(body), do: :jiffy.decode(body, [:return_maps, {:null_term, nil}])
@@ -140,7 +117,10 @@ defmodule NeptunusWeb.RecordingsAPITest do
     name = Path.basename(file)
     {200, _headers, csv} = get("/api/recordings/#{long}/#{name}")
     assert byte_size(csv) > 3 * 65_536
-    assert raw_head("/api/recordings/#{long}/#{name}") =~ ~r/transfer-encoding: chunked/i
+    # httpc hides the encoding: read the headers off the socket
+    {200, raw_headers, _, socket} = raw_get("/api/recordings/#{long}/#{name}")
+    :gen_tcp.close(socket)
+    assert raw_headers["transfer-encoding"] =~ ~r/chunked/i
     Recorder.sync(long)
 
     assert csv ==

@@ -13,6 +13,42 @@ defmodule NeptunusWeb.Test.Wire do
   @spec port() :: :inet.port_number()
   def port, do: Application.fetch_env!(:neptunus, :endpoint).port
 
+  @doc """
+  A raw HTTP/1.1 GET of `path`: `{status, headers, body read so far, socket}` (header names
+  in lower case; the socket to read the rest of the body from, as the server sent it —
+  chunked or not).
+  """
+  @spec raw_get(String.t()) ::
+          {integer(), %{String.t() => String.t()}, binary(), :gen_tcp.socket()}
+  def raw_get(path) do
+    {:ok, socket} =
+      :gen_tcp.connect(~c"127.0.0.1", port(), [:binary, active: false, packet: :raw])
+
+    :ok = :gen_tcp.send(socket, "GET #{path} HTTP/1.1\r\nHost: 127.0.0.1:#{port()}\r\n\r\n")
+    {head, body} = read_head(socket, <<>>)
+    [status_line | header_lines] = String.split(head, "\r\n")
+    [_, status | _] = String.split(status_line, " ")
+
+    headers =
+      Map.new(header_lines, fn line ->
+        [k, v] = String.split(line, ":", parts: 2)
+        {String.downcase(k), String.trim(v)}
+      end)
+
+    {String.to_integer(status), headers, body, socket}
+  end
+
+  defp read_head(socket, acc) do
+    case :binary.split(acc, "\r\n\r\n") do
+      [head, rest] ->
+        {head, rest}
+
+      [_] ->
+        {:ok, data} = :gen_tcp.recv(socket, 0, 5_000)
+        read_head(socket, acc <> data)
+    end
+  end
+
   @doc "Connects with `params` (vsn added) and `headers`; `{:ok, ws}` or the client's error."
   @spec connect(map() | keyword(), keyword()) :: {:ok, pid()} | {:error, term()}
   def connect(params \\ %{}, headers \\ []) do
