@@ -234,23 +234,20 @@ defmodule NeptunusWeb.API do
   end
 
   defp max_rows(nil), do: {:ok, nil}
-
-  defp max_rows(text) do
-    case Integer.parse(text) do
-      {n, ""} when n in 1..1_000_000 -> {:ok, n}
-      _ -> {400, %{error: "max must be an integer in 1..1000000, got #{inspect(text)}"}}
-    end
-  end
+  defp max_rows(text), do: count("max", text)
 
   defp ceil_div(a, b), do: max(1, div(a + b - 1, b))
 
   defp format(format) when format in ["csv", "jsonl"], do: {:ok, format}
   defp format(other), do: {400, %{error: "format must be csv or jsonl, got #{inspect(other)}"}}
 
-  defp every(text) do
+  defp every(text), do: count("every", text)
+
+  # a query parameter that counts entries
+  defp count(name, text) do
     case Integer.parse(text) do
       {n, ""} when n in 1..1_000_000 -> {:ok, n}
-      _ -> {400, %{error: "every must be an integer in 1..1000000, got #{inspect(text)}"}}
+      _ -> {400, %{error: "#{name} must be an integer in 1..1000000, got #{inspect(text)}"}}
     end
   end
 
@@ -283,8 +280,9 @@ defmodule NeptunusWeb.API do
   end
 
   defp stream_body(socket, lines) do
-    receive do
-      {:ok, yaws} ->
+    NeptunusWeb.Yaws.await_stream(
+      socket,
+      fn yaws ->
         case deliver(socket, lines) do
           :ok ->
             :yaws_api.stream_process_deliver_final_chunk(socket, [])
@@ -294,12 +292,9 @@ defmodule NeptunusWeb.API do
             Logger.warning("recording export ended early: #{inspect(reason)}")
             :yaws_api.stream_process_end(:closed, yaws)
         end
-
-      {:discard, yaws} ->
-        :yaws_api.stream_process_end(socket, yaws)
-    after
-      30_000 -> :ok
-    end
+      end,
+      30_000
+    )
   end
 
   defp deliver(socket, lines) do

@@ -47,10 +47,10 @@ defmodule NeptunusWeb.CameraStream do
     end
   end
 
-  # yaws hands the socket over with {ok, YawsPid} (or {discard, YawsPid} for HEAD)
   defp start(id, socket) do
-    receive do
-      {:ok, yaws} ->
+    NeptunusWeb.Yaws.await_stream(
+      socket,
+      fn yaws ->
         PubSub.subscribe(Camera.topic(id))
         ref = Process.monitor(yaws)
 
@@ -63,12 +63,9 @@ defmodule NeptunusWeb.CameraStream do
               do: stream(socket, yaws, ref),
               else: done(yaws)
         end
-
-      {:discard, yaws} ->
-        :yaws_api.stream_process_end(socket, yaws)
-    after
-      10_000 -> :ok
-    end
+      end,
+      10_000
+    )
   end
 
   defp stream(socket, yaws, ref) do
