@@ -300,10 +300,6 @@ defmodule Neptunus.Recording do
     end)
   end
 
-  @doc "`json_lines_stream/2` as iodata."
-  @spec json_lines(Enumerable.t(), pos_integer()) :: iodata()
-  def json_lines(entries, every \\ 1), do: entries |> json_lines_stream(every) |> Enum.to_list()
-
   # every entry that is not telemetry, and every `every`-th telemetry entry
   defp decimate(entries, 1), do: entries
 

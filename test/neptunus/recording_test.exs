@@ -168,7 +168,8 @@ defmodule Neptunus.RecordingTest do
 
     lines =
       entries
-      |> Recording.json_lines(3)
+      |> Recording.json_lines_stream(3)
+      |> Enum.to_list()
       |> IO.iodata_to_binary()
       |> String.split("\n", trim: true)
       |> Enum.map(&:jiffy.decode(&1, [:return_maps]))
