@@ -25,10 +25,15 @@ defmodule Neptunus.E2E.ExternalTest do
     output
   end
 
-  test "the official phoenix JS client: join, presence, telemetry, helm, thrust, stop" do
-    output = node!(["--test", "--test-reporter=spec", "assets/test/protocol/vehicle.test.mjs"])
+  # a `node --test` suite: it ran tests, and none failed
+  defp node_suite!(script, env \\ []) do
+    output = node!(["--test", "--test-reporter=spec", script], env)
     assert output =~ ~r/pass \d+/
     refute output =~ ~r/fail [1-9]/
+  end
+
+  test "the official phoenix JS client: join, presence, telemetry, helm, thrust, stop" do
+    node_suite!("assets/test/protocol/vehicle.test.mjs")
   end
 
   test "the operator page in Chromium: keyboard, touch, gamepad, handover, safety stops, settings" do
@@ -45,13 +50,9 @@ defmodule Neptunus.E2E.ExternalTest do
       Neptunus.Fleet.start_vehicle(%{id: camera_vehicle, board: :simulated, camera: camera})
 
     try do
-      output =
-        node!(["--test", "--test-reporter=spec", "test/e2e/operator.e2e.mjs"], [
-          {"E2E_CAMERA_VEHICLE", camera_vehicle}
-        ])
-
-      assert output =~ ~r/pass \d+/
-      refute output =~ ~r/fail [1-9]/
+      node_suite!("test/e2e/operator.e2e.mjs", [
+        {"E2E_CAMERA_VEHICLE", camera_vehicle}
+      ])
     after
       Neptunus.Fleet.stop_vehicle(camera_vehicle)
     end
@@ -91,13 +92,9 @@ defmodule Neptunus.E2E.ExternalTest do
 
       :ok = :disk_log.close(log)
 
-      output =
-        node!(["--test", "--test-reporter=spec", "test/e2e/developer.e2e.mjs"], [
-          {"E2E_RECORDING", name}
-        ])
-
-      assert output =~ ~r/pass \d+/
-      refute output =~ ~r/fail [1-9]/
+      node_suite!("test/e2e/developer.e2e.mjs", [
+        {"E2E_RECORDING", name}
+      ])
     after
       Application.put_env(:neptunus, :recording, previous)
       File.rm_rf!(dir)
@@ -132,12 +129,8 @@ defmodule Neptunus.E2E.ExternalTest do
 
     NeptunusWeb.Auth.RateLimit.reset()
 
-    output =
-      node!(["--test", "--test-reporter=spec", "test/e2e/login.e2e.mjs"], [
-        {"NEPTUNUS_E2E_LOGINS", :jiffy.encode(logins) |> IO.iodata_to_binary()}
-      ])
-
-    assert output =~ ~r/pass \d+/
-    refute output =~ ~r/fail [1-9]/
+    node_suite!("test/e2e/login.e2e.mjs", [
+      {"NEPTUNUS_E2E_LOGINS", :jiffy.encode(logins) |> IO.iodata_to_binary()}
+    ])
   end
 end
