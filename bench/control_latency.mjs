@@ -274,7 +274,8 @@ function uartPty(program, link) {
       data.copy(frame, 3);
       child.stdin.write(frame);
     },
-    close() { child.stdin.end(); },
+    closed: false,
+    close() { port.closed = true; child.stdin.end(); },
   };
   child.on('exit', (code, signal) => {
     if (!port.closed) { console.error(`port program exited (${code ?? signal})`); process.exit(1); }
@@ -291,8 +292,6 @@ function uartPty(program, link) {
       else if (tag === 'e') { console.error(`port program: ${data.toString()}`); }
     }
   });
-  const close = port.close;
-  port.close = () => { port.closed = true; close(); };
   return port;
 }
 
