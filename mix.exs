@@ -121,7 +121,8 @@ defmodule Neptunus.MixProject do
       elixir: "~> 1.14",
       start_permanent: Mix.env() == :prod,
       elixirc_paths: elixirc_paths(Mix.env()),
-      # c_src/neptunus_uart.c → priv/neptunus_uart (the serial port program), see above
+      # c_src/neptunus_uart.c → priv/neptunus_uart (the serial port program), the NIFs
+      # neptunus_dynamics_nif and neptunus_os_nif → priv/*.so, see above
       compilers: Mix.compilers() ++ [:port_programs],
       deps: [],
       # dev tooling that is not part of the running application (mix neptunus.dialyzer)

@@ -13,7 +13,12 @@
 // server's own port program in pty mode (priv/neptunus_uart pty LINK, as for a SITL board),
 // which this process runs and speaks to in its {packet, 2} frames: 'w' DATA to write to the
 // line, 'r' DATA for bytes read from it. So the bytes cross one pty, as from a real UART's
-// driver to the board, and no relay (socat) sits in the measured path. It sends telemetry
+// driver to the board, and no relay (socat) sits in the measured path. The go(...) bytes are
+// timed where they are read, on the pty's master end: the port program runs with
+// NEPTUNUS_UART_RX_STAMPS=1 and sends the CLOCK_MONOTONIC time of each read (a 't' frame),
+// the clock of process.hrtime here. The time they reach this process, one pipe hop later, is
+// printed too. The board's port program asks for the same short OS time slice as the
+// server's (NEPTUNUS_SLICE_NS; LAT_BOARD_SLICE_US, default 100, or "default"). It sends telemetry
 // lines like an OpenROV board (navigation data at 50 Hz, status at 10 Hz) so the vehicle
 // publishes telemetry to every observer at 20 Hz while we measure, and it reads the go(...)
 // commands the server writes. The observers' sockets live in a separate OS process (this
@@ -24,7 +29,7 @@
 // Environment: LAT_URL (ws://127.0.0.1:4211), LAT_LINK and LAT_SERVER_PID_FILE (required),
 // LAT_DONE_FILE (written when the figures are out; then this process waits for SIGTERM),
 // LAT_VEHICLE (rov), LAT_UART (priv/neptunus_uart), LAT_CLK_TCK (100), LAT_WINDOW (100 joins in flight),
-// LAT_OBSERVER_NICE (0: the observer process' nice value, 0..19), LAT_OBSERVER_CPUS (unset: any
+// LAT_BOARD_SLICE_US (100), LAT_OBSERVER_NICE (0: the observer process' nice value, 0..19), LAT_OBSERVER_CPUS (unset: any
 // CPU; e.g. "1": the observer process runs on those CPUs only, see bench/README.md).
 
 import { createRequire } from 'node:module';
@@ -92,7 +97,7 @@ async function main() {
   let rx = '';
   let waiter = null; // {expect, resolve}
   let goLines = 0;
-  board.onData = (chunk) => {
+  board.onData = (chunk, readNs) => {
     const now = performance.now();
     rx += chunk.toString('latin1');
     let i;
@@ -101,7 +106,7 @@ async function main() {
       rx = rx.slice(i + 1);
       if (cmd.startsWith('go(')) {
         goLines++;
-        if (waiter && cmd === waiter.expect) { const w = waiter; waiter = null; w.resolve(now); }
+        if (waiter && cmd === waiter.expect) { const w = waiter; waiter = null; w.resolve({ now, readNs }); }
       }
     }
   };
@@ -179,7 +184,7 @@ async function main() {
     const loop = monitorEventLoopDelay({ resolution: 1 });
     loop.enable();
 
-    const toGo = [], toReply = [];
+    const toGo = [], toGoHere = [], toReply = [];
     let timeouts = 0, errors = 0, lastError = '';
     for (let i = 0; i < SAMPLES; i++) {
       const s = ((i % 40) + 1) / 50; // 0.02 .. 0.80, consecutive commands always differ
@@ -188,13 +193,18 @@ async function main() {
       const expect = `go(${portUs},1500,${stbdUs},1);`;
       const arrived = new Promise((resolve) => { waiter = { expect, resolve }; });
       const sent = performance.now();
+      const sentNs = process.hrtime.bigint(); // CLOCK_MONOTONIC, as the port program's stamps
       const reply = pilot.push(TOPIC, 'thrust', { mode: 'motion', surge: s, heave: 0, yaw: 0, epoch })
         .then((r) => {
           if (r.status !== 'ok') { errors++; lastError = JSON.stringify(r.response); }
           toReply.push(performance.now() - sent);
         });
       const got = await Promise.race([arrived, sleep(1000).then(() => null)]);
-      if (got == null) { timeouts++; waiter = null; } else toGo.push(got - sent);
+      if (got == null) { timeouts++; waiter = null; } else {
+        if (got.readNs == null) throw new Error('no read time from the port program: rebuild it (mix compile)');
+        toGo.push(Number(got.readNs - sentNs) / 1e6);
+        toGoHere.push(got.now - sent);
+      }
       await reply;
       await sleep(5 + Math.random() * 10);
     }
@@ -211,6 +221,7 @@ async function main() {
     out('commands / go lines matched / timeouts', `${SAMPLES} / ${toGo.length} / ${timeouts}`);
     out('command errors', errors ? `${errors} (last: ${lastError})` : 0);
     out('command -> go bytes  p50 / p90 / p99 / max', stats(toGo));
+    out('  the same, at this process (+ a pipe hop)', stats(toGoHere));
     out('command -> reply     p50 / p90 / p99 / max', stats(toReply));
     out('client event-loop delay p50 / p99', `${(loop.percentile(50) / 1e6).toFixed(2)} / ${(loop.percentile(99) / 1e6).toFixed(2)} ms`);
     out('telemetry received by observers', `${after.messages - before.messages} (${((after.messages - before.messages) / secs).toFixed(0)}/s)`);
@@ -259,9 +270,16 @@ function sleep(ms) { return new Promise((r) => setTimeout(r, ms)); }
 // The port program in pty mode: `opened` resolves when the pty exists (its 'o' frame),
 // `write(text)` sends bytes to the line, `onData(buffer)` gets the bytes read from it.
 function uartPty(program, link) {
-  const child = spawn(program, ['pty', link], { stdio: ['pipe', 'pipe', 'inherit'] });
+  // NEPTUNUS_UART_RX_STAMPS: a 't' frame with the read's CLOCK_MONOTONIC time before each 'r'
+  // frame; NEPTUNUS_SLICE_NS: the short time slice the server's own port program asks for
+  const env = { ...process.env, NEPTUNUS_UART_RX_STAMPS: '1' };
+  const sliceUs = process.env.LAT_BOARD_SLICE_US ?? '100';
+  if (sliceUs === 'default') delete env.NEPTUNUS_SLICE_NS;
+  else env.NEPTUNUS_SLICE_NS = String(Number(sliceUs) * 1000);
+  const child = spawn(program, ['pty', link], { stdio: ['pipe', 'pipe', 'inherit'], env });
   let buf = Buffer.alloc(0);
   let opened;
+  let readNs = null; // the time of the read that gave the next 'r' frame ('t' frame)
   const port = {
     slave: null,
     onData: null,
@@ -287,7 +305,8 @@ function uartPty(program, link) {
       const tag = String.fromCharCode(buf[2]);
       const data = buf.subarray(3, 2 + len);
       buf = buf.subarray(2 + len);
-      if (tag === 'r' && port.onData) port.onData(data);
+      if (tag === 't') readNs = BigInt(data.toString());
+      else if (tag === 'r' && port.onData) { port.onData(data, readNs); readNs = null; }
       else if (tag === 'o') { port.slave = data.toString(); opened(); }
       else if (tag === 'e') { console.error(`port program: ${data.toString()}`); }
     }

@@ -19,7 +19,15 @@
  *                   'e' TEXT     what went wrong; the program exits right after (see below)
  *
  * The program never writes anything else to stdout: errors travel as 'e' frames (and to stderr when
- * NEPTUNUS_UART_DEBUG is set). It exits
+ * NEPTUNUS_UART_DEBUG is set).
+ *
+ * Environment: NEPTUNUS_SLICE_NS=N asks the kernel for a scheduler time slice of N ns for this
+ * program (see Neptunus.OS: since Linux 6.12 a short slice wakes it promptly; ignored before).
+ * NEPTUNUS_UART_RX_STAMPS=1 sends, before each 'r' frame, a 't' frame with the CLOCK_MONOTONIC
+ * time of the read in nanoseconds (decimal text): bench/control_latency times the bytes where
+ * they were read. The VM's board link sets neither stamps nor expects them.
+ *
+ * It exits
  *   0   stdin closed (the VM closed the port or died), after flushing queued output briefly
  *   64  usage error             65  unsupported baud rate
  *   66  open/configure failed   67  the line hung up (EOF, POLLHUP: unplugged, pty closed)
@@ -39,10 +47,16 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sched.h>
 #include <sys/ioctl.h>
+#include <sys/syscall.h>
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
+
+#ifndef SCHED_BATCH
+#define SCHED_BATCH 3 /* <sched.h> names it only under _GNU_SOURCE */
+#endif
 
 #define EXIT_STDIN_CLOSED 0
 #define EXIT_USAGE 64
@@ -64,6 +78,7 @@ static size_t in_len = 0;
 static unsigned char out_queue[OUT_QUEUE_MAX];
 static size_t out_len = 0;
 static unsigned long long rx_bytes = 0, tx_bytes = 0, dropped_bytes = 0;
+static int rx_stamps = 0;
 
 /* pty mode: the symlink we made and the slave path it points to, removed at exit */
 static char link_path[4096];
@@ -266,6 +281,11 @@ static void read_line_fd(void)
         ssize_t n = read(line_fd, buf, sizeof buf);
         if (n > 0) {
             rx_bytes += (unsigned long long)n;
+            if (rx_stamps) {
+                struct timespec ts;
+                clock_gettime(CLOCK_MONOTONIC, &ts);
+                send_text('t', "%lld", (long long)ts.tv_sec * 1000000000LL + ts.tv_nsec);
+            }
             send_frame('r', buf, (size_t)n);
             if ((size_t)n < sizeof buf)
                 return;
@@ -390,8 +410,45 @@ static void on_signal(int sig)
     _exit(128 + sig);
 }
 
+/* NEPTUNUS_SLICE_NS: a short time slice for this program (Neptunus.OS says why). Best effort:
+ * kernels before 6.12 ignore it, and nothing depends on it. */
+static void request_time_slice(void)
+{
+    struct {
+        uint32_t size, policy;
+        uint64_t flags;
+        int32_t nice;
+        uint32_t priority;
+        uint64_t runtime, deadline, period;
+        uint32_t util_min, util_max;
+    } attr;
+    const char *value = getenv("NEPTUNUS_SLICE_NS");
+    char *end;
+    unsigned long long ns;
+
+    if (value == NULL || *value == '\0')
+        return;
+    ns = strtoull(value, &end, 10);
+    if (*end != '\0' || ns < 100000ULL || ns > 100000000ULL)
+        return;
+    memset(&attr, 0, sizeof attr);
+    if (syscall(SYS_sched_getattr, 0, &attr, (unsigned int)sizeof attr, 0U) != 0)
+        return;
+    if (attr.policy != SCHED_OTHER && attr.policy != SCHED_BATCH)
+        return;
+    attr.size = sizeof attr;
+    attr.flags = 0;
+    attr.runtime = ns;
+    attr.deadline = 0;
+    attr.period = 0;
+    (void)syscall(SYS_sched_setattr, 0, &attr, 0U);
+}
+
 int main(int argc, char **argv)
 {
+    const char *stamps = getenv("NEPTUNUS_UART_RX_STAMPS");
+    rx_stamps = stamps != NULL && strcmp(stamps, "1") == 0;
+    request_time_slice();
     signal(SIGPIPE, SIG_IGN);
     signal(SIGTERM, on_signal);
     signal(SIGINT, on_signal);

@@ -15,6 +15,7 @@ import Config
 # NEPTUNUS_TAKEOVER_MS.
 # Recording (Neptunus.Config.recording!/2): NEPTUNUS_RECORDINGS (directory or off),
 # NEPTUNUS_RECORDING_MAX_MB, NEPTUNUS_RECORDING_MIN_FREE_MB, NEPTUNUS_RECORDING_KEEP_DAYS.
+# Scheduling (Neptunus.Config.os_time_slice_ns!/1, Neptunus.OS): NEPTUNUS_OS_SLICE_US.
 env = System.get_env()
 
 endpoint =
@@ -27,6 +28,7 @@ config :neptunus,
   vehicles: Neptunus.Config.vehicles!(env),
   auth: Neptunus.Config.auth!(env, endpoint),
   helm: Neptunus.Config.helm!(env),
+  os_time_slice_ns: Neptunus.Config.os_time_slice_ns!(env),
   recording:
     Neptunus.Config.recording!(
       env,

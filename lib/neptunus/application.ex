@@ -14,6 +14,8 @@ defmodule Neptunus.Application do
 
   @impl true
   def start(_type, _args) do
+    # before the vehicles start their port programs (which ask for the same slice)
+    Neptunus.OS.apply_configured()
     endpoint = Application.fetch_env!(:neptunus, :endpoint)
     vehicles = Application.fetch_env!(:neptunus, :vehicles)
 

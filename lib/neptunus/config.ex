@@ -18,6 +18,7 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_RECORDING_MAX_MB` | one recording file's size (MiB)  | 256                    |
   | `NEPTUNUS_RECORDING_MIN_FREE_MB` | stop recording below this free disk (MiB) | 512 |
   | `NEPTUNUS_RECORDING_KEEP_DAYS` | delete recordings older than this (days), or `forever` | `forever` |
+  | `NEPTUNUS_OS_SLICE_US` | OS time slice the server's threads ask for (µs, 100..100000), or `default` | 100 |
 
   Boards: `simulated` (the built-in simulator), `sitl` (the simulator behind a pseudo-terminal
   speaking the OpenROV protocol, through the real board link), `uart:DEVICE[@BAUD]` (a real
@@ -445,6 +446,35 @@ defmodule Neptunus.Config do
         env_integer!(env, "NEPTUNUS_RECORDING_MIN_FREE_MB", 512, 0..1_048_576) * 1024 * 1024,
       keep_ms: keep_ms!(Map.get(env, "NEPTUNUS_RECORDING_KEEP_DAYS", "forever"))
     }
+  end
+
+  @doc """
+  The scheduler time slice the node's threads ask the OS for (`Neptunus.OS`), in
+  nanoseconds: `NEPTUNUS_OS_SLICE_US` in µs, 100..100000 (default 100), or `default` (nil:
+  leave the kernel's own).
+
+      iex> Neptunus.Config.os_time_slice_ns!(%{})
+      100000
+      iex> Neptunus.Config.os_time_slice_ns!(%{"NEPTUNUS_OS_SLICE_US" => "500"})
+      500000
+      iex> Neptunus.Config.os_time_slice_ns!(%{"NEPTUNUS_OS_SLICE_US" => "default"})
+      nil
+  """
+  @spec os_time_slice_ns!(%{optional(String.t()) => String.t()}) :: pos_integer() | nil
+  def os_time_slice_ns!(env) do
+    value = Map.get(env, "NEPTUNUS_OS_SLICE_US", "100")
+    trimmed = String.trim(value)
+
+    case Integer.parse(trimmed) do
+      _ when trimmed == "default" ->
+        nil
+
+      {us, ""} when us in 100..100_000 ->
+        us * 1000
+
+      _ ->
+        bad!("NEPTUNUS_OS_SLICE_US", value, "microseconds in 100..100000, or default")
+    end
   end
 
   defp keep_ms!(value) do

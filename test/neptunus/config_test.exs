@@ -193,6 +193,22 @@ defmodule Neptunus.ConfigTest do
     end
   end
 
+  describe "os_time_slice_ns!/1 (NEPTUNUS_OS_SLICE_US)" do
+    test "microseconds in 100..100000, default, or a clear error" do
+      slice = &Config.os_time_slice_ns!(%{"NEPTUNUS_OS_SLICE_US" => &1})
+      assert Config.os_time_slice_ns!(%{}) == 100_000
+      assert slice.(" 100 ") == 100_000
+      assert slice.("100000") == 100_000_000
+      assert slice.("default") == nil and slice.(" default ") == nil
+
+      for bad <- ["99", "100001", "0", "-100", "0.5", "1ms", "", "off"] do
+        assert_raise ArgumentError,
+                     ~r/NEPTUNUS_OS_SLICE_US=.* expected microseconds in 100..100000, or default/,
+                     fn -> slice.(bad) end
+      end
+    end
+  end
+
   describe "vehicles!/1 cameras (NEPTUNUS_CAMERAS)" do
     test "parses each vehicle's camera source" do
       env = %{

@@ -82,6 +82,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
         {:packet, 2},
         :exit_status,
         :use_stdio,
+        {:env, Neptunus.OS.port_env()},
         args: ["pty", link]
       ])
 

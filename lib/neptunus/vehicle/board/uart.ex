@@ -290,6 +290,7 @@ defmodule Neptunus.Vehicle.Board.UART do
         {:packet, 2},
         :exit_status,
         :use_stdio,
+        {:env, Neptunus.OS.port_env()},
         args: args
       ])
 

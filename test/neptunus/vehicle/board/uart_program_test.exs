@@ -8,13 +8,29 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
 
   alias Neptunus.Vehicle.Board.UART
 
-  defp spawn_program(args) do
+  defp spawn_program(args, env \\ []) do
     Port.open({:spawn_executable, UART.program()}, [
       :binary,
       {:packet, 2},
       :exit_status,
+      {:env, env},
       args: args
     ])
+  end
+
+  defp pty_link do
+    dir = Path.join(System.tmp_dir!(), "neptunus-test-#{System.unique_integer([:positive])}")
+    File.mkdir_p!(dir)
+    on_exit(fn -> File.rm_rf(dir) end)
+    Path.join(dir, "tty")
+  end
+
+  defp os_pid(port), do: port |> Port.info(:os_pid) |> elem(1)
+
+  defp os_monotonic_ns do
+    :erlang.system_info(:os_monotonic_time_source)
+    |> Keyword.fetch!(:time)
+    |> System.convert_time_unit(:native, :nanosecond)
   end
 
   defp exit_status(port) do
@@ -113,10 +129,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
   end
 
   test "pty mode: a pair whose slave is linked at the path, removed on exit" do
-    dir = Path.join(System.tmp_dir!(), "neptunus-test-#{System.unique_integer([:positive])}")
-    File.mkdir_p!(dir)
-    on_exit(fn -> File.rm_rf(dir) end)
-    link = Path.join(dir, "tty")
+    link = pty_link()
 
     master = spawn_program(["pty", link])
     assert_receive {^master, {:data, "o/dev/pts/" <> _}}, 5_000
@@ -139,5 +152,47 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     assert error_text(slave) =~ "hangup"
     assert exit_status(slave) == 67
     wait_until(fn -> not File.exists?(link) end, "link removed")
+  end
+
+  test "NEPTUNUS_SLICE_NS: the program asks for that time slice; a bad value is ignored" do
+    {:ok, vm} = Neptunus.OS.thread_slices(0)
+    kernel_reports_slices? = Enum.any?(vm, fn {_tid, ns} -> ns > 0 end)
+
+    sliced = spawn_program(["pty", pty_link()], [{~c"NEPTUNUS_SLICE_NS", ~c"250000"}])
+    assert_receive {^sliced, {:data, "o" <> _}}, 5_000
+    plain = spawn_program(["pty", pty_link()], [{~c"NEPTUNUS_SLICE_NS", ~c"fast"}])
+    assert_receive {^plain, {:data, "o" <> _}}, 5_000
+
+    {:ok, [{_, sliced_ns}]} = Neptunus.OS.thread_slices(os_pid(sliced))
+    {:ok, [{_, plain_ns}]} = Neptunus.OS.thread_slices(os_pid(plain))
+
+    if kernel_reports_slices? do
+      assert sliced_ns == 250_000
+      assert plain_ns not in [0, 250_000]
+    else
+      assert sliced_ns == 0 and plain_ns == 0
+    end
+  end
+
+  test "NEPTUNUS_UART_RX_STAMPS=1: each read comes after a frame with its CLOCK_MONOTONIC time" do
+    link = pty_link()
+    master = spawn_program(["pty", link], [{~c"NEPTUNUS_UART_RX_STAMPS", ~c"1"}])
+    assert_receive {^master, {:data, "o" <> _}}, 5_000
+    slave = open!(link)
+
+    before = os_monotonic_ns()
+    write(slave, "hdgd:90;")
+    assert_receive {^master, {:data, "t" <> stamp}}, 2_000
+    assert_receive {^master, {:data, "rhdgd:90;"}}, 2_000
+    stamp = String.to_integer(stamp)
+    assert before <= stamp and stamp <= os_monotonic_ns()
+
+    # without the variable (the VM's board link): 'r' frames only
+    plain_link = pty_link()
+    plain = spawn_program(["pty", plain_link])
+    assert_receive {^plain, {:data, "o" <> _}}, 5_000
+    write(open!(plain_link), "x")
+    assert_receive {^plain, {:data, frame}}, 2_000
+    assert frame == "rx"
   end
 end

@@ -222,6 +222,19 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     assert recv_until(ctx.board, &String.starts_with?(&1, @neutral)) =~ @neutral
   end
 
+  test "the port program asks for the node's OS time slice (Neptunus.OS)", ctx do
+    start_uart(ctx)
+    link_event(true)
+    {:os_pid, os_pid} = Port.info(:sys.get_state(Board.via(ctx.id)).port, :os_pid)
+    {:ok, [{_, program_ns}]} = Neptunus.OS.thread_slices(os_pid)
+    {:ok, vm} = Neptunus.OS.thread_slices(0)
+
+    # the kernel reports the slices (Linux 6.12+): the program's is the node's; else none
+    if Enum.any?(vm, fn {_tid, ns} -> ns > 0 end),
+      do: assert(program_ns == Application.fetch_env!(:neptunus, :os_time_slice_ns)),
+      else: assert(program_ns == 0)
+  end
+
   test "a device that does not exist: down with the reason, retried with backoff", ctx do
     start_uart(ctx, device: "/nonexistent/ttyO1", reopen_min: 10, reopen_max: 40)
     assert link_event(false) == "open /nonexistent/ttyO1: No such file or directory"

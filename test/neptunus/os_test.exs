@@ -1,0 +1,81 @@
+defmodule Neptunus.OSTest do
+  # Changes the time slice of every thread of the test VM: not async. Each test gives the
+  # configured slice back.
+  use ExUnit.Case, async: false
+
+  alias Neptunus.OS
+
+  setup do
+    on_exit(fn ->
+      OS.request_time_slice(Application.get_env(:neptunus, :os_time_slice_ns) || 0)
+    end)
+  end
+
+  # Linux 6.12 and later report a fair thread's slice (custom or default); older kernels 0.
+  defp kernel_reports_slices? do
+    {:ok, slices} = OS.thread_slices(0)
+    Enum.any?(slices, fn {_tid, ns} -> ns > 0 end)
+  end
+
+  test "the C library is loaded" do
+    assert OS.available?()
+  end
+
+  test "a requested slice is set on every thread of the VM, and the kernel's default comes back" do
+    {:ok, before} = OS.thread_slices(0)
+    assert length(before) >= System.schedulers_online()
+
+    if kernel_reports_slices?() do
+      assert {:ok, threads} = OS.request_time_slice(300_000)
+      {:ok, slices} = OS.thread_slices(0)
+      assert threads == length(slices)
+      assert Enum.all?(slices, fn {_tid, ns} -> ns == 300_000 end)
+
+      assert {:ok, _} = OS.request_time_slice(0)
+      {:ok, slices} = OS.thread_slices(0)
+      [{_, default} | _] = slices
+      assert default not in [0, 300_000]
+      assert Enum.all?(slices, fn {_tid, ns} -> ns == default end)
+    else
+      # accepted and ignored: said so, not pretended
+      assert OS.request_time_slice(300_000) == {:error, :unsupported}
+    end
+  end
+
+  test "the node asked for the configured slice at start" do
+    ns = Application.fetch_env!(:neptunus, :os_time_slice_ns)
+    assert ns == 100_000
+
+    if kernel_reports_slices?() do
+      {:ok, slices} = OS.thread_slices(0)
+      assert Enum.all?(slices, fn {_tid, slice} -> slice == ns end)
+    end
+  end
+
+  test "out-of-range slices are refused before any system call" do
+    for bad <- [-1, 1, 99_999, 100_000_001, 1.5e5, :fast] do
+      assert_raise FunctionClauseError, fn -> OS.request_time_slice(bad) end
+    end
+
+    # the C functions check too
+    assert_raise ArgumentError, fn -> OS.set_time_slice(50) end
+    assert_raise ArgumentError, fn -> OS.time_slices(-1) end
+  end
+
+  test "another process' threads; a process that does not exist" do
+    port = Port.open({:spawn_executable, System.find_executable("sleep")}, args: ["5"])
+    {:os_pid, os_pid} = Port.info(port, :os_pid)
+    on_exit(fn -> System.cmd("kill", [Integer.to_string(os_pid)]) end)
+
+    assert {:ok, [{^os_pid, _ns}]} = OS.thread_slices(os_pid)
+    assert OS.thread_slices(999_999_999) == {:error, :enoent}
+  end
+
+  test "port programs get NEPTUNUS_SLICE_NS while the node asks for a slice" do
+    assert OS.port_env() == [{~c"NEPTUNUS_SLICE_NS", ~c"100000"}]
+
+    Application.put_env(:neptunus, :os_time_slice_ns, nil)
+    on_exit(fn -> Application.put_env(:neptunus, :os_time_slice_ns, 100_000) end)
+    assert OS.port_env() == []
+  end
+end
