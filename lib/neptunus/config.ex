@@ -444,7 +444,7 @@ defmodule Neptunus.Config do
       max_bytes: env_integer!(env, "NEPTUNUS_RECORDING_MAX_MB", 256, 1..65_536) * 1024 * 1024,
       min_free_bytes:
         env_integer!(env, "NEPTUNUS_RECORDING_MIN_FREE_MB", 512, 0..1_048_576) * 1024 * 1024,
-      keep_ms: keep_ms!(Map.get(env, "NEPTUNUS_RECORDING_KEEP_DAYS", "forever"))
+      keep_ms: keep_ms!(env)
     }
   end
 
@@ -462,33 +462,43 @@ defmodule Neptunus.Config do
   """
   @spec os_time_slice_ns!(%{optional(String.t()) => String.t()}) :: pos_integer() | nil
   def os_time_slice_ns!(env) do
-    value = Map.get(env, "NEPTUNUS_OS_SLICE_US", "100")
-    trimmed = String.trim(value)
-
-    case Integer.parse(trimmed) do
-      _ when trimmed == "default" ->
-        nil
-
-      {us, ""} when us in 100..100_000 ->
-        us * 1000
-
-      _ ->
-        bad!("NEPTUNUS_OS_SLICE_US", value, "microseconds in 100..100000, or default")
+    case integer_or_word!(
+           env,
+           "NEPTUNUS_OS_SLICE_US",
+           "100",
+           100..100_000,
+           "default",
+           "microseconds"
+         ) do
+      nil -> nil
+      us -> us * 1000
     end
   end
 
-  defp keep_ms!(value) do
+  defp keep_ms!(env) do
+    case integer_or_word!(
+           env,
+           "NEPTUNUS_RECORDING_KEEP_DAYS",
+           "forever",
+           1..3650,
+           "forever",
+           "a number of days"
+         ) do
+      nil -> nil
+      days -> days * 86_400_000
+    end
+  end
+
+  # `variable` (default `default`): an integer in `range`, or `word` (nil); else a clear error
+  # saying "<what> in <range>, or <word>"
+  defp integer_or_word!(env, variable, default, first..last, word, what) do
+    value = Map.get(env, variable, default)
     trimmed = String.trim(value)
 
     case Integer.parse(trimmed) do
-      _ when trimmed == "forever" ->
-        nil
-
-      {days, ""} when days in 1..3650 ->
-        days * 86_400_000
-
-      _ ->
-        bad!("NEPTUNUS_RECORDING_KEEP_DAYS", value, "a number of days in 1..3650, or forever")
+      _ when trimmed == word -> nil
+      {n, ""} when n >= first and n <= last -> n
+      _ -> bad!(variable, value, "#{what} in #{first}..#{last}, or #{word}")
     end
   end
 

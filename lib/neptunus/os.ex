@@ -31,6 +31,9 @@ defmodule Neptunus.OS do
   @typedoc "A requested slice: 0 (the kernel's default) or 100 µs..100 ms, in nanoseconds."
   @type slice_ns :: 0 | 100_000..100_000_000
 
+  # Self-contained on purpose, like Neptunus.Dynamics.Native.load/0: an @on_load function
+  # runs while the module loads (also inside the compiler), before other modules of ours may
+  # be available, so it cannot call a shared helper.
   @doc false
   def load do
     case :erlang.load_nif(:filename.join(priv_dir(), @library), 0) do
