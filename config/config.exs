@@ -15,7 +15,13 @@ config :neptunus,
   fanout_gap_ms: 2,
   # a piloting connection runs at :high while it sends at most this many frames per second
   # (NeptunusWeb.PilotBudget)
-  pilot_frames_per_s: 200
+  pilot_frames_per_s: 200,
+  # a connection with this many messages waiting drops stale telemetry frames: its client
+  # reads slower than the telemetry arrives (NeptunusWeb.Socket)
+  socket_backlog: 32,
+  # a send to a client that has not read for this long closes the connection
+  # (NeptunusWeb.Endpoint)
+  send_timeout_ms: 15_000
 
 config :logger, :console, format: "$time [$level] $message\n"
 

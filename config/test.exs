@@ -6,3 +6,6 @@ config :neptunus, default_port: 4102
 
 # recording is off under test; the recorder and API tests record to their own directories
 config :neptunus, default_recordings: "off"
+
+# the slow-client tests wait for the send timeout: 2 s, still far beyond a healthy client
+config :neptunus, send_timeout_ms: 2_000

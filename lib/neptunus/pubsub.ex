@@ -6,8 +6,9 @@ defmodule Neptunus.PubSub do
 
     * **term subscribers** (`subscribe/1`) receive `{:pubsub, topic, event, payload}` — for
       Elixir processes (recorder, tests, other vehicles' processes);
-    * **fastlane subscribers** (`subscribe_fastlane/1`) receive `{:pubsub_frame, topic, frame}`
-      where `frame` is the wire frame (a binary) for that broadcast, **encoded once per
+    * **fastlane subscribers** (`subscribe_fastlane/1`) receive
+      `{:pubsub_frame, topic, event, frame}` where `frame` is the wire frame (a binary) for
+      that broadcast, **encoded once per
       broadcast** with `encoder.encode_broadcast(topic, event, payload)` and the same binary
       sent to every fastlane subscriber (binaries over 64 bytes are shared, not copied, on
       the local node). WebSocket connection processes use this. A fastlane subscriber can
@@ -39,7 +40,7 @@ defmodule Neptunus.PubSub do
   @type event :: String.t()
 
   @typedoc "A later slice of a paced broadcast, sent by the broadcaster to itself."
-  @type slice_message :: {__MODULE__, :slice, topic(), binary(), [pid()]}
+  @type slice_message :: {__MODULE__, :slice, topic(), event(), binary(), [pid()]}
 
   @typedoc """
   How a paced broadcast is spread: `slice` subscribers at a time, a slice every `gap_ms`,
@@ -100,7 +101,7 @@ defmodule Neptunus.PubSub do
   def broadcast(topic, event, payload, encoder \\ @default_encoder) do
     case send_terms_and_first(topic, event, payload, encoder) do
       nil -> :ok
-      {frame, others, _first} -> deliver(topic, frame, others)
+      {frame, others, _first} -> deliver(topic, event, frame, others)
     end
   end
 
@@ -117,7 +118,7 @@ defmodule Neptunus.PubSub do
         :ok
 
       {frame, others, []} ->
-        deliver(topic, frame, others)
+        deliver(topic, event, frame, others)
 
       {frame, others, _first} ->
         {slice, gap_ms} = plan(length(others), pace)
@@ -127,17 +128,22 @@ defmodule Neptunus.PubSub do
         |> Enum.with_index()
         |> Enum.each(fn
           {pids, 0} ->
-            deliver(topic, frame, pids)
+            deliver(topic, event, frame, pids)
 
           {pids, k} ->
-            Process.send_after(self(), {__MODULE__, :slice, topic, frame, pids}, k * gap_ms)
+            Process.send_after(
+              self(),
+              {__MODULE__, :slice, topic, event, frame, pids},
+              k * gap_ms
+            )
         end)
     end
   end
 
   @doc "Delivers a later slice of a paced broadcast (see `broadcast_paced/5`)."
   @spec deliver_slice(slice_message()) :: :ok
-  def deliver_slice({__MODULE__, :slice, topic, frame, pids}), do: deliver(topic, frame, pids)
+  def deliver_slice({__MODULE__, :slice, topic, event, frame, pids}),
+    do: deliver(topic, event, frame, pids)
 
   @doc """
   How `count` subscribers are sliced (pure): `{slice size, gap in ms}`. Slices are
@@ -176,12 +182,13 @@ defmodule Neptunus.PubSub do
 
       {first, others} ->
         frame = encoder.encode_broadcast(topic, event, payload)
-        deliver(topic, frame, first)
+        deliver(topic, event, frame, first)
         {frame, others, first}
     end
   end
 
-  defp deliver(topic, frame, pids), do: Enum.each(pids, &send(&1, {:pubsub_frame, topic, frame}))
+  defp deliver(topic, event, frame, pids),
+    do: Enum.each(pids, &send(&1, {:pubsub_frame, topic, event, frame}))
 
   @doc "Number of subscribers (all kinds) of `topic` on all nodes."
   @spec subscriber_count(topic()) :: non_neg_integer()

@@ -38,6 +38,18 @@ defmodule NeptunusWeb.Socket do
   also gets its telemetry first (`Neptunus.PubSub.prioritize/2`). Frames of a topic the
   connection has left (still in flight, or from a paced broadcast's later slice) are
   dropped.
+
+  Slow clients: a connection whose client reads slower than its telemetry arrives (a weak
+  link, a busy tablet) would queue frames in its mailbox without bound (once the kernel's
+  send buffer is full), and show the pilot or observer ever older data. So when `:socket_backlog` (default
+  32) or more messages wait for the connection, it drops `telemetry` frames (the
+  newest ones, at the back of the queue, still go out) and logs it at most once a minute
+  with the count; every other event (`helm`, `presence_diff`, `stopped`, replies, …) is
+  always sent. A client that stops reading altogether has its socket closed by the
+  endpoint's send timeout (`NeptunusWeb.Endpoint`, `:send_timeout_ms`); yaws is not told,
+  so the connection checks its socket when it finds itself behind and at every idle check,
+  and ends when the socket is gone: its channels are left as for any other closed
+  connection (a pilot's helm is freed and the vehicle stops).
   """
   require Logger
 
@@ -49,6 +61,8 @@ defmodule NeptunusWeb.Socket do
 
   @default_idle_timeout_ms 60_000
   @default_pilot_frames_per_s 200
+  @default_backlog 32
+  @shed_report_ms 60_000
   @max_message_bytes 65_536
 
   defmodule State do
@@ -61,17 +75,25 @@ defmodule NeptunusWeb.Socket do
             idle_timeout: pos_integer(),
             piloting: MapSet.t(String.t()),
             budget: NeptunusWeb.PilotBudget.t(),
-            over_budget: boolean()
+            over_budget: boolean(),
+            backlog: pos_integer(),
+            shed: non_neg_integer(),
+            shed_reported_at: integer() | nil,
+            sock: port() | {:ssl, :ssl.sslsocket()} | nil
           }
-    @enforce_keys [:user, :last_seen, :idle_timeout, :budget]
+    @enforce_keys [:user, :last_seen, :idle_timeout, :budget, :backlog]
     defstruct [
       :user,
       :last_seen,
       :idle_timeout,
       :budget,
+      :backlog,
+      :shed_reported_at,
+      :sock,
       channels: %{},
       piloting: MapSet.new(),
-      over_budget: false
+      over_budget: false,
+      shed: 0
     ]
   end
 
@@ -165,14 +187,21 @@ defmodule NeptunusWeb.Socket do
         Application.get_env(:neptunus, :pilot_frames_per_s, @default_pilot_frames_per_s)
       )
 
-    {:ok, %State{user: user, last_seen: now_ms(), idle_timeout: idle_timeout, budget: budget}}
+    {:ok,
+     %State{
+       user: user,
+       last_seen: now_ms(),
+       idle_timeout: idle_timeout,
+       budget: budget,
+       backlog: Application.get_env(:neptunus, :socket_backlog, @default_backlog)
+     }}
   end
 
   @doc false
-  def handle_open(_ws_state, state) do
+  def handle_open(ws_state, state) do
     # The upgrade leaves garbage behind; collecting it now keeps an idle connection small.
     send(self(), :gc)
-    {:ok, state}
+    {:ok, %{state | sock: ws_state(ws_state, :sock)}}
   end
 
   @doc false
@@ -198,10 +227,12 @@ defmodule NeptunusWeb.Socket do
   def handle_message({:close, code, _reason}, state), do: {:close, code, state}
 
   @doc false
-  def handle_info({:pubsub_frame, topic, frame}, state) do
-    if Map.has_key?(state.channels, topic),
-      do: {:reply, {:text, frame}, state},
-      else: {:noreply, state}
+  def handle_info({:pubsub_frame, topic, event, frame}, state) do
+    cond do
+      not Map.has_key?(state.channels, topic) -> {:noreply, state}
+      event == "telemetry" and backlogged?(state) -> shed(state)
+      true -> {:reply, {:text, frame}, state}
+    end
   end
 
   def handle_info(msg, state), do: guarded(state, fn -> handle_other(msg, state) end)
@@ -333,10 +364,15 @@ defmodule NeptunusWeb.Socket do
   defp handle_other({:channel_info, topic, msg}, state), do: channel_info(topic, msg, state)
 
   defp handle_other(:check_idle, state) do
-    if now_ms() - state.last_seen > state.idle_timeout do
-      {:close, {1000, "heartbeat timeout"}, state}
-    else
-      {:noreply, state}
+    cond do
+      not connected?(state) ->
+        gone(state)
+
+      now_ms() - state.last_seen > state.idle_timeout ->
+        {:close, {1000, "heartbeat timeout"}, state}
+
+      true ->
+        {:noreply, state}
     end
   end
 
@@ -426,6 +462,49 @@ defmodule NeptunusWeb.Socket do
         Logger.error("socket callback failed: #{formatted}")
         {:noreply, state}
     end
+  end
+
+  # Slow clients (see the moduledoc)
+
+  defp backlogged?(state) do
+    {:message_queue_len, waiting} = Process.info(self(), :message_queue_len)
+    waiting >= state.backlog
+  end
+
+  # Behind: a send may have waited for the client until the send timeout closed the socket.
+  defp shed(%State{shed: shed, shed_reported_at: reported} = state) do
+    now = now_ms()
+
+    cond do
+      not connected?(state) ->
+        gone(state)
+
+      reported == nil or now - reported >= @shed_report_ms ->
+        Logger.info(
+          "#{inspect(state.user.name)} reads slower than its telemetry arrives: " <>
+            "dropped #{shed + 1} stale telemetry frame(s)" <>
+            if(reported == nil, do: "", else: " in the last #{div(now - reported, 1000)} s")
+        )
+
+        {:noreply, %{state | shed: 0, shed_reported_at: now}}
+
+      true ->
+        {:noreply, %{state | shed: shed + 1}}
+    end
+  end
+
+  defp connected?(%State{sock: nil}), do: true
+  defp connected?(%State{sock: {:ssl, sock}}), do: match?({:ok, _}, :ssl.peername(sock))
+  defp connected?(%State{sock: sock}), do: match?({:ok, _}, :inet.peername(sock))
+
+  # The socket is closed under yaws (the send timeout): end the connection now.
+  defp gone(state) do
+    Logger.info(
+      "#{inspect(state.user.name)}'s client stopped reading: " <>
+        "connection closed after #{NeptunusWeb.Endpoint.send_timeout_ms()} ms"
+    )
+
+    {:close, {1000, "send timeout"}, state}
   end
 
   # Priority

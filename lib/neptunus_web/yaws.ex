@@ -12,6 +12,7 @@ defmodule NeptunusWeb.Yaws do
   Record.defrecord(:arg, Record.extract(:arg, from: @hrl))
   Record.defrecord(:http_request, Record.extract(:http_request, from: @hrl))
   Record.defrecord(:headers, Record.extract(:headers, from: @hrl))
+  Record.defrecord(:ws_state, Record.extract(:ws_state, from: @hrl))
 
   # In the process of a `{:streamcontent_from_pid, mime, pid}` reply: waits for yaws to hand
   # over the socket and runs `fun.(yaws_pid)`; a HEAD request's stream is ended at once.

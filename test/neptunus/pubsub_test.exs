@@ -33,7 +33,7 @@ defmodule Neptunus.PubSubTest do
 
   defp forward(test, name) do
     receive do
-      {:pubsub_frame, _topic, frame} ->
+      {:pubsub_frame, _topic, _event, frame} ->
         send(test, {:frame, name, frame, System.monotonic_time(:millisecond)})
         forward(test, name)
 
@@ -94,7 +94,7 @@ defmodule Neptunus.PubSubTest do
 
     slices =
       for k <- 1..2 do
-        assert_receive {PubSub, :slice, ^t, ^frame, pids} = slice, 1_000
+        assert_receive {PubSub, :slice, ^t, "ev", ^frame, pids} = slice, 1_000
         assert System.monotonic_time(:millisecond) - sent >= k * 20
         assert :ok = PubSub.deliver_slice(slice)
         pids
@@ -103,7 +103,7 @@ defmodule Neptunus.PubSubTest do
     assert Enum.map(slices, &length/1) == [2, 1]
     later = for _ <- 1..3, do: assert_receive({:frame, name, ^frame, _}) && name
     assert Enum.sort(now ++ later) == [1, 2, 3, 4, 5]
-    refute_receive {PubSub, :slice, _, _, _}, 50
+    refute_receive {PubSub, :slice, _, _, _, _}, 50
     assert Process.get(:encodings) == 1
   end
 
@@ -112,7 +112,7 @@ defmodule Neptunus.PubSubTest do
     for name <- 1..5, do: subscriber(t, name)
     assert :ok = PubSub.broadcast_paced(t, "ev", %{n: 1}, pace(2, 1, 100), Encoder)
     for _ <- 1..5, do: assert_receive({:frame, _, _, _})
-    refute_receive {PubSub, :slice, _, _, _}, 20
+    refute_receive {PubSub, :slice, _, _, _, _}, 20
   end
 
   test "broadcast_paced: no more others than one slice, everyone at once" do
@@ -121,7 +121,7 @@ defmodule Neptunus.PubSubTest do
     subscriber(t, :pilot, first: true)
     assert :ok = PubSub.broadcast_paced(t, "ev", %{n: 1}, pace(3, 1, 0), Encoder)
     for _ <- 1..4, do: assert_receive({:frame, _, _, _})
-    refute_receive {PubSub, :slice, _, _, _}, 20
+    refute_receive {PubSub, :slice, _, _, _, _}, 20
   end
 
   test "prioritize moves a subscriber between the groups, and only a subscriber" do

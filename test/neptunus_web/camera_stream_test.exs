@@ -100,6 +100,33 @@ defmodule NeptunusWeb.CameraStreamTest do
     :gen_tcp.close(socket2)
   end
 
+  test "a viewer that stops reading is dropped after the send timeout", %{id: id} do
+    topic = Neptunus.Vehicle.Camera.topic(id)
+    before = :pg.get_members(Neptunus.PubSub, {:term, topic})
+    {200, _headers, _body, socket} = open("/camera/#{id}.mjpg")
+
+    viewers = fn -> :pg.get_members(Neptunus.PubSub, {:term, topic}) -- before end
+    Neptunus.Test.Pty.wait_until(fn -> viewers.() != [] end, "the viewer's stream process")
+    [viewer] = viewers.()
+    ref = Process.monitor(viewer)
+
+    # the client reads nothing more while big frames keep coming: the buffers fill, the
+    # viewer's send waits, and the send timeout ends it (instead of a process that waits
+    # forever holding frames)
+    big = String.duplicate("j", 512 * 1024)
+    started = System.monotonic_time(:millisecond)
+
+    for _ <- 1..60 do
+      Neptunus.PubSub.broadcast(topic, "frame", %{jpeg: big})
+      Process.sleep(10)
+    end
+
+    timeout = NeptunusWeb.Endpoint.send_timeout_ms()
+    assert_receive {:DOWN, ^ref, :process, ^viewer, _}, timeout + 5_000
+    assert System.monotonic_time(:millisecond) - started >= timeout
+    :gen_tcp.close(socket)
+  end
+
   test "the snapshot gives the camera's address; a vehicle without camera has none", %{id: id} do
     %{snapshot: snapshot} = client!("vehicle:" <> id, %{"name" => "cam-viewer"})
     assert snapshot["camera"] == %{"url" => "/camera/#{id}.mjpg"}

@@ -334,9 +334,122 @@ defmodule NeptunusWeb.SocketTest do
     [pid] = connections(topic)
     assert {"ok", _} = push_and_reply(ws, join_ref, topic, "phx_leave", %{})
     # e.g. the later slice of a paced broadcast, delivered after the leave
-    send(pid, {:pubsub_frame, topic, ~s([null,null,"#{topic}","telemetry",{"late":true}])})
+    send(
+      pid,
+      {:pubsub_frame, topic, "telemetry", ~s([null,null,"#{topic}","telemetry",{"late":true}])}
+    )
+
     WSClient.push(ws, nil, "hb", "phoenix", "heartbeat", %{})
     refute Enum.any?(frames_until(ws, "hb"), &match?([_, _, _, _, %{"late" => true}], &1))
+  end
+
+  describe "slow clients" do
+    test "a connection that falls behind drops stale telemetry, never other events",
+         %{topic: topic} do
+      ws = connect!("Slow")
+      {_join_ref, _} = join!(ws, topic)
+      [pid] = connections(topic)
+
+      # the connection process is held up (as by a send into a full buffer) while the
+      # broadcasts go on: 100 telemetry frames with a state change among them
+      :sys.suspend(pid)
+
+      for k <- 1..100 do
+        Neptunus.PubSub.broadcast(topic, "telemetry", %{"k" => k})
+        if k == 50, do: Neptunus.PubSub.broadcast(topic, "stopped", %{"reason" => "test"})
+      end
+
+      {:message_queue_len, waiting} = Process.info(pid, :message_queue_len)
+      assert waiting >= 101
+
+      log =
+        ExUnit.CaptureLog.capture_log(fn ->
+          :sys.resume(pid)
+          WSClient.push(ws, nil, "hb", "phoenix", "heartbeat", %{})
+          send(self(), {:frames, frames_until(ws, "hb")})
+        end)
+
+      assert_received {:frames, frames}
+      ks = for [_, _, ^topic, "telemetry", %{"k" => k}] <- frames, do: k
+
+      # the state change went out; of the telemetry only the newest, in order, the last one
+      # included
+      assert [_, _, ^topic, "stopped", %{"reason" => "test"}] =
+               Enum.find(frames, &match?([_, _, _, "stopped", %{"reason" => "test"}], &1))
+
+      backlog = Application.get_env(:neptunus, :socket_backlog)
+      assert length(ks) in 1..backlog
+      assert List.last(ks) == 100
+      assert ks == Enum.sort(ks) and hd(ks) > 100 - backlog
+      assert log =~ ~s("Slow" reads slower than its telemetry arrives: dropped 1 stale)
+
+      # caught up: telemetry flows again
+      Neptunus.PubSub.broadcast(topic, "telemetry", %{"k" => 101})
+      WSClient.recv_until(ws, &match?([_, _, ^topic, "telemetry", %{"k" => 101}], &1))
+    end
+
+    test "a pilot whose client stops reading is disconnected after the send timeout, " <>
+           "and the vehicle stops",
+         %{id: id, topic: topic} do
+      ws = connect!("Frozen")
+      {join_ref, _} = join!(ws, topic)
+      [pid] = connections(topic)
+
+      assert {"ok", %{"status" => "granted"}} =
+               push_and_reply(ws, join_ref, topic, "request_control", %{})
+
+      Neptunus.PubSub.subscribe(topic)
+      ref = Process.monitor(pid)
+
+      # the client stops reading (a frozen tab); the kernel's buffers on both ends fill up
+      :sys.suspend(ws)
+      pad = String.duplicate("x", 512 * 1024)
+      started = System.monotonic_time(:millisecond)
+      for _ <- 1..40, do: Neptunus.PubSub.broadcast(topic, "padding", %{"pad" => pad})
+
+      timeout = NeptunusWeb.Endpoint.send_timeout_ms()
+      assert_receive {:DOWN, ^ref, :process, ^pid, _}, timeout + 5_000
+      assert System.monotonic_time(:millisecond) - started >= timeout
+
+      # the pilot's helm is freed and the vehicle stopped (the deadman already had, as the
+      # frozen client sent no heartbeats either)
+      assert_receive {:pubsub, ^topic, "helm", %{pilot: nil}}, 2_000
+      assert %{pilot: nil} = Neptunus.Vehicle.Helm.status(id)
+
+      assert %{thrusters: %{port: +0.0, vertical: +0.0, starboard: +0.0}} =
+               Neptunus.Vehicle.Control.status(id)
+
+      :sys.resume(ws)
+    end
+
+    test "a connection without telemetry finds its closed socket at the idle check" do
+      ws = connect!("Quiet")
+      {_join_ref, _} = join!(ws, "fleet")
+      [pid] = connections("fleet") |> Enum.filter(&(server_socket(&1) != nil))
+      sock = server_socket(pid)
+      ref = Process.monitor(pid)
+
+      :sys.suspend(ws)
+      pad = String.duplicate("x", 512 * 1024)
+      for _ <- 1..40, do: Neptunus.PubSub.broadcast("fleet", "padding", %{"pad" => pad})
+
+      # the send timeout closes the socket under the connection, which does not notice ...
+      Neptunus.Test.Pty.wait_until(
+        fn -> :inet.peername(sock) == {:error, :enotconn} end,
+        "the send timeout to close the socket"
+      )
+
+      refute_receive {:DOWN, ^ref, :process, ^pid, _}, 200
+      # ... until its next idle check (every quarter of the idle timeout)
+      send(pid, :check_idle)
+      assert_receive {:DOWN, ^ref, :process, ^pid, _}, 1_000
+      :sys.resume(ws)
+    end
+  end
+
+  defp server_socket(pid) do
+    {:links, links} = Process.info(pid, :links)
+    Enum.find(links, &is_port/1)
   end
 
   defp frames_until(ws, ref, acc \\ []) do

@@ -193,7 +193,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   def handle_call(:latest, _from, state), do: {:reply, payload(state), state}
 
   @impl true
-  def handle_info({PubSub, :slice, _, _, _} = slice, state) do
+  def handle_info({PubSub, :slice, _, _, _, _} = slice, state) do
     PubSub.deliver_slice(slice)
     {:noreply, state}
   end

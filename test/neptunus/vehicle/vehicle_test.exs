@@ -66,7 +66,7 @@ defmodule Neptunus.VehicleTest do
         telemetry = ~s([null,null,"#{topic}","telemetry")
 
         receive do
-          {:pubsub_frame, ^topic,
+          {:pubsub_frame, ^topic, "telemetry",
            <<^telemetry::binary-size(byte_size(telemetry)), _::binary>> = frame} ->
             send(test, {:frame, name, frame})
         end
