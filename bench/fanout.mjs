@@ -245,6 +245,8 @@ async function main() {
     ' (1000 = server echoed the close frame; 1006 = TCP closed without a close frame)');
   out('close: clean (1000 echoed) / forced after 20 s', `${sum(closed, 'clean')} / ${sum(closed, 'forced')}`);
   await Promise.all(workers.map((w) => w.terminate()));
+  // the pilot's open socket would keep this process (and so the run) alive
+  if (pilot) await new Promise((resolve) => { pilot.once('close', resolve); pilot.close(1000); setTimeout(resolve, 2_000); });
 }
 
 function pct(sorted, p) {
