@@ -17,8 +17,10 @@ config :neptunus,
   # (NeptunusWeb.PilotBudget)
   pilot_frames_per_s: 200,
   # a connection with this many messages waiting drops stale telemetry frames: its client
-  # reads slower than the telemetry arrives (NeptunusWeb.Socket)
-  socket_backlog: 32,
+  # reads slower than the telemetry arrives (NeptunusWeb.Socket); and the kernel holds at
+  # most socket_unsent_bytes of a connection's frames unsent (Linux, TCP_NOTSENT_LOWAT)
+  socket_backlog: 8,
+  socket_unsent_bytes: 4_096,
   # a send to a client that has not read for this long closes the connection
   # (NeptunusWeb.Endpoint)
   send_timeout_ms: 15_000

@@ -40,12 +40,16 @@ defmodule NeptunusWeb.Socket do
   dropped.
 
   Slow clients: a connection whose client reads slower than its telemetry arrives (a weak
-  link, a busy tablet) would queue frames in its mailbox without bound (once the kernel's
-  send buffer is full), and show the pilot or observer ever older data. So when `:socket_backlog` (default
-  32) or more messages wait for the connection, it drops `telemetry` frames (the
+  link, a busy tablet) would queue frames without bound, in the kernel's send buffer (which
+  Linux grows to megabytes) and then in its mailbox, and show the pilot or observer ever
+  older data. So the kernel may hold only `:socket_unsent_bytes` (default 4 096) of a
+  connection's frames unsent (Linux's `TCP_NOTSENT_LOWAT`), and when `:socket_backlog`
+  (default 8) or more messages wait for the connection, it drops `telemetry` frames (the
   newest ones, at the back of the queue, still go out) and logs it at most once a minute
   with the count; every other event (`helm`, `presence_diff`, `stopped`, replies, …) is
-  always sent. A client that stops reading altogether has its socket closed by the
+  always sent. Measured on a 120 kbit/s link (`bench/slow_link`): the telemetry such a
+  client sees is ≈ 1.3 s old and stays so, where it was 20 s old after a minute, and
+  growing, before. A client that stops reading altogether has its socket closed by the
   endpoint's send timeout (`NeptunusWeb.Endpoint`, `:send_timeout_ms`); yaws is not told,
   so the connection checks its socket when it finds itself behind and at every idle check,
   and ends when the socket is gone: its channels are left as for any other closed
@@ -61,7 +65,10 @@ defmodule NeptunusWeb.Socket do
 
   @default_idle_timeout_ms 60_000
   @default_pilot_frames_per_s 200
-  @default_backlog 32
+  @default_backlog 8
+  @default_unsent 4_096
+  @ipproto_tcp 6
+  @tcp_notsent_lowat 25
   @shed_report_ms 60_000
   @max_message_bytes 65_536
 
@@ -201,7 +208,9 @@ defmodule NeptunusWeb.Socket do
   def handle_open(ws_state, state) do
     # The upgrade leaves garbage behind; collecting it now keeps an idle connection small.
     send(self(), :gc)
-    {:ok, %{state | sock: ws_state(ws_state, :sock)}}
+    sock = ws_state(ws_state, :sock)
+    limit_unsent(sock)
+    {:ok, %{state | sock: sock}}
   end
 
   @doc false
@@ -492,6 +501,24 @@ defmodule NeptunusWeb.Socket do
         {:noreply, %{state | shed: shed + 1}}
     end
   end
+
+  # Linux: the kernel takes a frame only while less than :socket_unsent_bytes of this
+  # connection's earlier frames wait there unsent (TCP_NOTSENT_LOWAT). On a slow link the
+  # backlog then forms in the mailbox, where stale telemetry is dropped, instead of in a
+  # send buffer that the kernel grows to megabytes: seconds of old data for the client.
+  defp limit_unsent(sock) when is_port(sock) do
+    case {:os.type(), Application.get_env(:neptunus, :socket_unsent_bytes, @default_unsent)} do
+      {{:unix, :linux}, bytes} when is_integer(bytes) and bytes > 0 ->
+        # best effort: a kernel without the option only keeps the larger buffer
+        _ = :inet.setopts(sock, [{:raw, @ipproto_tcp, @tcp_notsent_lowat, <<bytes::native-32>>}])
+        :ok
+
+      _ ->
+        :ok
+    end
+  end
+
+  defp limit_unsent(_ssl_or_none), do: :ok
 
   defp connected?(%State{sock: nil}), do: true
   defp connected?(%State{sock: {:ssl, sock}}), do: match?({:ok, _}, :ssl.peername(sock))

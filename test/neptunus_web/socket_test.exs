@@ -422,6 +422,19 @@ defmodule NeptunusWeb.SocketTest do
       :sys.resume(ws)
     end
 
+    test "the kernel holds at most :socket_unsent_bytes of a connection's frames unsent",
+         %{topic: topic} do
+      ws = connect!("Lowat")
+      {_join_ref, _} = join!(ws, topic)
+      [pid] = connections(topic)
+      bytes = Application.fetch_env!(:neptunus, :socket_unsent_bytes)
+      assert bytes == 4_096
+
+      # TCP_NOTSENT_LOWAT (IPPROTO_TCP 6, option 25), read back from the kernel
+      assert {:ok, [{:raw, 6, 25, <<^bytes::native-32>>}]} =
+               :inet.getopts(server_socket(pid), [{:raw, 6, 25, 4}])
+    end
+
     test "a connection without telemetry finds its closed socket at the idle check" do
       ws = connect!("Quiet")
       {_join_ref, _} = join!(ws, "fleet")
