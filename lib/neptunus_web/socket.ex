@@ -43,7 +43,8 @@ defmodule NeptunusWeb.Socket do
   link, a busy tablet) would queue frames without bound, in the kernel's send buffer (which
   Linux grows to megabytes) and then in its mailbox, and show the pilot or observer ever
   older data. So the kernel may hold only `:socket_unsent_bytes` (default 4 096) of a
-  connection's frames unsent (Linux's `TCP_NOTSENT_LOWAT`), and when `:socket_backlog`
+  connection's frames unsent (Linux's `TCP_NOTSENT_LOWAT`; on plain connections, TLS ones
+  keep the kernel's buffer), and when `:socket_backlog`
   (default 8) or more messages wait for the connection, it drops `telemetry` frames (the
   newest ones, at the back of the queue, still go out) and logs it at most once a minute
   with the count; every other event (`helm`, `presence_diff`, `stopped`, replies, …) is
@@ -527,8 +528,8 @@ defmodule NeptunusWeb.Socket do
   # The socket is closed under yaws (the send timeout): end the connection now.
   defp gone(state) do
     Logger.info(
-      "#{inspect(state.user.name)}'s client stopped reading: " <>
-        "connection closed after #{NeptunusWeb.Endpoint.send_timeout_ms()} ms"
+      "#{inspect(state.user.name)}'s client read nothing for " <>
+        "#{NeptunusWeb.Endpoint.send_timeout_ms()} ms: connection closed"
     )
 
     {:close, {1000, "send timeout"}, state}
