@@ -43,8 +43,7 @@ defmodule NeptunusWeb.Socket do
   link, a busy tablet) would queue frames without bound, in the kernel's send buffer (which
   Linux grows to megabytes) and then in its mailbox, and show the pilot or observer ever
   older data. So the kernel may hold only `:socket_unsent_bytes` (default 4 096) of a
-  connection's frames unsent (Linux's `TCP_NOTSENT_LOWAT`; on plain connections, TLS ones
-  keep the kernel's buffer), and when `:socket_backlog`
+  connection's frames unsent (Linux's `TCP_NOTSENT_LOWAT`), and when `:socket_backlog`
   (default 8) or more messages wait for the connection, it drops `telemetry` frames (the
   newest ones, at the back of the queue, still go out) and logs it at most once a minute
   with the count; every other event (`helm`, `presence_diff`, `stopped`, replies, …) is
@@ -507,11 +506,11 @@ defmodule NeptunusWeb.Socket do
   # connection's earlier frames wait there unsent (TCP_NOTSENT_LOWAT). On a slow link the
   # backlog then forms in the mailbox, where stale telemetry is dropped, instead of in a
   # send buffer that the kernel grows to megabytes: seconds of old data for the client.
-  defp limit_unsent(sock) when is_port(sock) do
+  defp limit_unsent(sock) do
     case {:os.type(), Application.get_env(:neptunus, :socket_unsent_bytes, @default_unsent)} do
-      {{:unix, :linux}, bytes} when is_integer(bytes) and bytes > 0 ->
+      {{:unix, :linux}, bytes} when is_integer(bytes) and bytes > 0 and sock != nil ->
         # best effort: a kernel without the option only keeps the larger buffer
-        _ = :inet.setopts(sock, [{:raw, @ipproto_tcp, @tcp_notsent_lowat, <<bytes::native-32>>}])
+        _ = setopts(sock, [{:raw, @ipproto_tcp, @tcp_notsent_lowat, <<bytes::native-32>>}])
         :ok
 
       _ ->
@@ -519,7 +518,8 @@ defmodule NeptunusWeb.Socket do
     end
   end
 
-  defp limit_unsent(_ssl_or_none), do: :ok
+  defp setopts({:ssl, sock}, opts), do: :ssl.setopts(sock, opts)
+  defp setopts(sock, opts), do: :inet.setopts(sock, opts)
 
   defp connected?(%State{sock: nil}), do: true
   defp connected?(%State{sock: {:ssl, sock}}), do: match?({:ok, _}, :ssl.peername(sock))

@@ -106,6 +106,26 @@ defmodule NeptunusWeb.BootTest do
     IO.puts("LOGIN #{login} #{json}")
     plain = String.replace(url, "https:", "http:")
     IO.puts("PLAIN #{inspect(:httpc.request(:get, {~c"#{plain}/api/health", []}, [timeout: 2000], []) |> elem(0))}")
+    # a wss connection gets the slow-client socket options too
+    token = json |> to_string() |> :jiffy.decode([:return_maps]) |> Map.fetch!("token")
+    port = Application.fetch_env!(:neptunus, :endpoint).port
+    {:ok, s} = :ssl.connect(~c"127.0.0.1", port, [:binary, active: false, verify: :verify_none])
+    key = Base.encode64(:crypto.strong_rand_bytes(16))
+    :ok = :ssl.send(s, "GET /socket/websocket?vsn=2.0.0&token=#{URI.encode_www_form(token)} HTTP/1.1\r\nHost: 127.0.0.1:#{port}\r\n" <>
+      "Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: #{key}\r\n" <>
+      "Sec-WebSocket-Version: 13\r\n\r\n")
+    {:ok, "HTTP/1.1 101" <> _} = :ssl.recv(s, 0, 5_000)
+    join = ~s(["1","1","fleet","phx_join",{}])
+    :ok = :ssl.send(s, <<0x81, 0x80 + byte_size(join), 0::32, join::binary>>)
+    {:ok, _reply} = :ssl.recv(s, 0, 5_000)
+    [conn] = :pg.get_local_members(Neptunus.PubSub, {:fastlane, "fleet"})
+    {:ssl, sock} = Enum.find_value(Tuple.to_list(:sys.get_state(conn)), fn
+      {:ws_state, _, sock, _} -> sock
+      _ -> nil
+    end)
+    {:ok, [{:raw, 6, 25, <<lowat::native-32>>}]} = :ssl.getopts(sock, [{:raw, 6, 25, 4}])
+    {:ok, opts} = :ssl.getopts(sock, [:send_timeout, :send_timeout_close])
+    IO.puts("WSS lowat=#{lowat} send_timeout=#{opts[:send_timeout]} close=#{opts[:send_timeout_close]}")
     """
 
     {output, status} =
@@ -126,5 +146,9 @@ defmodule NeptunusWeb.BootTest do
     assert output =~ ~r/"role":"pilot"/
     # the TLS port does not speak plain HTTP
     refute output =~ "PLAIN :ok"
+    # a slow or frozen wss client is handled like a plain one (NeptunusWeb.Socket)
+    # (the node runs with MIX_ENV=test, as this test does: the same config)
+    timeout = NeptunusWeb.Endpoint.send_timeout_ms()
+    assert output =~ "WSS lowat=4096 send_timeout=#{timeout} close=true"
   end
 end
