@@ -343,6 +343,23 @@ defmodule NeptunusWeb.SocketTest do
     refute Enum.any?(frames_until(ws, "hb"), &match?([_, _, _, _, %{"late" => true}], &1))
   end
 
+  test "clock: anyone joined gets the server's wall clock, the clock of sent_at", %{
+    topic: topic
+  } do
+    ws = connect!("Watcher")
+    {join_ref, _} = join!(ws, topic)
+    before = System.os_time(:microsecond) / 1000
+    assert {"ok", %{"now" => now}} = push_and_reply(ws, join_ref, topic, "clock", %{})
+    after_ = System.os_time(:microsecond) / 1000
+    assert is_float(now) and before <= now and now <= after_
+
+    # the same clock as telemetry's sent_at
+    [_, _, ^topic, "telemetry", %{"sent_at" => sent_at}] =
+      WSClient.recv_until(ws, &match?([_, _, ^topic, "telemetry", _], &1))
+
+    assert abs(sent_at - System.os_time(:microsecond) / 1000) < 5_000
+  end
+
   describe "slow clients" do
     test "a connection that falls behind drops stale telemetry, never other events",
          %{topic: topic} do

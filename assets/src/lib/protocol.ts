@@ -616,6 +616,11 @@ export function decodeControlUpdate(value: unknown): ControlSettings | null {
   return isRecord(value) ? decodeControlSettings(value["control"]) : null;
 }
 
+/** Reply to `clock`: `{now}`, the server's wall clock in ms since the epoch. */
+export function decodeClock(value: unknown): number | null {
+  return isRecord(value) && isFiniteNumber(value["now"]) ? value["now"] : null;
+}
+
 /** Readable reason from an error reply `{reason}`; falls back to the JSON of the reply. */
 export function errorReason(value: unknown): string {
   if (isRecord(value) && typeof value["reason"] === "string" && value["reason"] !== "") {

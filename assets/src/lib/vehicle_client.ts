@@ -16,7 +16,9 @@
 
 import { Presence, Socket } from "phoenix";
 import type { Channel, Push, SocketConnectOption } from "phoenix";
+import type { ClockSample } from "./clock";
 import {
+  decodeClock,
   decodeControlReply,
   decodeControlUpdate,
   decodeLinkStatus,
@@ -386,6 +388,15 @@ export class VehicleChannel {
   heartbeat(timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<number> {
     const sent = performance.now();
     return this.command("heartbeat", {}, () => true, timeoutMs).then(() => performance.now() - sent);
+  }
+
+  /**
+   * `clock`: the server's wall clock (the clock of telemetry's `sent_at`), with this
+   * computer's `Date.now()` before and after, for `ClockOffset` (lib/clock.ts). Anyone joined.
+   */
+  clock(timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<ClockSample> {
+    const sentAt = Date.now();
+    return this.command("clock", {}, decodeClock, timeoutMs).then((serverNow) => ({ sentAt, serverNow, receivedAt: Date.now() }));
   }
 
   /** `set_control_mode {mode}`: motion, manual or dp. */

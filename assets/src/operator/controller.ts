@@ -29,6 +29,7 @@ import { KeyboardInput, keyboardDemand } from "../input/keyboard";
 import { TouchTracker, touchDemand } from "../input/touch";
 import type { TouchControl, TouchState } from "../input/touch";
 import { beep } from "../lib/beep";
+import { ClockOffset, ageOnArrival, telemetryAge } from "../lib/clock";
 import { formDegrees, formValue, isSafetyStop } from "../lib/forms";
 import { HelmTracker } from "../lib/helm";
 import type { HelmView } from "../lib/helm";
@@ -123,6 +124,8 @@ const STALE_AFTER_MS = 1000;
 const RETRY_MS = 2000;
 const SESSION_RECHECK_MS = 5000;
 const PING_MS = 1000;
+/** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
+const CLOCK_MS = 10_000;
 const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
 
 function reasonOf(err: unknown): string {
@@ -176,6 +179,11 @@ export class OperatorController {
   private vehicle: VehicleChannel | null = null;
   private token: string | null = null;
   private lastTelemetryAt: number | null = null;
+  /** how old the newest telemetry was when it arrived (ms; null while the clock offset is unknown) */
+  private lastTelemetryLate: number | null = null;
+  /** the server's clock against ours: 60 readings, 10 min, the quickest round trip wins */
+  private readonly clock = new ClockOffset(60);
+  private clockPending = false;
   private heartbeat: number | null = null;
   private lastSessionCheck = 0;
   private warnedTakeover = false;
@@ -251,6 +259,7 @@ export class OperatorController {
     window.addEventListener("pagehide", () => this.safetyStop("page closed"));
     window.setInterval(() => this.tick(), 250);
     window.setInterval(() => this.pingIfWatching(), PING_MS);
+    window.setInterval(() => this.readClock(), CLOCK_MS);
     if (this.state.inputMode === "gamepad") this.gamepad.start();
 
     const session = await this.authenticate();
@@ -424,10 +433,13 @@ export class OperatorController {
 
   private onTelemetry(t: Telemetry): void {
     this.lastTelemetryAt = performance.now();
+    // a slow link delivers frames that are already old: stale, though they keep coming
+    this.lastTelemetryLate = ageOnArrival(t.sent_at, Date.now(), this.clock.offsetMs);
+    const late = this.lastTelemetryLate ?? 0;
     this.store.update({
       telemetry: t,
-      telemetryState: "live",
-      telemetryAgeMs: 0,
+      telemetryState: late > STALE_AFTER_MS ? "stale" : "live",
+      telemetryAgeMs: late > STALE_AFTER_MS ? Math.round(late / 100) * 100 : 0,
       ...(t.control ? { control: t.control } : {}),
       ...(t.link ? { link: t.link } : {}),
     });
@@ -469,9 +481,26 @@ export class OperatorController {
   private tick(): void {
     this.renderHelm();
     if (this.lastTelemetryAt !== null) {
-      const age = performance.now() - this.lastTelemetryAt;
+      const age = telemetryAge(performance.now(), this.lastTelemetryAt, this.lastTelemetryLate);
       if (age > STALE_AFTER_MS) this.store.update({ telemetryState: "stale", telemetryAgeMs: Math.round(age / 100) * 100 });
     }
+    // the first reading as soon as the vehicle is joined, then every CLOCK_MS
+    if (this.clock.offsetMs === null) this.readClock();
+  }
+
+  private readClock(): void {
+    const vehicle = this.vehicle;
+    if (this.clockPending || !vehicle || !vehicle.joined) return;
+    this.clockPending = true;
+    vehicle.clock().then(
+      (sample) => {
+        this.clockPending = false;
+        this.clock.add(sample);
+      },
+      () => {
+        this.clockPending = false;
+      },
+    );
   }
 
   // ------------------------------------------------------------------------------------------

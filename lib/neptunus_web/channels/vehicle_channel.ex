@@ -10,7 +10,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   followed by `presence_state`. Joining never depends on control: observers join like
   pilots, and being refused control is an event, never a closed channel.
 
-  Client events: `thrust`, `stop`, `heartbeat`, `request_control`, `answer_request`,
+  Client events: `clock` (anyone: the server's wall clock in ms, `%{now}`), `thrust`,
+  `stop`, `heartbeat`, `request_control`, `answer_request`,
   `take_control`, `release_control`, `sim_reset`, `sim_set`, and the control commands
   `set_control_mode`, `set_gain`, `set_lights`, `set_laser`, `set_tilt`, `autopilot`,
   `set_run_mode` (`Neptunus.Vehicle.Control.command/3`). Server events: `telemetry`, `helm`, `stopped`,
@@ -58,6 +59,12 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
 
   def handle_in("heartbeat", _payload, socket) do
     socket |> id() |> Helm.heartbeat(party(socket)) |> reply(socket)
+  end
+
+  # The server's wall clock, the one of telemetry's sent_at, for anyone joined: a page
+  # estimates its offset from the round trip and so tells how old the telemetry it gets is.
+  def handle_in("clock", _payload, socket) do
+    {:reply, {:ok, %{now: System.os_time(:microsecond) / 1000}}, socket}
   end
 
   def handle_in("request_control", _payload, socket) do
