@@ -128,6 +128,13 @@ const PING_MS = 1000;
 const CLOCK_MS = 10_000;
 const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
 
+/** The telemetry state for data `ageMs` old: stale past STALE_AFTER_MS (its age to 0.1 s), else live. */
+function freshness(ageMs: number): Pick<OperatorState, "telemetryState" | "telemetryAgeMs"> {
+  return ageMs > STALE_AFTER_MS
+    ? { telemetryState: "stale", telemetryAgeMs: Math.round(ageMs / 100) * 100 }
+    : { telemetryState: "live", telemetryAgeMs: 0 };
+}
+
 function reasonOf(err: unknown): string {
   if (err instanceof CommandError) return err.reason;
   if (err instanceof Error) return err.message;
@@ -435,11 +442,9 @@ export class OperatorController {
     this.lastTelemetryAt = performance.now();
     // a slow link delivers frames that are already old: stale, though they keep coming
     this.lastTelemetryLate = ageOnArrival(t.sent_at, Date.now(), this.clock.offsetMs);
-    const late = this.lastTelemetryLate ?? 0;
     this.store.update({
       telemetry: t,
-      telemetryState: late > STALE_AFTER_MS ? "stale" : "live",
-      telemetryAgeMs: late > STALE_AFTER_MS ? Math.round(late / 100) * 100 : 0,
+      ...freshness(this.lastTelemetryLate ?? 0),
       ...(t.control ? { control: t.control } : {}),
       ...(t.link ? { link: t.link } : {}),
     });
@@ -482,7 +487,7 @@ export class OperatorController {
     this.renderHelm();
     if (this.lastTelemetryAt !== null) {
       const age = telemetryAge(performance.now(), this.lastTelemetryAt, this.lastTelemetryLate);
-      if (age > STALE_AFTER_MS) this.store.update({ telemetryState: "stale", telemetryAgeMs: Math.round(age / 100) * 100 });
+      if (age > STALE_AFTER_MS) this.store.update(freshness(age));
     }
     // the first reading as soon as the vehicle is joined, then every CLOCK_MS
     if (this.clock.offsetMs === null) this.readClock();
