@@ -60,7 +60,7 @@ defmodule Neptunus.Protocol.OpenROV do
   on a line, the last accepted value wins.
   """
 
-  import Bitwise, only: [<<<: 2]
+  import Bitwise, only: [<<<: 2, >>>: 2, &&&: 2, bxor: 2]
 
   @typedoc "Motor pulse widths in µs, in `go()` order."
   @type us :: 1000..2000
@@ -185,6 +185,82 @@ defmodule Neptunus.Protocol.OpenROV do
   """
   @spec stop() :: binary()
   def stop, do: "stop();"
+
+  # Framing (firmware profiles) -------------------------------------------------------------
+
+  @typedoc """
+  How a board's firmware wants its commands: `:openrov_25` (OpenROV 2.5.x, plain
+  `;`-terminated text) or `:openrov_30` (OpenROV 30.x: each command prefixed with one CRC byte,
+  see `frame/2`).
+  """
+  @type profile :: :openrov_25 | :openrov_30
+
+  @doc """
+  The Dallas/Maxim CRC-8 (reflected polynomial 0x8C, initial value 0) of `bytes`: what the
+  OpenROV 30.x firmware computes over a received command, `;` included.
+
+      iex> Neptunus.Protocol.OpenROV.crc8("123456789")
+      0xA1
+  """
+  @spec crc8(binary()) :: byte()
+  def crc8(bytes) when is_binary(bytes), do: crc8(bytes, 0)
+
+  defp crc8(<<byte, rest::binary>>, crc), do: crc8(rest, crc8_bits(crc, byte, 8))
+  defp crc8(<<>>, crc), do: crc
+
+  defp crc8_bits(crc, _byte, 0), do: crc
+
+  defp crc8_bits(crc, byte, n) do
+    shifted = crc >>> 1
+    crc = if (bxor(crc, byte) &&& 1) == 1, do: bxor(shifted, 0x8C), else: shifted
+    crc8_bits(crc, byte >>> 1, n - 1)
+  end
+
+  @doc """
+  A command (as the encoders above return it, `;`-terminated) in the wire form of a firmware
+  profile. `:openrov_25` sends it as it is. `:openrov_30` prefixes the CRC-8 of the command,
+  `;` included. The 30.x firmware ends a command at the first `;` it reads, so a CRC byte
+  equal to `;` (1 command in 256) would cut the command short: such a command is sent with a
+  space after its `(` instead (the firmware splits arguments on spaces as on commas, so the
+  meaning is the same), as many as needed for a CRC that is not `;`.
+
+      iex> Neptunus.Protocol.OpenROV.frame("ping(0);", :openrov_25)
+      "ping(0);"
+      iex> <<crc, "ping(0);">> = Neptunus.Protocol.OpenROV.frame("ping(0);", :openrov_30)
+      iex> crc == Neptunus.Protocol.OpenROV.crc8("ping(0);")
+      true
+  """
+  @spec frame(binary(), profile()) :: binary()
+  def frame(command, :openrov_25) when is_binary(command), do: command
+
+  def frame(command, :openrov_30) when is_binary(command) do
+    case crc8(command) do
+      ?; -> command |> String.replace("(", "( ", global: false) |> frame(:openrov_30)
+      crc -> <<crc, command::binary>>
+    end
+  end
+
+  @doc """
+  The board's side of `frame/2` for `:openrov_30`: checks the CRC byte of one received
+  command (`;` included) as the firmware does. Returns the command text after the CRC byte,
+  or the CRC the firmware computed and the one it received (it prints them as
+  `crc:fail,COMPUTED/RECEIVED;` and drops the command).
+
+      iex> alias Neptunus.Protocol.OpenROV
+      iex> OpenROV.unframe(OpenROV.frame("stop();", :openrov_30))
+      {:ok, "stop();"}
+      iex> OpenROV.unframe(<<0, "stop();">>)
+      {:error, {OpenROV.crc8("stop();"), 0}}
+  """
+  @spec unframe(binary()) :: {:ok, binary()} | {:error, {byte(), byte()} | :empty}
+  def unframe(<<received, command::binary>>) do
+    case crc8(command) do
+      ^received -> {:ok, command}
+      computed -> {:error, {computed, received}}
+    end
+  end
+
+  def unframe(<<>>), do: {:error, :empty}
 
   @doc """
   The board's side: parses one command (with or without its `;`) into a term, checking every

@@ -241,6 +241,60 @@ defmodule Neptunus.Protocol.OpenROVTest do
     end
   end
 
+  describe "30.x framing (CRC-8 prefix)" do
+    test "crc8 is the Dallas/Maxim CRC-8: published check value and known bytes" do
+      # CRC-8/MAXIM check value over "123456789"
+      assert OpenROV.crc8("123456789") == 0xA1
+      assert OpenROV.crc8("") == 0
+      assert OpenROV.crc8(<<0>>) == 0
+      assert OpenROV.crc8(<<1>>) == 0x5E
+    end
+
+    test "2.5 sends plain text, 30 prefixes the CRC of the command, ; included" do
+      assert OpenROV.frame("go(1500,1500,1500,1);", :openrov_25) == "go(1500,1500,1500,1);"
+      <<crc, rest::binary>> = OpenROV.frame("go(1500,1500,1500,1);", :openrov_30)
+      assert rest == "go(1500,1500,1500,1);"
+      assert crc == OpenROV.crc8("go(1500,1500,1500,1);")
+    end
+
+    test "a command whose CRC would be ';' is re-spaced, never sent with that byte" do
+      # find real commands whose CRC is ';' (about 1 in 256)
+      hits = for n <- 0..3000, OpenROV.crc8(OpenROV.ping(n)) == ?;, do: OpenROV.ping(n)
+
+      assert hits != []
+
+      for command <- hits do
+        <<crc, text::binary>> = framed = OpenROV.frame(command, :openrov_30)
+        assert crc != ?;
+        assert text != command
+        assert String.replace(text, " ", "") == command
+        assert {:ok, ^text} = OpenROV.unframe(framed)
+        # the board's parser reads the same command
+        assert OpenROV.parse_command(text) == OpenROV.parse_command(command)
+      end
+    end
+
+    test "unframe reports the computed and received CRC on a mismatch" do
+      assert OpenROV.unframe(<<0x12, "ping(1);">>) == {:error, {OpenROV.crc8("ping(1);"), 0x12}}
+      assert OpenROV.unframe("") == {:error, :empty}
+    end
+
+    test "property: every go() frames to a CRC that is never ';' and checks on the board" do
+      us = :proper_types.integer(1000, 2000)
+
+      check(
+        {us, us, us, :proper_types.bool()},
+        fn {a, b, c, s} ->
+          command = OpenROV.go({a, b, c}, s)
+          <<crc, _::binary>> = framed = OpenROV.frame(command, :openrov_30)
+          {:ok, text} = OpenROV.unframe(framed)
+          crc != ?; and OpenROV.parse_command(text) == OpenROV.parse_command(command)
+        end,
+        3_000
+      )
+    end
+  end
+
   describe "properties" do
     test "parse_line never crashes on random bytes and returns the documented shape" do
       check(:proper_types.binary(), &shape?(OpenROV.parse_line(&1)), 2_000)
