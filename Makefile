@@ -41,7 +41,9 @@ setup-apt:
 	  if [ "$$(id -u)" = 0 ]; then apt-get install -y -qq nodejs npm >/dev/null; \
 	  else echo "Node.js and npm are missing. Run: sudo apt-get install -y nodejs npm"; exit 1; fi; }
 
-# yaws lives outside the Erlang lib dir; link it into the project (see STACK_NOTES.md).
+# yaws lives outside the Erlang lib dir (/usr/lib/yaws-*): link it into erl_libs/ so mix.exs can
+# put it on the code path (a release built with that directory added to the path directly
+# fails to boot: Mix derives the release's lib root from yaws' parent directory).
 setup-links: setup-apt
 	@yaws=$$(ls -d /usr/lib/yaws-* 2>/dev/null | head -n1); \
 	test -n "$$yaws" || { echo "erlang-yaws is not installed"; exit 1; }; \

@@ -103,7 +103,8 @@ defmodule Neptunus.MixProject do
 
   # yaws is installed by Debian outside the Erlang lib dir (/usr/lib/yaws-2.1.1).
   # `make setup` links it into erl_libs/ (git-ignored); we put its ebin on the code
-  # path and start its processes under our own supervisor (see STACK_NOTES.md).
+  # path and start its processes under our own supervisor (NeptunusWeb.Endpoint): started as an
+  # application without a configuration, yaws would stop the VM.
   @yaws_dir Path.wildcard(Path.join(__DIR__, "erl_libs/yaws-*")) |> List.first()
 
   if @yaws_dir do

@@ -1,6 +1,6 @@
 defmodule Neptunus.Application do
   @moduledoc """
-  The node's supervision tree (DESIGN.md §2):
+  The node's supervision tree (docs/ARCHITECTURE.md):
 
       Neptunus.Application        one_for_one
       ├── Neptunus.PubSub         :pg scope, topic fan-out

@@ -1,6 +1,6 @@
 defmodule Neptunus.Test.Pty do
   @moduledoc """
-  Serial-line rigs for tests, without hardware (STACK_NOTES "Serial port").
+  Serial-line rigs for tests, without hardware.
 
     * `socat_pair!/1` — a `socat` pseudo-terminal pair, both ends raw, as symlinks `a` and `b`
       in a fresh directory; killed and removed when the test ends. Bytes written on one end

@@ -1,7 +1,7 @@
 defmodule Neptunus.Vehicle.Board.Test do
   @moduledoc """
-  A board for tests that reports everything it is told to the test process (STYLE item 11):
-  use `board: Neptunus.Vehicle.Board.Test` in a vehicle map and `report_to: self()`.
+  A board for tests that reports everything it is told to the test process (test doubles
+  send messages; there is no mocking library). Use `board: Neptunus.Vehicle.Board.Test` in a vehicle map and `report_to: self()`.
 
       start_supervised!({Neptunus.Vehicle.Supervisor,
                          %{id: id, board: Neptunus.Vehicle.Board.Test, report_to: self()}})
