@@ -42,9 +42,6 @@ defmodule Neptunus.Allocation do
   @neutral_us 1500
   @half_range_us 500
 
-  @motion_fields ["surge", "heave", "yaw"]
-  @ignored_fields ["mode"]
-
   @doc """
   Allocates a motion command to the three thrusters with gain `k` (eq. 9.3).
 
@@ -132,73 +129,6 @@ defmodule Neptunus.Allocation do
         }
   def with_us(%{port: p, vertical: v, starboard: s} = thrusters) do
     Map.merge(thrusters, %{port_us: to_us(p), vertical_us: to_us(v), starboard_us: to_us(s)})
-  end
-
-  @doc """
-  Validates an untrusted motion command decoded from JSON.
-
-  The map must have exactly the string keys `"surge"`, `"heave"` and `"yaw"`
-  (a `"mode"` key may be present and is ignored). Each value must be a number
-  (integer or float) in `[-1, 1]`; integers are returned as floats.
-
-  Error reasons, checked in this order:
-
-    * `"motion must be an object, got ..."` — not a map
-    * `"unknown field: foo"` — any key other than the three above and `"mode"`
-      (the first in sorted order is reported)
-    * `"missing field: heave"` — checked in the order surge, heave, yaw
-    * `"surge must be a number in [-1, 1], got \\"abc\\""` — wrong type or range
-
-  ## Examples
-
-      iex> Neptunus.Allocation.validate_motion(%{"surge" => 1, "heave" => 0, "yaw" => -0.5, "mode" => "motion"})
-      {:ok, %{surge: 1.0, heave: 0.0, yaw: -0.5}}
-
-      iex> Neptunus.Allocation.validate_motion(%{"surge" => "abc", "heave" => 0, "yaw" => 0})
-      {:error, "surge must be a number in [-1, 1], got \\"abc\\""}
-
-      iex> Neptunus.Allocation.validate_motion(%{"surge" => 0, "yaw" => 0})
-      {:error, "missing field: heave"}
-  """
-  @spec validate_motion(term()) :: {:ok, motion()} | {:error, String.t()}
-  def validate_motion(params) when is_map(params) do
-    with :ok <- check_unknown_fields(params),
-         {:ok, surge} <- fetch_unit(params, "surge"),
-         {:ok, heave} <- fetch_unit(params, "heave"),
-         {:ok, yaw} <- fetch_unit(params, "yaw") do
-      {:ok, %{surge: surge, heave: heave, yaw: yaw}}
-    end
-  end
-
-  def validate_motion(other) do
-    {:error, "motion must be an object, got #{inspect(other)}"}
-  end
-
-  defp check_unknown_fields(params) do
-    params
-    |> Map.keys()
-    |> Enum.reject(&(&1 in @motion_fields or &1 in @ignored_fields))
-    |> Enum.sort()
-    |> case do
-      [] -> :ok
-      [key | _] -> {:error, "unknown field: #{field_name(key)}"}
-    end
-  end
-
-  defp field_name(key) when is_binary(key), do: key
-  defp field_name(key), do: inspect(key)
-
-  defp fetch_unit(params, field) do
-    case Map.fetch(params, field) do
-      {:ok, value} when is_number(value) and value >= -1 and value <= 1 ->
-        {:ok, value * 1.0 + 0.0}
-
-      {:ok, value} ->
-        {:error, "#{field} must be a number in [-1, 1], got #{inspect(value)}"}
-
-      :error ->
-        {:error, "missing field: #{field}"}
-    end
   end
 
   # Clamp to [-1, 1] and return a float; `+ 0.0` turns -0.0 into 0.0.

@@ -120,105 +120,6 @@ defmodule Neptunus.AllocationTest do
              %{port: 1500, vertical: 1500, starboard: 1500}
   end
 
-  describe "validate_motion/1" do
-    test "accepts floats in range" do
-      assert Allocation.validate_motion(%{"surge" => 0.5, "heave" => -1.0, "yaw" => 1.0}) ==
-               {:ok, %{surge: 0.5, heave: -1.0, yaw: 1.0}}
-    end
-
-    test "accepts integers and returns floats" do
-      assert {:ok, motion} =
-               Allocation.validate_motion(%{"surge" => 1, "heave" => 0, "yaw" => -1})
-
-      assert motion == %{surge: 1.0, heave: 0.0, yaw: -1.0}
-      assert Enum.all?(Map.values(motion), &is_float/1)
-    end
-
-    test "ignores a mode key" do
-      assert Allocation.validate_motion(%{
-               "mode" => "motion",
-               "surge" => 0,
-               "heave" => 0,
-               "yaw" => 0
-             }) == {:ok, %{surge: 0.0, heave: 0.0, yaw: 0.0}}
-    end
-
-    test "rejects strings" do
-      assert Allocation.validate_motion(%{"surge" => "abc", "heave" => 0, "yaw" => 0}) ==
-               {:error, "surge must be a number in [-1, 1], got \"abc\""}
-
-      assert Allocation.validate_motion(%{"surge" => 0, "heave" => "0.5", "yaw" => 0}) ==
-               {:error, "heave must be a number in [-1, 1], got \"0.5\""}
-    end
-
-    test "rejects nil, booleans, lists and maps" do
-      assert Allocation.validate_motion(%{"surge" => 0, "heave" => 0, "yaw" => nil}) ==
-               {:error, "yaw must be a number in [-1, 1], got nil"}
-
-      assert Allocation.validate_motion(%{"surge" => true, "heave" => 0, "yaw" => 0}) ==
-               {:error, "surge must be a number in [-1, 1], got true"}
-
-      assert {:error, "heave must be a number" <> _} =
-               Allocation.validate_motion(%{"surge" => 0, "heave" => [1], "yaw" => 0})
-
-      assert {:error, "yaw must be a number" <> _} =
-               Allocation.validate_motion(%{"surge" => 0, "heave" => 0, "yaw" => %{}})
-    end
-
-    test "rejects values out of range" do
-      assert Allocation.validate_motion(%{"surge" => 1.01, "heave" => 0, "yaw" => 0}) ==
-               {:error, "surge must be a number in [-1, 1], got 1.01"}
-
-      assert Allocation.validate_motion(%{"surge" => 0, "heave" => -2, "yaw" => 0}) ==
-               {:error, "heave must be a number in [-1, 1], got -2"}
-
-      assert Allocation.validate_motion(%{"surge" => 0, "heave" => 0, "yaw" => 1.0e308}) ==
-               {:error, "yaw must be a number in [-1, 1], got 1.0e308"}
-    end
-
-    test "accepts the exact bounds" do
-      assert {:ok, _} = Allocation.validate_motion(%{"surge" => -1, "heave" => 1, "yaw" => -1.0})
-    end
-
-    test "reports missing fields" do
-      assert Allocation.validate_motion(%{"surge" => 0, "yaw" => 0}) ==
-               {:error, "missing field: heave"}
-
-      assert Allocation.validate_motion(%{"heave" => 0, "yaw" => 0}) ==
-               {:error, "missing field: surge"}
-
-      assert Allocation.validate_motion(%{"surge" => 0, "heave" => 0}) ==
-               {:error, "missing field: yaw"}
-
-      assert Allocation.validate_motion(%{}) == {:error, "missing field: surge"}
-      assert Allocation.validate_motion(%{"mode" => "motion"}) == {:error, "missing field: surge"}
-    end
-
-    test "reports unknown fields" do
-      assert Allocation.validate_motion(%{"surge" => 0, "heave" => 0, "yaw" => 0, "foo" => 1}) ==
-               {:error, "unknown field: foo"}
-
-      assert Allocation.validate_motion(%{"surge" => 0, "heave" => 0, "yaw" => 0, "Surge" => 1}) ==
-               {:error, "unknown field: Surge"}
-    end
-
-    test "atom keys are not the JSON keys" do
-      assert Allocation.validate_motion(%{surge: 0, heave: 0, yaw: 0}) ==
-               {:error, "unknown field: :heave"}
-    end
-
-    test "rejects non-maps" do
-      assert Allocation.validate_motion(nil) == {:error, "motion must be an object, got nil"}
-      assert {:error, "motion must be an object" <> _} = Allocation.validate_motion([1, 2, 3])
-      assert {:error, "motion must be an object" <> _} = Allocation.validate_motion("surge")
-    end
-
-    test "a validated command can be allocated" do
-      {:ok, motion} = Allocation.validate_motion(%{"surge" => 1, "heave" => 0, "yaw" => 1})
-      assert Allocation.motion(motion, 1.0) == %{port: 1.0, vertical: 0.0, starboard: 0.0}
-    end
-  end
-
   describe "properties" do
     test "for any inputs in range, outputs are floats in [-1, 1] and PWM in 1000..2000" do
       unit = :proper_types.float(-1.0, 1.0)
@@ -258,18 +159,6 @@ defmodule Neptunus.AllocationTest do
           us_lo = Allocation.to_us(lo)
           us_hi = Allocation.to_us(hi)
           us_lo in 1000..2000 and us_hi in 1000..2000 and us_lo <= us_hi
-        end)
-
-      assert :proper.quickcheck(property, [:quiet, {:numtests, 500}]) == true
-    end
-
-    test "validate_motion accepts every in-range command and returns it as floats" do
-      number = :proper_types.union([:proper_types.float(-1.0, 1.0), :proper_types.integer(-1, 1)])
-
-      property =
-        :proper.forall({number, number, number}, fn {x, z, m} ->
-          Allocation.validate_motion(%{"surge" => x, "heave" => z, "yaw" => m}) ==
-            {:ok, %{surge: x * 1.0, heave: z * 1.0, yaw: m * 1.0}}
         end)
 
       assert :proper.quickcheck(property, [:quiet, {:numtests, 500}]) == true

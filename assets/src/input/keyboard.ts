@@ -146,18 +146,17 @@ export interface KeyEventLike {
 }
 
 export interface KeyboardInputOptions {
-  /** Called with the new absolute axes whenever they change (including back to neutral). */
-  readonly onChange: (axes: MotionAxes) => void;
-  /**
-   * Called when held keys were dropped without key-up events (window blur, page hidden,
-   * `reset()`), with why. The axes are neutral afterwards; `onChange` is not called for this.
-   */
-  readonly onReset?: (reason: string) => void;
   /**
    * Called with the held table keys whenever that set changes (press, release; not on
-   * `reset`): for manual mode, where the same keys drive single thrusters (`keyboardDemand`).
+   * `reset`); `keyboardDemand` turns them into the demand of the control mode in force (the
+   * same keys drive the motion axes or single thrusters).
    */
-  readonly onHeld?: (held: ReadonlySet<string>) => void;
+  readonly onHeld: (held: ReadonlySet<string>) => void;
+  /**
+   * Called when held keys were dropped without key-up events (window blur, page hidden,
+   * `reset()`), with why. No key is held afterwards; `onHeld` is not called for this.
+   */
+  readonly onReset?: (reason: string) => void;
 }
 
 function isKeyEventLike(event: Event): event is Event & KeyEventLike {
@@ -171,21 +170,20 @@ export interface KeySource {
 }
 
 /**
- * Tracks held motion keys and reports absolute axes when they change. Ignores auto-repeat,
+ * Tracks held motion keys and reports the held set when it changes. Ignores auto-repeat,
  * keys typed into text fields and shortcuts with Ctrl/Alt/Meta; a key-up always releases.
  */
 export class KeyboardInput {
   private readonly held = new Set<string>();
-  private axes: MotionAxes = NEUTRAL_AXES;
   private readonly options: KeyboardInputOptions;
 
   constructor(options: KeyboardInputOptions) {
     this.options = options;
   }
 
-  /** Current absolute axes. */
+  /** The motion axes of the held keys (table 7.1's motion column). */
   get current(): MotionAxes {
-    return this.axes;
+    return axesFromKeys(this.held);
   }
 
   /** Codes of the motion keys currently held. */
@@ -220,7 +218,6 @@ export class KeyboardInput {
   reset(reason: string, notify = true): boolean {
     const wasHeld = this.held.size > 0;
     this.held.clear();
-    this.axes = NEUTRAL_AXES;
     if (notify) this.options.onReset?.(reason);
     return wasHeld;
   }
@@ -250,11 +247,7 @@ export class KeyboardInput {
   }
 
   private update(): void {
-    this.options.onHeld?.(new Set(this.held));
-    const next = axesFromKeys(this.held);
-    if (axesEqual(next, this.axes)) return;
-    this.axes = next;
-    this.options.onChange(next);
+    this.options.onHeld(new Set(this.held));
   }
 }
 

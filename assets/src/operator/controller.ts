@@ -226,7 +226,6 @@ export class OperatorController {
       lastStop: null,
     });
     this.keyboard = new KeyboardInput({
-      onChange: () => undefined,
       onHeld: (held) => {
         this.heldKeys = held;
         const mode = stickMode(this.controlMode);

@@ -151,12 +151,12 @@ describe("isEditableTarget", () => {
   });
 });
 
-/** A KeyboardInput with its callbacks recorded. */
+/** A KeyboardInput with its callbacks recorded: the motion axes of each held set reported. */
 function recorder(): { input: KeyboardInput; changes: MotionAxes[]; resets: string[] } {
   const changes: MotionAxes[] = [];
   const resets: string[] = [];
   const input = new KeyboardInput({
-    onChange: (a) => changes.push(a),
+    onHeld: (held) => changes.push(axesFromKeys(held)),
     onReset: (r) => resets.push(r),
   });
   return { input, changes, resets };
@@ -240,7 +240,7 @@ describe("KeyboardInput", () => {
     expect(prevented).toBe(2);
   });
 
-  it("reset clears every held key, reports the reason, and does not call onChange", () => {
+  it("reset clears every held key, reports the reason, and does not call onHeld", () => {
     const { input, changes, resets } = recorder();
     input.handleKeyDown(down("KeyW"));
     input.handleKeyDown(down("KeyE"));

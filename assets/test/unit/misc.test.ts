@@ -68,7 +68,7 @@ describe("keyboard: both columns of table 7.1", () => {
 
   it("KeyboardInput reports the held keys on every change (for manual mode)", () => {
     const held: string[][] = [];
-    const input = new KeyboardInput({ onChange: () => undefined, onHeld: (h) => held.push([...h].sort()) });
+    const input = new KeyboardInput({ onHeld: (h) => held.push([...h].sort()) });
     input.handleKeyDown({ code: "KeyE" });
     input.handleKeyDown({ code: "KeyD" }); // cancels in manual, but is a new held set
     input.handleKeyUp({ code: "KeyE" });

@@ -11,6 +11,11 @@ defmodule Neptunus.Vehicle.Camera do
   `camera: %{running, fps, error}`, updated every second. It is the last process of the
   vehicle's tree: a camera problem never restarts the board, control or helm.
 
+  On shutdown (the vehicle stops, the node stops) the camera ends its program with `SIGTERM`,
+  whatever the program is doing: closing the port alone stops only a program that writes (it
+  gets `SIGPIPE`) or reads its input. After a brutal kill of this process the program is left
+  with a closed pipe and ends at its next write, as a streaming camera does within a frame.
+
   Options: `:id`, `:camera` — a source string or parsed source (none: no camera; this
   process then idles).
   """
@@ -97,6 +102,8 @@ defmodule Neptunus.Vehicle.Camera do
 
   @impl true
   def init(opts) do
+    # so that terminate/2 runs on shutdown and ends the program
+    Process.flag(:trap_exit, true)
     id = Keyword.fetch!(opts, :id)
 
     state =
@@ -165,6 +172,10 @@ defmodule Neptunus.Vehicle.Camera do
   # the camera's state in telemetry, once a second
   def handle_info(:report, state), do: {:noreply, report(state)}
 
+  # the port is linked to us; its exit_status message does the work
+  def handle_info({:EXIT, port, _reason}, state) when is_port(port), do: {:noreply, state}
+  def handle_info({:EXIT, _pid, reason}, state), do: {:stop, reason, state}
+
   def handle_info(_other, state), do: {:noreply, state}
 
   @impl true
@@ -187,8 +198,18 @@ defmodule Neptunus.Vehicle.Camera do
 
   @impl true
   def terminate(_reason, %State{port: port}) when is_port(port) do
-    # the program gets EOF / SIGPIPE and exits with the port
+    os_pid =
+      case Port.info(port, :os_pid) do
+        {:os_pid, pid} -> pid
+        nil -> nil
+      end
+
     Port.close(port)
+
+    if os_pid,
+      do: System.cmd("kill", ["-TERM", Integer.to_string(os_pid)], stderr_to_stdout: true)
+
+    :ok
   catch
     _, _ -> :ok
   end

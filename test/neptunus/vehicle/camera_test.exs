@@ -36,6 +36,35 @@ defmodule Neptunus.Vehicle.CameraTest do
     assert Camera.url(id) == "/camera/#{id}.mjpg"
   end
 
+  test "stopping the camera stops its program, even one that neither reads nor writes" do
+    # a program that would outlive a closed port: it never writes (no SIGPIPE) nor reads stdin
+    marker = "#{System.unique_integer([:positive])}"
+    on_exit(fn -> System.cmd("pkill", ["-f", "^sleep 3#{marker}$"]) end)
+    id = start!(%{kind: :exec, program: "/bin/sh", args: ["-c", "exec sleep 3#{marker}"]})
+    assert wait_until(fn -> os_pids("sleep 3#{marker}") != [] end)
+    assert %{running: true} = Camera.status(id)
+
+    :ok = stop_supervised(Camera)
+
+    assert wait_until(fn -> os_pids("sleep 3#{marker}") == [] end),
+           "the camera program outlived the camera"
+  end
+
+  defp os_pids(pattern) do
+    case System.cmd("pgrep", ["-f", "^#{pattern}$"]) do
+      {out, 0} -> String.split(out)
+      {_, _} -> []
+    end
+  end
+
+  defp wait_until(fun, tries \\ 50) do
+    cond do
+      fun.() -> true
+      tries == 0 -> false
+      true -> Process.sleep(50) && wait_until(fun, tries - 1)
+    end
+  end
+
   test "when the program exits the camera says why and starts it again" do
     id = start!(fake(1))
     assert_receive {:pubsub, _, "frame", _}, 2_000
