@@ -164,6 +164,31 @@ defmodule Neptunus.Vehicle.NavigationTest do
       assert_in_delta depth, 1.0, 1.0e-4
     end
 
+    test "autopilots refuse to engage on an initialising measurement, with the reason", %{id: id} do
+      Board.Test.sample(id, %{t: 1.0, measurement: @m, sim: nil})
+      _ = Navigation.status(id)
+
+      assert Control.command(id, "autopilot", %{"depth" => "hold"}) ==
+               {:error,
+                "depth hold: depth is initialising (the board's depth sensor has not given " <>
+                  "consistent readings yet)"}
+
+      for i <- 1..30, do: Board.Test.sample(id, %{t: 1.0 + i * 0.05, measurement: @m, sim: nil})
+      _ = Navigation.status(id)
+
+      assert {:ok, %{control: %{autopilot: %{depth: depth}}}} =
+               Control.command(id, "autopilot", %{"depth" => "hold"})
+
+      assert_in_delta depth, 1.0, 1.0e-3
+
+      # a board reset: initialising again, and the reason is back
+      Navigation.board_reset(id, "test")
+      _ = Navigation.status(id)
+
+      assert {:error, "heading hold: heading is initialising" <> _} =
+               Control.command(id, "autopilot", %{"heading" => "hold"})
+    end
+
     test "thruster commands reach navigation with the board", %{id: id} do
       Board.go(id, %{port: 0.5, vertical: -0.5, starboard: 0.5})
       assert_receive {:board, ^id, {:go, %{vertical: -0.5}}}
