@@ -6,17 +6,41 @@ defmodule Neptunus.Estimator do
   `Neptunus.Vehicle.Navigation` on a live vehicle and by the headless scenario runner on the
   same simulated measurements.
 
+  ## Initialising, valid, stale
+
+  No reading is trusted on its own. Each field (`depth heading roll pitch voltage current`)
+  starts **initialising** — at `new/1`, at `reset/1` (the board link came up, or saw the
+  board reset), when the board's uptime (`board_time`, see `update/4`) goes backwards, and
+  when the sample clock goes backwards — and becomes **valid** only when both
+
+    * the **settle time** (`settle`, 1.2 s) is over since then, and
+    * the last `agree` (3) in-range readings agree with each other (each a plausible
+      successor of the one before, see below), **repeats included**;
+
+  it is then valid at the newest of them, and its filter starts there at rest. Until then
+  its value (`measurement/1`) and estimate (`estimate/1`) are nil. The numbers: an OpenROV
+  board prints `deap:0.00` (and a heading of 0.00 from an IMU that has not started) for about
+  1 s after it boots, until its pressure sensor's first reading, so a board's first second is
+  never taken for the truth; 1.2 s leaves two 10 Hz lines of margin. That board then prints
+  its depth (read once a second) ten times a second, so three readings come 0.2 s after the
+  first true one: valid again 1.2–1.4 s after a board reset. When the reset shows in
+  `board_time`, the settle time counts from the board's boot (`t − board_time`), so a reset
+  seen late (its clock is printed once a second) is not held up longer.
+
+  A valid field with no accepted reading for `stale_after` (2 s) is **stale**: it keeps its
+  last value, its filter's estimate is dropped, and the next accepted reading makes it valid
+  again. `states/1` gives each field's state.
+
   ## Wild points
 
-  Every measured field (`depth heading roll pitch voltage current`) of every sample goes
-  through, in order:
+  Every reading of a field that is not initialising goes through, in order:
 
     1. **held values** — a value identical to the field's previous one is the board repeating
-       its last reading (the simulated board reports its 20 Hz sensors at 100 Hz, a serial
-       board repeats the fields of the line it did not resend), not a new reading: it keeps
-       the previous verdict and is neither counted nor filtered again (a held accepted depth or
-       heading updates the filter again after `hold` s, so it stays converged on ideal sensors
-       at rest);
+       its last reading (a serial board prints its 1 Hz depth ten times a second, the
+       simulated board its 20 Hz sensors at 100 Hz), not a new reading: it keeps the
+       previous verdict and is not counted again. A held accepted depth or heading updates
+       the filter again after `hold` s (so it stays converged on ideal sensors at rest); a
+       held rejected reading still counts towards re-acquisition (below);
     2. **range** — outside the field's physical range → `:out_of_range`; not a number →
        `:not_a_number` (`Neptunus.Navigation.WildPoints`);
     3. **rate of change** — farther from the previous *accepted* value than the field's largest
@@ -31,13 +55,16 @@ defmodule Neptunus.Estimator do
   and current have range and rate tests only (see `Neptunus.Navigation.WildPoints` for the
   limits and what they cannot catch).
 
-  **Re-acquisition.** Wild points are isolated; the truth persists. When the last `confirm`
-  (3) rejected new readings of a field (by rate or innovation) agree with each other — each
-  plausible after the one before — the field is re-acquired at the newest: it is accepted and
-  its filter restarts there (with the rate they show). This recovers from a first reading that
-  was itself a wild point, from a filter led astray by something its model does not know (a
-  collision, a hand on the vehicle), and from a jump of the simulated vehicle; `reacquired`
-  counts it.
+  **Re-acquisition.** Wild points are isolated; the truth persists. The rejected readings
+  (by rate or innovation) that agree with each other — each plausible after the one before —
+  form a run; the field is re-acquired at the newest (accepted, its filter restarted there
+  with the rate the run shows) when the run holds `confirm` (3) *new* values, or when it has
+  lasted `lockout` (1.1 s), repeats included. So no gate locks out a consistent signal for
+  more than 1.1 s — not even a board repeating one value ten times a second that changes once
+  a second — while a single wild reading that the board repeats until its next reading
+  (at most ~0.9 s of repeats at 1 Hz) is still rejected. This recovers from a filter led
+  astray by something its model does not know (a collision, a hand on the vehicle), from a
+  re-zeroed sensor, and from a jump of the simulated vehicle; `reacquired` counts it.
 
   ## Kalman filters
 
@@ -84,7 +111,8 @@ defmodule Neptunus.Estimator do
   `dt`; `dt = 0` (several samples at one instant) only updates. A gap of more than
   `max_gap` (2 s: a link down) or a filter without an accepted reading for `stale_after`
   (2 s) drops that estimate (nil) until the next accepted reading restarts it. Time going
-  backwards (a simulator reset, a restarted board clock) starts afresh, keeping the counts.
+  backwards (a simulator reset, a restarted clock) re-initialises every field, keeping the
+  counts.
   """
 
   alias Neptunus.Dynamics.Params
@@ -120,15 +148,31 @@ defmodule Neptunus.Estimator do
 
   defmodule Gate do
     @moduledoc false
-    # One field's wild-point state: the last accepted reading `{t, v}`, the last raw value
-    # seen and its verdict, and the recent consecutive rejected readings (newest first).
+    # One field's wild-point state: its status, the last accepted reading `{t, v}`, the last
+    # raw value seen and whether it was accepted, when the field last had an accepted (or
+    # held accepted) reading, and the run of readings not (yet) accepted that agree with
+    # each other: its first and last reading, how many new values and how many readings
+    # (repeats included) it holds.
+    @type run :: %{
+            first: {float(), float()},
+            last: {float(), float()},
+            new: pos_integer(),
+            readings: pos_integer()
+          }
     @type t :: %__MODULE__{
+            status: :initialising | :valid | :stale,
             ref: {float(), float()} | nil,
             last_raw: term(),
             accepted?: boolean(),
-            misses: [{float(), float()}]
+            fresh_at: float() | nil,
+            run: run() | nil
           }
-    defstruct ref: nil, last_raw: :none, accepted?: false, misses: []
+    defstruct status: :initialising,
+              ref: nil,
+              last_raw: :none,
+              accepted?: false,
+              fresh_at: nil,
+              run: nil
   end
 
   @enforce_keys [:filters, :limits]
@@ -137,6 +181,8 @@ defmodule Neptunus.Estimator do
     :limits,
     :model,
     :t,
+    :since,
+    :board_time,
     gates: %{},
     updated: %{},
     counts: WildPoints.new_counts(),
@@ -144,27 +190,45 @@ defmodule Neptunus.Estimator do
     hold: 0.2,
     max_gap: 2.0,
     stale_after: 2.0,
-    confirm: 3
+    confirm: 3,
+    settle: 1.2,
+    agree: 3,
+    lockout: 1.1
   ]
 
   @typedoc "A field's verdict on the last sample."
-  @type verdict :: :accepted | :reacquired | :held | :missing | {:rejected, WildPoints.reason()}
+  @type verdict ::
+          :accepted
+          | :reacquired
+          | :held
+          | :missing
+          | :initialising
+          | {:rejected, WildPoints.reason()}
+
+  @typedoc "A measurement's state (see the moduledoc)."
+  @type status :: :initialising | :valid | :stale
 
   @typedoc """
   * `filters` — the Kalman filters of `depth`, `heading`, `roll` and `pitch`
   * `limits` — wild-point limits per field (`Neptunus.Navigation.WildPoints.limits/0`)
   * `model` — the vehicle model driving the prediction, or nil (constant velocity)
   * `t` — time of the last sample (nil before the first)
+  * `since` — when the settle time started (the first sample after `new/1`, `reset/1` or a
+    clock going back; the board's boot when a board reset is seen in its `board_time`), nil
+    until the next sample; `board_time` — the board's uptime in the last sample that had it
   * `gates` — each field's wild-point state; `counts` — rejections so far
   * `updated` — when each filter last took a reading
   * `verdicts` — each field's verdict on the last sample
-  * `hold`, `max_gap`, `stale_after` (s), `confirm` — see the moduledoc
+  * `hold`, `max_gap`, `stale_after`, `settle`, `lockout` (s), `confirm`, `agree`
+    (readings) — see the moduledoc
   """
   @type t :: %__MODULE__{
           filters: %{atom() => Kalman.t()},
           limits: %{atom() => WildPoints.limit()},
           model: Model.t() | nil,
           t: float() | nil,
+          since: float() | nil,
+          board_time: float() | nil,
           gates: %{atom() => Gate.t()},
           updated: %{atom() => float() | nil},
           counts: WildPoints.counts(),
@@ -172,7 +236,10 @@ defmodule Neptunus.Estimator do
           hold: float(),
           max_gap: float(),
           stale_after: float(),
-          confirm: pos_integer()
+          confirm: pos_integer(),
+          settle: float(),
+          agree: pos_integer(),
+          lockout: float()
         }
 
   @typedoc "The estimate: nil where there is none (no plausible reading yet, or stale)."
@@ -193,7 +260,8 @@ defmodule Neptunus.Estimator do
     * `:depth`, `:heading`, `:roll`, `:pitch` — overrides of the filters' `q`, `r`, `gate`,
       `min_gate`, `max_rate`
     * `:limits` — overrides of the wild-point limits, per field (merged)
-    * `:hold`, `:max_gap`, `:stale_after` (s), `:confirm` (readings)
+    * `:hold`, `:max_gap`, `:stale_after`, `:settle`, `:lockout` (s), `:confirm`, `:agree`
+      (readings) — see the moduledoc
   """
   @spec new(keyword()) :: t()
   def new(opts \\ []) do
@@ -214,7 +282,8 @@ defmodule Neptunus.Estimator do
       gates: new_gates()
     }
 
-    Enum.reduce([:hold, :max_gap, :stale_after, :confirm], est, fn key, est ->
+    [:hold, :max_gap, :stale_after, :confirm, :settle, :agree, :lockout]
+    |> Enum.reduce(est, fn key, est ->
       case Keyword.fetch(opts, key) do
         {:ok, value} -> Map.put(est, key, value)
         :error -> est
@@ -266,29 +335,60 @@ defmodule Neptunus.Estimator do
 
   @doc """
   Takes a board sample's measurement at time `t` (s): wild-point tests, then the filters'
-  prediction to `t` and update. Never raises: a `t` that is not a number (or beyond ±10¹² s)
-  leaves the estimator unchanged; a measurement that is not a map counts as all fields
-  missing.
+  prediction to `t` and update. `board_time` is the board's uptime (s) when the sample has it
+  (nil otherwise): going backwards, the board has reset, and every measurement starts
+  initialising again (see the moduledoc). Never raises: a `t` that is not a number (or beyond
+  ±10¹² s) leaves the estimator unchanged; a measurement that is not a map counts as all
+  fields missing; a `board_time` that is not a number is ignored.
   """
-  @spec update(t(), term(), term()) :: t()
-  def update(%__MODULE__{} = est, t, measurement) when is_number(t) and abs(t) < @max_time do
+  @spec update(t(), term(), term(), term()) :: t()
+  def update(est, t, measurement, board_time \\ nil)
+
+  def update(%__MODULE__{} = est, t, measurement, board_time)
+      when is_number(t) and abs(t) < @max_time do
     t = t * 1.0
     measurement = if is_map(measurement), do: measurement, else: %{}
 
     est
+    |> board_clock(t, board_time)
     |> advance(t)
+    |> then(&%{&1 | since: &1.since || t})
     |> drop_stale(t)
     |> then(fn est ->
       Enum.reduce(@fields, %{est | verdicts: %{}}, &field(&2, &1, t, Map.get(measurement, &1)))
     end)
   end
 
-  def update(%__MODULE__{} = est, _t, _measurement), do: %{est | verdicts: %{}}
+  def update(%__MODULE__{} = est, _t, _measurement, _board_time), do: %{est | verdicts: %{}}
 
-  # time: predict, restart after a gap or a clock going back
+  @doc """
+  The board was reset or its link (re)opened: every measurement is initialising again, the
+  estimate is dropped, and the settle time starts again at the next sample. The wild-point
+  counts are kept.
+  """
+  @spec reset(t()) :: t()
+  def reset(%__MODULE__{} = est), do: %{reinitialise(est, nil) | board_time: nil}
+
+  # the board's uptime going backwards: it reset, and booted `board_time` s before `t`
+  defp board_clock(est, t, board_time)
+       when is_number(board_time) and abs(board_time) < @max_time do
+    board_time = board_time * 1.0
+
+    case est.board_time do
+      before when is_float(before) and board_time < before ->
+        %{reinitialise(est, t - max(board_time, 0.0)) | board_time: board_time}
+
+      _ ->
+        %{est | board_time: board_time}
+    end
+  end
+
+  defp board_clock(est, _t, _board_time), do: est
+
+  # time: predict, re-initialise on a clock going back, restart the filters after a gap
   defp advance(%__MODULE__{t: nil} = est, t), do: %{est | t: t}
 
-  defp advance(%__MODULE__{t: t0} = est, t) when t < t0, do: %{restart(est) | t: t}
+  defp advance(%__MODULE__{t: t0} = est, t) when t < t0, do: %{reinitialise(est, nil) | t: t}
 
   defp advance(%__MODULE__{t: t0} = est, t) when t == t0, do: est
 
@@ -323,10 +423,11 @@ defmodule Neptunus.Estimator do
     }
   end
 
-  defp restart(est) do
+  defp reinitialise(est, since) do
     %{
       est
       | gates: new_gates(),
+        since: since,
         updated: Map.new(@filtered, &{&1, nil}),
         filters: Map.new(est.filters, fn {name, k} -> {name, Kalman.clear(k)} end)
     }
@@ -336,17 +437,31 @@ defmodule Neptunus.Estimator do
   defp force(:heading, _heave, yaw), do: yaw
   defp force(_name, _heave, _yaw), do: 0.0
 
+  # filters without a reading for `stale_after` drop their estimate; a valid field without an
+  # accepted reading for as long is stale
   defp drop_stale(est, t) do
-    Enum.reduce(@filtered, est, fn name, est ->
-      case est.updated[name] do
-        at when is_float(at) and t - at > est.stale_after ->
-          %{est | updated: Map.put(est.updated, name, nil)}
-          |> put_filter(name, Kalman.clear(est.filters[name]))
+    est =
+      Enum.reduce(@filtered, est, fn name, est ->
+        case est.updated[name] do
+          at when is_float(at) and t - at > est.stale_after ->
+            %{est | updated: Map.put(est.updated, name, nil)}
+            |> put_filter(name, Kalman.clear(est.filters[name]))
 
-        _ ->
-          est
-      end
-    end)
+          _ ->
+            est
+        end
+      end)
+
+    gates =
+      Map.new(est.gates, fn
+        {name, %Gate{status: :valid, fresh_at: at} = gate} when t - at > est.stale_after ->
+          {name, %{gate | status: :stale}}
+
+        other ->
+          other
+      end)
+
+    %{est | gates: gates}
   end
 
   # one field of one sample
@@ -354,32 +469,64 @@ defmodule Neptunus.Estimator do
 
   defp field(est, name, t, raw) do
     gate = est.gates[name]
+    repeat? = raw === gate.last_raw
+    gate = %{gate | last_raw: raw}
 
-    if raw === gate.last_raw do
-      held(est, name, t, gate)
-    else
-      gate = %{gate | last_raw: raw}
+    case WildPoints.range(est.limits[name], raw) do
+      {:error, reason} ->
+        est = put_gate(est, name, %{gate | accepted?: false})
+        if repeat?, do: verdict(est, name, :held), else: reject(est, name, reason)
 
-      case WildPoints.range(est.limits[name], raw) do
-        {:error, reason} ->
-          est
-          |> put_gate(name, %{gate | accepted?: false})
-          |> reject(name, reason)
-
-        {:ok, value} ->
-          test(est, name, t, value, gate)
-      end
+      {:ok, value} ->
+        cond do
+          gate.status == :initialising -> initialise(est, name, t, value, gate, repeat?)
+          repeat? and gate.accepted? -> held(est, name, t, gate)
+          repeat? -> held_miss(est, name, t, value, gate)
+          true -> test(est, name, t, value, gate)
+        end
     end
   end
 
-  defp held(est, name, t, %Gate{accepted?: true, ref: {_, value}}) when name in @filtered do
+  # no valid reading since start or reset: valid once `agree` readings (repeats included)
+  # agree and the settle time is over, at the newest of them
+  defp initialise(est, name, t, value, gate, repeat?) do
+    run = extend(est.limits[name], gate.run, {t, value}, repeat?)
+
+    if t - est.since >= est.settle and run.readings >= est.agree do
+      est
+      |> put_gate(name, valid(gate, t, value))
+      |> filter_restart(name, t, value, 0.0)
+      |> verdict(name, :accepted)
+    else
+      est
+      |> put_gate(name, %{gate | run: run, accepted?: false})
+      |> verdict(name, :initialising)
+    end
+  end
+
+  defp valid(gate, t, value),
+    do: %{gate | status: :valid, ref: {t, value}, accepted?: true, fresh_at: t, run: nil}
+
+  defp held(est, name, t, gate) do
+    gate = %{gate | fresh_at: t, status: :valid}
+    est = put_gate(est, name, gate)
+    {_, value} = gate.ref
+
     case est.updated[name] do
+      _ when name not in @filtered -> verdict(est, name, :held)
       at when is_float(at) and t - at < est.hold -> verdict(est, name, :held)
       _ -> est |> filter_update(name, t, value) |> verdict(name, :held)
     end
   end
 
-  defp held(est, name, _t, _gate), do: verdict(est, name, :held)
+  # a rejected reading repeated: not counted again, but it goes on agreeing with the run
+  defp held_miss(est, name, t, value, gate) do
+    run = extend(est.limits[name], gate.run, {t, value}, true)
+
+    if locked_out?(est, run),
+      do: reacquire(est, name, t, value, gate, run),
+      else: est |> put_gate(name, %{gate | run: run}) |> verdict(name, :held)
+  end
 
   defp test(est, name, t, value, %Gate{ref: nil} = gate), do: accept(est, name, t, value, gate)
 
@@ -400,36 +547,52 @@ defmodule Neptunus.Estimator do
 
   defp accept(est, name, t, value, gate) do
     est
-    |> put_gate(name, %{gate | ref: {t, value}, accepted?: true, misses: []})
+    |> put_gate(name, valid(gate, t, value))
     |> filter_update(name, t, value)
     |> verdict(name, :accepted)
   end
 
   defp miss(est, name, t, value, gate, reason) do
-    misses = Enum.take([{t, value} | gate.misses], est.confirm)
-    limit = est.limits[name]
+    run = extend(est.limits[name], gate.run, {t, value}, false)
 
-    if length(misses) == est.confirm and consistent?(limit, misses) do
-      est
-      |> put_gate(name, %{gate | ref: {t, value}, accepted?: true, misses: []})
-      |> filter_restart(name, t, value, slope(limit, misses))
-      |> Map.update!(:counts, &WildPoints.reacquired/1)
-      |> verdict(name, :reacquired)
+    if run.new >= est.confirm or locked_out?(est, run) do
+      reacquire(est, name, t, value, gate, run)
     else
       est
-      |> put_gate(name, %{gate | accepted?: false, misses: misses})
+      |> put_gate(name, %{gate | accepted?: false, run: run})
       |> reject(name, reason)
     end
   end
 
-  # newest first: each reading plausible after the one before it
-  defp consistent?(limit, [newer, older | rest]),
-    do: WildPoints.plausible?(limit, older, newer) and consistent?(limit, [older | rest])
+  defp reacquire(est, name, t, value, gate, run) do
+    est
+    |> put_gate(name, valid(gate, t, value))
+    |> filter_restart(name, t, value, slope(est.limits[name], run))
+    |> Map.update!(:counts, &WildPoints.reacquired/1)
+    |> verdict(name, :reacquired)
+  end
 
-  defp consistent?(_limit, _), do: true
+  # the readings not accepted, as long as each agrees with the one before it (a plausible
+  # successor); one that does not starts a new run
+  defp extend(_limit, nil, reading, _repeat?),
+    do: %{first: reading, last: reading, new: 1, readings: 1}
 
-  defp slope(limit, [{t, v} | _] = misses) do
-    {t0, v0} = List.last(misses)
+  defp extend(limit, run, reading, repeat?) do
+    if WildPoints.plausible?(limit, run.last, reading) do
+      %{
+        run
+        | last: reading,
+          new: if(repeat?, do: run.new, else: run.new + 1),
+          readings: run.readings + 1
+      }
+    else
+      extend(limit, nil, reading, repeat?)
+    end
+  end
+
+  defp locked_out?(est, %{first: {t0, _}, last: {t, _}}), do: t - t0 >= est.lockout
+
+  defp slope(limit, %{first: {t0, v0}, last: {t, v}}) do
     if t > t0, do: WildPoints.change(limit, v0, v) / (t - t0), else: 0.0
   end
 
@@ -475,23 +638,33 @@ defmodule Neptunus.Estimator do
   defp values(%Kalman{x: x, v: v}), do: {x, v}
 
   @doc """
-  The filtered measurement: for each of the six fields the last accepted reading (nil if
-  none yet) — what the board measured, without its wild points.
+  The filtered measurement: for each of the six fields the last accepted reading — what the
+  board measured, without its wild points — or nil while the field is initialising (no valid
+  reading since start, link up or board reset).
   """
   @spec measurement(t()) :: %{atom() => float() | nil}
   def measurement(%__MODULE__{gates: gates}) do
     Map.new(gates, fn
+      {name, %Gate{status: :initialising}} -> {name, nil}
       {name, %Gate{ref: {_, v}}} -> {name, v}
       {name, _} -> {name, nil}
     end)
   end
+
+  @doc """
+  Each field's state: `:initialising` (no valid reading yet since start, link up or board
+  reset), `:valid`, or `:stale` (valid before, but no accepted reading for `stale_after`).
+  """
+  @spec states(t()) :: %{atom() => status()}
+  def states(%__MODULE__{gates: gates}), do: Map.new(gates, fn {name, g} -> {name, g.status} end)
 
   @doc "The wild-point counts so far (`t:Neptunus.Navigation.WildPoints.counts/0`)."
   @spec wild_points(t()) :: WildPoints.counts()
   def wild_points(%__MODULE__{counts: counts}), do: counts
 
   @doc """
-  Each field's verdict on the last sample: `:accepted`, `:reacquired`, `:held`, `:missing` or
+  Each field's verdict on the last sample: `:accepted`, `:reacquired`, `:held`, `:missing`,
+  `:initialising` (taken while the field is initialising, not yet valid) or
   `{:rejected, reason}`.
   """
   @spec verdicts(t()) :: %{atom() => verdict()}

@@ -61,6 +61,10 @@ test("keyboard: request control, keys drive the vehicle, request → deny → ac
     assert.match((await page.locator("#vehicle-id").textContent()) ?? "", /\S/);
     assert.match((await page.locator("#mode-banner").textContent()) ?? "", /Local mode/);
     await page.locator('[data-testid="no-camera"]').waitFor(); // the simulated vehicle has no camera
+    // the HUD's depth: a number once the server says it is valid ("initialising" before, never a number)
+    const depth = page.locator('[data-testid="hud-depth"]');
+    await until(() => depth.getAttribute("data-state"), (state) => state === "valid", WAIT_MS, "a valid depth");
+    assert.match((await depth.textContent()) ?? "", /^-?\d+\.\d\d$/);
     await page.locator("#input-keyboard").click();
 
     // not in control yet: keys do nothing

@@ -45,36 +45,199 @@ defmodule Neptunus.EstimatorTest do
       assert Estimator.wild_points(est) == WildPoints.new_counts()
     end
 
-    test "the first sample is accepted and starts the estimate at rest" do
+    test "no first reading is trusted: valid after the settle time, at rest" do
       est = Estimator.update(cv(), 0.0, m(1.0, 0.5))
-      assert Estimator.verdicts(est) |> Map.values() |> Enum.all?(&(&1 == :accepted))
-      assert Estimator.measurement(est) == m(1.0, 0.5)
+      assert Estimator.verdicts(est) |> Map.values() |> Enum.all?(&(&1 == :initialising))
+      assert Estimator.measurement(est) |> Map.values() |> Enum.all?(&is_nil/1)
+      assert Estimator.states(est) |> Map.values() |> Enum.all?(&(&1 == :initialising))
+      assert %{depth: nil, heading: nil, depth_rate: nil, yaw_rate: nil} = Estimator.estimate(est)
 
-      assert Estimator.estimate(est) ==
-               %{t: 0.0, depth: 1.0, depth_rate: 0.0, heading: 0.5, yaw_rate: 0.0}
+      # identical readings (a board repeating them) agree: valid once the settle time is over
+      est = series(est, 0.05, 1.1, fn _t, _i -> m(1.0, 0.5) end)
+      assert Estimator.states(est).depth == :initialising
+      est = Estimator.update(est, 1.2, m(1.0, 0.5))
+      assert Estimator.verdicts(est).depth == :accepted
+      assert Estimator.measurement(est) == m(1.0, 0.5)
+      assert Estimator.states(est) |> Map.values() |> Enum.all?(&(&1 == :valid))
+      assert %{depth: 1.0, depth_rate: 0.0, heading: 0.5, yaw_rate: 0.0} = Estimator.estimate(est)
+      assert Estimator.wild_points(est) == WildPoints.new_counts()
     end
 
     test "integers are numbers" do
-      est = Estimator.update(cv(), 0, %{depth: 2, heading: 1, voltage: 12, current: 1})
+      est =
+        series(cv(), 0.0, 1.5, fn _t, _i -> %{depth: 2, heading: 1, voltage: 12, current: 1} end)
+
       assert %{depth: 2.0, heading: 1.0, voltage: 12.0, current: 1.0} = Estimator.measurement(est)
     end
 
-    test "a wild first reading is re-acquired from after three plausible readings" do
+    test "a wild first reading is never validated: the readings that agree are" do
       est = Estimator.update(cv(), 0.0, m(10.0, 0.5))
-      est = Estimator.update(est, 0.05, m(1.0, 0.5))
+      est = series(est, 0.05, 1.3, steady(1.0, 0.5))
+      assert Estimator.states(est).depth == :valid
+      assert_in_delta Estimator.measurement(est).depth, 1.0, 1.0e-3
+      assert_in_delta Estimator.estimate(est).depth, 1.0, 1.0e-3
+      assert Estimator.wild_points(est).total == 0
+    end
+
+    test "a jump is re-acquired after three new readings that agree" do
+      est = series(cv(), 0.0, 1.5, steady(1.0, 0.5))
+      est = Estimator.update(est, 1.5, m(5.0, 0.5))
       assert Estimator.verdicts(est).depth == {:rejected, :rate_of_change}
-      est = Estimator.update(est, 0.10, m(1.001, 0.5))
+      est = Estimator.update(est, 1.55, m(5.001, 0.5))
       assert Estimator.verdicts(est).depth == {:rejected, :rate_of_change}
-      est = Estimator.update(est, 0.15, m(0.999, 0.5))
+      est = Estimator.update(est, 1.6, m(4.999, 0.5))
       assert Estimator.verdicts(est).depth == :reacquired
-      assert Estimator.measurement(est).depth == 0.999
-      assert_in_delta Estimator.estimate(est).depth, 0.999, 1.0e-9
+      assert Estimator.measurement(est).depth == 4.999
+      assert_in_delta Estimator.estimate(est).depth, 4.999, 1.0e-9
 
       counts = Estimator.wild_points(est)
       assert counts.by_field.depth == 2 and counts.total == 2 and counts.reacquired == 1
 
-      est = Estimator.update(est, 0.20, m(1.0, 0.5))
+      est = Estimator.update(est, 1.65, m(5.0, 0.5))
       assert Estimator.verdicts(est).depth == :accepted
+    end
+  end
+
+  # The OpenROV firmware after a reset: `deap:0.00` and `hdgd:0.00` (placeholders) at 10 Hz
+  # until its first pressure reading about 1 s after boot, then the true depth, read once a
+  # second and printed at 10 Hz (the same value ten times). `board_time` (the firmware's
+  # `time`) is printed once a second too; nil when `clock` is false.
+  defp firmware_boot(est, t_reset, seconds, depth_at, heading_at, clock \\ true) do
+    Enum.reduce(0..round(seconds * 10), {est, []}, fn i, {est, seen} ->
+      uptime = i * 0.1
+      second = floor(uptime + 1.0e-9)
+      ready? = uptime >= 1.0 - 1.0e-9
+      depth = if ready?, do: depth_at.(second), else: 0.0
+      heading = if ready?, do: heading_at.(second), else: 0.0
+      board_time = if clock, do: second + 0.05
+
+      meas = %{m(depth, heading) | voltage: 12.0, current: 0.5, roll: 0.0, pitch: 0.0}
+      est = Estimator.update(est, t_reset + uptime, meas, board_time)
+
+      {est,
+       [
+         {uptime, Estimator.states(est), Estimator.measurement(est), Estimator.estimate(est)}
+         | seen
+       ]}
+    end)
+    |> then(fn {est, seen} -> {est, Enum.reverse(seen)} end)
+  end
+
+  defp first_valid(seen, field) do
+    Enum.find(seen, fn {_uptime, states, _m, _e} -> states[field] == :valid end)
+  end
+
+  describe "initialising: the firmware's boot placeholder" do
+    test "0.00 for a second, then 1.20 repeated: never valid at 0.00, valid at 1.20 by 1.5 s" do
+      {_est, seen} = firmware_boot(cv(), 0.0, 4.0, fn _ -> 1.2 end, fn _ -> 2.0 end, false)
+
+      for {uptime, states, meas, e} <- seen, field <- [:depth, :heading] do
+        if states[field] != :valid do
+          assert meas[field] == nil, "#{field} at #{uptime} s: #{inspect(meas)}"
+        else
+          refute meas[field] == 0.0, "#{field} valid at 0.00 at #{uptime} s"
+        end
+
+        if states.depth != :valid, do: assert(e.depth == nil and e.depth_rate == nil)
+      end
+
+      for field <- [:depth, :heading] do
+        assert {uptime, _, meas, _} = first_valid(seen, field)
+        assert uptime <= 1.5
+        assert meas[field] == if(field == :depth, do: 1.2, else: 2.0)
+      end
+
+      {_, states, meas, e} = List.last(seen)
+      assert states.depth == :valid and meas.depth == 1.2 and meas.heading == 2.0
+      assert_in_delta e.depth, 1.2, 0.01
+      assert_in_delta e.heading, 2.0, 0.01
+    end
+
+    test "a board reset mid-dive (its clock going back): valid again at the true depth by 1.5 s" do
+      # 20 s at 1.20 m, heading 1.0 rad, the clock counting
+      {est, _} = firmware_boot(cv(), 100.0, 20.0, fn _ -> 1.2 end, fn _ -> 1.0 end)
+      assert %{depth: :valid, heading: :valid} = Estimator.states(est)
+
+      # the board resets at t = 120.05: its clock starts again, the vehicle sinks slowly
+      depth_at = fn second -> 1.25 + 0.01 * second end
+      {_est, seen} = firmware_boot(est, 120.05, 4.0, depth_at, fn _ -> 1.1 end)
+
+      for {uptime, states, meas, _e} <- seen, states.depth == :valid do
+        refute meas.depth == 0.0, "depth valid at 0.00, #{uptime} s after the reset"
+        refute meas.heading == 0.0, "heading valid at 0.00, #{uptime} s after the reset"
+      end
+
+      assert {uptime, _, meas, e} = first_valid(seen, :depth)
+      assert uptime <= 1.5 and meas.depth == 1.26
+      assert_in_delta e.depth, 1.26, 0.01
+      assert {uptime, _, %{heading: 1.1}, _} = first_valid(seen, :heading)
+      assert uptime <= 1.5
+      {_, _, meas, _} = List.last(seen)
+      assert meas.depth == depth_at.(4)
+    end
+
+    test "the clock going back re-initialises every measurement at once" do
+      {est, _} = firmware_boot(cv(), 0.0, 5.0, fn _ -> 1.2 end, fn _ -> 1.0 end)
+      assert Estimator.states(est).depth == :valid
+      est = Estimator.update(est, 5.1, m(1.2, 1.0), 0.05)
+      assert Estimator.states(est) |> Map.values() |> Enum.all?(&(&1 == :initialising))
+      assert Estimator.measurement(est) |> Map.values() |> Enum.all?(&is_nil/1)
+      assert %{depth: nil, heading: nil} = Estimator.estimate(est)
+      # a clock that holds or counts on does not
+      est = series(est, 5.2, 1.5, fn _t, _i -> m(1.2, 1.0) end)
+      assert Estimator.states(est).depth == :valid
+      assert Estimator.states(Estimator.update(est, 6.8, m(1.2, 1.0), 0.05)).depth == :valid
+      assert Estimator.states(Estimator.update(est, 6.8, m(1.2, 1.0), 9.0)).depth == :valid
+    end
+
+    test "reset/1 (link up, board reset seen by the link) re-initialises; the settle time restarts" do
+      est = series(cv(), 0.0, 2.0, steady(1.0, 0.5)) |> Estimator.update(2.0, m(50.0, 0.5))
+      est = Estimator.reset(est)
+      assert Estimator.states(est) |> Map.values() |> Enum.all?(&(&1 == :initialising))
+      assert %{depth: nil, heading: nil} = Estimator.estimate(est)
+      assert Estimator.wild_points(est).total == 1
+      est = series(est, 2.05, 1.1, fn _t, _i -> m(0.0, 0.5) end)
+      assert Estimator.states(est).depth == :initialising
+      est = series(est, 3.15, 0.3, fn _t, _i -> m(1.0, 0.5) end)
+      assert Estimator.states(est).depth == :valid and Estimator.measurement(est).depth == 1.0
+    end
+  end
+
+  describe "no lock-out of a consistent signal" do
+    test "a real jump, then the same value repeated (1 Hz sensor, 10 Hz prints): re-acquired" do
+      {est, _} = firmware_boot(cv(), 0.0, 5.0, fn _ -> 1.0 end, fn _ -> 1.0 end)
+
+      # the depth jumps to 3.00 (a re-zeroed sensor) and stays there
+      {est, seen} =
+        Enum.reduce(1..20, {est, []}, fn i, {est, seen} ->
+          est = Estimator.update(est, 5.0 + i * 0.1, m(3.0, 1.0))
+          {est, [{i * 0.1, Estimator.measurement(est).depth} | seen]}
+        end)
+
+      {after_s, _} = seen |> Enum.reverse() |> Enum.find(fn {_, d} -> d == 3.0 end)
+      assert after_s <= 1.25
+      assert Estimator.states(est).depth == :valid
+      assert_in_delta Estimator.estimate(est).depth, 3.0, 0.01
+      assert Estimator.wild_points(est).reacquired == 1
+    end
+
+    test "an isolated wild reading printed ten times before the next one is still rejected" do
+      {est, _} = firmware_boot(cv(), 0.0, 5.0, fn _ -> 1.0 end, fn _ -> 1.0 end)
+
+      est =
+        Enum.reduce(1..10, est, fn i, est ->
+          est = Estimator.update(est, 5.0 + i * 0.1, m(12.0, 1.0))
+          assert Estimator.measurement(est).depth == 1.0
+          est
+        end)
+
+      est = Estimator.update(est, 6.1, m(1.01, 1.0))
+      assert Estimator.verdicts(est).depth == :accepted
+
+      assert Estimator.wild_points(est) |> Map.take([:total, :reacquired]) == %{
+               total: 1,
+               reacquired: 0
+             }
     end
   end
 
@@ -165,11 +328,13 @@ defmodule Neptunus.EstimatorTest do
   end
 
   describe "time" do
-    test "a clock going back starts afresh, keeping the counts" do
+    test "a clock going back re-initialises, keeping the counts" do
       est = series(cv(), 0.0, 2.0, steady(1.0, 0.5)) |> Estimator.update(2.0, m(50.0, 0.5))
       assert Estimator.wild_points(est).total == 1
       est = Estimator.update(est, 0.0, m(3.0, 2.0))
-      assert Estimator.verdicts(est).depth == :accepted
+      assert Estimator.verdicts(est).depth == :initialising
+      assert %{depth: nil, heading: nil} = Estimator.estimate(est)
+      est = series(est, 0.05, 1.2, fn _t, _i -> m(3.0, 2.0) end)
       assert %{depth: 3.0, heading: 2.0, depth_rate: 0.0} = Estimator.estimate(est)
       assert Estimator.wild_points(est).total == 1
     end
@@ -194,7 +359,7 @@ defmodule Neptunus.EstimatorTest do
     end
 
     test "samples at one instant update without predicting" do
-      est = series(cv(), 0.0, 1.0, steady(1.0, 0.5))
+      est = series(cv(), 0.0, 2.0, steady(1.0, 0.5))
       a = Estimator.update(est, est.t, m(1.001, 0.5))
       assert a.t == est.t
       assert Estimator.verdicts(a).depth == :accepted
@@ -203,16 +368,24 @@ defmodule Neptunus.EstimatorTest do
 
   describe "the commanded thrust" do
     test "drives the prediction: a dive shows in the rate before the readings move much" do
-      sim = Sim.new(vehicle: "neptunus", dt: 0.01) |> Sim.command(%{vertical: 1.0})
-      with_model = Estimator.new() |> Estimator.command(%{vertical: 1.0})
-      free = Estimator.new(vehicle: nil)
-
-      {sim, with_model, free} =
-        Enum.reduce(1..50, {sim, with_model, free}, fn _, {sim, a, b} ->
+      run = fn steps, acc ->
+        Enum.reduce(1..steps, acc, fn _, {sim, a, b} ->
           sim = Sim.step(sim)
           %{t: t, measurement: meas} = Sim.sample(sim)
           {sim, Estimator.update(a, t, meas), Estimator.update(b, t, meas)}
         end)
+      end
+
+      # at rest until both are valid, then full down
+      {sim, with_model, free} =
+        run.(
+          150,
+          {Sim.new(vehicle: "neptunus", dt: 0.01), Estimator.new(), Estimator.new(vehicle: nil)}
+        )
+
+      sim = Sim.command(sim, %{vertical: 1.0})
+      with_model = Estimator.command(with_model, %{vertical: 1.0})
+      {sim, with_model, free} = run.(50, {sim, with_model, free})
 
       true_rate = sim.dyn.w
       assert true_rate > 0.2
@@ -398,9 +571,42 @@ defmodule Neptunus.EstimatorTest do
       )
     end
 
+    defp repeat(est, t, until, gaps, meas) do
+      est = Estimator.update(est, t, meas)
+      [gap] = Enum.take(gaps, 1)
+      if t >= until, do: est, else: repeat(est, t + gap, until, Stream.drop(gaps, 1), meas)
+    end
+
     defp move(x, {:step, d}, scale), do: x + d * scale
     defp move(_x, {:jump, v}, _scale), do: v
     defp move(x, {:held, _}, _scale), do: x
+
+    # a constant true value repeated (a board printing its last reading) for at least 1.2 s
+    # after any readings at all ends valid at that value: no gate locks a consistent signal out
+    test "a value repeated for 1.2 s after anything ends valid at that value" do
+      earlier = :proper_types.list({:proper_types.float(0.001, 0.3), any_value(), any_value()})
+      gaps = :proper_types.non_empty(:proper_types.list(:proper_types.float(0.01, 0.3)))
+
+      check(
+        {earlier, :proper_types.float(-10.0, 200.0), :proper_types.float(0.0, 6.28), gaps,
+         :proper_types.boolean()},
+        fn {earlier, depth, heading, gaps, model?} ->
+          est = Estimator.new(if model?, do: [], else: [vehicle: nil])
+
+          {est, t} =
+            Enum.reduce(earlier, {est, 0.0}, fn {dt, d, h}, {est, t} ->
+              {Estimator.update(est, t + dt, %{depth: d, heading: h}), t + dt}
+            end)
+
+          est = repeat(est, t + 0.01, t + 0.01 + 1.2, Stream.cycle(gaps), m(depth, heading))
+          meas = Estimator.measurement(est)
+
+          Estimator.states(est).depth == :valid and Estimator.states(est).heading == :valid and
+            meas.depth == depth and meas.heading == heading
+        end,
+        300
+      )
+    end
 
     test "wild points in a smooth noisy signal are never accepted, good readings nearly always" do
       signal =

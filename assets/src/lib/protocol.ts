@@ -99,12 +99,24 @@ export interface ControlSettings {
 export interface AutopilotLoop {
   readonly setpoint: number;
   readonly output: number;
+  /** why it gives no output now (its measurement initialising after a board reset, …); null: it acts */
+  readonly waiting: string | null;
 }
 
 export interface AutopilotStatus {
   readonly depth: AutopilotLoop | null;
   readonly heading: AutopilotLoop | null;
 }
+
+/**
+ * Whether a measurement can be trusted: `initialising` (no valid reading since the server
+ * started, the board link came up or the board reset — the server sends no number for it),
+ * `valid`, or `stale` (no plausible reading for 2 s: the last value is kept).
+ */
+export type MeasurementState = "initialising" | "valid" | "stale";
+
+/** The state of each measurement (`measurement_state` in telemetry). */
+export type MeasurementStates = Readonly<Record<(typeof MEASUREMENT_KEYS)[number], MeasurementState>>;
 
 /** The navigation filter's estimate (NaN for a field the server does not send). */
 export interface Estimate {
@@ -150,8 +162,10 @@ export interface Telemetry {
   readonly t: number;
   /** ms since the Unix epoch, when the server sent the sample */
   readonly sent_at: number;
-  /** sensor readings; NaN for a value the board did not give */
+  /** sensor readings; NaN for a value the board did not give (or not valid yet) */
   readonly measurement: Measurement;
+  /** each measurement's state; null when the server does not say */
+  readonly measurement_state: MeasurementStates | null;
   /** the simulator's true state; `null` on a real board */
   readonly sim: SimState | null;
   /** the motion command; null when the command is not a motion command (manual mode) */
@@ -364,7 +378,9 @@ export function decodeControlSettings(value: unknown): ControlSettings | null {
 
 function decodeLoop(value: unknown): AutopilotLoop | null {
   const loop = numbers(value, ["setpoint", "output"] as const);
-  return loop ? { setpoint: loop.setpoint, output: loop.output } : null;
+  if (!loop || !isRecord(value)) return null;
+  const waiting = value["waiting"];
+  return { setpoint: loop.setpoint, output: loop.output, waiting: typeof waiting === "string" ? waiting : null };
 }
 
 export function decodeAutopilotStatus(value: unknown): AutopilotStatus | null {
@@ -402,6 +418,24 @@ export function decodeCameraStatus(value: unknown): CameraStatus | null {
   return { running: value["running"], fps: value["fps"], error: typeof error === "string" ? error : null };
 }
 
+const MEASUREMENT_STATES: readonly string[] = ["initialising", "valid", "stale"];
+
+function isMeasurementState(value: unknown): value is MeasurementState {
+  return typeof value === "string" && MEASUREMENT_STATES.includes(value);
+}
+
+/** Each measurement's state; null unless every measurement has a known one. */
+export function decodeMeasurementStates(value: unknown): MeasurementStates | null {
+  if (!isRecord(value)) return null;
+  const out: Partial<Record<(typeof MEASUREMENT_KEYS)[number], MeasurementState>> = {};
+  for (const key of MEASUREMENT_KEYS) {
+    const state = value[key];
+    if (!isMeasurementState(state)) return null;
+    out[key] = state;
+  }
+  return out as MeasurementStates;
+}
+
 export function decodeWildPoints(value: unknown): WildPoints | null {
   if (!isRecord(value) || !isFiniteNumber(value["total"])) return null;
   const byField: Record<string, number> = {};
@@ -414,7 +448,7 @@ export function decodeWildPoints(value: unknown): WildPoints | null {
  * Telemetry. Required: `t`, `sent_at`, a `measurement` object (fields the board did not give
  * read NaN), `sim` (object or null), `thrusters`. The command is a motion command or names
  * thrusters (manual mode). The fields later servers add (`control`, `autopilot`, `estimate`,
- * `link`, `wild_points`) are null when absent or malformed.
+ * `link`, `wild_points`, `measurement_state`) are null when absent or malformed.
  */
 export function decodeTelemetry(value: unknown): Telemetry | null {
   if (!isRecord(value)) return null;
@@ -433,6 +467,7 @@ export function decodeTelemetry(value: unknown): Telemetry | null {
     t,
     sent_at,
     measurement,
+    measurement_state: decodeMeasurementStates(value["measurement_state"]),
     sim,
     command,
     manual,

@@ -1,6 +1,7 @@
 /** Display helpers of the operator page (pure). */
 
-import { clampUnit, formatFixed, radToDeg } from "../lib/units";
+import type { MeasurementState } from "../lib/protocol";
+import { clampUnit, formatFixed, formatHeading, radToDeg } from "../lib/units";
 
 /** Bar geometry for a value in [-1, 1] on a meter centred on zero (percent of the width). */
 export function barGeometry(value: number): { left: number; width: number; reverse: boolean } {
@@ -17,6 +18,40 @@ export function formatDeg(rad: number | null | undefined, signed = false): strin
 /** A value with `decimals`, "—" for null/undefined/NaN. */
 export function fmt(value: number | null | undefined, decimals: number, signed = false): string {
   return value === null || value === undefined ? "—" : formatFixed(value, decimals, signed);
+}
+
+/** What the HUD shows for a measurement that is not valid yet: a word, never a number. */
+export const INITIALISING = "initialising";
+
+/** A measurement's unit is shown after it unless it is initialising (no number). */
+export function showsUnit(state: MeasurementState | null | undefined): boolean {
+  return state !== "initialising";
+}
+
+/**
+ * A measurement for the HUD: "initialising" while the server says so (whatever value came
+ * with it), else the value with `decimals` ("—" when unknown).
+ */
+export function measurementText(
+  value: number | null | undefined,
+  state: MeasurementState | null | undefined,
+  decimals: number,
+  signed = false,
+): string {
+  if (state === "initialising") return INITIALISING;
+  return value === null || value === undefined || Number.isNaN(value) ? "—" : formatFixed(value, decimals, signed);
+}
+
+/** An angle measurement (radians) in degrees with one decimal, "initialising" while it is. */
+export function measurementDeg(rad: number | null | undefined, state: MeasurementState | null | undefined, signed = false): string {
+  if (state === "initialising") return INITIALISING;
+  return rad === null || rad === undefined || Number.isNaN(rad) ? "—" : formatFixed(radToDeg(rad), 1, signed);
+}
+
+/** A heading measurement (radians) as the compass shows it, "initialising" while it is. */
+export function measurementHeading(rad: number | null | undefined, state: MeasurementState | null | undefined): string {
+  if (state === "initialising") return INITIALISING;
+  return formatHeading(rad ?? Number.NaN);
 }
 
 /** Video files play in <video>; anything else (MJPEG streams, snapshots) in <img>. */

@@ -11,11 +11,26 @@ import type { Rotation } from "../lib/prefs";
 import type { CameraInfo, CameraStatus, RecordingStatus } from "../lib/protocol";
 import { formatHeading, headingDeg, radToDeg } from "../lib/units";
 import type { OperatorState } from "./controller";
-import { CAMERA_RETRY_MS, barGeometry, cameraElement, fmt, formatDeg, retryUrl } from "./format";
+import type { MeasurementState } from "../lib/protocol";
+import {
+  CAMERA_RETRY_MS,
+  barGeometry,
+  cameraElement,
+  fmt,
+  measurementDeg,
+  measurementHeading,
+  measurementText,
+  retryUrl,
+  showsUnit,
+} from "./format";
 
 const TAPE_SPAN = 120;
 
-export function CompassTape(props: { heading: number | null; setpoint: number | null }): preact.JSX.Element {
+export function CompassTape(props: {
+  heading: number | null;
+  setpoint: number | null;
+  state?: MeasurementState | undefined;
+}): preact.JSX.Element {
   const heading = props.heading === null ? Number.NaN : headingDeg(props.heading);
   const setpoint = props.setpoint === null ? null : headingDeg(props.setpoint);
   const ticks = compassTicks(heading, TAPE_SPAN, 5);
@@ -37,14 +52,20 @@ export function CompassTape(props: { heading: number | null; setpoint: number | 
         />
       )}
       <span class="lubber" aria-hidden="true" />
-      <span class="compass-readout" id="hud-heading" data-testid="hud-heading">
-        {formatHeading(props.heading ?? Number.NaN)}°
+      <span class="compass-readout" id="hud-heading" data-testid="hud-heading" data-state={props.state ?? "valid"}>
+        {measurementHeading(props.heading, props.state)}
+        {showsUnit(props.state) ? "°" : ""}
       </span>
     </div>
   );
 }
 
-export function Attitude(props: { roll: number; pitch: number }): preact.JSX.Element {
+export function Attitude(props: {
+  roll: number;
+  pitch: number;
+  rollState?: MeasurementState | undefined;
+  pitchState?: MeasurementState | undefined;
+}): preact.JSX.Element {
   const roll = Number.isFinite(props.roll) ? radToDeg(props.roll) : 0;
   const pitch = Number.isFinite(props.pitch) ? radToDeg(props.pitch) : 0;
   // the horizon moves opposite to the vehicle: 1° of pitch = 1.5 % of the gauge
@@ -55,10 +76,12 @@ export function Attitude(props: { roll: number; pitch: number }): preact.JSX.Ele
       <span class="wings" aria-hidden="true" />
       <div class="attitude-text">
         <span>
-          roll <b id="hud-roll" data-testid="hud-roll">{formatDeg(props.roll, true)}</b>°
+          roll <b id="hud-roll" data-testid="hud-roll">{measurementDeg(props.roll, props.rollState, true)}</b>
+          {showsUnit(props.rollState) ? "°" : ""}
         </span>
         <span>
-          pitch <b id="hud-pitch" data-testid="hud-pitch">{formatDeg(props.pitch, true)}</b>°
+          pitch <b id="hud-pitch" data-testid="hud-pitch">{measurementDeg(props.pitch, props.pitchState, true)}</b>
+          {showsUnit(props.pitchState) ? "°" : ""}
         </span>
       </div>
     </div>
@@ -166,6 +189,7 @@ export function Hud(props: { s: OperatorState }): preact.JSX.Element {
   const { s } = props;
   const t = s.telemetry;
   const m = t?.measurement;
+  const ms = t?.measurement_state ?? null;
   const ap = s.control?.autopilot ?? null;
   const apStatus = t?.autopilot ?? null;
   const headingSp = ap?.heading ?? apStatus?.heading?.setpoint ?? null;
@@ -173,32 +197,47 @@ export function Hud(props: { s: OperatorState }): preact.JSX.Element {
   const link = s.link;
   return (
     <div class="hud" data-stale={s.telemetryState !== "live"}>
-      <CompassTape heading={m ? m.heading : null} setpoint={headingSp} />
+      <CompassTape heading={m ? m.heading : null} setpoint={headingSp} state={ms?.heading} />
       <div class="hud-left">
-        <Attitude roll={m?.roll ?? Number.NaN} pitch={m?.pitch ?? Number.NaN} />
+        <Attitude roll={m?.roll ?? Number.NaN} pitch={m?.pitch ?? Number.NaN} rollState={ms?.roll} pitchState={ms?.pitch} />
         <HudBox title="Crew">
           <span data-testid="hud-pilot">pilot {s.pilotName ?? "nobody"}</span>
           <span>{s.presence.reduce((n, e) => n + e.connections, 0)} watching</span>
         </HudBox>
         <HudBox title="Power">
           <span>
-            <b data-testid="hud-voltage">{fmt(m?.voltage, 1)}</b> V · <b data-testid="hud-current">{fmt(m?.current, 2)}</b> A
+            <b data-testid="hud-voltage">{measurementText(m?.voltage, ms?.voltage, 1)}</b>
+            {showsUnit(ms?.voltage) ? " V" : ""} · <b data-testid="hud-current">{measurementText(m?.current, ms?.current, 2)}</b>
+            {showsUnit(ms?.current) ? " A" : ""}
           </span>
         </HudBox>
       </div>
       <div class="hud-right">
         <HudBox title="Depth" class="depth-box">
           <span class="big">
-            <b data-testid="hud-depth">{fmt(m?.depth, 2)}</b> m
+            <b data-testid="hud-depth" data-state={ms?.depth ?? "valid"}>
+              {measurementText(m?.depth, ms?.depth, 2)}
+            </b>
+            {showsUnit(ms?.depth) ? " m" : ""}
           </span>
           <span class="setpoint" data-testid="hud-depth-setpoint">
             {depthSp === null ? "autopilot off" : `set ${fmt(depthSp, 2)} m`}
           </span>
+          {apStatus?.depth?.waiting ? (
+            <span class="setpoint warn" data-testid="hud-depth-waiting">
+              {apStatus.depth.waiting}
+            </span>
+          ) : null}
         </HudBox>
         <HudBox title="Heading autopilot">
           <span class="setpoint" data-testid="hud-heading-setpoint">
             {headingSp === null ? "off" : `set ${formatHeading(headingSp)}°`}
           </span>
+          {apStatus?.heading?.waiting ? (
+            <span class="setpoint warn" data-testid="hud-heading-waiting">
+              {apStatus.heading.waiting}
+            </span>
+          ) : null}
         </HudBox>
         <HudBox title="Link">
           <span data-testid="hud-link" data-state={s.status === "connected" ? (link && !link.up ? "down" : "up") : "down"}>

@@ -17,7 +17,16 @@ import {
   saveRotation,
 } from "../../src/lib/prefs";
 import { Store } from "../../src/lib/store";
-import { cameraElement, downFor, formatDeg, retryUrl } from "../../src/operator/format";
+import {
+  cameraElement,
+  downFor,
+  formatDeg,
+  measurementDeg,
+  measurementHeading,
+  measurementText,
+  retryUrl,
+  showsUnit,
+} from "../../src/operator/format";
 
 describe("demands", () => {
   it("only the selected input mode drives, never the headset, never in DP", () => {
@@ -236,5 +245,26 @@ describe("camera feed retries", () => {
     expect(retryUrl("/camera/rov.mjpg", 1)).toBe("/camera/rov.mjpg?retry=1");
     expect(retryUrl("/camera/rov.mjpg?token=t", 2)).toBe("/camera/rov.mjpg?token=t&retry=2");
     expect(retryUrl("http://cam/x.jpg#f", 3)).toBe("http://cam/x.jpg?retry=3#f");
+  });
+});
+
+describe("measurements that are initialising (no valid reading since link up or board reset)", () => {
+  it("show the word, never a number, whatever value came with them", () => {
+    expect(measurementText(0, "initialising", 2)).toBe("initialising");
+    expect(measurementText(1.2, "initialising", 2)).toBe("initialising");
+    expect(measurementText(Number.NaN, "initialising", 2)).toBe("initialising");
+    expect(measurementDeg(0, "initialising", true)).toBe("initialising");
+    expect(measurementHeading(0, "initialising")).toBe("initialising");
+    expect(showsUnit("initialising")).toBe(false);
+  });
+
+  it("valid, stale or unknown state: the value (a dash when there is none)", () => {
+    expect(measurementText(1.2, "valid", 2)).toBe("1.20");
+    expect(measurementText(1.2, "stale", 2)).toBe("1.20");
+    expect(measurementText(1.2, null, 2)).toBe("1.20");
+    expect(measurementText(Number.NaN, "valid", 2)).toBe("—");
+    expect(measurementDeg(Math.PI / 2, "valid")).toBe("90.0");
+    expect(measurementHeading(Math.PI, undefined)).toBe("180.0");
+    expect(showsUnit("valid") && showsUnit("stale") && showsUnit(null)).toBe(true);
   });
 });

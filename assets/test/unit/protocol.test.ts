@@ -53,6 +53,7 @@ const helm = {
 const plain = (input: Record<string, unknown>, over: Record<string, unknown> = {}): Record<string, unknown> => ({
   ...telemetry,
   manual: null,
+  measurement_state: null,
   control: null,
   autopilot: null,
   estimate: null,
@@ -87,6 +88,23 @@ describe("decodeTelemetry", () => {
     expect(decoded?.measurement.heading).toBe(3.1);
   });
 
+  it("decodes measurement_state; null unless every measurement has a known state", () => {
+    const states = { depth: "initialising", heading: "valid", roll: "valid", pitch: "valid", voltage: "stale", current: "valid" };
+    const input = { ...telemetry, measurement: { ...telemetry.measurement, depth: null }, measurement_state: states };
+    const d = decodeTelemetry(input);
+    expect(d?.measurement_state).toEqual(states);
+    expect(d?.measurement.depth).toBeNaN();
+    expect(decodeTelemetry({ ...telemetry, measurement_state: { ...states, depth: "maybe" } })?.measurement_state).toBeNull();
+    const { current: _current, ...five } = states;
+    expect(decodeTelemetry({ ...telemetry, measurement_state: five })?.measurement_state).toBeNull();
+  });
+
+  it("decodes why an engaged autopilot waits", () => {
+    const waiting = "depth hold: depth is initialising (the board's depth sensor has not given consistent readings yet)";
+    const d = decodeTelemetry({ ...telemetry, autopilot: { depth: { setpoint: 2, output: 0, overridden: false, waiting }, heading: null } });
+    expect(d?.autopilot?.depth).toEqual({ setpoint: 2, output: 0, waiting });
+  });
+
   it("decodes a manual command (thrusters named) as `manual`", () => {
     const decoded = decodeTelemetry({ ...telemetry, command: { port: 0.5, vertical: -1, starboard: 0 } });
     expect(decoded?.command).toBeNull();
@@ -104,7 +122,7 @@ describe("decodeTelemetry", () => {
     };
     const d = decodeTelemetry(input);
     expect(d?.control).toEqual({ mode: "dp", gain: 0.7, lights: 100, laser: 0, tilt: 0.2, run_mode: "simulator", autopilot: { depth: 2, heading: null } });
-    expect(d?.autopilot).toEqual({ depth: { setpoint: 2, output: 0.3 }, heading: null });
+    expect(d?.autopilot).toEqual({ depth: { setpoint: 2, output: 0.3, waiting: null }, heading: null });
     expect(d?.estimate).toEqual({ depth: 1.2, depth_rate: 0.1, heading: 3, yaw_rate: 0.01 });
     expect(d?.link).toEqual({ up: false, reason: "hangup: end of file on the line" });
     expect(d?.wild_points).toEqual({ total: 4, by_field: { hdgd: 3, deap: 1 } });

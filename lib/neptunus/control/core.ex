@@ -13,7 +13,10 @@ defmodule Neptunus.Control.Core do
     * `{:lights, 0..255}`, `{:laser, 0..255}`, `{:tilt, rad}` — set them on the board now
       (never coupled to thrust: the thesis' lights waited for the next thrust command, §13.1);
     * `{:run_mode, :simulator | :normal, seed}` — move commands and telemetry to a simulator
-      seeded with `seed` (`%{depth, heading}` or nil), or back to the real board.
+      seeded with `seed` (`%{depth, heading}` or nil), or back to the real board;
+    * `{:notice, text}` — tell the pilot: an engaged autopilot stopped acting (its measurement
+      went back to initialising after a board reset, or stale, or the estimate stopped) or
+      acts again.
 
   ## Control modes
 
@@ -48,10 +51,17 @@ defmodule Neptunus.Control.Core do
   ## Estimates
 
   `estimate/3` gives the latest estimate `%{t, depth, depth_rate, heading, yaw_rate,
-  position}` (SI, heading in [0, 2π), `position` `%{x, y}` or nil) and the time it arrived.
-  Engaging an autopilot or DP needs an estimate no older than `stale_after` (default 1 s);
-  while the estimate is older than that, the autopilots' outputs are zero (their setpoints
-  and trims are kept) until estimates come again.
+  position, measurement_state}` (SI, heading in [0, 2π), `position` `%{x, y}` or nil,
+  depth/heading nil while not estimated, `measurement_state` `%{depth, heading}` each
+  `:initialising | :valid | :stale`, optional) and the time it arrived. Engaging an autopilot
+  or DP needs an estimate no older than `stale_after` (default 1 s) in which the axis'
+  measurement is valid: engaging on an initialising or stale measurement is refused with a
+  reason a pilot can read (`unavailable/2`, e.g. "depth hold: depth is initialising (the
+  board's depth sensor has not given consistent readings yet)"). While the estimate is older
+  than that, every autopilot's output is zero; while an axis' measurement is not valid (a
+  board reset puts it back to initialising), that autopilot's output is zero — setpoints and
+  trims kept in both cases — until it is valid again, and the pilot is told
+  (`{:notice, text}`, and `waiting` in telemetry's `autopilot`).
   """
 
   alias Neptunus.Allocation
@@ -85,7 +95,8 @@ defmodule Neptunus.Control.Core do
     thrusters: %{port: 0.0, vertical: 0.0, starboard: 0.0},
     stale_after: 1.0,
     deadband: 0.05,
-    dp_opts: []
+    dp_opts: [],
+    waiting: %{depth: nil, heading: nil}
   ]
 
   @type action ::
@@ -95,6 +106,7 @@ defmodule Neptunus.Control.Core do
           | {:laser, 0..255}
           | {:tilt, float()}
           | {:run_mode, Command.run_mode(), %{depth: float(), heading: float()} | nil}
+          | {:notice, String.t()}
 
   @typedoc """
   * `mode`, `gain`, `lights`, `laser`, `tilt` (rad), `run_mode` — as set by the pilot;
@@ -104,6 +116,8 @@ defmodule Neptunus.Control.Core do
   * `depth`, `heading` — the autopilots; `dp` — DP when in mode dp, else nil
   * `estimate`, `estimate_at` — the latest estimate and when it came (s, the caller's clock)
   * `thrusters` — the output in force
+  * `waiting` — per autopilot, why it gives no output now (its measurement initialising or
+    stale, no current estimate), nil when it acts or is off
   """
   @type t :: %__MODULE__{
           mode: Command.control_mode(),
@@ -123,7 +137,8 @@ defmodule Neptunus.Control.Core do
           thrusters: Allocation.thrusters(),
           stale_after: float(),
           deadband: float(),
-          dp_opts: keyword()
+          dp_opts: keyword(),
+          waiting: %{depth: String.t() | nil, heading: String.t() | nil}
         }
 
   @doc """
@@ -170,8 +185,14 @@ defmodule Neptunus.Control.Core do
   def command(core, {:set_control_mode, :dp}, now) do
     case fresh_estimate(core, now) do
       %{position: %{x: _, y: _}} = estimate ->
-        {core, actions} = pilot_stop(core, "control_mode_changed")
-        {:ok, enter_dp(core, estimate), actions}
+        case unavailable(estimate, :depth) || unavailable(estimate, :heading) do
+          nil ->
+            {core, actions} = pilot_stop(core, "control_mode_changed")
+            {:ok, enter_dp(core, estimate), actions}
+
+          reason ->
+            {:error, "dp needs " <> reason}
+        end
 
       _ ->
         {:error, "dp needs a position source: this vehicle has none"}
@@ -236,12 +257,21 @@ defmodule Neptunus.Control.Core do
         {:error, "no current estimate of depth and heading (no board samples): cannot engage"}
 
       estimate ->
-        core =
-          core
-          |> set_axis(:depth, depth, estimate)
-          |> set_axis(:heading, heading, estimate)
+        refused =
+          Enum.find_value([depth: depth, heading: heading], fn {axis, value} ->
+            if value not in [nil, :unchanged], do: unavailable(estimate, axis)
+          end)
 
-        {:ok, core, []} |> remix()
+        if refused do
+          {:error, refused}
+        else
+          core =
+            core
+            |> set_axis(:depth, depth, estimate)
+            |> set_axis(:heading, heading, estimate)
+
+          {:ok, core, []} |> remix()
+        end
     end
   end
 
@@ -252,8 +282,8 @@ defmodule Neptunus.Control.Core do
     if mode in core.run_modes do
       seed =
         case fresh_estimate(core, now) || core.estimate do
-          %{depth: d, heading: h} -> %{depth: d, heading: h}
-          nil -> nil
+          %{depth: d, heading: h} when is_number(d) and is_number(h) -> %{depth: d, heading: h}
+          _ -> nil
         end
 
       {core, actions} = safety_stop(core, "run_mode_changed")
@@ -310,38 +340,83 @@ defmodule Neptunus.Control.Core do
   @spec tick(t(), number(), number()) :: {t(), [action()]}
   def tick(core, dt, now) do
     if active?(core) do
+      estimate = fresh_estimate(core, now)
+
       core =
-        case fresh_estimate(core, now) do
+        case estimate do
           nil -> idle(core)
           estimate -> run(core, estimate, dt)
         end
 
-      emit(core)
+      {core, notices} = waiting(core, estimate)
+      {core, actions} = emit(core)
+      {core, notices ++ actions}
     else
       {core, []}
     end
   end
 
+  @doc """
+  Why the `axis` (`:depth` or `:heading`) autopilot cannot act on `estimate`, as a sentence a
+  pilot can read, or nil when it can: the estimate's `measurement_state` for the axis is not
+  `:valid`, or it has no value.
+  """
+  @spec unavailable(map(), :depth | :heading) :: String.t() | nil
+  def unavailable(estimate, axis) do
+    state = get_in(estimate, [Access.key(:measurement_state, %{}), Access.key(axis)])
+    value = Map.get(estimate, axis)
+
+    case state do
+      :initialising ->
+        "#{label(axis)}: #{axis} is initialising (#{sensor(axis)} has not given consistent " <>
+          "readings yet)"
+
+      :stale ->
+        "#{label(axis)}: #{axis} is stale (no plausible reading from #{sensor(axis)} for 2 s)"
+
+      _ when not is_number(value) ->
+        "#{label(axis)}: no #{axis} estimate"
+
+      _ ->
+        nil
+    end
+  end
+
+  defp label(:depth), do: "depth hold"
+  defp label(:heading), do: "heading hold"
+  defp sensor(:depth), do: "the board's depth sensor"
+  defp sensor(:heading), do: "the board's compass"
+
   defp run(core, estimate, dt) do
+    heading_ok? = unavailable(estimate, :heading) == nil
+
     core =
       case {core.dp, estimate[:position]} do
         {nil, _} ->
           core
 
-        {dp, %{x: _, y: _} = position} ->
+        {dp, %{x: _, y: _} = position} when heading_ok? ->
           dp = DP.step(dp, position, estimate.heading, dt)
           heading = Autopilot.retarget(core.heading, DP.heading_setpoint(dp, position))
           %{core | dp: dp, heading: heading}
 
-        {dp, nil} ->
+        {dp, _} ->
           %{core | dp: %{dp | output: 0.0}}
       end
 
     %{
       core
-      | depth: Autopilot.step(core.depth, estimate.depth, estimate[:depth_rate], dt),
-        heading: Autopilot.step(core.heading, estimate.heading, estimate[:yaw_rate], dt)
+      | depth: run_axis(core.depth, estimate, :depth, :depth_rate, dt),
+        heading: run_axis(core.heading, estimate, :heading, :yaw_rate, dt)
     }
+  end
+
+  # an axis whose measurement is not valid (initialising after a board reset, stale) idles
+  defp run_axis(ap, estimate, key, rate_key, dt) do
+    case unavailable(estimate, key) do
+      nil -> Autopilot.step(ap, Map.fetch!(estimate, key), estimate[rate_key], dt)
+      _reason -> Autopilot.idle(ap)
+    end
   end
 
   defp idle(core) do
@@ -351,6 +426,36 @@ defmodule Neptunus.Control.Core do
         heading: Autopilot.idle(core.heading),
         dp: core.dp && %{core.dp | output: 0.0}
     }
+  end
+
+  # Why each engaged autopilot gives no output now (nil: it acts); a change is told to the
+  # pilot as a `{:notice, text}`.
+  defp waiting(core, estimate) do
+    Enum.reduce([:depth, :heading], {core, []}, fn axis, {core, notices} ->
+      reason =
+        cond do
+          not Autopilot.engaged?(Map.fetch!(core, axis)) -> nil
+          estimate == nil -> "#{label(axis)}: no current estimate (no board samples for 1 s)"
+          true -> unavailable(estimate, axis)
+        end
+
+      before = core.waiting[axis]
+      core = %{core | waiting: Map.put(core.waiting, axis, reason)}
+
+      cond do
+        reason == before ->
+          {core, notices}
+
+        reason != nil ->
+          {core, notices ++ [{:notice, reason <> ": output zero until it is valid"}]}
+
+        Autopilot.engaged?(Map.fetch!(core, axis)) ->
+          {core, notices ++ [{:notice, "#{label(axis)}: #{axis} valid again, holding"}]}
+
+        true ->
+          {core, notices}
+      end
+    end)
   end
 
   defp emit(core) do
@@ -400,17 +505,21 @@ defmodule Neptunus.Control.Core do
 
   @doc """
   Telemetry's `autopilot`: `%{depth, heading, position}`, each nil when disengaged, else
-  depth and heading `%{setpoint, output, overridden}` and position (DP)
+  depth and heading `%{setpoint, output, overridden, waiting}` (`waiting`: why it gives no
+  output now, nil when it acts) and position (DP)
   `%{x, y, heading, phase, distance, output}`.
   """
   @spec autopilot(t()) :: map()
   def autopilot(core) do
     %{
-      depth: Autopilot.public(core.depth),
-      heading: Autopilot.public(core.heading),
+      depth: with_waiting(Autopilot.public(core.depth), core.waiting.depth),
+      heading: with_waiting(Autopilot.public(core.heading), core.waiting.heading),
       position: core.dp && DP.public(core.dp)
     }
   end
+
+  defp with_waiting(nil, _reason), do: nil
+  defp with_waiting(public, reason), do: Map.put(public, :waiting, reason)
 
   # --- internals -----------------------------------------------------------------------------
 
@@ -427,6 +536,7 @@ defmodule Neptunus.Control.Core do
         pilot: zero(if core.mode == :dp, do: :motion, else: core.mode),
         depth: Autopilot.disengage(core.depth),
         heading: Autopilot.disengage(core.heading),
+        waiting: %{depth: nil, heading: nil},
         thrusters: Allocation.neutral()
     }
 
@@ -478,17 +588,26 @@ defmodule Neptunus.Control.Core do
 
   defp set_axis(core, _axis, :unchanged, _estimate), do: core
 
-  defp set_axis(core, axis, nil, _estimate),
-    do: Map.update!(core, axis, &Autopilot.disengage/1)
+  defp set_axis(core, axis, value, estimate) when value != nil do
+    core
+    |> Map.put(:waiting, Map.put(core.waiting, axis, nil))
+    |> set_engaged(axis, value, estimate)
+  end
 
-  defp set_axis(%__MODULE__{dp: %DP{} = dp} = core, :heading, value, estimate) do
+  defp set_axis(core, axis, nil, _estimate),
+    do:
+      core
+      |> Map.update!(axis, &Autopilot.disengage/1)
+      |> Map.put(:waiting, Map.put(core.waiting, axis, nil))
+
+  defp set_engaged(%__MODULE__{dp: %DP{} = dp} = core, :heading, value, estimate) do
     dp = DP.set_heading(dp, if(value == :hold, do: estimate.heading, else: value))
     heading = DP.heading_setpoint(dp, estimate[:position])
     ap = Autopilot.engage(core.heading, heading, estimate.heading, estimate[:yaw_rate], false)
     %{core | dp: dp, heading: ap}
   end
 
-  defp set_axis(core, axis, value, estimate) do
+  defp set_engaged(core, axis, value, estimate) do
     {key, rate_key, input} =
       case axis do
         :depth -> {:depth, :depth_rate, core.pilot[:heave] || 0.0}

@@ -18,8 +18,11 @@ defmodule Neptunus.Scenario.Run do
 
   The estimate is `Neptunus.Estimator` — the same filter as a live vehicle's
   `Neptunus.Vehicle.Navigation` — run on every step's measurements (wild points and all) and
-  told every thruster command, with the scenario's vehicle as its model. An estimate that does
-  not exist (no plausible reading yet) is an empty field.
+  told every thruster command, with the scenario's vehicle as its model. The scenario starts
+  with the vehicle's sensors up (it has been running before; there is no board boot to wait
+  out), so the first reading is valid at once (`settle: 0`, `agree: 1`); everything after
+  that — wild points, re-acquisition — is the live filter's. An estimate that does not exist
+  (no plausible reading) is an empty field.
 
   The control is `Neptunus.Control.Core` — the live vehicle's — fed with that estimate (and
   the simulator's truth as the position source for DP): scenario events are its commands,
@@ -31,6 +34,9 @@ defmodule Neptunus.Scenario.Run do
   alias Neptunus.Control.Core
 
   @control_period 0.02
+  # the scenario's vehicle has been running before it starts: its sensors are up, there is no
+  # boot placeholder to wait out, so its first reading is valid (a live vehicle's are not)
+  @sensors_up [settle: 0.0, agree: 1]
 
   @state_columns ~w(x y z phi theta psi u v w p q r)a
   @meas_columns ~w(depth heading roll pitch voltage current)a
@@ -54,7 +60,10 @@ defmodule Neptunus.Scenario.Run do
   def rows(%Scenario{} = scenario, every \\ 1) when is_integer(every) and every >= 1 do
     last = Scenario.steps(scenario)
     sim = Sim.new(Scenario.sim_options(scenario) ++ [native: true])
-    est = [vehicle: scenario.params] |> Estimator.new() |> observe(sim)
+
+    est =
+      [vehicle: scenario.params] |> Keyword.merge(@sensors_up) |> Estimator.new() |> observe(sim)
+
     control = %{core: Core.new(gain: scenario.gain), next_tick: 0} |> estimate(est, sim)
 
     Stream.unfold({0, sim, scenario.events, control, est}, fn
@@ -85,7 +94,8 @@ defmodule Neptunus.Scenario.Run do
   defp estimate(control, est, %Sim{dyn: dyn} = sim) do
     case Estimator.estimate(est) do
       %{depth: d, heading: h} = e when is_number(d) and is_number(h) ->
-        e = Map.put(e, :position, %{x: dyn.x, y: dyn.y})
+        states = Map.take(Estimator.states(est), [:depth, :heading])
+        e = Map.merge(e, %{position: %{x: dyn.x, y: dyn.y}, measurement_state: states})
         %{control | core: Core.estimate(control.core, e, Sim.time(sim))}
 
       _ ->

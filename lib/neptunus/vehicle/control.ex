@@ -10,8 +10,13 @@ defmodule Neptunus.Vehicle.Control do
   command and is the only caller of `thrust/2`, `command/3` and `stop/2` (tests aside).
 
   * **Estimates** come from `Neptunus.Vehicle.Navigation` (`estimate/2`, a cast, on every
-    accepted sample): `%{t, depth, depth_rate, heading, yaw_rate, position}`. Autopilots and DP
-    act on the latest; one older than a second counts as none (see `Neptunus.Control.Core`).
+    sample and on a board reset): `%{t, depth, depth_rate, heading, yaw_rate, position,
+    measurement_state}`. Autopilots and DP act on the latest; one older than a second counts
+    as none, an axis whose measurement is initialising or stale cannot be engaged (the reply
+    says why) and an engaged one gives zero output until it is valid (see
+    `Neptunus.Control.Core`). Such changes are told to the pilot: telemetry's
+    `autopilot.depth.waiting` / `heading.waiting`, and a `log` entry (category `autopilot`)
+    on `"log:<id>"`.
   * **Control loop**: while an autopilot or DP is engaged it runs at `control_hz` (default
     #{50} Hz) on absolute deadlines of the monotonic clock (`Neptunus.Periodic`): each tick
     steps the PIDs by the time elapsed and commands the board when the output changes.
@@ -110,8 +115,9 @@ defmodule Neptunus.Vehicle.Control do
 
   @doc """
   The latest navigation estimate (asynchronous; from `Neptunus.Vehicle.Navigation`):
-  `%{t, depth, depth_rate, heading, yaw_rate, position: %{x, y} | nil}`, SI, heading in
-  [0, 2π).
+  `%{t, depth, depth_rate, heading, yaw_rate, position: %{x, y} | nil, measurement_state:
+  %{depth, heading}}`, SI, heading in [0, 2π), depth/heading nil while not estimated,
+  states `:initialising | :valid | :stale`.
   """
   @spec estimate(String.t(), map()) :: :ok
   def estimate(id, estimate), do: GenServer.cast(via(id), {:estimate, estimate})
@@ -267,6 +273,18 @@ defmodule Neptunus.Vehicle.Control do
     })
 
     Logger.info("vehicle #{state.id} stopped: #{reason}")
+    state
+  end
+
+  defp act({:notice, text}, state) do
+    PubSub.broadcast(log_topic(state.id), "log", %{
+      category: "autopilot",
+      level: "warning",
+      message: text,
+      at: System.os_time(:millisecond)
+    })
+
+    Logger.info("vehicle #{state.id}: #{text}")
     state
   end
 

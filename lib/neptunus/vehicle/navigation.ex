@@ -5,13 +5,22 @@ defmodule Neptunus.Vehicle.Navigation do
 
     * to `Neptunus.Vehicle.Telemetry` (`Telemetry.sample/2`) as the same sample with its
       `measurement` filtered — each field the last accepted reading, wild points never passed
-      on — plus `estimate` (`%{depth, depth_rate, heading, yaw_rate}`, nil values while there
-      is none) and `wild_points` (`%{total, by_field, by_reason, reacquired}`);
+      on, nil while initialising — plus `measurement_state` (each field `"initialising"`,
+      `"valid"` or `"stale"`), `estimate` (`%{depth, depth_rate, heading, yaw_rate}`, nil
+      values while there is none) and `wild_points` (`%{total, by_field, by_reason,
+      reacquired}`);
     * to `Neptunus.Vehicle.Control` (`Control.estimate/2`) as
-      `%{t, depth, depth_rate, heading, yaw_rate, position}` — only when both depth and
-      heading are estimated, so Control sees the estimate go stale (and its autopilots idle)
-      rather than a nil. `position` is `%{x, y}` (m, NED) from the simulator's truth or a
+      `%{t, depth, depth_rate, heading, yaw_rate, position, measurement_state: %{depth,
+      heading}}` (states as atoms; depth and heading values nil while not estimated), so
+      Control can say why an autopilot cannot engage and idle an autopilot whose measurement
+      is initialising. `position` is `%{x, y}` (m, NED) from the simulator's truth or a
       board's `position` field, nil without a position source.
+
+  **Board resets.** `board_reset/2` (the board link calls it when its link (re)opens and when
+  it sees the board reset) puts every measurement back to initialising and restarts the
+  settle time (`Neptunus.Estimator.reset/1`), and tells Control at once; a board's uptime
+  (`sample.board.board_time`) going backwards does the same from the samples themselves.
+  See `Neptunus.Estimator` for when a measurement becomes valid again.
 
   The thruster commands come in through `command/2` (`Neptunus.Vehicle.Board.go/2` sends
   every command here too, and Control sends the simulator's in run mode simulator): they
@@ -27,6 +36,8 @@ defmodule Neptunus.Vehicle.Navigation do
   """
   use GenServer
 
+  require Logger
+
   alias Neptunus.Estimator
   alias Neptunus.Vehicle.{Board, Control, Telemetry}
 
@@ -36,10 +47,11 @@ defmodule Neptunus.Vehicle.Navigation do
             id: String.t(),
             estimator: Neptunus.Estimator.t() | nil,
             estimator_opts: keyword(),
-            samples: non_neg_integer()
+            samples: non_neg_integer(),
+            board_resets: non_neg_integer()
           }
     @enforce_keys [:id, :estimator_opts]
-    defstruct [:id, :estimator, :estimator_opts, samples: 0]
+    defstruct [:id, :estimator, :estimator_opts, samples: 0, board_resets: 0]
   end
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -51,14 +63,23 @@ defmodule Neptunus.Vehicle.Navigation do
   @spec sample(String.t(), Board.sample()) :: :ok
   def sample(id, sample), do: GenServer.cast(via(id), {:sample, sample})
 
+  @doc """
+  The board behind vehicle `id` reset, or its link (re)opened (asynchronous; `reason` is
+  logged): every measurement is initialising again until the board's readings agree.
+  """
+  @spec board_reset(String.t(), String.t()) :: :ok
+  def board_reset(id, reason) when is_binary(reason),
+    do: GenServer.cast(via(id), {:board_reset, reason})
+
   @doc "Reports the thruster command sent to the board (asynchronous; see `Board.go/2`)."
   @spec command(String.t(), map()) :: :ok
   def command(id, thrusters), do: GenServer.cast(via(id), {:command, thrusters})
 
   @doc """
   The navigation state: the latest `estimate` (as sent to Control, position excepted),
-  filtered `measurement`, `wild_points`, the number of `samples` taken, and the thruster
-  `command` the filter's model is driven by (nil for a model-free filter).
+  filtered `measurement`, `measurement_state` (atoms), `wild_points`, the number of
+  `samples` taken, `board_resets` (seen in the samples or told by `board_reset/2`), and the
+  thruster `command` the filter's model is driven by (nil for a model-free filter).
   """
   @spec status(String.t()) :: map()
   def status(id), do: GenServer.call(via(id), :status)
@@ -79,42 +100,88 @@ defmodule Neptunus.Vehicle.Navigation do
 
   @impl true
   def handle_cast({:sample, sample}, state) do
+    before = state.estimator
+
     estimator =
-      Estimator.update(state.estimator, Map.get(sample, :t), Map.get(sample, :measurement))
+      Estimator.update(
+        before,
+        Map.get(sample, :t),
+        Map.get(sample, :measurement),
+        board_time(sample)
+      )
+
+    resets =
+      if board_reset?(before, estimator) do
+        Logger.warning(
+          "vehicle #{state.id}: the board's clock went back (a board reset): " <>
+            "every measurement is initialising"
+        )
+
+        state.board_resets + 1
+      else
+        state.board_resets
+      end
 
     estimate = Estimator.estimate(estimator)
+    states = Estimator.states(estimator)
 
     Telemetry.sample(
       state.id,
       Map.merge(sample, %{
         measurement: Estimator.measurement(estimator),
+        measurement_state: Map.new(states, fn {k, v} -> {k, Atom.to_string(v)} end),
         estimate: Map.delete(estimate, :t),
         wild_points: Estimator.wild_points(estimator)
       })
     )
 
-    if estimate.depth != nil and estimate.heading != nil do
-      Control.estimate(state.id, Map.put(estimate, :position, position(sample)))
-    end
+    Control.estimate(state.id, control_estimate(estimate, states, position(sample)))
 
-    {:noreply, %{state | estimator: estimator, samples: state.samples + 1}}
+    {:noreply, %{state | estimator: estimator, samples: state.samples + 1, board_resets: resets}}
   end
 
   def handle_cast({:command, thrusters}, state),
     do: {:noreply, %{state | estimator: Estimator.command(state.estimator, thrusters)}}
+
+  def handle_cast({:board_reset, reason}, state) do
+    Logger.info("vehicle #{state.id}: board reset (#{reason}): every measurement is initialising")
+    estimator = Estimator.reset(state.estimator)
+    estimate = Estimator.estimate(estimator)
+    Control.estimate(state.id, control_estimate(estimate, Estimator.states(estimator), nil))
+    {:noreply, %{state | estimator: estimator, board_resets: state.board_resets + 1}}
+  end
 
   @impl true
   def handle_call(:status, _from, state) do
     reply = %{
       estimate: Estimator.estimate(state.estimator),
       measurement: Estimator.measurement(state.estimator),
+      measurement_state: Estimator.states(state.estimator),
       wild_points: Estimator.wild_points(state.estimator),
       samples: state.samples,
+      board_resets: state.board_resets,
       command: state.estimator.model && state.estimator.model.commands
     }
 
     {:reply, reply, state}
   end
+
+  defp control_estimate(estimate, states, position) do
+    Map.merge(estimate, %{
+      position: position,
+      measurement_state: Map.take(states, [:depth, :heading])
+    })
+  end
+
+  defp board_time(%{board: %{board_time: bt}}), do: bt
+  defp board_time(_sample), do: nil
+
+  # the estimator saw the board's clock go back
+  defp board_reset?(%Estimator{board_time: before}, %Estimator{board_time: now})
+       when is_float(before) and is_float(now),
+       do: now < before
+
+  defp board_reset?(_before, _after), do: false
 
   defp estimator_opts(opts) do
     sim = Keyword.get(opts, :sim, [])

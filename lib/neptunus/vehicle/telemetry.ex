@@ -8,6 +8,7 @@ defmodule Neptunus.Vehicle.Telemetry do
 
       %{t: s, sent_at: epoch ms,
         measurement: %{depth, heading, roll, pitch, voltage, current},
+        measurement_state: %{depth, heading, roll, pitch, voltage, current},
         estimate: %{depth, depth_rate, heading, yaw_rate},
         wild_points: %{total, by_field, by_reason, reacquired},
         sim: %{x, y, z, phi, theta, psi, u, v, w, p, q, r} | nil,
@@ -20,7 +21,10 @@ defmodule Neptunus.Vehicle.Telemetry do
         recording: %{on, error},            # from the vehicle's recorder
         camera: %{running, fps, error}}     # only for a vehicle with a camera
 
-  SI units (m, m/s, rad, rad/s, V, A); heading in [0, 2π). `t` is the vehicle's clock,
+  SI units (m, m/s, rad, rad/s, V, A); heading in [0, 2π). `measurement_state` says for each
+  measurement `"initialising"` (no valid reading since start, link up or board reset: its
+  `measurement` value is nil, and so is its estimate), `"valid"` or `"stale"` (no plausible
+  reading for 2 s: the last value is kept); see `Neptunus.Estimator`. `t` is the vehicle's clock,
   `sent_at` the wall clock at broadcast (for latency measurements only).
 
   The broadcast is paced while someone pilots (`Neptunus.PubSub.broadcast_paced/5`): the
@@ -36,6 +40,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   alias Neptunus.Vehicle.Board
 
   @no_estimate %{depth: nil, depth_rate: nil, heading: nil, yaw_rate: nil}
+  @initialising Map.new(Neptunus.Navigation.WildPoints.fields(), &{&1, "initialising"})
   @no_autopilot %{depth: nil, heading: nil, position: nil}
 
   defmodule State do
@@ -71,8 +76,8 @@ defmodule Neptunus.Vehicle.Telemetry do
 
   @typedoc """
   What navigation reports: a board sample (`t:Neptunus.Vehicle.Board.sample/0`) whose
-  `measurement` holds the accepted values (nil before the first), with `estimate` and
-  `wild_points`.
+  `measurement` holds the accepted values (nil while initialising), with `measurement_state`,
+  `estimate` and `wild_points`.
   """
   @type sample :: %{
           required(:t) => float(),
@@ -217,6 +222,7 @@ defmodule Neptunus.Vehicle.Telemetry do
       t: sample.t,
       sent_at: System.os_time(:microsecond) / 1000,
       measurement: sample.measurement,
+      measurement_state: Map.get(sample, :measurement_state, @initialising),
       estimate: Map.get(sample, :estimate, @no_estimate),
       wild_points:
         Map.get_lazy(sample, :wild_points, &Neptunus.Navigation.WildPoints.new_counts/0),

@@ -319,6 +319,98 @@ defmodule Neptunus.Control.CoreTest do
     end
   end
 
+  describe "measurement states (a board reset puts them back to initialising)" do
+    defp states(depth, heading), do: %{depth: depth, heading: heading}
+
+    defp initialising,
+      do:
+        est(
+          depth: nil,
+          depth_rate: nil,
+          heading: nil,
+          yaw_rate: nil,
+          measurement_state: states(:initialising, :initialising)
+        )
+
+    test "engaging depth or heading hold on an initialising measurement is refused with the reason" do
+      core = core([], initialising())
+
+      assert Core.command(core, ap(:hold), 10.0) ==
+               {:error,
+                "depth hold: depth is initialising (the board's depth sensor has not given " <>
+                  "consistent readings yet)"}
+
+      assert Core.command(core, ap(:unchanged, 1.0), 10.0) ==
+               {:error,
+                "heading hold: heading is initialising (the board's compass has not given " <>
+                  "consistent readings yet)"}
+
+      # depth valid, heading still initialising: depth hold engages, heading hold does not
+      core =
+        Core.estimate(
+          core,
+          est(heading: nil, yaw_rate: nil, measurement_state: states(:valid, :initialising)),
+          10.0
+        )
+
+      assert {:ok, _, _} = Core.command(core, ap(:hold), 10.0)
+
+      assert {:error, "heading hold: heading is initialising" <> _} =
+               Core.command(core, ap(:hold, :hold), 10.0)
+
+      # releasing needs no measurement
+      assert {:ok, _, _} = Core.command(core, ap(nil, nil), 10.0)
+
+      core = Core.estimate(core, est(measurement_state: states(:stale, :valid)), 10.0)
+      assert {:error, "depth hold: depth is stale" <> _} = Core.command(core, ap(2.0), 10.0)
+    end
+
+    test "dp is refused while depth or heading is initialising" do
+      core = core([], %{initialising() | position: %{x: 0.0, y: 0.0}})
+
+      assert {:error, "dp needs depth hold: depth is initialising" <> _} =
+               Core.command(core, {:set_control_mode, :dp}, 10.0)
+    end
+
+    test "an engaged autopilot whose measurement goes back to initialising gives zero output, and the pilot is told" do
+      {core, _} = ok!(core(), ap(2.5, 1.5))
+      {core, _} = Core.tick(core, 0.02, 10.01)
+      assert core.thrusters.vertical > 0 and Core.autopilot(core).depth.waiting == nil
+
+      # the board resets: the estimate still comes, saying initialising
+      core = Core.estimate(core, initialising(), 10.02)
+      {core, actions} = Core.tick(core, 0.02, 10.03)
+      assert gos(actions) == [@neutral]
+
+      assert {:notice,
+              "depth hold: depth is initialising (the board's depth sensor has not given " <>
+                "consistent readings yet): output zero until it is valid"} in actions
+
+      assert {:notice, "heading hold: heading is initialising" <> _} =
+               Enum.find(actions, &match?({:notice, "heading" <> _}, &1))
+
+      assert %{
+               depth: %{
+                 setpoint: 2.5,
+                 output: 0.0,
+                 waiting: "depth hold: depth is initialising" <> _
+               }
+             } = Core.autopilot(core)
+
+      # told once
+      {core, actions} = Core.tick(core, 0.02, 10.04)
+      assert actions == []
+
+      # valid again: it holds again
+      core = Core.estimate(core, est(measurement_state: states(:valid, :valid)), 10.05)
+      {core, actions} = Core.tick(core, 0.02, 10.06)
+      assert [%{vertical: v}] = gos(actions)
+      assert v > 0
+      assert {:notice, "depth hold: depth valid again, holding"} in actions
+      assert Core.autopilot(core).depth.waiting == nil
+    end
+  end
+
   describe "mixing" do
     test "the gain scales the pilot, not the autopilots" do
       {c1, _} = ok!(core(gain: 1.0), ap(3.0))

@@ -34,7 +34,11 @@ defmodule Neptunus.Vehicle.SITLTest do
     assert %{board: :sitl} = Enum.find(Fleet.list(), &(&1.id == id))
 
     # telemetry through the real board path: measurements, no simulator truth
-    assert_receive {:pubsub, _, "telemetry", %{sim: nil, measurement: m}}, 2_000
+    # (once the readings agree: no first reading is trusted)
+    assert_receive {:pubsub, _, "telemetry",
+                    %{sim: nil, measurement: m, measurement_state: %{depth: "valid"}}},
+                   4_000
+
     assert_in_delta m.depth, 1.0, 0.01
     # and the link's state rides along
     assert_receive {:pubsub, _, "telemetry", %{link: %{up: true, reason: "open"}}}, 2_000
@@ -105,7 +109,10 @@ defmodule Neptunus.Vehicle.SITLTest do
     )
 
     # and nothing out of range reached the telemetry
-    assert_receive {:pubsub, _, "telemetry", %{measurement: m}}, 2_000
+    assert_receive {:pubsub, _, "telemetry",
+                    %{measurement: m, measurement_state: %{depth: "valid", voltage: "valid"}}},
+                   4_000
+
     assert m.voltage >= 5.0 and m.voltage <= 20.0
     assert m.depth >= -10.0 and m.depth <= 200.0
   end

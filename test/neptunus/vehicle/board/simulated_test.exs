@@ -26,7 +26,14 @@ defmodule Neptunus.Vehicle.Board.SimulatedTest do
     assert state.sim.dt == 0.01
     assert is_integer(Keyword.fetch!(state.sim.opts, :seed))
 
-    assert_receive {:pubsub, _, "telemetry", %{measurement: m, sim: truth}}, 1_000
+    assert_receive {:pubsub, _, "telemetry",
+                    %{
+                      measurement: m,
+                      sim: truth,
+                      measurement_state: %{depth: "valid", heading: "valid"}
+                    }},
+                   3_000
+
     assert Map.keys(truth) |> Enum.sort() == ~w(p phi psi q r theta u v w x y z)a
     assert is_float(m.depth) and is_float(m.heading)
   end
@@ -38,7 +45,10 @@ defmodule Neptunus.Vehicle.Board.SimulatedTest do
     assert state.sim.sensors == nil
     assert Sim.status(state.sim).seed == 3
 
-    assert_receive {:pubsub, _, "telemetry", %{measurement: m, sim: truth}}, 1_000
+    assert_receive {:pubsub, _, "telemetry",
+                    %{measurement: m, sim: truth, measurement_state: %{depth: "valid"}}},
+                   3_000
+
     assert m.depth == truth.z
     assert_in_delta truth.z, 4.0, 0.01
   end
