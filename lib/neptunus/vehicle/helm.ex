@@ -375,7 +375,10 @@ defmodule Neptunus.Vehicle.Helm do
     notify.(event, payload)
   rescue
     exception ->
-      Logger.warning("helm could not notify #{party.name}: #{Exception.message(exception)}")
+      Logger.warning(
+        "helm could not notify #{Neptunus.Log.safe(party.name)}: " <>
+          Neptunus.Log.safe(Exception.message(exception))
+      )
   end
 
   defp deadman_timer(data), do: {{:timeout, :deadman}, data.tick_ms, :check}
