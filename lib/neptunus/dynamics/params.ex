@@ -316,9 +316,9 @@ defmodule Neptunus.Dynamics.Params do
   # The constants of Neptunus.Dynamics' sub-step count (see "Integration" there):
   # {|M⁻¹| (entry by entry), arm, tether gain}. `arm` = |x_t| + |y_t| + |z_t| of the tether
   # attachment; the tether gain bounds how fast a change of the attachment point's velocity
-  # changes ν̇ per unit of tether stiffness: 2 · ‖M⁻¹ Gᵀ‖∞ · (1 + arm), with Gᵀ the
-  # generalised force of a unit force at the attachment point in each body axis (and 2 for
-  # the slope of the quadratic drag and the rotation to NED).
+  # changes ν̇ per unit of tether stiffness: ‖M⁻¹ Gᵀ‖∞ · (1 + arm), with Gᵀ the generalised
+  # force of a unit force at the attachment point in each body axis. (The drag's slope is
+  # k_t Σ g_i² |w_i| ≤ ⅔ k_t (|v_t| + |v_c|): the margin covers the rotation to NED.)
   defp stiffness(c) do
     {ax, ay, az} = c.tether_at
     m_abs = c.m_inv |> Tuple.to_list() |> Enum.map(&abs/1) |> List.to_tuple()
@@ -340,7 +340,7 @@ defmodule Neptunus.Dynamics.Params do
       end)
       |> Enum.max()
 
-    {m_abs, arm, 2.0 * gain * (1.0 + arm)}
+    {m_abs, arm, gain * (1.0 + arm)}
   end
 
   # The same constants as native-endian doubles for the C loop (Neptunus.Dynamics.Native;
