@@ -7,9 +7,11 @@ defmodule NeptunusWeb.Auth do
     * **local** — the server listens on a loopback address and no secret is configured
       (`Neptunus.Config.auth!/2` allows nothing else without a secret). No logins: every
       connection is a `pilot` named by its `name` parameter, and the pages show a banner
-      saying so. WebSocket upgrades must name a loopback host (`Host: localhost`,
-      `127.x.x.x`, `[::1]`), so a web page on another site cannot reach the vehicle through
-      the operator's browser, not even by DNS rebinding.
+      saying so. Every HTTP request — pages, assets, the API, the camera, WebSocket
+      upgrades — must name a loopback host (`Host: localhost`, `127.x.x.x`, `[::1]`;
+      `check_host/2`, applied by `NeptunusWeb.Guard`), so a web page on another site cannot
+      reach the vehicle or its recordings through the operator's browser, not even by DNS
+      rebinding.
     * **secure** — users with roles `pilot`, `observer` and at most one `main_station` log in
       with `POST /api/login` and get a signed, expiring token (`NeptunusWeb.Auth.Token`),
       passed to the WebSocket as the `token` query parameter. Connections without a token
@@ -18,8 +20,9 @@ defmodule NeptunusWeb.Auth do
 
   In both modes a WebSocket upgrade whose `Origin` is not allowed is refused (cross-site
   WebSocket hijacking): allowed are the configured origins (`NEPTUNUS_ORIGINS`) or, when none
-  are configured, the server's own origin (the `Origin` names the `Host` the request was
-  sent to). Requests without `Origin` come from programs, not browsers, and are let through
+  are configured, the server's own origin (the `Origin` names the scheme the server serves
+  and the `Host` the request was sent to). In secure mode with configured origins every HTTP
+  request's `Host` must be one of their hosts. Requests without `Origin` come from programs, not browsers, and are let through
   to the token check.
 
   ## Configuration (`config :neptunus, :auth`, built by `Neptunus.Config.auth!/2`)
