@@ -4,6 +4,8 @@ defmodule Neptunus.LogTest do
 
   import ExUnit.CaptureLog
 
+  @moduletag :capture_log
+
   alias Neptunus.{Log, PubSub}
   alias Neptunus.Test.Properties
   alias Neptunus.Vehicle.{Helm, Telemetry}
