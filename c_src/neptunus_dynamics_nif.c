@@ -18,7 +18,11 @@
  *
  * Kernel is a binary of native-endian doubles built by Neptunus.Dynamics.Params:
  *   m[36] (Coriolis matrix, zeros when none), m_inv[36], d_l[6], d_q[6], wb, gx, gy, gz,
- *   coriolis (0/1), locked (0/1), tether_k, tether_at[3], n_thrusters, wrench[n][6].
+ *   coriolis (0/1), locked (0/1), tether_k, tether_at[3], n_thrusters, wrench[n][6],
+ *   m_abs[36] (|m_inv| entry by entry), arm, tether_gain (the sub-step constants).
+ *
+ * Each step is split into as many RK4 sub-steps as substeps() (Neptunus.Dynamics'
+ * count_substeps/4) says: 1 in ordinary conditions, more where the model is stiff.
  * State is a 12-tuple of floats {x y z phi theta psi u v w p q r}; Forces and Targets are lists
  * of n floats; Lags a list of n {Decay, Mean} tuples; TauExt a 6-tuple; Current a 3-tuple (NED) held for
  * all N steps, or a list of N 3-tuples, the current of each step (a varying current).
@@ -35,6 +39,9 @@
 #define KERNEL_FIXED 95 /* doubles before the wrenches */
 #define TWO_PI (2 * 3.141592653589793)
 #define PI 3.141592653589793
+#define STIFFNESS_DOUBLES 38 /* m_abs[36], arm, gain after the wrenches */
+#define RK4_LIMIT 2.0
+#define MAX_SUBSTEPS 1000
 
 typedef struct {
   double m[36], m_inv[36], d_l[6], d_q[6];
@@ -43,6 +50,7 @@ typedef struct {
   double kt, at[3];
   int n;
   double wrench[MAX_THRUSTERS][6];
+  double m_abs[36], arm, gain;
 } kernel_t;
 
 static double gauss_1, gauss_2;
@@ -76,8 +84,14 @@ static int get_kernel(ErlNifEnv *env, ERL_NIF_TERM term, kernel_t *k) {
   memcpy(k->at, d + 91, sizeof k->at);
   if (!(d[94] >= 0.0 && d[94] <= MAX_THRUSTERS)) return 0;
   k->n = (int)d[94];
-  if (bin.size != sizeof d + (size_t)k->n * 6 * sizeof(double)) return 0;
-  memcpy(k->wrench, bin.data + sizeof d, (size_t)k->n * 6 * sizeof(double));
+  const size_t wrenches = (size_t)k->n * 6 * sizeof(double);
+  if (bin.size != sizeof d + wrenches + STIFFNESS_DOUBLES * sizeof(double)) return 0;
+  memcpy(k->wrench, bin.data + sizeof d, wrenches);
+  double st[STIFFNESS_DOUBLES];
+  memcpy(st, bin.data + sizeof d + wrenches, sizeof st);
+  memcpy(k->m_abs, st, sizeof k->m_abs);
+  k->arm = st[36];
+  k->gain = st[37];
   return 1;
 }
 
@@ -247,7 +261,32 @@ static double wrap_pi(double angle) {
   return wrapped + 0.0;
 }
 
-/* one step of Neptunus.Sim (constant current): lag, tau, RK4, wrap, surface */
+/* count_substeps/4 of Neptunus.Dynamics: RK4 sub-steps for a step of dt from s in c */
+static int substeps(const kernel_t *k, const double s[12], const double c[3], double dt) {
+  const double u = s[6], v = s[7], w = s[8], p = s[9], q = s[10], r = s[11];
+  const double cn = c[0], ce = c[1], cd = c[2];
+  const double vel = fabs(u) + fabs(v) + fabs(w);
+  const double rot = fabs(p) + fabs(q) + fabs(r);
+  const double c1 = fabs(cn) + fabs(ce) + fabs(cd);
+  const double slope[6] = {k->d_l[0] + 2.0 * k->d_q[0] * (fabs(u) + c1),
+                           k->d_l[1] + 2.0 * k->d_q[1] * (fabs(v) + c1),
+                           k->d_l[2] + 2.0 * k->d_q[2] * (fabs(w) + c1),
+                           k->d_l[3] + 2.0 * k->d_q[3] * (fabs(p) + c1),
+                           k->d_l[4] + 2.0 * k->d_q[4] * (fabs(q) + c1),
+                           k->d_l[5] + 2.0 * k->d_q[5] * (fabs(r) + c1)};
+  double b[6];
+  mat_vec(k->m_abs, slope, b);
+  double lam_d = b[0];
+  for (int i = 1; i < 6; i++) lam_d = b[i] > lam_d ? b[i] : lam_d;
+  const double lam_t = k->kt * (vel + rot * k->arm + (fabs(cn) + fabs(ce))) * k->gain;
+  const double lam = lam_d + lam_t + 2.0 * rot;
+  const double n = ceil(dt * lam / RK4_LIMIT);
+  if (!(n > 1.0)) return 1;
+  if (n >= MAX_SUBSTEPS) return MAX_SUBSTEPS;
+  return (int)n;
+}
+
+/* one step of Neptunus.Sim (constant current): lag, tau, RK4 (sub-stepped), wrap, surface */
 static int sim_step(const kernel_t *k, double s[12], double forces[], const double targets[],
                     const double lags[][2], const double tau_ext[6], const double c[3], double dt) {
   double tau[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
@@ -259,17 +298,21 @@ static int sim_step(const kernel_t *k, double s[12], double forces[], const doub
   }
   for (int j = 0; j < 6; j++) tau[j] = tau[j] + tau_ext[j];
 
-  const double h = dt / 2;
+  const int n = substeps(k, s, c, dt);
+  const double hs = dt / n;
+  const double h = hs / 2;
   double k1[12], k2[12], k3[12], k4[12], tmp[12];
-  if (deriv(k, s, tau, c, k1)) return -1;
-  axpy(s, h, k1, tmp);
-  if (deriv(k, tmp, tau, c, k2)) return -1;
-  axpy(s, h, k2, tmp);
-  if (deriv(k, tmp, tau, c, k3)) return -1;
-  axpy(s, dt, k3, tmp);
-  if (deriv(k, tmp, tau, c, k4)) return -1;
-  for (int i = 0; i < 12; i++)
-    s[i] = s[i] + dt * ((k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]) / 6.0);
+  for (int j = 0; j < n; j++) {
+    if (deriv(k, s, tau, c, k1)) return -1;
+    axpy(s, h, k1, tmp);
+    if (deriv(k, tmp, tau, c, k2)) return -1;
+    axpy(s, h, k2, tmp);
+    if (deriv(k, tmp, tau, c, k3)) return -1;
+    axpy(s, hs, k3, tmp);
+    if (deriv(k, tmp, tau, c, k4)) return -1;
+    for (int i = 0; i < 12; i++)
+      s[i] = s[i] + hs * ((k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]) / 6.0);
+  }
 
   s[3] = wrap_pi(s[3]);
   s[5] = wrap_pi(s[5]);

@@ -60,6 +60,8 @@ defmodule Neptunus.Config do
   loopback without a secret and users stops the node with a message saying what to set.
   """
 
+  require Logger
+
   @type endpoint :: %{port: :inet.port_number(), bind: :inet.ip_address()}
   @typedoc "A vehicle; `sim: [vehicle: name]` when `NEPTUNUS_MODELS` names its parameter set."
   @type vehicle ::
@@ -545,6 +547,8 @@ defmodule Neptunus.Config do
         path ->
           case File.read(path) do
             {:ok, text} ->
+              warn_users_file(path)
+
               text
               |> String.split("\n")
               |> Enum.with_index(1)
@@ -586,6 +590,43 @@ defmodule Neptunus.Config do
     end
 
     Map.new(users, &{&1.name, &1})
+  end
+
+  defp warn_users_file(path) do
+    case File.stat(path) do
+      {:ok, %File.Stat{mode: mode}} ->
+        case users_file_warning(path, mode) do
+          nil -> :ok
+          warning -> Logger.warning(warning)
+        end
+
+      {:error, _} ->
+        :ok
+    end
+  end
+
+  @doc """
+  The warning for a users file whose permission bits `mode` let its group or others read
+  or write it (the password hashes can be attacked offline by whoever reads them), or nil.
+
+      iex> Neptunus.Config.users_file_warning("/etc/neptunus/users", 0o100600)
+      nil
+      iex> Neptunus.Config.users_file_warning("/etc/neptunus/users", 0o100644)
+      "NEPTUNUS_USERS_FILE /etc/neptunus/users is open to others (mode 644): its password " <>
+        "hashes can be attacked offline; run `chmod 600 /etc/neptunus/users`"
+  """
+  @spec users_file_warning(String.t(), non_neg_integer()) :: String.t() | nil
+  def users_file_warning(path, mode) do
+    bits = Bitwise.band(mode, 0o777)
+
+    if Bitwise.band(bits, 0o077) == 0 do
+      nil
+    else
+      who = if Bitwise.band(bits, 0o007) != 0, do: "others", else: "its group"
+
+      "NEPTUNUS_USERS_FILE #{path} is open to #{who} (mode #{Integer.to_string(bits, 8)}): " <>
+        "its password hashes can be attacked offline; run `chmod 600 #{path}`"
+    end
   end
 
   @roles %{"pilot" => :pilot, "observer" => :observer, "main_station" => :main_station}

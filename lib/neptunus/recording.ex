@@ -27,8 +27,9 @@ defmodule Neptunus.Recording do
           modified_at: integer()
         }
 
-  @name_re ~r/^\d{8}-\d{6}Z-\d+\.log$/
-  @id_re ~r/^[A-Za-z0-9_-]{1,32}$/
+  # \A and \z: `^` and `$` would also match before a trailing newline ("alpha\n")
+  @name_re ~r/\A\d{8}-\d{6}Z-\d+\.log\z/
+  @id_re ~r/\A[A-Za-z0-9_-]{1,32}\z/
 
   @doc """
   The file name of a recording started at `datetime` (UTC), `n`-th of that second.

@@ -46,7 +46,11 @@ defmodule NeptunusWeb.API do
     respond(route(method, path, arg))
   rescue
     exception ->
-      Logger.error("API request failed: " <> Exception.format(:error, exception, __STACKTRACE__))
+      Logger.error(
+        "API request failed: " <>
+          Neptunus.Log.safe(Exception.format(:error, exception, __STACKTRACE__))
+      )
+
       respond({500, %{error: "internal error"}})
   end
 
@@ -198,7 +202,7 @@ defmodule NeptunusWeb.API do
              else: :ok
            ),
          :ok <- File.rm(path) do
-      Logger.info("recording #{vehicle}/#{name} deleted")
+      Logger.info("recording #{Neptunus.Log.safe(vehicle)}/#{Neptunus.Log.safe(name)} deleted")
       {200, %{deleted: %{vehicle: vehicle, name: name}}}
     else
       {:error, posix} when is_atom(posix) -> {500, %{error: "cannot delete: #{posix}"}}

@@ -7,9 +7,11 @@ defmodule NeptunusWeb.Auth do
     * **local** — the server listens on a loopback address and no secret is configured
       (`Neptunus.Config.auth!/2` allows nothing else without a secret). No logins: every
       connection is a `pilot` named by its `name` parameter, and the pages show a banner
-      saying so. WebSocket upgrades must name a loopback host (`Host: localhost`,
-      `127.x.x.x`, `[::1]`), so a web page on another site cannot reach the vehicle through
-      the operator's browser, not even by DNS rebinding.
+      saying so. Every HTTP request — pages, assets, the API, the camera, WebSocket
+      upgrades — must name a loopback host (`Host: localhost`, `127.x.x.x`, `[::1]`;
+      `check_host/2`, applied by `NeptunusWeb.Guard`), so a web page on another site cannot
+      reach the vehicle or its recordings through the operator's browser, not even by DNS
+      rebinding.
     * **secure** — users with roles `pilot`, `observer` and at most one `main_station` log in
       with `POST /api/login` and get a signed, expiring token (`NeptunusWeb.Auth.Token`),
       passed to the WebSocket as the `token` query parameter. Connections without a token
@@ -18,8 +20,9 @@ defmodule NeptunusWeb.Auth do
 
   In both modes a WebSocket upgrade whose `Origin` is not allowed is refused (cross-site
   WebSocket hijacking): allowed are the configured origins (`NEPTUNUS_ORIGINS`) or, when none
-  are configured, the server's own origin (the `Origin` names the `Host` the request was
-  sent to). Requests without `Origin` come from programs, not browsers, and are let through
+  are configured, the server's own origin (the `Origin` names the scheme the server serves
+  and the `Host` the request was sent to). In secure mode with configured origins every HTTP
+  request's `Host` must be one of their hosts. Requests without `Origin` come from programs, not browsers, and are let through
   to the token check.
 
   ## Configuration (`config :neptunus, :auth`, built by `Neptunus.Config.auth!/2`)
@@ -74,7 +77,7 @@ defmodule NeptunusWeb.Auth do
     config = config()
 
     with :ok <- check_origin(request.origin, request.host, config.origins),
-         :ok <- check_local_host(config.mode, request.host) do
+         :ok <- check_host(config, request.host) do
       user(config, request)
     end
   end
@@ -136,11 +139,7 @@ defmodule NeptunusWeb.Auth do
 
   defp check_password(config, name, password) do
     user = Map.get(config.users, name)
-
-    ok? =
-      if user,
-        do: Password.verify(password, user.hash),
-        else: Password.dummy_verify(password)
+    ok? = Password.check(password, user && user.hash, login_iterations(config))
 
     if ok? do
       now = now_s()
@@ -155,6 +154,20 @@ defmodule NeptunusWeb.Auth do
     else
       {:error, 401, "wrong name or password"}
     end
+  end
+
+  @doc """
+  What every password check costs, in PBKDF2 iterations: those of the most expensive
+  configured user's hash (the default of new hashes without users). Every login — an
+  unknown name, a known one with a cheaper hash, a wrong password — spends exactly this
+  (`NeptunusWeb.Auth.Password.check/3`), so its time does not tell which names exist.
+  """
+  @spec login_iterations(%{users: map()}) :: pos_integer()
+  def login_iterations(%{users: users}) do
+    users
+    |> Enum.map(fn {_name, user} -> Password.iterations(user.hash) end)
+    |> Enum.reject(&is_nil/1)
+    |> Enum.max(fn -> Password.default_iterations() end)
   end
 
   defp too_many(retry_ms) do
@@ -205,24 +218,47 @@ defmodule NeptunusWeb.Auth do
   """
   @spec check_origin(String.t() | nil, String.t() | nil, [String.t()]) ::
           :ok | {:error, 403, String.t()}
-  def check_origin(nil, _host, _origins), do: :ok
+  def check_origin(origin, host, origins),
+    do: check_origin(origin, host, origins, server_scheme())
 
-  def check_origin(origin, host, origins) do
+  @doc """
+  `check_origin/3` for a server on `scheme` (`"http"` or `"https"`): without configured
+  origins, the same origin means the same scheme too, so a page served over plain `http`
+  (on a network path an attacker may control) cannot talk to an `https` server.
+
+      iex> NeptunusWeb.Auth.check_origin("http://rov.local", "rov.local", [], "https")
+      {:error, 403, "origin not allowed: http://rov.local"}
+      iex> NeptunusWeb.Auth.check_origin("https://rov.local", "rov.local", [], "https")
+      :ok
+  """
+  @spec check_origin(String.t() | nil, String.t() | nil, [String.t()], String.t()) ::
+          :ok | {:error, 403, String.t()}
+  def check_origin(nil, _host, _origins, _scheme), do: :ok
+
+  def check_origin(origin, host, origins, server_scheme) do
     allowed? =
       case origins do
-        [] -> same_origin?(origin, host)
+        [] -> same_origin?(origin, host, server_scheme)
         list -> normalize_origin(origin) in Enum.map(list, &normalize_origin/1)
       end
 
     if allowed?, do: :ok, else: {:error, 403, "origin not allowed: #{origin}"}
   end
 
-  defp same_origin?(_origin, nil), do: false
+  @doc "`\"https\"` when the endpoint serves TLS (`config :neptunus, :endpoint`), else `\"http\"`."
+  @spec server_scheme() :: String.t()
+  def server_scheme do
+    case Application.get_env(:neptunus, :endpoint) do
+      %{tls: tls} when tls != nil -> "https"
+      _ -> "http"
+    end
+  end
 
-  defp same_origin?(origin, host) do
+  defp same_origin?(_origin, nil, _server_scheme), do: false
+
+  defp same_origin?(origin, host, server_scheme) do
     case URI.parse(origin) do
-      %URI{scheme: scheme, host: h, port: port}
-      when scheme in ["http", "https"] and is_binary(h) ->
+      %URI{scheme: ^server_scheme, host: h, port: port} when is_binary(h) ->
         {host_name, host_port} = split_host(host, port)
         String.downcase(h) == host_name and port == host_port
 
@@ -267,7 +303,47 @@ defmodule NeptunusWeb.Auth do
       else: {:error, 403, "host not allowed in local mode: #{host} (use 127.0.0.1 or localhost)"}
   end
 
+  def check_local_host(:local, nil),
+    do:
+      {:error, 403, "host not allowed in local mode: no Host header (use 127.0.0.1 or localhost)"}
+
   def check_local_host(_mode, _host), do: :ok
+
+  @doc """
+  Whether an HTTP request (any: pages, assets, the API, the camera, WebSocket upgrades) to
+  `host` (its `Host` header, nil if absent) may be served, against DNS rebinding: a name
+  the attacker controls, first resolved to their server, then to this one, makes the
+  victim's browser treat this server as the attacker's site. In local mode only loopback
+  names and addresses (`check_local_host/2`); in secure mode with configured origins only
+  their host names (any port: a reverse proxy may forward another one); in secure mode
+  without configured origins any host (every request needs a token there anyway).
+
+      iex> NeptunusWeb.Auth.check_host(%{mode: :local, origins: []}, "[::1]:4000")
+      :ok
+      iex> NeptunusWeb.Auth.check_host(%{mode: :secure, origins: ["https://rov.example.org"]}, "rov.example.org")
+      :ok
+      iex> NeptunusWeb.Auth.check_host(%{mode: :secure, origins: ["https://rov.example.org"]}, "rebind.example")
+      {:error, 403, "host not allowed: rebind.example (allowed: rov.example.org)"}
+  """
+  @spec check_host(%{mode: :local | :secure, origins: [String.t()]}, String.t() | nil) ::
+          :ok | {:error, 403, String.t()}
+  def check_host(%{mode: :local}, host), do: check_local_host(:local, host)
+  def check_host(%{origins: []}, _host), do: :ok
+
+  def check_host(%{origins: origins}, host) do
+    names =
+      origins
+      |> Enum.map(&(URI.parse(String.trim(&1)).host || ""))
+      |> Enum.map(&String.downcase/1)
+
+    case host && split_host(host, nil) do
+      {name, _port} -> if name in names, do: :ok, else: refuse_host(host, names)
+      nil -> refuse_host("(none)", names)
+    end
+  end
+
+  defp refuse_host(host, names),
+    do: {:error, 403, "host not allowed: #{host} (allowed: #{Enum.join(names, ", ")})"}
 
   @doc "A display name from the `name` parameter (trimmed, at most 40 characters) or `guest-XXXX`."
   @spec display_name(term()) :: String.t()

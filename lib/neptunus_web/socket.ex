@@ -339,7 +339,10 @@ defmodule NeptunusWeb.Socket do
             reply(state, [Wire.encode_reply(msg.join_ref, msg.ref, topic, :error, response)])
 
           {:error, exception} ->
-            Logger.error("join #{topic} failed: #{exception}")
+            Logger.error(
+              "join #{Neptunus.Log.safe(topic)} failed: #{Neptunus.Log.safe(exception)}"
+            )
+
             reply(state, [error_reply(msg, "join crashed")])
         end
     end
@@ -431,7 +434,10 @@ defmodule NeptunusWeb.Socket do
         reply(state, frames)
 
       {:error, exception} ->
-        Logger.error("channel #{topic} crashed: #{exception}")
+        Logger.error(
+          "channel #{Neptunus.Log.safe(topic)} crashed: #{Neptunus.Log.safe(exception)}"
+        )
+
         # the channel is gone: let it clean up (a pilot's channel gives the helm up)
         leave_channel(topic, joined, {:error, :crashed})
         state = %{state | channels: Map.delete(state.channels, topic)}
@@ -468,7 +474,7 @@ defmodule NeptunusWeb.Socket do
         result
 
       {:error, formatted} ->
-        Logger.error("socket callback failed: #{formatted}")
+        Logger.error("socket callback failed: #{Neptunus.Log.safe(formatted)}")
         {:noreply, state}
     end
   end

@@ -31,8 +31,28 @@ const CHROMIUM_ARGS = [
   "--disable-sync",
 ];
 
-/** Uncaught errors and console errors of every page. */
+/** Uncaught errors and console errors of every page (Content-Security-Policy violations too). */
 export const pageProblems = [];
+
+/**
+ * Makes every page of `context` report Content-Security-Policy violations as console errors
+ * (which land in `pageProblems`): the server's policy must never block what the pages do.
+ */
+export async function reportCspViolations(context) {
+  await context.addInitScript(() => {
+    document.addEventListener("securitypolicyviolation", (e) => {
+      console.error(`CSP violation: ${e.violatedDirective} blocked ${e.blockedURI || "inline"} (${e.sourceFile}:${e.lineNumber})`);
+    });
+  });
+}
+
+/** The page response carries the anti-framing headers (see NeptunusWeb.Guard). */
+export function assertPageHeaders(response, where) {
+  assert.ok(response, `${where}: no response`);
+  const headers = response.headers();
+  assert.match(headers["content-security-policy"] ?? "", /frame-ancestors 'none'/, `${where}: Content-Security-Policy`);
+  assert.equal(headers["x-frame-options"], "DENY", `${where}: X-Frame-Options`);
+}
 
 async function get(path) {
   try {
@@ -68,13 +88,15 @@ export async function launch() {
 export async function open(browser, { width, height, name, touch = false, path = null, init = null }) {
   const context = await browser.newContext({ viewport: { width, height }, hasTouch: touch, isMobile: false });
   context.setDefaultTimeout(WAIT_MS);
+  await reportCspViolations(context);
   const page = await context.newPage();
   if (init) await page.addInitScript(init);
   page.on("pageerror", (err) => pageProblems.push(`[${name}] uncaught: ${err.message}`));
   page.on("console", (msg) => {
     if (msg.type() === "error") pageProblems.push(`[${name}] console.error: ${msg.text()}`);
   });
-  await page.goto(`${BASE}${path ?? `/?name=${encodeURIComponent(name)}`}`, { waitUntil: "load", timeout: WAIT_MS });
+  const response = await page.goto(`${BASE}${path ?? `/?name=${encodeURIComponent(name)}`}`, { waitUntil: "load", timeout: WAIT_MS });
+  assertPageHeaders(response, name);
   await page
     .locator('#status[data-state="connected"]')
     .waitFor({ timeout: WAIT_MS })

@@ -50,6 +50,12 @@ after(async () => {
 async function newPage(label) {
   const context = await browser.newContext({ viewport: { width: 1280, height: 800 } });
   context.setDefaultTimeout(WAIT_MS);
+  // Content-Security-Policy violations become console errors, which are problems
+  await context.addInitScript(() => {
+    document.addEventListener("securitypolicyviolation", (e) => {
+      console.error(`CSP violation: ${e.violatedDirective} blocked ${e.blockedURI || "inline"} (${e.sourceFile}:${e.lineNumber})`);
+    });
+  });
   const page = await context.newPage();
   page.on("pageerror", (err) => pageProblems.push(`[${label}] uncaught: ${err.message}`));
   page.on("console", (msg) => {

@@ -58,6 +58,7 @@ defmodule Neptunus.ConfigAuthTest do
     end
 
     @tag :tmp_dir
+    @tag :capture_log
     test "users from a file, with comments and blank lines", %{hash: hash, tmp_dir: dir} do
       path = Path.join(dir, "users")
       File.write!(path, "# the crew\n\nada pilot #{hash}   # Ada\n  main  main_station #{hash}\n")
@@ -73,6 +74,33 @@ defmodule Neptunus.ConfigAuthTest do
       assert_raise ArgumentError, ~r/NEPTUNUS_USERS_FILE=.*readable file/, fn ->
         Config.auth!(missing, @anywhere)
       end
+    end
+
+    @tag :tmp_dir
+    test "a users file open to its group or others is used, with a warning at boot", %{
+      hash: hash,
+      tmp_dir: dir
+    } do
+      path = Path.join(dir, "users")
+      File.write!(path, "ada pilot #{hash}\n")
+      env = %{"NEPTUNUS_SECRET" => @secret, "NEPTUNUS_USERS_FILE" => path}
+
+      File.chmod!(path, 0o644)
+
+      log =
+        ExUnit.CaptureLog.capture_log(fn ->
+          assert %{users: %{"ada" => _}} = Config.auth!(env, @anywhere)
+        end)
+
+      assert log =~ "NEPTUNUS_USERS_FILE #{path} is open to others (mode 644)"
+      assert log =~ "chmod 600 #{path}"
+
+      File.chmod!(path, 0o640)
+      log = ExUnit.CaptureLog.capture_log(fn -> Config.auth!(env, @anywhere) end)
+      assert log =~ "is open to its group (mode 640)"
+
+      File.chmod!(path, 0o600)
+      assert ExUnit.CaptureLog.capture_log(fn -> Config.auth!(env, @anywhere) end) == ""
     end
 
     for {env, message} <- [

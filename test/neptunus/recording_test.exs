@@ -36,7 +36,11 @@ defmodule Neptunus.RecordingTest do
           {"rov", "20261122-130509Z-1.csv"},
           {"", "20261122-130509Z-1.log"},
           {nil, "20261122-130509Z-1.log"},
-          {"rov", "20261122-130509-1.log"}
+          {"rov", "20261122-130509-1.log"},
+          # a trailing newline (which `$` would let through, into paths and logs)
+          {"rov\n", "20261122-130509Z-1.log"},
+          {"rov", "20261122-130509Z-1.log\n"},
+          {"\nrov", "20261122-130509Z-1.log"}
         ] do
       refute Recording.valid?(v, n), "#{inspect({v, n})} accepted"
     end

@@ -72,7 +72,10 @@ defmodule NeptunusWeb.AuthTest do
   describe "check_origin/3" do
     test "default ports and IPv6 hosts" do
       assert :ok = Auth.check_origin("http://localhost", "localhost", [])
-      assert :ok = Auth.check_origin("https://rov.example.org", "rov.example.org:443", [])
+
+      assert :ok =
+               Auth.check_origin("https://rov.example.org", "rov.example.org:443", [], "https")
+
       assert :ok = Auth.check_origin("http://[::1]:4000", "[::1]:4000", [])
 
       assert {:error, 403, _} =

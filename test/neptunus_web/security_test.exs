@@ -88,9 +88,11 @@ defmodule NeptunusWeb.SecurityTest do
     test "configured origins replace the same-origin rule" do
       secure!(%{origins: ["https://rov.example.org"]})
       params = %{"token" => token("ada")}
-      assert {:ok, _} = connect(params, [{"Origin", "https://rov.example.org"}])
+      # (the Host must be one of the origins' hosts too: NeptunusWeb.Auth.check_host/2)
+      host = {"Host", "rov.example.org"}
+      assert {:ok, _} = connect(params, [{"Origin", "https://rov.example.org"}, host])
 
-      assert {403, _} = refused(connect(params, [{"Origin", "http://127.0.0.1:#{port()}"}]))
+      assert {403, _} = refused(connect(params, [{"Origin", "http://127.0.0.1:#{port()}"}, host]))
     end
   end
 

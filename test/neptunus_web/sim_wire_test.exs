@@ -47,4 +47,21 @@ defmodule NeptunusWeb.SimWireTest do
     assert {"error", %{"reason" => "unknown field: seed (no fields expected)"}} =
              push(ada, "sim_reset", %{"seed" => 1})
   end
+
+  test "the strongest current on the longest tether keeps the vehicle running", %{
+    id: id,
+    topic: topic
+  } do
+    ada = client(topic, "Ada")
+    assert {"ok", %{"status" => "granted"}} = push(ada, "request_control")
+    board = GenServer.whereis(Neptunus.Vehicle.Board.via(id))
+
+    assert {"ok", %{"sim" => %{"t" => t0, "tether_length" => 1000.0}}} =
+             push(ada, "sim_set", %{"current" => [5, -5, 5], "tether_length" => 1000})
+
+    # two simulated seconds later the same board still steps a finite vehicle
+    assert %{"t" => _} = event!(ada.ws, "telemetry", &(&1["t"] >= t0 + 2.0), 15_000)
+    assert GenServer.whereis(Neptunus.Vehicle.Board.via(id)) == board
+    assert {"ok", _} = push(ada, "heartbeat")
+  end
 end

@@ -299,6 +299,8 @@ defmodule Neptunus.Dynamics.Params do
       tether_at: List.to_tuple(t.attachment)
     }
 
+    compiled = Map.put(compiled, :stiffness, stiffness(compiled))
+
     # the same constants as one tuple, unpacked once per step by Neptunus.Dynamics
     kernel =
       {compiled.m, compiled.m_inv, compiled.d_l, compiled.d_q,
@@ -309,6 +311,36 @@ defmodule Neptunus.Dynamics.Params do
       compiled |> Map.put(:kernel, kernel) |> Map.put(:native, native_kernel(compiled, p))
 
     %{p | compiled: compiled}
+  end
+
+  # The constants of Neptunus.Dynamics' sub-step count (see "Integration" there):
+  # {|M⁻¹| (entry by entry), arm, tether gain}. `arm` = |x_t| + |y_t| + |z_t| of the tether
+  # attachment; the tether gain bounds how fast a change of the attachment point's velocity
+  # changes ν̇ per unit of tether stiffness: ‖M⁻¹ Gᵀ‖∞ · (1 + arm), with Gᵀ the generalised
+  # force of a unit force at the attachment point in each body axis. (The drag's slope is
+  # k_t Σ g_i² |w_i| ≤ ⅔ k_t (|v_t| + |v_c|): the margin covers the rotation to NED.)
+  defp stiffness(c) do
+    {ax, ay, az} = c.tether_at
+    m_abs = c.m_inv |> Tuple.to_list() |> Enum.map(&abs/1) |> List.to_tuple()
+    arm = abs(ax) + abs(ay) + abs(az)
+    rows = Tuple.to_list(c.m_inv) |> Enum.chunk_every(6)
+
+    columns = [
+      [1.0, 0.0, 0.0, 0.0, az, -ay],
+      [0.0, 1.0, 0.0, -az, 0.0, ax],
+      [0.0, 0.0, 1.0, ay, -ax, 0.0]
+    ]
+
+    gain =
+      rows
+      |> Enum.map(fn row ->
+        columns
+        |> Enum.map(fn col -> abs(Enum.zip_with(row, col, &(&1 * &2)) |> Enum.sum()) end)
+        |> Enum.sum()
+      end)
+      |> Enum.max()
+
+    {m_abs, arm, gain * (1.0 + arm)}
   end
 
   # The same constants as native-endian doubles for the C loop (Neptunus.Dynamics.Native;
@@ -324,7 +356,10 @@ defmodule Neptunus.Dynamics.Params do
         Tuple.to_list(c.d_q) ++
         [c.wb, c.gx, c.gy, c.gz, flag.(c.coriolis), flag.(c.locked), c.tether_k] ++
         Tuple.to_list(c.tether_at) ++
-        [length(thrusters) * 1.0] ++ Enum.flat_map(thrusters, &Tuple.to_list(&1.wrench))
+        [length(thrusters) * 1.0] ++
+        Enum.flat_map(thrusters, &Tuple.to_list(&1.wrench)) ++
+        Tuple.to_list(elem(c.stiffness, 0)) ++
+        [elem(c.stiffness, 1), elem(c.stiffness, 2)]
 
     for value <- values, into: <<>>, do: <<value * 1.0::float-64-native>>
   end

@@ -26,7 +26,7 @@ defmodule Neptunus.Helm.Policy do
 
   ## Pick-up procedure and command stamps
 
-  Every grant (and every deadman trip) increments `epoch`. The grant tells the new pilot the
+  Every grant (and every deadman trip) increments `epoch` (starting from `new/1`'s value). The grant tells the new pilot the
   epoch, and stamped commands (`{:command, p, {:epoch, e}}`, e.g. thrust) run only when `e`
   is the current epoch: a command the client made before it learnt of its grant — a stale
   stick, or a push the client buffered while it was not joined — is refused with
@@ -117,9 +117,13 @@ defmodule Neptunus.Helm.Policy do
         }
   defstruct helm: :free, epoch: 0, last_seen: nil, tripped: false
 
-  @doc "A free helm."
-  @spec new() :: t()
-  def new, do: %__MODULE__{}
+  @doc """
+  A free helm whose epoch starts at `epoch` (default 0; the first grant gives `epoch + 1`).
+  `Neptunus.Vehicle.Helm` starts each helm at a value no earlier helm of the node reached,
+  so an epoch never repeats within a node's life (see its moduledoc).
+  """
+  @spec new(non_neg_integer()) :: t()
+  def new(epoch \\ 0) when is_integer(epoch) and epoch >= 0, do: %__MODULE__{epoch: epoch}
 
   @doc "The pilot, or nil."
   @spec pilot(t()) :: party() | nil

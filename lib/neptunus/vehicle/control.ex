@@ -272,7 +272,7 @@ defmodule Neptunus.Vehicle.Control do
       at: System.os_time(:millisecond)
     })
 
-    Logger.info("vehicle #{state.id} stopped: #{reason}")
+    Logger.info("vehicle #{state.id} stopped: #{Neptunus.Log.safe(reason)}")
     state
   end
 

@@ -21,6 +21,18 @@ defmodule Neptunus.Vehicle.Helm do
   neutral when it starts (stop reason `helm_started`): a helm that crashed forgets its pilot,
   and the vehicle must not keep the lost pilot's last command.
 
+  ## Epochs
+
+  A command stamp (`epoch`, see `Neptunus.Helm.Policy`) must never repeat within the node's
+  life, or a `thrust` stamped before a helm crash (or a restart of the vehicle's tree) would
+  be taken as current by the helm that replaced it. So a helm does not start at 0: it
+  starts at `first_epoch/0`, the microseconds since the VM started (monotonic), and counts up
+  by one per grant or deadman trip from there. A helm that lived `Δ` µs issued fewer than
+  `Δ` epochs (each is one handled event — a grant calls Control and notifies parties, a
+  deadman trip happens at most once per tick — and takes far longer than a microsecond), so
+  the next helm, starting `Δ` µs later, starts above every epoch its predecessors issued.
+  Epochs stay below 2⁵³ (JSON- and JavaScript-safe) for 285 years of uptime.
+
   ## Parties
 
   The caller of every function is a `t:party/0`: `%{id, name, role, pid, notify}` — one
@@ -202,7 +214,7 @@ defmodule Neptunus.Vehicle.Helm do
     data = %Data{
       id: id,
       topic: Telemetry.topic(id),
-      policy: Policy.new(),
+      policy: Policy.new(first_epoch()),
       clock: Keyword.get(config, :clock, fn -> System.monotonic_time(:millisecond) end),
       deadman_ms: deadman_ms,
       request_timeout_ms: Keyword.fetch!(config, :request_timeout_ms),
@@ -375,7 +387,10 @@ defmodule Neptunus.Vehicle.Helm do
     notify.(event, payload)
   rescue
     exception ->
-      Logger.warning("helm could not notify #{party.name}: #{Exception.message(exception)}")
+      Logger.warning(
+        "helm could not notify #{Neptunus.Log.safe(party.name)}: " <>
+          Neptunus.Log.safe(Exception.message(exception))
+      )
   end
 
   defp deadman_timer(data), do: {{:timeout, :deadman}, data.tick_ms, :check}
@@ -455,4 +470,17 @@ defmodule Neptunus.Vehicle.Helm do
   defp remaining(data), do: max(data.deadline - now_ms(), 0)
 
   defp now_ms, do: System.monotonic_time(:millisecond)
+
+  @doc """
+  Where a helm starting now starts its epochs: the microseconds since the node (the VM)
+  started. See "Epochs" in the moduledoc.
+  """
+  @spec first_epoch() :: non_neg_integer()
+  def first_epoch do
+    System.convert_time_unit(
+      System.monotonic_time() - :erlang.system_info(:start_time),
+      :native,
+      :microsecond
+    )
+  end
 end

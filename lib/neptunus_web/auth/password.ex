@@ -53,13 +53,70 @@ defmodule NeptunusWeb.Auth.Password do
   end
 
   @doc """
-  Spends the time of one verification without a hash to compare against, so a login for an
-  unknown user takes as long as one with a wrong password.
+  Spends the time of one verification of `iterations` (default: the default's) without a
+  hash to compare against; `check/3` uses it to make every login cost the same.
   """
-  @spec dummy_verify(String.t()) :: false
-  def dummy_verify(password) when is_binary(password) do
-    _ = derive(password, <<0::size(@salt_bytes * 8)>>, @default_iterations)
+  @spec dummy_verify(String.t(), pos_integer()) :: false
+  def dummy_verify(password, iterations \\ @default_iterations) when is_binary(password) do
+    _ = derive(password, <<0::size(@salt_bytes * 8)>>, iterations)
     false
+  end
+
+  @doc "The iteration count of new hashes."
+  @spec default_iterations() :: pos_integer()
+  def default_iterations, do: @default_iterations
+
+  @doc """
+  The iteration count stored in `hash`, or nil for a malformed hash.
+
+      iex> NeptunusWeb.Auth.Password.iterations(NeptunusWeb.Auth.Password.hash("x", iterations: 1000))
+      1000
+  """
+  @spec iterations(String.t()) :: pos_integer() | nil
+  def iterations(hash) do
+    case parse(hash) do
+      {:ok, %{iterations: n}} -> n
+      {:error, _} -> nil
+    end
+  end
+
+  @doc """
+  The PBKDF2 derivations (their iteration counts, in order) that `check/3` runs for `hash`
+  (nil: no such user) so that it costs `target` iterations in all: the hash's own, topped
+  up to `target` by a derivation whose result is thrown away; `target` alone without a
+  usable hash. A user whose hash is cheaper than `target` then takes exactly as long as a
+  name that does not exist, and the time of a login tells nothing about which names exist.
+
+      iex> NeptunusWeb.Auth.Password.plan(nil, 5000)
+      [5000]
+  """
+  @spec plan(String.t() | nil, pos_integer()) :: [pos_integer()]
+  def plan(hash, target) do
+    case hash && iterations(hash) do
+      nil -> [target]
+      n when n >= target -> [n]
+      n -> [n, target - n]
+    end
+  end
+
+  @doc """
+  Whether `password` matches `hash` (nil: no such user — never), spending the derivations
+  of `plan(hash, target)` whatever the answer.
+  """
+  @spec check(String.t(), String.t() | nil, pos_integer()) :: boolean()
+  def check(password, hash, target) when is_binary(password) do
+    case {hash && iterations(hash), plan(hash, target)} do
+      {nil, [n]} ->
+        dummy_verify(password, n)
+
+      {n, [n]} ->
+        verify(password, hash)
+
+      {n, [n, pad]} ->
+        ok? = verify(password, hash)
+        _ = dummy_verify(password, pad)
+        ok?
+    end
   end
 
   @doc """

@@ -43,11 +43,14 @@ defmodule NeptunusWeb.Auth.Token do
 
   @doc """
   Checks the signature and expiry at `now` (Unix s). Errors: `"invalid token"` (malformed,
-  wrong signature or wrong secret) and `"token expired"`.
+  wrong signature or wrong secret) and `"token expired"`. A token is exactly what `sign/4`
+  makes: Base64 with padding (`=`, which the decoder would accept) is malformed, so one
+  token has one spelling.
   """
   @spec verify(term(), binary(), integer()) :: {:ok, claims()} | {:error, String.t()}
   def verify(token, secret, now) when is_binary(token) and byte_size(token) < 2048 do
     with [@version, payload, signature] <- String.split(token, "."),
+         false <- String.contains?(token, "="),
          {:ok, signature} <- Base.url_decode64(signature, padding: false),
          true <- :crypto.hash_equals(mac(secret, @version <> "." <> payload), pad(signature)),
          {:ok, json} <- Base.url_decode64(payload, padding: false),

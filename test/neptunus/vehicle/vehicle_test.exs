@@ -156,19 +156,23 @@ defmodule Neptunus.VehicleTest do
     test "a free helm grants at once; the grant carries the epoch and the control state", ctx do
       ada = party("ada")
 
+      %{epoch: free} = Helm.status(ctx.id)
       assert {:ok, %{status: "granted", grant: grant}} = Helm.request_control(ctx.id, ada)
-      assert %{epoch: 1, pilot: %{name: "ada", role: "pilot"}, deadman_ms: 500} = grant
+      epoch = free + 1
+      assert %{epoch: ^epoch, pilot: %{name: "ada", role: "pilot"}, deadman_ms: 500} = grant
       assert %{mode: "motion", gain: 0.5, command: %{surge: +0.0}} = grant.control
       assert_receive {:notify, "ada", "control_granted", ^grant}
-      assert_receive {:pubsub, _, "helm", %{state: "piloted", pilot: %{name: "ada"}, epoch: 1}}
+
+      assert_receive {:pubsub, _, "helm",
+                      %{state: "piloted", pilot: %{name: "ada"}, epoch: ^epoch}}
 
       assert {:ok, %{thrusters: %{port: 0.5}}} =
-               Helm.thrust(ctx.id, ada, Map.put(motion(1, 0, 0), "epoch", 1))
+               Helm.thrust(ctx.id, ada, Map.put(motion(1, 0, 0), "epoch", epoch))
 
       assert {:error, "missing field: epoch"} = Helm.thrust(ctx.id, ada, motion(1, 0, 0))
 
       assert {:error, "stale_command"} =
-               Helm.thrust(ctx.id, ada, Map.put(motion(1, 0, 0), "epoch", 0))
+               Helm.thrust(ctx.id, ada, Map.put(motion(1, 0, 0), "epoch", free))
     end
 
     test "only the pilot commands; observers and others change nothing", ctx do
