@@ -28,27 +28,45 @@ defmodule Neptunus.Vehicle.SITLTest do
 
   defp motion(s, h, y), do: %{"mode" => "motion", "surge" => s, "heave" => h, "yaw" => y}
   defp truth(id), do: SITL.Device.state(id).sim.dyn
+  defp sign(x), do: if(x > 0, do: 1, else: if(x < 0, do: -1, else: 0))
 
   test "the vehicle moves when control commands it; telemetry comes back over the pty" do
     id = start_sitl()
     assert %{board: :sitl} = Enum.find(Fleet.list(), &(&1.id == id))
 
-    # telemetry through the real board path: measurements, no simulator truth
-    assert_receive {:pubsub, _, "telemetry", %{sim: nil, measurement: m}}, 2_000
-    assert_in_delta m.depth, 1.0, 0.01
+    # telemetry through the real board path: measurements, no simulator truth; the board
+    # prints a 0.00 placeholder until its depth sensor's first reading, about 1 s after boot
+    assert_receive {:pubsub, _, "telemetry", %{sim: nil, measurement: _}}, 2_000
+
+    wait_until(
+      fn -> abs(Telemetry.latest(id).measurement.depth - 1.0) < 0.02 end,
+      "the first depth reading",
+      5_000
+    )
+
     # and the link's state rides along
     assert_receive {:pubsub, _, "telemetry", %{link: %{up: true, reason: "open"}}}, 2_000
 
     start = truth(id)
     assert {:ok, %{thrusters: thr}} = Control.thrust(id, motion(1, 1, 0))
 
-    # the simulated board decoded the go() bytes with the same wiring: physical values again
+    # the simulated board received the go() pulses the wiring gives, and its ESCs push the
+    # way the command meant (their magnitudes follow the firmware's motor modifiers)
+    wiring = Wiring.default()
+    us = Wiring.to_us(wiring, thr)
+
     wait_until(
       fn ->
-        SITL.Device.state(id).firmware.thrusters == Map.take(thr, [:port, :vertical, :starboard])
+        fw = SITL.Device.state(id).firmware
+        fw.target_us == us and fw.esc_us != {1500, 1500, 1500}
       end,
       "the board to apply the command"
     )
+
+    applied = SITL.Device.state(id).firmware.thrusters
+
+    for motor <- [:port, :vertical, :starboard],
+        do: assert(sign(applied[motor]) == sign(thr[motor]), "#{motor}")
 
     Process.sleep(700)
     now = truth(id)
@@ -111,7 +129,8 @@ defmodule Neptunus.Vehicle.SITLTest do
   end
 
   test "a hung control stops the pings, and the board's deadman stops the motors" do
-    id = start_sitl(%{ping_interval: 100, keepalive_timeout: 1_500, deadman_ms: 800})
+    # the firmware arms its deadman 180 s after boot; here at once
+    id = start_sitl(%{ping_interval: 100, keepalive_timeout: 1_500, deadman_ms: 800, arm_ms: 0})
 
     {:ok, _} = Control.thrust(id, motion(0, 1, 0))
     wait_until(fn -> SITL.Device.state(id).firmware.thrusters.vertical > 0 end, "thrust")
@@ -125,7 +144,13 @@ defmodule Neptunus.Vehicle.SITLTest do
 
     try do
       wait_until(fn -> SITL.Device.state(id).firmware.tripped end, "the deadman", 5_000)
-      assert SITL.Device.state(id).firmware.thrusters == Allocation.neutral()
+
+      # its internal stop() takes effect at the next 50 ms tick
+      wait_until(
+        fn -> SITL.Device.state(id).firmware.thrusters == Allocation.neutral() end,
+        "neutral"
+      )
+
       assert Board.link_status(id).counters.pings_withheld > 0
     after
       :sys.resume(control)
