@@ -52,13 +52,13 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     ]
   end
 
-  @firmware_opts [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms]
+  @firmware_opts [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms]
 
   @doc """
   Options: `:id` and `:link` (path for the pty's slave end) required; `:hz`; the firmware's
   (`Neptunus.Vehicle.Board.SITL.Firmware.new/2`): `:firmware` (`:openrov_25` default or
   `:openrov_30`), `:wiring` (`Neptunus.Wiring`, default the thesis'), `:deadman_ms` (2000),
-  `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20); `:initial` and `:sim` (options of
+  `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20); `:initial` and `:sim` (options of
   `Neptunus.Sim.new/1`, over the default `noise: true` — realistic sensors with wild points —
   and a fresh seed).
   """

@@ -15,7 +15,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   navigation output comes every 101 ms and the 1 s outputs every 1001 ms. This module steps
   from one due timer to the next, which is what a 1 ms loop does, and runs each loop
   iteration in the firmware's order: serial commands, then internal commands, then the
-  devices' timers, then the shared-data and navigation outputs.
+  devices' timers, then the shared-data and navigation outputs. The main loop's output timers
+  start at millis 0, before the devices' setup; the devices' own timers, and the loop itself,
+  start when that setup ends (`:setup_ms`, default 20: the depth sensor's two 10 ms waits).
 
   **Receive buffer** (`:loop_ms`, `:stall_ms`). Bytes land in the serial receive buffer
   (64 bytes); what arrives while it is full is lost and counted in `rx_dropped`. The loop
@@ -62,22 +64,24 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
 
     * every 101 ms `hdgd:…;deap:…;pitc:…;roll:…;yaw:…;fthr:…;\\r\\n` — `fthr` is the mean
       of the raw port and starboard targets mapped to ±100 (integer `map`);
-    * every 1001 ms the controller board's
+    * every 1001 ms (from the end of the setup) the controller board's
       `BRDT:…;SC1I:…;SC2I:…;SC3I:…;BRDI:…;BT1I:…;BT2I:…;BRDV:…;AVCC:5000;\\r\\n` (ESC
       currents on a 0..10 A ADC, battery currents likewise, the board's own supply current
       on 0..2 A), then the shared data: `motorAttached:1;`, `servo:…;starg:…;`,
-      `fmem:…;vout:…;iout:…;atmp:…;ver:…;cmpd:<date>, <time>, <gcc>` whose newline comes
+      `fmem:…;vout:…;iout:…;atmp:…;ver:…;cmpd:<date>, <time>, <gcc>` (every 1001 ms from
+      boot) whose newline comes
       before its `;` (the next line begins `;time:`), `pres:…;temp:…;`, `dlms:…;`,
       `alps:…;`. `iout` is the controller board's own supply current (`BRDI`), `vout`,
       `iout` and `time` are sampled every 101 ms;
-    * the depth sensor reads once a second (first at 1001 ms, until then `deap`, `pres` and
-      `temp` print `0.00`); depth is `(pres - 1015) * 1.019716 / 100` (fresh water). The
+    * the depth sensor reads once a second (first at `setup_ms` + 1001 ms; until then `deap`,
+      `pres` and `temp` print `0.00`, the first shared data at 1001 ms included); depth is `(pres - 1015) * 1.019716 / 100` (fresh water). The
       simulated lake has 1015 mbar at its surface and fresh water, so `deap` is the
       simulator's depth, updated once a second. 2.5.2's driver prints two plain-text
       temperature lines at each reading; 30.0.2 prints its calibration constants at boot as
       `Depth.C0:…;` … `Depth.C7:…;` (keys with a dot) and `BNO055.status:…;` once a second;
-    * the IMU updates heading, pitch, roll and yaw every 51 ms (first at 51 ms, before the
-      first navigation line, so heading has no visible placeholder with a working IMU).
+    * the IMU updates heading, pitch, roll and yaw every 51 ms (first at `setup_ms` + 51 ms,
+      before the first navigation line, so heading has no visible placeholder with a working
+      IMU; `hdgd` is `0.00` until then).
 
   At boot the board prints its setup lines. `reset/2` reboots it: millis back to 0 and every
   state lost (targets, modifiers, lights, laser, tilt, deadman, buffers).
@@ -170,7 +174,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   * `outbox` — bytes written at boot, sent with the next `tick/2` or `receive/3`
   * `rx` — the serial receive buffer (at most #{@rx_size} bytes); `rx_dropped` — bytes lost
     because it was full; `cmdbuf` — the command being read (at most #{@cmd_size} bytes)
-  * `next_drain` — millis when the loop next empties `rx`; `drains`, `alps` — loops counted
+  * `next_drain` — millis when the loop next empties `rx` (first at `setup_ms`); `drains`, `alps` — loops counted
     this second and in the last
   * `timers` — millis each firmware timer last fired
   * `ring` — the internal command ring `{slots, head, tail}`
@@ -227,12 +231,14 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
         }
 
   @profiles [:openrov_25, :openrov_30]
-  @option_keys [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms]
+  @option_keys [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms]
+  @device_timers [:control, :thruster_out, :imu, :depth, :board, :status, :deadman, :blink]
 
   @doc """
   The firmware booted at `now` (ms). Options: `:firmware` (`:openrov_25`, the default, or
   `:openrov_30`), `:wiring` (default the thesis'), `:deadman_ms` (2000), `:arm_ms`
-  (180 000), `:loop_ms` (10), `:stall_ms` (20). A bad option raises `ArgumentError`.
+  (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20: how long the devices' setup
+  takes after the main loop's timers started). A bad option raises `ArgumentError`.
   """
   @spec new(integer(), keyword()) :: t()
   def new(now, opts \\ []) when is_integer(now) do
@@ -243,6 +249,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
       do: raise(ArgumentError, "firmware must be one of #{inspect(@profiles)}")
 
     loop_ms = positive!(opts, :loop_ms, 10)
+    setup_ms = non_negative!(opts, :setup_ms, 20)
 
     fw = %__MODULE__{
       profile: profile,
@@ -253,17 +260,15 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
       arm_ms: non_negative!(opts, :arm_ms, 180_000),
       loop_ms: loop_ms,
       stall_ms: non_negative!(opts, :stall_ms, 20),
-      next_drain: loop_ms,
-      timers: %{
-        control: 0,
-        thruster_out: 0,
-        imu: 0,
-        status: 0,
-        nav: 0,
-        second: 0,
-        deadman: 0,
-        blink: 0
-      }
+      at: setup_ms,
+      next_drain: setup_ms,
+      # the main loop's output timers start before the devices' setups, the devices' own
+      # timers at the end of them
+      timers:
+        Map.merge(
+          %{nav: 0, second: 0},
+          Map.new(@device_timers, &{&1, setup_ms})
+        )
     }
 
     %{fw | outbox: boot_lines(profile)}
@@ -314,10 +319,10 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   empties the buffer (at most `loop_ms` later, or `loop_ms + stall_ms` once a second).
 
       iex> alias Neptunus.Vehicle.Board.SITL.Firmware
-      iex> {fw, _boot} = Firmware.tick(Firmware.new(0), 0)
-      iex> {fw, ""} = Firmware.receive(fw, "ping(7);", 3)
-      iex> Firmware.tick(fw, 10) |> elem(1)
-      "cmd:ping(7);\\r\\npong:1,10;"
+      iex> {fw, _boot} = Firmware.tick(Firmware.new(0), 20)
+      iex> {fw, ""} = Firmware.receive(fw, "ping(7);", 23)
+      iex> Firmware.tick(fw, 30) |> elem(1)
+      "cmd:ping(7);\\r\\npong:1,30;"
   """
   @spec receive(t(), binary(), integer()) :: {t(), binary()}
   def receive(%__MODULE__{} = fw, bytes, now) when is_binary(bytes) do
@@ -366,6 +371,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
       t.status + 101,
       t.nav + 101,
       t.second + 1001,
+      t.depth + 1001,
+      t.board + 1001,
+      t.thruster_out + 1001,
       t.deadman + fw.deadman_ms + 1,
       if(fw.tripped, do: t.blink + 501),
       if(not fw.armed, do: fw.arm_ms + 1)
@@ -402,7 +410,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   # the next read: a loop later, or after the depth sensor's stall if it falls in between
   defp next_drain(fw, m) do
     next = m + fw.loop_ms
-    conversion = fw.timers.second + 1001
+    conversion = fw.timers.depth + 1001
     if conversion <= next, do: max(next, conversion + fw.stall_ms), else: next
   end
 
@@ -722,7 +730,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   end
 
   defp depth(fw, m) do
-    if m - fw.timers.second > 1000 and fw.reading != nil do
+    {read, fw} = elapsed(fw, :depth, 1000, m)
+
+    if read and fw.reading != nil do
       pressure = @atmos_mbar + fw.reading.depth / @fresh * 100
       depth = (pressure - @atmos_mbar) * @fresh / 100
 
@@ -766,7 +776,10 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
         fw
       end
 
-    if m - fw.timers.second > 1000, do: {fw, controller_line(fw)}, else: {fw, []}
+    case elapsed(fw, :board, 1000, m) do
+      {true, fw} -> {fw, controller_line(fw)}
+      {false, fw} -> {fw, []}
+    end
   end
 
   defp voltage(%{reading: %{voltage: v}}), do: adc(v, 20)

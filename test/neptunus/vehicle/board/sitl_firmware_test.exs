@@ -11,7 +11,9 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
   # a wiring without reversal, so ESC pulses read directly as thruster values
   @plain %Wiring{order: [:port, :vertical, :starboard], reversed: [], direct: true}
 
+  # most tests: the loop runs from millis 0 (no setup time), so the times read simply
   defp boot(opts \\ []) do
+    opts = Keyword.put_new(opts, :setup_ms, 0)
     {fw, _boot} = Firmware.new(0, opts) |> Firmware.sense(@reading) |> Firmware.tick(0)
     fw
   end
@@ -34,17 +36,21 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
 
   describe "boot" do
     for profile <- @profiles do
-      test "#{profile}: depth, pressure and temperature print 0.00 until the first reading at 1001 ms" do
-        fw = boot(firmware: unquote(profile))
-        {_fw, out} = Firmware.tick(fw, 1_300)
+      test "#{profile}: depth, pressure and temperature print 0.00 until the first reading" do
+        # default setup time: the devices start 20 ms after the main loop's output timers
+        fw = boot(firmware: unquote(profile), setup_ms: 20)
+        {_fw, out} = Firmware.tick(fw, 2_100)
         [first | _] = nav = navlines(out)
         assert first == "hdgd:114.59;deap:0.00;pitc:0.57;roll:-1.15;yaw:114.59;fthr:0.00;"
-        # 101, 202, … 909 before the reading; 1010, 1111, 1212 after
-        assert Enum.map(nav, &(&1 =~ "deap:0.00;")) ==
-                 List.duplicate(true, 9) ++ [false, false, false]
+        # navigation at 101, 202, … 1010 before the reading at 1021; 1111, 1212, … after
+        assert Enum.take(nav, 12) |> Enum.map(&(&1 =~ "deap:0.00;")) ==
+                 List.duplicate(true, 10) ++ [false, false]
 
-        assert Enum.at(nav, 9) =~ ";deap:1.20;"
-        assert out =~ "pres:1132.68;temp:10.00;\r\n"
+        assert Enum.at(nav, 10) =~ ";deap:1.20;"
+        # the first shared data (1001 ms) comes before the reading, the second after it
+        [first_status, second_status] = Regex.scan(~r/pres:[\d.]+;temp:[\d.]+;\r\n/, out)
+        assert first_status == ["pres:0.00;temp:0.00;\r\n"]
+        assert second_status == ["pres:1132.68;temp:10.00;\r\n"]
       end
     end
 
@@ -65,11 +71,12 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
       assert length(Regex.scan(~r/vout:12\.10;iout:0\.25;/, out)) == 3
     end
 
-    test "heading comes from the IMU at 51 ms, before the first navigation line" do
+    test "heading comes from the IMU 51 ms after the setup, before the first navigation line" do
       fw = Firmware.new(0)
-      {fw, _} = Firmware.tick(fw, 40)
+      {fw, _} = Firmware.tick(fw, 60)
       assert fw.attitude.heading == 0.0
-      {fw, _} = fw |> Firmware.sense(@reading) |> Firmware.tick(60)
+      # the IMU's first read is 51 ms after its setup ended (20 ms)
+      {fw, _} = fw |> Firmware.sense(@reading) |> Firmware.tick(71)
       assert_in_delta fw.attitude.heading, 114.59, 0.01
     end
 
