@@ -2,6 +2,8 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
   use ExUnit.Case, async: true
   doctest Neptunus.Vehicle.Board.SITL.Firmware
 
+  import Neptunus.Test.Properties, only: [check: 3, bind: 2]
+
   alias Neptunus.{Sim, Wiring}
   alias Neptunus.Protocol.OpenROV
   alias Neptunus.Vehicle.Board.SITL.Firmware
@@ -416,5 +418,82 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
     straight = yaw_rate.("mtrmod1(100,100,100);mtrmod2(100,100,100);go(1300,1500,1700,1);")
     assert abs(skewed) > 0.05
     assert abs(straight) < 1.0e-6
+  end
+
+  describe "properties" do
+    test "atoi reads back every 16-bit integer and never crashes on random bytes" do
+      check(
+        :proper_types.integer(-32_768, 32_767),
+        &(Firmware.atoi(Integer.to_string(&1)) == &1),
+        1_000
+      )
+
+      check(
+        :proper_types.binary(),
+        fn bytes ->
+          n = Firmware.atoi(bytes)
+          is_integer(n) and n >= -32_768 and n <= 32_767
+        end,
+        1_000
+      )
+    end
+
+    test "tokens splits name(args) back into the name and the arguments" do
+      word =
+        bind(
+          :proper_types.non_empty(:proper_types.list(:proper_types.integer(?a, ?z))),
+          &List.to_string/1
+        )
+
+      arg = bind(:proper_types.integer(-40_000, 40_000), &Integer.to_string/1)
+      sep = :proper_types.elements([",", ", ", " ,", " "])
+
+      check(
+        {word, :proper_types.list(arg), sep},
+        fn {name, args, sep} ->
+          Firmware.tokens(name <> "(" <> Enum.join(args, sep) <> ");") == {name, args}
+        end,
+        1_000
+      )
+    end
+
+    test "random bytes: no crash, the buffers stay bounded, every byte is kept or counted dropped" do
+      chunks = :proper_types.list({:proper_types.binary(), :proper_types.integer(0, 40)})
+
+      for profile <- @profiles do
+        check(
+          chunks,
+          fn chunks ->
+            {fw, _t} =
+              Enum.reduce(chunks, {boot(firmware: profile), 0}, fn {bytes, dt}, {fw, t} ->
+                {fw, _} = Firmware.receive(fw, bytes, t + dt)
+                true = byte_size(fw.rx) <= 64 and byte_size(fw.cmdbuf) <= 80
+                {fw, t + dt}
+              end)
+
+            sent = chunks |> Enum.map(fn {b, _} -> byte_size(b) end) |> Enum.sum()
+            fw.rx_dropped <= sent and fw.rx_dropped >= 0
+          end,
+          300
+        )
+      end
+    end
+
+    test "goms stays within 1000..2000, keeps the direction and is monotonic" do
+      us = :proper_types.integer(1000, 2000)
+      mod = :proper_types.integer(0, 3)
+
+      check(
+        {us, us, mod, mod},
+        fn {a, b, pos, neg} ->
+          {lo, hi} = {min(a, b), max(a, b)}
+          out = Firmware.goms(a, pos, neg)
+
+          out in 1000..2000 and Firmware.goms(lo, pos, neg) <= Firmware.goms(hi, pos, neg) and
+            (out - 1500) * (a - 1500) >= 0
+        end,
+        2_000
+      )
+    end
   end
 end
