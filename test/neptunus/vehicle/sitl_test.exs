@@ -159,4 +159,35 @@ defmodule Neptunus.Vehicle.SITLTest do
     # control is back: pings resume and the board takes commands again
     wait_until(fn -> not SITL.Device.state(id).firmware.tripped end, "recovery", 5_000)
   end
+
+  test "a board reset mid-dive: the board forgets its state, the vehicle does not, depth comes back" do
+    id = start_sitl()
+    :ok = Board.lights(id, 120)
+    wait_until(fn -> SITL.Device.state(id).firmware.lights == 120 end, "the lights")
+
+    wait_until(
+      fn ->
+        t = Telemetry.latest(id)
+        t != nil and abs(t.measurement.depth - truth(id).z) < 0.05
+      end,
+      "depth telemetry",
+      5_000
+    )
+
+    z = truth(id).z
+    :ok = SITL.Device.reset(id)
+    fw = SITL.Device.state(id).firmware
+    # a USB Arduino that resets: its own state is gone, the vehicle is where it was
+    assert {fw.lights, fw.depth, fw.armed} == {0, 0.0, false}
+    assert_in_delta truth(id).z, z, 0.05
+
+    # the board prints 0.00 for about a second, then its first reading
+    wait_until(
+      fn -> SITL.Device.state(id).firmware.depth > 0.5 end,
+      "the board's first reading",
+      3_000
+    )
+
+    assert Board.link_status(id).up
+  end
 end
