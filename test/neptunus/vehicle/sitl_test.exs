@@ -213,4 +213,58 @@ defmodule Neptunus.Vehicle.SITLTest do
     wait_until(board_read?, "the board's first depth reading after its reset", 3_000)
     wait_until(depth_right?, "depth telemetry after the board reset", 2_000)
   end
+
+  # Issue 13, items 2, 3 and 5, the board link's part: these need the server to frame commands
+  # for 30.x, to set the motor modifiers from the wiring, and to re-send the board's state
+  # after a board reset.
+  describe "the board link and the real firmware" do
+    @describetag :issue_13_link
+
+    test "forward surge drives straight with the thesis wiring (the link sets the modifiers)" do
+      id = start_sitl()
+      {:ok, _} = Control.thrust(id, motion(1, 0, 0))
+
+      wait_until(
+        fn -> SITL.Device.state(id).firmware.esc_us != {1500, 1500, 1500} end,
+        "the motors"
+      )
+
+      {p, _v, s} = SITL.Device.state(id).firmware.esc_us
+      assert abs(abs(p - 1500) - abs(s - 1500)) <= 10
+      psi = truth(id).psi
+      Process.sleep(1_500)
+      assert abs(truth(id).psi - psi) < 0.05
+    end
+
+    test "openrov_30: every command is accepted and the deadman is fed" do
+      id = start_sitl(%{firmware: :openrov_30})
+      {:ok, _} = Control.thrust(id, motion(0, 1, 0))
+      wait_until(fn -> SITL.Device.state(id).firmware.last_ping != nil end, "a ping", 3_000)
+      wait_until(fn -> SITL.Device.state(id).firmware.thrusters.vertical > 0 end, "thrust")
+      fw = SITL.Device.state(id).firmware
+      assert fw.bad_commands == 0 and fw.commands > 0
+    end
+
+    test "after a board reset the lights, laser and tilt come back" do
+      id = start_sitl()
+      :ok = Board.lights(id, 120)
+      :ok = Board.laser(id, 7)
+      :ok = Board.tilt(id, 0.3)
+
+      settled = fn ->
+        fw = SITL.Device.state(id).firmware
+        fw.lights == 120 and fw.laser == 7 and fw.tilt != 1500
+      end
+
+      wait_until(settled, "lights, laser and tilt")
+      tilt = SITL.Device.state(id).firmware.tilt
+      :ok = SITL.Device.reset(id)
+
+      wait_until(
+        fn -> settled.() and SITL.Device.state(id).firmware.tilt == tilt end,
+        "restored",
+        3_000
+      )
+    end
+  end
 end
