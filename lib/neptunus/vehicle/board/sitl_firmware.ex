@@ -83,6 +83,10 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
       before the first navigation line, so heading has no visible placeholder with a working
       IMU; `hdgd` is `0.00` until then).
 
+  `ligt(n)` prints `LIGT:n;LIGP:<n/255>;\r\n`, `claser(n)` prints `claser:n;` without
+  newline, `tilt(us)` (1000..2000) moves the camera servo (taken at once here; the firmware
+  moves it 1 µs a loop) and shows in `servo:`/`starg:`.
+
   At boot the board prints its setup lines. `reset/2` reboots it: millis back to 0 and every
   state lost (targets, modifiers, lights, laser, tilt, deadman, buffers).
   """
@@ -232,6 +236,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
 
   @profiles [:openrov_25, :openrov_30]
   @option_keys [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms]
+  @reading_keys [:heading, :depth, :pitch, :roll, :voltage, :current]
   @device_timers [:control, :thruster_out, :imu, :depth, :board, :status, :deadman, :blink]
 
   @doc """
@@ -248,12 +253,17 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
     unless profile in @profiles,
       do: raise(ArgumentError, "firmware must be one of #{inspect(@profiles)}")
 
+    wiring = Keyword.get(opts, :wiring) || Wiring.default()
+
+    unless is_struct(wiring, Wiring),
+      do: raise(ArgumentError, "wiring must be a Neptunus.Wiring, got #{inspect(wiring)}")
+
     loop_ms = positive!(opts, :loop_ms, 10)
     setup_ms = non_negative!(opts, :setup_ms, 20)
 
     fw = %__MODULE__{
       profile: profile,
-      wiring: Keyword.get(opts, :wiring) || Wiring.default(),
+      wiring: wiring,
       boot_at: now,
       options: opts,
       deadman_ms: positive!(opts, :deadman_ms, 2_000),
@@ -309,8 +319,15 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   @spec sense(t(), map()) :: t()
   def sense(%__MODULE__{} = fw, %{measurement: m}), do: sense(fw, m)
 
-  def sense(%__MODULE__{} = fw, m) when is_map(m),
-    do: %{fw | reading: Map.take(m, [:heading, :depth, :pitch, :roll, :voltage, :current])}
+  def sense(%__MODULE__{} = fw, m) when is_map(m) do
+    reading = Map.take(m, @reading_keys)
+
+    unless map_size(reading) == length(@reading_keys) and
+             Enum.all?(Map.values(reading), &is_number/1),
+           do: raise(ArgumentError, "a reading needs numbers for #{inspect(@reading_keys)}")
+
+    %{fw | reading: reading}
+  end
 
   @doc """
   Bytes from the server arriving at `now` (ms): the loop first catches up to `now` (see

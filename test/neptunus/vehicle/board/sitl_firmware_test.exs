@@ -108,6 +108,13 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
       assert_raise ArgumentError, ~r/firmware/, fn -> Firmware.new(0, firmware: :v1) end
       assert_raise ArgumentError, ~r/loop_ms/, fn -> Firmware.new(0, loop_ms: 0) end
       assert_raise ArgumentError, ~r/arm_ms/, fn -> Firmware.new(0, arm_ms: -1) end
+      assert_raise ArgumentError, ~r/wiring/, fn -> Firmware.new(0, wiring: "-port") end
+      fw = boot()
+      assert_raise ArgumentError, ~r/reading/, fn -> Firmware.sense(fw, %{depth: 1.0}) end
+
+      assert_raise ArgumentError, ~r/reading/, fn ->
+        Firmware.sense(fw, %{@reading | depth: nil})
+      end
     end
   end
 
