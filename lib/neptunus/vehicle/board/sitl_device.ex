@@ -58,9 +58,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   Options: `:id` and `:link` (path for the pty's slave end) required; `:hz`; the firmware's
   (`Neptunus.Vehicle.Board.SITL.Firmware.new/2`): `:firmware` (`:openrov_25` default or
   `:openrov_30`), `:wiring` (`Neptunus.Wiring`, default the thesis'), `:deadman_ms` (2000),
-  `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20); `:initial` and `:sim` (options of
-  `Neptunus.Sim.new/1`, over the default `noise: true` — realistic sensors with wild points —
-  and a fresh seed).
+  `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20); `:initial` and
+  `:sim` (options of `Neptunus.Sim.new/1`, over the default `noise: true` — realistic sensors
+  with wild points — and a fresh seed).
   """
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts) do
@@ -68,7 +68,10 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     GenServer.start_link(__MODULE__, opts, name: Neptunus.Fleet.via(__MODULE__, id))
   end
 
-  @doc "The device's state: the simulation (truth), the firmware, the pty path."
+  @doc """
+  The device's state: the simulation (truth), the firmware, the pty path, `rx_dropped` (bytes
+  the board's receive buffer lost), `resets` (board resets by `reset/1`).
+  """
   @spec state(String.t()) :: State.t()
   def state(id), do: GenServer.call(Neptunus.Fleet.via(__MODULE__, id), :state)
 
