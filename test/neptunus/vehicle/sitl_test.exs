@@ -28,31 +28,44 @@ defmodule Neptunus.Vehicle.SITLTest do
 
   defp motion(s, h, y), do: %{"mode" => "motion", "surge" => s, "heave" => h, "yaw" => y}
   defp truth(id), do: SITL.Device.state(id).sim.dyn
+  defp sign(x), do: if(x > 0, do: 1, else: if(x < 0, do: -1, else: 0))
 
   test "the vehicle moves when control commands it; telemetry comes back over the pty" do
     id = start_sitl()
     assert %{board: :sitl} = Enum.find(Fleet.list(), &(&1.id == id))
 
-    # telemetry through the real board path: measurements, no simulator truth
-    # (once the readings agree: no first reading is trusted)
+    # telemetry through the real board path: measurements, no simulator truth; the board
+    # prints a 0.00 placeholder until its depth sensor's first reading, about 1 s after boot,
+    # and navigation trusts depth only once the readings agree
     assert_receive {:pubsub, _, "telemetry",
                     %{sim: nil, measurement: m, measurement_state: %{depth: "valid"}}},
-                   4_000
+                   5_000
 
-    assert_in_delta m.depth, 1.0, 0.01
+    assert_in_delta m.depth, 1.0, 0.02
+
     # and the link's state rides along
     assert_receive {:pubsub, _, "telemetry", %{link: %{up: true, reason: "open"}}}, 2_000
 
     start = truth(id)
     assert {:ok, %{thrusters: thr}} = Control.thrust(id, motion(1, 1, 0))
 
-    # the simulated board decoded the go() bytes with the same wiring: physical values again
+    # the simulated board received the go() pulses the wiring gives, and its ESCs push the
+    # way the command meant (their magnitudes follow the firmware's motor modifiers)
+    wiring = Wiring.default()
+    us = Wiring.to_us(wiring, thr)
+
     wait_until(
       fn ->
-        SITL.Device.state(id).firmware.thrusters == Map.take(thr, [:port, :vertical, :starboard])
+        fw = SITL.Device.state(id).firmware
+        fw.target_us == us and fw.esc_us != {1500, 1500, 1500}
       end,
       "the board to apply the command"
     )
+
+    applied = SITL.Device.state(id).firmware.thrusters
+
+    for motor <- [:port, :vertical, :starboard],
+        do: assert(sign(applied[motor]) == sign(thr[motor]), "#{motor}")
 
     Process.sleep(700)
     now = truth(id)
@@ -118,7 +131,8 @@ defmodule Neptunus.Vehicle.SITLTest do
   end
 
   test "a hung control stops the pings, and the board's deadman stops the motors" do
-    id = start_sitl(%{ping_interval: 100, keepalive_timeout: 1_500, deadman_ms: 800})
+    # the firmware arms its deadman 180 s after boot; here at once
+    id = start_sitl(%{ping_interval: 100, keepalive_timeout: 1_500, deadman_ms: 800, arm_ms: 0})
 
     {:ok, _} = Control.thrust(id, motion(0, 1, 0))
     wait_until(fn -> SITL.Device.state(id).firmware.thrusters.vertical > 0 end, "thrust")
@@ -132,7 +146,13 @@ defmodule Neptunus.Vehicle.SITLTest do
 
     try do
       wait_until(fn -> SITL.Device.state(id).firmware.tripped end, "the deadman", 5_000)
-      assert SITL.Device.state(id).firmware.thrusters == Allocation.neutral()
+
+      # its internal stop() takes effect at the next 50 ms tick
+      wait_until(
+        fn -> SITL.Device.state(id).firmware.thrusters == Allocation.neutral() end,
+        "neutral"
+      )
+
       assert Board.link_status(id).counters.pings_withheld > 0
     after
       :sys.resume(control)
@@ -140,5 +160,113 @@ defmodule Neptunus.Vehicle.SITLTest do
 
     # control is back: pings resume and the board takes commands again
     wait_until(fn -> not SITL.Device.state(id).firmware.tripped end, "recovery", 5_000)
+  end
+
+  test "a board reset mid-dive: the board forgets its state, the vehicle does not, depth comes back" do
+    id = start_sitl()
+    :ok = Board.lights(id, 120)
+    wait_until(fn -> SITL.Device.state(id).firmware.lights == 120 end, "the lights")
+
+    wait_until(
+      fn ->
+        t = Telemetry.latest(id)
+        t != nil and abs(t.measurement.depth - truth(id).z) < 0.05
+      end,
+      "depth telemetry",
+      5_000
+    )
+
+    z = truth(id).z
+    :ok = SITL.Device.reset(id)
+    fw = SITL.Device.state(id).firmware
+    # a USB Arduino that resets: its own state is gone, the vehicle is where it was
+    assert {fw.lights, fw.depth, fw.armed} == {0, 0.0, false}
+    assert_in_delta truth(id).z, z, 0.05
+
+    # the board prints 0.00 for about a second, then its first reading
+    wait_until(
+      fn -> SITL.Device.state(id).firmware.depth > 0.5 end,
+      "the board's first reading",
+      3_000
+    )
+
+    assert Board.link_status(id).up
+  end
+
+  # Issue 13, item 1: the board prints deap:0.00 for about a second after every (re)boot. The
+  # server must trust no single first reading: within 1.5 s of the board's first real reading
+  # the telemetry depth must be right (given 2 s here). Today navigation takes the placeholder
+  # and rejects the real depth until three new values came (3 s at 1 Hz; for ever at a steady
+  # depth): this test needs the navigation part of the issue.
+  @tag :issue_13_navigation
+  test "at 3 m, depth telemetry is right soon after the boot placeholder and after a board reset" do
+    id = start_sitl(%{initial: [z: 3.0]})
+
+    depth_right? = fn ->
+      t = Telemetry.latest(id)
+      t != nil and abs(t.measurement.depth - truth(id).z) < 0.05
+    end
+
+    board_read? = fn -> SITL.Device.state(id).firmware.depth > 0.0 end
+
+    wait_until(board_read?, "the board's first depth reading", 3_000)
+    wait_until(depth_right?, "depth telemetry after the boot placeholder", 2_000)
+    :ok = SITL.Device.reset(id)
+    wait_until(board_read?, "the board's first depth reading after its reset", 3_000)
+    wait_until(depth_right?, "depth telemetry after the board reset", 2_000)
+  end
+
+  # Issue 13, items 2, 3 and 5, the board link's part: these need the server to frame commands
+  # for 30.x, to set the motor modifiers from the wiring, and to re-send the board's state
+  # after a board reset.
+  describe "the board link and the real firmware" do
+    @describetag :issue_13_link
+
+    test "forward surge drives straight with the thesis wiring (the link sets the modifiers)" do
+      id = start_sitl()
+      {:ok, _} = Control.thrust(id, motion(1, 0, 0))
+
+      wait_until(
+        fn -> SITL.Device.state(id).firmware.esc_us != {1500, 1500, 1500} end,
+        "the motors"
+      )
+
+      {p, _v, s} = SITL.Device.state(id).firmware.esc_us
+      assert abs(abs(p - 1500) - abs(s - 1500)) <= 10
+      psi = truth(id).psi
+      Process.sleep(1_500)
+      assert abs(truth(id).psi - psi) < 0.05
+    end
+
+    test "openrov_30: every command is accepted and the deadman is fed" do
+      id = start_sitl(%{firmware: :openrov_30})
+      {:ok, _} = Control.thrust(id, motion(0, 1, 0))
+      wait_until(fn -> SITL.Device.state(id).firmware.last_ping != nil end, "a ping", 3_000)
+      wait_until(fn -> SITL.Device.state(id).firmware.thrusters.vertical > 0 end, "thrust")
+      fw = SITL.Device.state(id).firmware
+      assert fw.bad_commands == 0 and fw.commands > 0
+    end
+
+    test "after a board reset the lights, laser and tilt come back" do
+      id = start_sitl()
+      :ok = Board.lights(id, 120)
+      :ok = Board.laser(id, 7)
+      :ok = Board.tilt(id, 0.3)
+
+      settled = fn ->
+        fw = SITL.Device.state(id).firmware
+        fw.lights == 120 and fw.laser == 7 and fw.tilt != 1500
+      end
+
+      wait_until(settled, "lights, laser and tilt")
+      tilt = SITL.Device.state(id).firmware.tilt
+      :ok = SITL.Device.reset(id)
+
+      wait_until(
+        fn -> settled.() and SITL.Device.state(id).firmware.tilt == tilt end,
+        "restored",
+        3_000
+      )
+    end
   end
 end

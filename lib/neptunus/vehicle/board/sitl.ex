@@ -20,7 +20,8 @@ defmodule Neptunus.Vehicle.Board.SITL do
   so several nodes or test runs on one machine never share a pty).
 
   Options: those of `Board.UART` (`:wiring`, `:ping_interval`, …) and of `SITL.Device`
-  (`:hz`, `:telemetry_hz`, `:deadman_ms`, `:initial`, `:sim`); `:link`.
+  (`:hz`, `:firmware`, `:deadman_ms`, `:arm_ms`, `:loop_ms`, `:stall_ms`, `:setup_ms`,
+  `:initial`, `:sim`); `:link`.
   """
   use Supervisor
 
@@ -29,7 +30,8 @@ defmodule Neptunus.Vehicle.Board.SITL do
 
   @behaviour Board
 
-  @device_opts [:wiring, :hz, :telemetry_hz, :deadman_ms, :initial, :sim]
+  @device_opts [:wiring, :hz, :deadman_ms, :initial, :sim, :firmware] ++
+                 [:arm_ms, :loop_ms, :stall_ms, :setup_ms]
   @uart_opts [:wiring, :ping_interval, :keepalive_timeout, :reopen_min, :reopen_max, :max_line]
 
   @impl Board

@@ -1,19 +1,21 @@
 defmodule Neptunus.Vehicle.Board.SITL.Device do
   @moduledoc """
   The simulated OpenROV board of a SITL vehicle: owns a `Neptunus.Sim` and the firmware
-  (`Neptunus.Vehicle.Board.SITL.Firmware`), and speaks the OpenROV protocol on the master
-  end of a pseudo-terminal pair created by the port program (`neptunus_uart pty LINK`), whose
-  slave end is symlinked at `link` for `Neptunus.Vehicle.Board.UART` to open.
+  (`Neptunus.Vehicle.Board.SITL.Firmware`, which decides every byte and timing), and speaks on
+  the master end of a pseudo-terminal pair created by the port program
+  (`neptunus_uart pty LINK`), whose slave end is symlinked at `link` for
+  `Neptunus.Vehicle.Board.UART` to open.
 
   It steps the simulation at `hz` (default config `:sim_hz`, 100 Hz) on absolute deadlines
-  (`Neptunus.Periodic`, at most #{20} catch-up steps per tick, like the simulated board), sends a
-  navigation-data line at `telemetry_hz` (default 50 Hz) and a board-status line every fifth
-  of those, and applies commands as their bytes arrive.
+  (`Neptunus.Periodic`, at most #{20} catch-up steps per tick); at each step it gives the
+  firmware the simulator's reading, runs the firmware's loop up to now, sends what it wrote and
+  drives the simulator with the thrusters the firmware's ESC pulses give. Received bytes go to
+  the firmware as they arrive (its 64-byte receive buffer drops what overflows: `rx_dropped`).
 
-  The pseudo-terminal is created in `init/1` and the process answers only once it exists, so
-  the board link started after it finds the device. If the port program exits, this process
-  stops and is restarted with a new pair at the same link path: to the board link that is a
-  hangup followed by a board that comes back — as when a real board resets.
+  `reset/1` reboots the board (as a USB Arduino that resets) without touching the simulated
+  vehicle: the firmware starts again from millis 0 and the physics keep going. If the port
+  program exits, this process stops and is restarted with a new pair at the same link path: to
+  the board link that is a hangup followed by a board that comes back.
   """
   use GenServer
 
@@ -32,11 +34,11 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
             sim: Neptunus.Sim.t(),
             firmware: Neptunus.Vehicle.Board.SITL.Firmware.t(),
             periodic: Neptunus.Periodic.t(),
-            steps_per_line: pos_integer(),
-            lines: non_neg_integer(),
-            skipped_steps: non_neg_integer()
+            skipped_steps: non_neg_integer(),
+            rx_dropped: non_neg_integer(),
+            resets: non_neg_integer()
           }
-    @enforce_keys [:id, :port, :pty, :sim, :firmware, :periodic, :steps_per_line]
+    @enforce_keys [:id, :port, :pty, :sim, :firmware, :periodic]
     defstruct [
       :id,
       :port,
@@ -44,17 +46,21 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
       :sim,
       :firmware,
       :periodic,
-      :steps_per_line,
-      lines: 0,
-      skipped_steps: 0
+      skipped_steps: 0,
+      rx_dropped: 0,
+      resets: 0
     ]
   end
 
+  @firmware_opts [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms]
+
   @doc """
-  Options: `:id` and `:link` (path for the pty's slave end) required; `:wiring`
-  (`Neptunus.Wiring`, default the thesis'), `:hz`, `:telemetry_hz` (default 50),
-  `:deadman_ms` (default 3000), `:initial` and `:sim` (options of `Neptunus.Sim.new/1`, over
-  the default `noise: true` — realistic sensors with wild points — and a fresh seed).
+  Options: `:id` and `:link` (path for the pty's slave end) required; `:hz`; the firmware's
+  (`Neptunus.Vehicle.Board.SITL.Firmware.new/2`): `:firmware` (`:openrov_25` default or
+  `:openrov_30`), `:wiring` (`Neptunus.Wiring`, default the thesis'), `:deadman_ms` (2000),
+  `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20); `:initial` and
+  `:sim` (options of `Neptunus.Sim.new/1`, over the default `noise: true` — realistic sensors
+  with wild points — and a fresh seed).
   """
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts) do
@@ -62,9 +68,19 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     GenServer.start_link(__MODULE__, opts, name: Neptunus.Fleet.via(__MODULE__, id))
   end
 
-  @doc "The device's state: the simulation (truth), the firmware, the pty path."
+  @doc """
+  The device's state: the simulation (truth), the firmware, the pty path, `rx_dropped` (bytes
+  the board's receive buffer lost), `resets` (board resets by `reset/1`).
+  """
   @spec state(String.t()) :: State.t()
   def state(id), do: GenServer.call(Neptunus.Fleet.via(__MODULE__, id), :state)
+
+  @doc """
+  Reboots the simulated board (its millis back to 0, every firmware state lost, the boot
+  output again) without touching the simulated vehicle, whose physics keep going.
+  """
+  @spec reset(String.t()) :: :ok
+  def reset(id), do: GenServer.call(Neptunus.Fleet.via(__MODULE__, id), :reset)
 
   # Callbacks
 
@@ -73,7 +89,10 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     id = Keyword.fetch!(opts, :id)
     link = Keyword.fetch!(opts, :link)
     hz = Keyword.get(opts, :hz, Application.get_env(:neptunus, :sim_hz, 100))
-    telemetry_hz = min(Keyword.get(opts, :telemetry_hz, 50), hz)
+    # a bad firmware option stops the device here with a clear error, before any pty exists
+    firmware =
+      Firmware.new(System.monotonic_time(:millisecond), Keyword.take(opts, @firmware_opts))
+
     File.mkdir_p!(Path.dirname(link))
 
     port =
@@ -90,17 +109,14 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     # device, as a real board's device node exists before the server starts.
     receive do
       {^port, {:data, "o" <> pty}} ->
-        now = System.monotonic_time(:millisecond)
-
         {:ok,
          %State{
            id: id,
            port: port,
            pty: pty,
            sim: Sim.new(sim_opts(opts, hz)),
-           firmware: Firmware.new(now, Keyword.take(opts, [:wiring, :deadman_ms])),
-           periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick)),
-           steps_per_line: max(div(hz, telemetry_hz), 1)
+           firmware: Firmware.reset(firmware, System.monotonic_time(:millisecond)),
+           periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick))
          }}
 
       {^port, {:data, "e" <> why}} ->
@@ -125,12 +141,27 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   @impl true
   def handle_call(:state, _from, state), do: {:reply, state, state}
 
+  def handle_call(:reset, _from, state) do
+    now = System.monotonic_time(:millisecond)
+    # what the old firmware wrote up to now goes out first, then the new one boots
+    {firmware, out} = Firmware.tick(state.firmware, now)
+    state = send_bytes(state, out)
+    firmware = Firmware.reset(firmware, now)
+
+    {:reply, :ok,
+     %{
+       state
+       | firmware: firmware,
+         sim: Sim.command(state.sim, firmware.thrusters),
+         resets: state.resets + 1
+     }}
+  end
+
   @impl true
   def handle_info({port, {:data, "r" <> bytes}}, %State{port: port} = state) do
     now = System.monotonic_time(:millisecond)
     {firmware, reply} = Firmware.receive(state.firmware, bytes, now)
-    state = %{state | firmware: firmware, sim: Sim.command(state.sim, firmware.thrusters)}
-    {:noreply, send_bytes(state, reply)}
+    {:noreply, send_bytes(apply_firmware(state, firmware), reply)}
   end
 
   def handle_info({port, {:data, _other}}, %State{port: port} = state), do: {:noreply, state}
@@ -144,10 +175,13 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     {due, periodic} = Periodic.advance(state.periodic, now)
     steps = min(due, @max_catch_up)
 
-    {firmware, alarm} =
-      Firmware.tick(state.firmware, System.convert_time_unit(now, :native, :millisecond))
+    # the firmware reads the sensors as they are now, runs its loop up to now, and its ESC
+    # pulses drive the simulator for the steps that follow
+    firmware = Firmware.sense(state.firmware, Sim.sample(state.sim))
 
-    before = state.sim.steps
+    {firmware, out} =
+      Firmware.tick(firmware, System.convert_time_unit(now, :native, :millisecond))
+
     sim = state.sim |> Sim.command(firmware.thrusters) |> Sim.step(steps)
     Periodic.arm(periodic, :tick)
 
@@ -156,20 +190,20 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
       | sim: sim,
         firmware: firmware,
         periodic: periodic,
-        skipped_steps: state.skipped_steps + due - steps
+        skipped_steps: state.skipped_steps + due - steps,
+        rx_dropped: firmware.rx_dropped
     }
 
-    state = send_bytes(state, alarm)
+    {:noreply, send_bytes(state, out)}
+  end
 
-    # one navdata line per `steps_per_line` steps, status every fifth line
-    if div(sim.steps, state.steps_per_line) > div(before, state.steps_per_line) do
-      sample = Sim.sample(sim)
-      status = if rem(state.lines, 5) == 0, do: Firmware.shared_data(sample, firmware), else: ""
-      line = Firmware.navdata(sample, firmware)
-      {:noreply, send_bytes(%{state | lines: state.lines + 1}, [status, line])}
-    else
-      {:noreply, state}
-    end
+  defp apply_firmware(state, firmware) do
+    %{
+      state
+      | firmware: firmware,
+        sim: Sim.command(state.sim, firmware.thrusters),
+        rx_dropped: firmware.rx_dropped
+    }
   end
 
   defp send_bytes(state, bytes) do

@@ -1,0 +1,117 @@
+defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
+  # The simulated board alone, over its pseudo-terminal: the test writes command bytes and
+  # reads the firmware's output as a board link would.
+  use ExUnit.Case, async: true
+
+  @moduletag :uart
+  @moduletag :capture_log
+
+  import Neptunus.Test.Pty, only: [open!: 1, write: 2, recv_until: 3, drain: 2, wait_until: 3]
+
+  alias Neptunus.Protocol.OpenROV
+  alias Neptunus.Vehicle.Board.SITL.Device
+
+  defp start_device(opts \\ []) do
+    id = "sitl-dev-#{System.unique_integer([:positive])}"
+    dir = Path.join(System.tmp_dir!(), "neptunus-sitl-dev-#{System.unique_integer([:positive])}")
+    link = Path.join(dir, "board.tty")
+    on_exit(fn -> File.rm_rf(dir) end)
+
+    opts = [id: id, link: link, sim: [noise: false], initial: [z: 2.0]] ++ opts
+    start_supervised!({Device, opts})
+    {id, open!(link)}
+  end
+
+  defp truth(id), do: Device.state(id).sim.dyn
+  defp millis_of_pong(bytes), do: Regex.run(~r/pong:\d+,(\d+);/, bytes, capture: :all_but_first)
+
+  test "lines end in CRLF, the echo and the glued pong come back, depth is a placeholder at first" do
+    {id, port} = start_device()
+    write(port, "ping(5);")
+    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/), 2_000)
+    assert out =~ "cmd:ping(5);\r\npong:1,"
+    out = recv_until(port, &(&1 =~ ~r/deap:[1-9]/), 3_000)
+    assert out =~ ~r/\r\n;time:\d+\.00;\r\n/
+    refute out =~ ~r/[^\r]\n/
+    assert Device.state(id).firmware.depth > 1.9
+  end
+
+  test "reset/1 reboots the board: millis from 0, state lost, placeholder depth; the vehicle is untouched" do
+    {id, port} = start_device()
+    write(port, "ligt(77);")
+    write(port, "mtrmod1(100,100,100);")
+    wait_until(fn -> Device.state(id).firmware.lights == 77 end, "lights", 2_000)
+    wait_until(fn -> Device.state(id).firmware.depth > 1.9 end, "the first depth reading", 3_000)
+    before = truth(id)
+
+    :ok = Device.reset(id)
+    state = Device.state(id)
+    assert state.resets == 1
+
+    assert {state.firmware.lights, state.firmware.positive_mod, state.firmware.depth} ==
+             {0, {1, 1, 1}, 0.0}
+
+    # the simulated vehicle carried on where it was
+    assert_in_delta state.sim.dyn.z, before.z, 0.05
+    assert state.sim.steps > 0
+
+    out = recv_until(port, &(&1 =~ "Depth Sensor setup.\r\n" and &1 =~ "hdgd:"), 2_000)
+    assert out =~ ";deap:0.00;"
+    _ = drain(port, 20)
+    write(port, "ping(1);")
+    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/), 2_000)
+    [millis] = millis_of_pong(out)
+    assert String.to_integer(millis) < 2_000
+  end
+
+  test "30.x: framed commands pass, plain ones fail their CRC" do
+    {id, port} = start_device(firmware: :openrov_30)
+    write(port, OpenROV.frame("ping(3);", :openrov_30))
+    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/), 2_000)
+    assert out =~ ~r/rawcmd:[0-9A-F,]+;\r\ncrc:pass;cmd:ping\(3\);\r\npong:1,\d+;/
+    write(port, "ping(4);")
+    out = recv_until(port, &(&1 =~ "crc:fail,"), 2_000)
+    assert out =~ ~r/crc:fail,[0-9A-F]+\/70;/
+    assert Device.state(id).firmware.bad_commands == 1
+  end
+
+  test "a 100-byte burst overflows the 64-byte receive buffer; paced writes lose nothing" do
+    {id, port} = start_device()
+    _ = recv_until(port, &(&1 =~ "hdgd:"), 2_000)
+    write(port, String.duplicate("tilt(1500);", 9) <> "ping(1);")
+    wait_until(fn -> Device.state(id).rx_dropped > 0 end, "dropped bytes", 2_000)
+    dropped = Device.state(id).rx_dropped
+    assert dropped >= 107 - 64
+
+    # as the board link paces them: one command at a time, well under 60 bytes per 30 ms
+    for n <- 1..20 do
+      write(port, "ligt(#{n});")
+      Process.sleep(15)
+    end
+
+    wait_until(fn -> Device.state(id).firmware.lights == 20 end, "the last command", 2_000)
+    assert Device.state(id).rx_dropped == dropped
+  end
+
+  describe "straight surge with the thesis wiring (port reversed)" do
+    defp heading_change(commands) do
+      {id, port} = start_device()
+      _ = recv_until(port, &(&1 =~ "hdgd:"), 2_000)
+      for c <- commands, do: write(port, c) && Process.sleep(5)
+      psi0 = truth(id).psi
+      Process.sleep(1_500)
+      abs(truth(id).psi - psi0)
+    end
+
+    test "with the default modifiers (reverse ×2) the vehicle yaws" do
+      assert heading_change(["go(1300,1500,1700,1);"]) > 0.1
+    end
+
+    test "after mtrmod1/mtrmod2 100 it drives straight" do
+      turn =
+        heading_change(["mtrmod1(100,100,100);", "mtrmod2(100,100,100);", "go(1300,1500,1700,1);"])
+
+      assert turn < 0.01
+    end
+  end
+end
