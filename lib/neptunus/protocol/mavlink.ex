@@ -35,7 +35,8 @@ defmodule Neptunus.Protocol.MAVLink do
   `{decoder, messages, events}`: the `Neptunus.Protocol.MAVLink.Message`s completed, in order,
   and what was dropped, in order:
 
-    * `{:garbage, bytes}` — bytes skipped while looking for a frame start (runs are merged);
+    * `{:garbage, bytes}` — bytes skipped while looking for a frame start (two garbage events
+      next to each other in the list are merged into one);
     * `{:bad_checksum, message_id}` — a known message whose checksum does not match: its start
       byte is dropped (counted as garbage too) and the search goes on from the next byte, so
       a frame hidden in a corrupt one is still found;
