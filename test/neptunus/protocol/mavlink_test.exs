@@ -8,6 +8,7 @@ defmodule Neptunus.Protocol.MAVLinkTest do
 
   alias Neptunus.Protocol.MAVLink
   alias Neptunus.Protocol.MAVLink.{CRC, Definition, Message, Messages}
+  alias Neptunus.Test.MAVLinkGen, as: Gen
 
   @gcs %{system: 255, component: 190, seq: 0}
 
@@ -455,78 +456,6 @@ defmodule Neptunus.Protocol.MAVLinkTest do
 
   # ── properties ─────────────────────────────────────────────────────────────────────────
 
-  defp float32(value),
-    do:
-      (
-        <<v::float-32>> = <<value::float-32>>
-        v
-      )
-
-  defp value_gen(:uint8), do: :proper_types.integer(0, 0xFF)
-  defp value_gen(:int8), do: :proper_types.integer(-0x80, 0x7F)
-  defp value_gen(:uint16), do: :proper_types.integer(0, 0xFFFF)
-  defp value_gen(:int16), do: :proper_types.integer(-0x8000, 0x7FFF)
-  defp value_gen(:uint32), do: :proper_types.integer(0, 0xFFFFFFFF)
-  defp value_gen(:int32), do: :proper_types.integer(-0x80000000, 0x7FFFFFFF)
-  defp value_gen(:uint64), do: :proper_types.integer(0, 0xFFFFFFFFFFFFFFFF)
-  defp value_gen(:int64), do: :proper_types.integer(-0x8000000000000000, 0x7FFFFFFFFFFFFFFF)
-
-  defp value_gen(:float) do
-    :proper_types.frequency([
-      {20, bind(:proper_types.float(-3.0e38, 3.0e38), &float32/1)},
-      {20, bind(:proper_types.float(-1000.0, 1000.0), &float32/1)},
-      {5, 0.0},
-      {1, :proper_types.oneof([:nan, :infinity, :neg_infinity])}
-    ])
-  end
-
-  defp value_gen(:double) do
-    :proper_types.oneof([:proper_types.float(), :nan, :infinity, :neg_infinity])
-  end
-
-  defp field_gen(%{type: :char, length: n}) do
-    bind(:proper_types.list(:proper_types.integer(1, 255)), fn bytes ->
-      bytes |> Enum.take(n) |> :erlang.list_to_binary()
-    end)
-  end
-
-  defp field_gen(%{type: type, length: nil}), do: value_gen(type)
-  defp field_gen(%{type: type, length: n}), do: List.duplicate(value_gen(type), n)
-
-  defp message_gen do
-    :proper_types.oneof(
-      for definition <- Messages.all() do
-        fields = for field <- definition.fields, do: {field.name, field_gen(field)}
-        {definition.name, bind(fields, &Map.new/1)}
-      end
-    )
-  end
-
-  defp header_gen do
-    bind(
-      {:proper_types.integer(0, 255), :proper_types.integer(0, 255),
-       :proper_types.integer(0, 255)},
-      fn {system, component, seq} -> %{system: system, component: component, seq: seq} end
-    )
-  end
-
-  # what a receiver gets for fields sent as MAVLink 1: the extensions zero
-  defp as_received(name, fields, 2) when is_atom(name), do: fields
-
-  defp as_received(name, fields, 1) do
-    for field <- Messages.get(name).fields, into: %{} do
-      value = if field.extension, do: zero(field), else: fields[field.name]
-      {field.name, value}
-    end
-  end
-
-  defp zero(%{type: :char}), do: ""
-  defp zero(%{type: type, length: nil}) when type in [:float, :double], do: 0.0
-  defp zero(%{length: nil}), do: 0
-  defp zero(%{length: n} = field), do: List.duplicate(zero(%{field | length: nil}), n)
-
-  defp version_gen, do: :proper_types.oneof([1, 2])
-
   describe "properties" do
     test "random bytes never crash and give the documented shape, every byte accounted for" do
       check(
@@ -567,12 +496,12 @@ defmodule Neptunus.Protocol.MAVLinkTest do
 
     test "every message round-trips through encode and decode (MAVLink 2 and 1)" do
       check(
-        {message_gen(), header_gen(), version_gen()},
+        {Gen.message(), Gen.header(), Gen.version()},
         fn {{name, fields}, header, version} ->
           {:ok, frame} = MAVLink.encode(name, fields, header, version)
           {[message], [], _stats, decoder} = decode_all(frame)
 
-          message.name == name and message.fields == as_received(name, fields, version) and
+          message.name == name and message.fields == Gen.as_received(name, fields, version) and
             message.system == header.system and message.component == header.component and
             message.seq == header.seq and message.version == version and
             decoder.buffer == "" and MAVLink.stats(decoder).garbage_bytes == 0
@@ -584,7 +513,7 @@ defmodule Neptunus.Protocol.MAVLinkTest do
     test "frames split into arbitrary chunks decode the same as in one piece" do
       check(
         {:proper_types.non_empty(
-           :proper_types.list({message_gen(), header_gen(), version_gen()})
+           :proper_types.list({Gen.message(), Gen.header(), Gen.version()})
          ), :proper_types.list(:proper_types.integer(0, 2000)), :proper_types.binary()},
         fn {messages, cuts, noise} ->
           frames =
@@ -633,7 +562,7 @@ defmodule Neptunus.Protocol.MAVLinkTest do
 
     test "a mutated frame is dropped and counted, or decoded if its checksum still holds; never raised" do
       check(
-        {message_gen(), header_gen(), version_gen(),
+        {Gen.message(), Gen.header(), Gen.version(),
          :proper_types.list(
            {:proper_types.oneof([:set, :insert, :delete]), :proper_types.integer(0, 300),
             :proper_types.integer(0, 255)}
@@ -676,7 +605,7 @@ defmodule Neptunus.Protocol.MAVLinkTest do
             not single_substitution? or
               Enum.all?(
                 messages,
-                &(&1.name == name and &1.fields == as_received(name, fields, version))
+                &(&1.name == name and &1.fields == Gen.as_received(name, fields, version))
               )
 
           counted? and intact? and
