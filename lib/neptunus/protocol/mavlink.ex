@@ -41,11 +41,15 @@ defmodule Neptunus.Protocol.MAVLink do
       byte is dropped (counted as garbage too) and the search goes on from the next byte, so
       a frame hidden in a corrupt one is still found;
     * `{:unknown_message, message_id, {system, component}}` — no definition: skipped by its
-      length (its checksum cannot be checked without a CRC_EXTRA);
+      length. Its checksum cannot be checked without a CRC_EXTRA, so the frame is taken only
+      if another frame starts right after it (one more byte is awaited when it ends a chunk);
+      otherwise its start byte is dropped as garbage and the search goes on, so that garbage
+      which looks like a frame header does not swallow the frames that follow it;
     * `{:lost, {system, component}, frames}` — a gap in a sender's sequence numbers.
 
-  An incomplete frame at the end is kept for the next chunk; it is shorter than the longest
-  frame (280 bytes), so the decoder's memory stays bounded. The counters are in
+  An incomplete frame at the end is kept for the next chunk (and a complete frame of an
+  unknown message until the next byte arrives); that is at most the longest frame (280 bytes),
+  so the decoder's memory stays bounded. The counters are in
   `stats/1` and `sources/1` (`Neptunus.Protocol.MAVLink.Decoder`).
 
   ## Encoding
@@ -195,9 +199,22 @@ defmodule Neptunus.Protocol.MAVLink do
 
     case Messages.get(id) do
       nil ->
-        events = [{:unknown_message, id, {system, component}} | events]
-        {decoder, events} = count(decoder, :unknown) |> sequence({system, component}, seq, events)
-        scan(after_frame, decoder, messages, events)
+        # without a CRC_EXTRA the checksum proves nothing: the frame is taken only when the
+        # next frame starts right after it (garbage seldom passes this and so seldom swallows
+        # the frames after it); at the end of the bytes, it waits for the next one
+        case after_frame do
+          <<>> ->
+            {%{decoder | buffer: bytes}, messages, events}
+
+          <<next, _::binary>> when next in [@v2, @v1] ->
+            events = [{:unknown_message, id, {system, component}} | events]
+            source = {system, component}
+            {decoder, events} = count(decoder, :unknown) |> sequence(source, seq, events)
+            scan(after_frame, decoder, messages, events)
+
+          _ ->
+            drop_start(bytes, decoder, messages, events)
+        end
 
       definition ->
         if CRC.x25(<<definition.crc_extra>>, CRC.x25(checked)) == crc do

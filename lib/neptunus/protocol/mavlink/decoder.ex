@@ -1,7 +1,7 @@
 defmodule Neptunus.Protocol.MAVLink.Decoder do
   @moduledoc """
   The state of a streaming MAVLink decoder (`Neptunus.Protocol.MAVLink.decode/2`): the start
-  of a frame that has not fully arrived yet (always shorter than the longest frame, 280 bytes),
+  of a frame that has not fully arrived yet (at most the longest frame, 280 bytes),
   the last sequence number seen from each sender, and the counters.
 
   `stats` counts, since the decoder was made: `messages` decoded, `garbage_bytes` skipped while
