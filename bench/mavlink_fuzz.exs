@@ -228,6 +228,33 @@ out.(
   "#{round(total / seconds)} frames/s, #{Float.round(byte_size(stream) / 1_048_576 / seconds, 1)} MiB/s"
 )
 
+# for comparison: a clean stream (only the valid and signed frames, same chunk sizes), and the
+# encoder on the same messages
+clean = for {kind, frame, _} <- generated, kind in [:valid, :signed], into: <<>>, do: frame
+clean_chunks = Fuzz.chunks(clean)
+
+{clean_us, _} =
+  :timer.tc(fn ->
+    Enum.reduce(clean_chunks, MAVLink.new(), fn chunk, d -> elem(MAVLink.decode(d, chunk), 0) end)
+  end)
+
+to_encode =
+  for {name, system, component, seq, fields} <- sent,
+      do: {name, fields, %{system: system, component: component, seq: seq}}
+
+{encode_us, _} =
+  :timer.tc(fn ->
+    Enum.each(to_encode, fn {name, fields, header} ->
+      {:ok, _} = MAVLink.encode(name, fields, header)
+    end)
+  end)
+
+out.(
+  "clean stream: decode",
+  "#{round(length(sent) / (clean_us / 1_000_000))} frames/s, #{Float.round(byte_size(clean) / 1_048_576 / (clean_us / 1_000_000), 1)} MiB/s"
+)
+
+out.("encode (MAVLink 2)", "#{round(length(sent) / (encode_us / 1_000_000))} frames/s")
 out.("messages decoded", stats.messages)
 out.("valid frames decoded as sent / sent", "#{matched} / #{length(sent)}")
 out.("decoded from damaged frames (still valid)", length(decoded) - matched)
