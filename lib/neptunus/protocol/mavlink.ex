@@ -20,14 +20,15 @@ defmodule Neptunus.Protocol.MAVLink do
       one (a sender with a newer definition: more extension fields) is read up to what we know.
     * **Sequence numbers**: the caller keeps one per sender and passes it in the header
       (`next_seq/1` steps it). On receive, each sender `{system, component}` is tracked and the
-      gap to its last sequence number counted as lost frames (frames of unknown messages count
-      as received: a vehicle sends many messages we have no definition for).
+      gap to its last sequence number counted as lost frames: `(seq - last - 1) mod 256`, as
+      pymavlink counts it (so a repeated frame counts as 255 lost). Frames of unknown messages
+      count as received: a vehicle sends many messages we have no definition for.
     * The messages of `Neptunus.Protocol.MAVLink.Messages`, their wire order and CRC_EXTRA
       computed from their XML declarations.
 
-  Not implemented: creating or verifying signatures, MAVLink 1's framing without a CRC_EXTRA
-  (MAVLink 0.9), the "packed" extensions of other dialects (only `common.xml`/`minimal.xml`
-  messages are defined).
+  Not implemented: creating or verifying signatures; messages beyond those defined (other
+  `common.xml` messages and dialects such as `ardupilotmega.xml` are skipped as unknown until
+  their declarations are added to `Messages`).
 
   ## Decoding
 
