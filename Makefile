@@ -5,22 +5,25 @@ SHELL := /bin/bash
 .DEFAULT_GOAL := help
 
 APT_PACKAGES := elixir erlang-dev erlang-src erlang-yaws erlang-jiffy erlang-proper \
-                erlang-dialyzer socat chromium gcc libc6-dev
+                erlang-dialyzer socat chromium gcc libc6-dev python3 python3-venv
 YAWS_DIR := $(firstword $(wildcard /usr/lib/yaws-*))
 ASSETS_STAMP := assets/node_modules/.package-lock.json
+# pymavlink, for the MAVLink interoperability tests only, in a project-local virtualenv
+PYMAVLINK_VERSION := 2.4.50
+VENV_STAMP := .venv/.pymavlink-$(PYMAVLINK_VERSION)
 
-.PHONY: help setup setup-apt setup-links setup-npm assets compile run test bench release clean
+.PHONY: help setup setup-apt setup-links setup-npm setup-venv assets compile run test bench release clean
 
 help:
 	@echo "make run    - install what is missing, build, start the server (http://127.0.0.1:4000)"
 	@echo "make test   - the whole test suite (ExUnit, vitest, Node protocol test, Playwright, dialyzer)"
-	@echo "make setup  - install Debian and npm dependencies (idempotent)"
+	@echo "make setup  - install Debian, npm and test-only Python dependencies (idempotent)"
 	@echo "make assets - build the browser code into priv/static"
 	@echo "make bench  - benchmarks (figures, not assertions)"
 	@echo "make release - the deployable node in _build/prod/rel/neptunus (see rel/neptunus.service)"
 	@echo "make clean  - remove build output"
 
-setup: setup-apt setup-links setup-npm
+setup: setup-apt setup-links setup-npm setup-venv
 
 # Debian packages: installed with apt when root, otherwise the exact command is printed.
 setup-apt:
@@ -58,6 +61,15 @@ $(ASSETS_STAMP): assets/package.json assets/package-lock.json
 	cd assets && npm install --no-audit --no-fund --loglevel=error
 	@touch $@
 
+# pymavlink (PyPI) for test/support/pymavlink_interop.py, in .venv/ made with Debian's Python:
+# nothing is installed system-wide and the server never uses it.
+setup-venv: $(VENV_STAMP)
+
+$(VENV_STAMP): | setup-apt
+	/usr/bin/python3 -m venv .venv
+	.venv/bin/pip install --quiet --disable-pip-version-check pymavlink==$(PYMAVLINK_VERSION)
+	@touch $@
+
 assets: setup-npm
 	cd assets && npm run --silent build
 
@@ -81,6 +93,7 @@ bench: setup assets
 	MIX_ENV=prod mix compile
 	bench/fanout
 	bench/protocol_fuzz
+	bench/mavlink_fuzz
 	bench/control_latency
 	bench/recording_export
 	@if [ "$$(id -u)" = 0 ]; then bench/slow_link; else echo "bench/slow_link skipped: it needs root (a network namespace and a shaped link)"; fi
