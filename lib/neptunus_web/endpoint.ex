@@ -21,7 +21,8 @@ defmodule NeptunusWeb.Endpoint do
   `max_connections` is `connection_limit/2` of `NEPTUNUS_MAX_CONNECTIONS` and the VM's socket
   limit (`Neptunus.OS.socket_limit/0`), which leaves room for files, port programs and the
   recorder. A connection beyond it is accepted and closed at once, before anything is read
-  from it; the established ones are not touched.
+  from it; the established ones are not touched. yaws' log line for each is counted
+  instead (`NeptunusWeb.ConnectionLog`: one warning at most every 10 s).
 
   A connection that holds a descriptor without completing a request is closed within
   `header_timeout_ms/0` (default #{5_000} ms): yaws' `keepalive_timeout` bounds each read of
@@ -138,7 +139,9 @@ defmodule NeptunusWeb.Endpoint do
 
     deadline = {NeptunusWeb.HeaderDeadline, timeout_ms: header_timeout_ms()}
 
-    Supervisor.init([NeptunusWeb.Auth.RateLimit | yaws_children] ++ [listener, deadline],
+    Supervisor.init(
+      [NeptunusWeb.Auth.RateLimit, NeptunusWeb.ConnectionLog | yaws_children] ++
+        [listener, deadline],
       strategy: :one_for_all
     )
   end

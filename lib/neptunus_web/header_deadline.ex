@@ -10,7 +10,8 @@ defmodule NeptunusWeb.HeaderDeadline do
   `yaws:http_recv_request/2` or `yaws:http_collect_headers/5` is reading a request head, and
   the request it reads is told by yaws' `request_start_time` (set when a request line
   arrives). A process seen reading the same head (same phase, same request) for the timeout is
-  killed: its socket closes, and yaws counts the connection as gone. A connection that makes
+  killed: its socket closes, and yaws counts the connection as gone (`NeptunusWeb.ConnectionLog`
+  counts it for the log). A connection that makes
   progress (its next request, its headers complete) starts a fresh deadline; WebSocket and
   streaming connections never read a head and are never touched.
 
@@ -19,8 +20,6 @@ defmodule NeptunusWeb.HeaderDeadline do
   while it looks.
   """
   use GenServer
-
-  require Logger
 
   @typedoc "What a connection process is reading: the phase and yaws' request start time."
   @type key :: {:request_line | :headers, term()}
@@ -34,9 +33,6 @@ defmodule NeptunusWeb.HeaderDeadline do
 
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts), do: GenServer.start_link(__MODULE__, opts, name: __MODULE__)
-
-  @doc false
-  def child_spec(opts), do: %{id: __MODULE__, start: {__MODULE__, :start_link, [opts]}}
 
   @doc """
   One sweep: given the connections seen before, those reading a head now (`[{pid, key}]`),
@@ -78,11 +74,8 @@ defmodule NeptunusWeb.HeaderDeadline do
     now = System.monotonic_time(:millisecond)
     {seen, expired} = sweep(state.seen, reading_heads(), now, state.timeout_ms)
 
-    if expired != [] do
-      Logger.debug("closing #{length(expired)} connection(s) slower than the header timeout")
-    end
-
     Enum.each(expired, &Process.exit(&1, :kill))
+    NeptunusWeb.ConnectionLog.closed_slow(length(expired))
     schedule(state)
     {:noreply, %{state | seen: seen}}
   end

@@ -64,8 +64,9 @@ defmodule NeptunusWeb.FdLimitTest do
           {~c"NEPTUNUS_PORT", Integer.to_charlist(port_number)},
           {~c"NEPTUNUS_VEHICLES", ~c"#{@vehicle}=simulated"},
           {~c"NEPTUNUS_RECORDINGS", ~c"off"},
-          # a loaded machine must not trip the deadman: what is tested is the pilot's socket
-          {~c"NEPTUNUS_DEADMAN_MS", ~c"2000"}
+          # what is tested is the pilot's socket and control: a machine loaded by other work
+          # (the flood's client runs here too) must not trip the deadman meanwhile
+          {~c"NEPTUNUS_DEADMAN_MS", ~c"10000"}
         ]
 
     node =
@@ -141,6 +142,12 @@ defmodule NeptunusWeb.FdLimitTest do
     Port.command(ctx.node, "report\n")
     assert await_line(ctx.node, "REPORT ", 10_000) =~ "same_endpoint=true"
 
+    # the log says how many were closed, in one line, not one line per connection
+    assert await_log(ctx.node, "beyond the connection limit", 15_000) =~
+             ~r/closed \d+ connections/
+
+    refute Enum.any?(drain(ctx.node), &(&1 =~ "Max connections reached"))
+
     # refused at once: closed well before any header timeout could have
     refused = Enum.count(closed_after, &(&1 < div(ctx.timeout, 2)))
     assert refused >= flood - ctx.limit, "only #{refused} of #{flood} refused"
@@ -169,6 +176,7 @@ defmodule NeptunusWeb.FdLimitTest do
   # The pilot: joins, takes control and sends thrust and a heartbeat every 50 ms; any
   # `stopped`, lost control or closed socket is the failure it reports when asked.
   defp drive(test, port) do
+    Process.flag(:priority, :high)
     {:ok, ws} = WSClient.connect(port, "/socket/websocket?vsn=2.0.0&name=Pilot")
     topic = "vehicle:" <> @vehicle
     jr = WSClient.unique_ref()
@@ -290,6 +298,8 @@ defmodule NeptunusWeb.FdLimitTest do
   defp await_line(node, prefix, timeout) do
     receive do
       {^node, {:data, {:eol, line}}} ->
+        # the test process keeps the node's output, for checks on its log
+        Process.put(:node_output, [line | Process.get(:node_output, [])])
         if String.starts_with?(line, prefix), do: line, else: await_line(node, prefix, timeout)
 
       {^node, {:data, {:noeol, _}}} ->
@@ -299,6 +309,34 @@ defmodule NeptunusWeb.FdLimitTest do
         flunk("the node exited (#{status}) before printing #{prefix}")
     after
       timeout -> flunk("the node printed no #{prefix} within #{timeout} ms")
+    end
+  end
+
+  # the first line of the node's output (kept or still to come) containing `text`
+  defp await_log(node, text, timeout) do
+    case Enum.find(Enum.reverse(Process.get(:node_output, [])), &String.contains?(&1, text)) do
+      nil ->
+        receive do
+          {^node, {:data, {:eol, line}}} ->
+            Process.put(:node_output, [line | Process.get(:node_output, [])])
+            await_log(node, text, timeout)
+        after
+          timeout -> flunk("the node logged no #{inspect(text)} within #{timeout} ms")
+        end
+
+      line ->
+        line
+    end
+  end
+
+  # the node's output so far
+  defp drain(node) do
+    receive do
+      {^node, {:data, {:eol, line}}} ->
+        Process.put(:node_output, [line | Process.get(:node_output, [])])
+        drain(node)
+    after
+      0 -> Enum.reverse(Process.get(:node_output, []))
     end
   end
 
