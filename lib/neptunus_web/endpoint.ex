@@ -16,8 +16,8 @@ defmodule NeptunusWeb.Endpoint do
   ## Connections and file descriptors
 
   Every connection holds a descriptor, and yaws' acceptor exits when `accept` fails for want
-  of one (`emfile`), which takes its listener and every connection with it (the pilot's
-  WebSocket too). So the endpoint never lets connections reach the descriptor limit: yaws'
+  of one (`emfile`): that takes its listener down with every HTTP connection it holds, and
+  a few times over, the endpoint with every WebSocket (the pilot's too). So the endpoint never lets connections reach the descriptor limit: yaws'
   `max_connections` is `connection_limit/2` of `NEPTUNUS_MAX_CONNECTIONS` and the VM's socket
   limit (`Neptunus.OS.socket_limit/0`), which leaves room for files, port programs and the
   recorder. A connection beyond it is accepted and closed at once, before anything is read
@@ -25,7 +25,7 @@ defmodule NeptunusWeb.Endpoint do
   instead (`NeptunusWeb.ConnectionLog`: one warning at most every 10 s).
 
   A connection that holds a descriptor without completing a request is closed within
-  `header_timeout_ms/0` (default #{5_000} ms): yaws' `keepalive_timeout` bounds each read of
+  `header_timeout_ms/0` (5 s by default): yaws' `keepalive_timeout` bounds each read of
   the request line and of each header (and the wait for the next request on a kept-alive
   connection), and `NeptunusWeb.HeaderDeadline` bounds the whole request head, against a
   client that trickles a byte at a time. WebSocket and camera connections, once upgraded or
