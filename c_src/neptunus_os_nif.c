@@ -1,7 +1,7 @@
 /*
  * neptunus_os_nif - asks Linux to wake the VM's threads promptly: a short scheduler time slice.
  *
- * Loaded by Neptunus.OS. Two functions, both run on a dirty I/O scheduler:
+ * Loaded by Neptunus.OS. Four functions, all run on a dirty I/O scheduler:
  *
  *   set_time_slice(Ns) -> {ok, Threads} | {error, Errno}
  *       For every thread of this OS process (/proc/self/task) under the fair scheduler
@@ -12,6 +12,15 @@
  *   time_slices(OsPid) -> {ok, [{Tid, Ns}]} | {error, Errno}
  *       Each thread of process OsPid (0: this one) and the slice sched_getattr(2) reports for
  *       it (sched_runtime), 0 where the kernel reports none.
+ *
+ *   get_fd_limit() -> {ok, {Soft, Hard}}
+ *       The RLIMIT_NOFILE of this OS process: how many file descriptors it may hold (Soft) and
+ *       how far an unprivileged process may raise that (Hard); `infinity` for RLIM_INFINITY.
+ *
+ *   set_fd_limit() -> {ok, {Before, After}} | {error, Errno}
+ *       Raises the soft RLIMIT_NOFILE to the hard one (to /proc/sys/fs/nr_open when the hard
+ *       limit is RLIM_INFINITY, which the kernel refuses as a soft value). Unprivileged.
+ *       Port programs started afterwards inherit the raised limit.
  *
  * Since Linux 6.12 the EEVDF scheduler takes a fair thread's sched_runtime as its slice
  * request (100 us .. 100 ms) and lets a thread with a shorter slice preempt the running one
@@ -28,6 +37,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
@@ -47,13 +57,14 @@ struct sched_attr_v1 {
   uint32_t sched_util_max;
 };
 
-static ERL_NIF_TERM atom_ok, atom_error;
+static ERL_NIF_TERM atom_ok, atom_error, atom_infinity;
 
 static int load(ErlNifEnv *env, void **priv, ERL_NIF_TERM info) {
   (void)priv;
   (void)info;
   atom_ok = enif_make_atom(env, "ok");
   atom_error = enif_make_atom(env, "error");
+  atom_infinity = enif_make_atom(env, "infinity");
   return 0;
 }
 
@@ -179,9 +190,63 @@ static ERL_NIF_TERM time_slices(ErlNifEnv *env, int argc, const ERL_NIF_TERM arg
   return err ? error_errno(env, err) : enif_make_tuple2(env, atom_ok, list);
 }
 
+static ERL_NIF_TERM make_rlim(ErlNifEnv *env, rlim_t value) {
+  return value == RLIM_INFINITY ? atom_infinity : enif_make_uint64(env, (ErlNifUInt64)value);
+}
+
+static ERL_NIF_TERM fd_limit(ErlNifEnv *env, int argc, const ERL_NIF_TERM argv[]) {
+  struct rlimit limit;
+  (void)argc;
+  (void)argv;
+  if (getrlimit(RLIMIT_NOFILE, &limit) != 0)
+    return error_errno(env, errno);
+  return enif_make_tuple2(
+      env, atom_ok,
+      enif_make_tuple2(env, make_rlim(env, limit.rlim_cur), make_rlim(env, limit.rlim_max)));
+}
+
+/* The kernel's ceiling for RLIMIT_NOFILE (fs.nr_open); 0 when it cannot be read. */
+static rlim_t nr_open(void) {
+  unsigned long long value = 0;
+  FILE *file = fopen("/proc/sys/fs/nr_open", "r");
+  if (file == NULL)
+    return 0;
+  if (fscanf(file, "%llu", &value) != 1)
+    value = 0;
+  fclose(file);
+  return (rlim_t)value;
+}
+
+static ERL_NIF_TERM raise_fd_limit(ErlNifEnv *env, int argc, const ERL_NIF_TERM argv[]) {
+  struct rlimit limit;
+  rlim_t before;
+  (void)argc;
+  (void)argv;
+  if (getrlimit(RLIMIT_NOFILE, &limit) != 0)
+    return error_errno(env, errno);
+  before = limit.rlim_cur;
+  if (limit.rlim_cur != limit.rlim_max) {
+    rlim_t target = limit.rlim_max;
+    if (target == RLIM_INFINITY) {
+      target = nr_open();
+      if (target == 0 || target <= limit.rlim_cur)
+        target = limit.rlim_cur;
+    }
+    if (target != limit.rlim_cur) {
+      limit.rlim_cur = target;
+      if (setrlimit(RLIMIT_NOFILE, &limit) != 0)
+        return error_errno(env, errno);
+    }
+  }
+  return enif_make_tuple2(
+      env, atom_ok, enif_make_tuple2(env, make_rlim(env, before), make_rlim(env, limit.rlim_cur)));
+}
+
 static ErlNifFunc funcs[] = {
     {"set_time_slice", 1, set_time_slice, ERL_NIF_DIRTY_JOB_IO_BOUND},
     {"time_slices", 1, time_slices, ERL_NIF_DIRTY_JOB_IO_BOUND},
+    {"get_fd_limit", 0, fd_limit, ERL_NIF_DIRTY_JOB_IO_BOUND},
+    {"set_fd_limit", 0, raise_fd_limit, ERL_NIF_DIRTY_JOB_IO_BOUND},
 };
 
 ERL_NIF_INIT(Elixir.Neptunus.OS, funcs, load, NULL, NULL, NULL)

@@ -16,12 +16,17 @@ import Config
 # Recording (Neptunus.Config.recording!/2): NEPTUNUS_RECORDINGS (directory or off),
 # NEPTUNUS_RECORDING_MAX_MB, NEPTUNUS_RECORDING_MIN_FREE_MB, NEPTUNUS_RECORDING_KEEP_DAYS.
 # Scheduling (Neptunus.Config.os_time_slice_ns!/1, Neptunus.OS): NEPTUNUS_OS_SLICE_US.
+# Connections (Neptunus.Config.max_connections!/1, NeptunusWeb.Endpoint):
+# NEPTUNUS_MAX_CONNECTIONS, the most client connections at once (1..1048576); more are closed
+# as soon as they are accepted. Unset: derived from the file descriptor limit, leaving room
+# for files, port programs and recordings (and a configured value is lowered to that).
 env = System.get_env()
 
 endpoint =
   env
   |> Neptunus.Config.endpoint!(Application.get_env(:neptunus, :default_port, 4000))
   |> Map.put(:tls, Neptunus.Config.tls!(env))
+  |> Map.put(:max_connections, Neptunus.Config.max_connections!(env))
 
 config :neptunus,
   endpoint: endpoint,

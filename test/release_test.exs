@@ -58,12 +58,16 @@ defmodule Neptunus.ReleaseTest do
       {"RELEASE_TMP", dir}
     ]
 
+    # started with a low soft descriptor limit (as a service gets), which the start script
+    # raises to the hard limit before the VM starts
+    sh = System.find_executable("sh")
+
     node =
-      Port.open({:spawn_executable, bin}, [
+      Port.open({:spawn_executable, sh}, [
         :binary,
         :exit_status,
         :stderr_to_stdout,
-        args: ["start"],
+        args: ["-c", ~s|ulimit -Sn 512 && exec "$0" start|, bin],
         env: Enum.map(env, fn {k, v} -> {String.to_charlist(k), String.to_charlist(v)} end)
       ])
 
@@ -78,6 +82,20 @@ defmodule Neptunus.ReleaseTest do
         System.cmd(bin, ["rpc", "IO.write(Neptunus.Dynamics.Native.available?())"], env: env)
 
       assert loaded == "true"
+
+      {limits, 0} =
+        System.cmd(
+          bin,
+          ["rpc", "IO.write(inspect({Neptunus.OS.fd_limit(), Neptunus.OS.socket_limit()}))"],
+          env: env
+        )
+
+      {:ok, {_, hard}} = Neptunus.OS.fd_limit()
+
+      if hard != :infinity and hard > 512 do
+        assert limits == inspect({{:ok, {hard, hard}}, hard})
+      end
+
       # the vehicle records to the configured directory
       assert [_file] = Path.wildcard(Path.join([dir, "recordings", "neptunus-1", "*.log"]))
     after

@@ -16,6 +16,8 @@ defmodule Neptunus.Application do
   def start(_type, _args) do
     # before the vehicles start their port programs (which ask for the same slice)
     Neptunus.OS.apply_configured()
+    # before the port programs and the endpoint: they inherit and size by it
+    Neptunus.OS.apply_fd_limit()
     endpoint = Application.fetch_env!(:neptunus, :endpoint)
     vehicles = Application.fetch_env!(:neptunus, :vehicles)
 

@@ -19,6 +19,7 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_RECORDING_MIN_FREE_MB` | stop recording below this free disk (MiB) | 512 |
   | `NEPTUNUS_RECORDING_KEEP_DAYS` | delete recordings older than this (days), or `forever` | `forever` |
   | `NEPTUNUS_OS_SLICE_US` | OS time slice the server's threads ask for (µs, 100..100000), or `default` | 100 |
+  | `NEPTUNUS_MAX_CONNECTIONS` | concurrent client connections (1..1048576); more are closed at once | from the descriptor limit |
 
   Boards: `simulated` (the built-in simulator), `sitl` (the simulator behind a pseudo-terminal
   speaking the OpenROV protocol, through the real board link), `uart:DEVICE[@BAUD]` (a real
@@ -476,6 +477,20 @@ defmodule Neptunus.Config do
       us -> us * 1000
     end
   end
+
+  @doc """
+  The most client connections (HTTP and WebSocket) served at once: `NEPTUNUS_MAX_CONNECTIONS`,
+  1..1048576, or nil when unset (`NeptunusWeb.Endpoint` derives it from the descriptor limit,
+  and lowers a configured value the limit cannot hold).
+
+      iex> Neptunus.Config.max_connections!(%{})
+      nil
+      iex> Neptunus.Config.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => "500"})
+      500
+  """
+  @spec max_connections!(%{optional(String.t()) => String.t()}) :: pos_integer() | nil
+  def max_connections!(env),
+    do: env_integer!(env, "NEPTUNUS_MAX_CONNECTIONS", nil, 1..1_048_576)
 
   defp keep_ms!(env) do
     case integer_or_word!(

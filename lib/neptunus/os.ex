@@ -18,6 +18,14 @@ defmodule Neptunus.OS do
   request and ignore it; `request_time_slice/1` reads the slices back and says
   `{:error, :unsupported}` then. Nothing depends on it: it only shortens waits.
   Measured in `bench/control_latency` (bench/README.md).
+
+  It also raises the node's file descriptor limit (`raise_fd_limit/0`, at start from
+  `Neptunus.Application`): the soft `RLIMIT_NOFILE` to the hard one. Every client connection,
+  open file and port program holds a descriptor; a systemd service starts with a soft limit of
+  1024. The VM sizes its poll set for sockets from the soft limit in force when it starts
+  (`socket_limit/0`), so the release's start script raises the limit before the VM starts
+  (`rel/env.sh.eex`); the raise here covers the node's files and the port programs it starts
+  later, which inherit it. `NeptunusWeb.Endpoint` keeps its connections below `socket_limit/0`.
   """
 
   require Logger
@@ -125,6 +133,71 @@ defmodule Neptunus.OS do
     :ok
   end
 
+  @typedoc "A descriptor limit: a count, or `:infinity` (RLIM_INFINITY)."
+  @type fd_count :: non_neg_integer() | :infinity
+
+  @doc "The node's `RLIMIT_NOFILE`: `{:ok, {soft, hard}}`."
+  @spec fd_limit() :: {:ok, {fd_count(), fd_count()}} | {:error, atom()}
+  def fd_limit, do: with(:ok <- available(), do: get_fd_limit())
+
+  @doc """
+  Raises the soft `RLIMIT_NOFILE` to the hard limit (to the kernel's `fs.nr_open` when the hard
+  limit is unlimited): `{:ok, {before, after}}`. Needs no privilege.
+  """
+  @spec raise_fd_limit() :: {:ok, {fd_count(), fd_count()}} | {:error, atom()}
+  def raise_fd_limit, do: with(:ok <- available(), do: set_fd_limit())
+
+  @doc """
+  How many descriptors the VM can poll: the highest socket descriptor it can use, fixed when it
+  started (the soft limit then; raising the limit later does not change it). Open files do not
+  count against it, they need no polling.
+  """
+  @spec socket_limit() :: pos_integer()
+  def socket_limit do
+    :erlang.system_info(:check_io)
+    |> List.wrap()
+    |> List.flatten()
+    |> Enum.flat_map(fn
+      {:max_fds, n} when is_integer(n) -> [n]
+      _ -> []
+    end)
+    |> Enum.min(fn -> 1024 end)
+  end
+
+  @doc """
+  At the node's start: raises the soft descriptor limit to the hard one and logs the limits in
+  force. Never fails the start.
+  """
+  @spec apply_fd_limit() :: :ok
+  def apply_fd_limit do
+    sockets = socket_limit()
+
+    case safely(&raise_fd_limit/0) do
+      {:ok, {same, same}} ->
+        Logger.info("file descriptors: limit #{same}, #{sockets} for sockets")
+
+      {:ok, {before, now}} ->
+        Logger.info(
+          "file descriptors: limit raised from #{before} to #{now} (the hard limit), " <>
+            "#{sockets} for sockets (the limit when the VM started)"
+        )
+
+      {:error, reason} ->
+        Logger.warning(
+          "file descriptors: limit not raised (#{inspect(reason)}), #{sockets} for sockets"
+        )
+    end
+
+    :ok
+  end
+
+  # a library older than this module lacks the function: say so instead of failing the start
+  defp safely(fun) do
+    fun.()
+  rescue
+    e in ErlangError -> {:error, {:unavailable, e.original}}
+  end
+
   @doc "Whether the C library is loaded."
   @spec available?() :: boolean()
   def available?, do: load_error() == nil
@@ -138,4 +211,8 @@ defmodule Neptunus.OS do
   def set_time_slice(_ns), do: :erlang.nif_error({:not_loaded, load_error()})
   @doc false
   def time_slices(_os_pid), do: :erlang.nif_error({:not_loaded, load_error()})
+  @doc false
+  def get_fd_limit, do: :erlang.nif_error({:not_loaded, load_error()})
+  @doc false
+  def set_fd_limit, do: :erlang.nif_error({:not_loaded, load_error()})
 end

@@ -16,6 +16,24 @@ defmodule NeptunusWeb.Endpoint do
   `X-Frame-Options`, `X-Content-Type-Options`).
 
   The login rate limiter (`NeptunusWeb.Auth.RateLimit`) runs here too, before yaws.
+
+  ## Connections and file descriptors
+
+  Every connection holds a descriptor, and yaws' acceptor exits when `accept` fails for want
+  of one (`emfile`): that takes its listener down with every HTTP connection it holds, and
+  a few times over, the endpoint with every WebSocket (the pilot's too). So the endpoint never lets connections reach the descriptor limit: yaws'
+  `max_connections` is `connection_limit/2` of `NEPTUNUS_MAX_CONNECTIONS` and the VM's socket
+  limit (`Neptunus.OS.socket_limit/0`), which leaves room for files, port programs and the
+  recorder. A connection beyond it is accepted and closed at once, before anything is read
+  from it; the established ones are not touched. yaws' log line for each is counted
+  instead (`NeptunusWeb.ConnectionLog`: one warning at most every 10 s).
+
+  A connection that holds a descriptor without completing a request is closed within
+  `header_timeout_ms/0` (5 s by default): yaws' `keepalive_timeout` bounds each read of
+  the request line and of each header (and the wait for the next request on a kept-alive
+  connection), and `NeptunusWeb.HeaderDeadline` bounds the whole request head, against a
+  client that trickles a byte at a time. WebSocket and camera connections, once upgraded or
+  streaming, are not affected.
   """
   use Supervisor
 
@@ -23,6 +41,10 @@ defmodule NeptunusWeb.Endpoint do
 
   @server_id ~c"neptunus"
   @default_send_timeout_ms 15_000
+  @default_header_timeout_ms 5_000
+  # descriptors kept for everything but client connections: files, port programs, the
+  # recorder's logs, the VM's own (at least this many, or 1/16 of the limit)
+  @reserved_fds 64
 
   @spec start_link(Neptunus.Config.endpoint()) :: Supervisor.on_start()
   def start_link(config), do: Supervisor.start_link(__MODULE__, config, name: __MODULE__)
@@ -50,11 +72,21 @@ defmodule NeptunusWeb.Endpoint do
     logdir = Path.join(System.tmp_dir!(), "neptunus-yaws-#{port}")
     File.mkdir_p!(logdir)
 
+    {max_connections, source} =
+      connection_limit(Map.get(config, :max_connections), Neptunus.OS.socket_limit())
+
+    log_connection_limit(max_connections, source)
+
     gconf = [
       id: @server_id,
       logdir: String.to_charlist(logdir),
       cache_refresh_secs: 1,
-      flags: [copy_error_log: false]
+      flags: [copy_error_log: false],
+      # beyond this many connections yaws closes a new one as soon as it is accepted
+      max_connections: max_connections,
+      # how long yaws waits for the request line, each header line, the next request on a
+      # kept-alive connection (and a TLS handshake) before it closes the connection
+      keepalive_timeout: header_timeout_ms()
     ]
 
     sconf = [
@@ -112,7 +144,11 @@ defmodule NeptunusWeb.Endpoint do
       restart: :transient
     }
 
-    Supervisor.init([NeptunusWeb.Auth.RateLimit | yaws_children] ++ [listener],
+    deadline = {NeptunusWeb.HeaderDeadline, timeout_ms: header_timeout_ms()}
+
+    Supervisor.init(
+      [NeptunusWeb.Auth.RateLimit, NeptunusWeb.ConnectionLog | yaws_children] ++
+        [listener, deadline],
       strategy: :one_for_all
     )
   end
@@ -124,6 +160,59 @@ defmodule NeptunusWeb.Endpoint do
   @spec send_timeout_ms() :: pos_integer()
   def send_timeout_ms,
     do: Application.get_env(:neptunus, :send_timeout_ms, @default_send_timeout_ms)
+
+  @doc """
+  How long (ms) a client may take to send a request's head (request line and headers), and
+  how long a kept-alive connection may wait for its next request: `config :neptunus,
+  :header_timeout_ms`, default #{@default_header_timeout_ms}.
+  """
+  @spec header_timeout_ms() :: pos_integer()
+  def header_timeout_ms,
+    do: Application.get_env(:neptunus, :header_timeout_ms, @default_header_timeout_ms)
+
+  @doc """
+  The most connections to serve at once, given the configured maximum (nil: none configured)
+  and the descriptors the VM can use for sockets, and where it came from. Each connection may
+  hold a second descriptor (a file it is sent, a recording it exports), and
+  #{@reserved_fds} descriptors or 1/16 of the limit, whichever is more, stay for files, port
+  programs and the recorder: the limit is half of the rest. A configured maximum above that
+  is lowered to it.
+
+      iex> NeptunusWeb.Endpoint.connection_limit(nil, 1024)
+      {480, :derived}
+      iex> NeptunusWeb.Endpoint.connection_limit(100, 1024)
+      {100, :configured}
+      iex> NeptunusWeb.Endpoint.connection_limit(5000, 1024)
+      {480, {:lowered, 5000}}
+  """
+  @spec connection_limit(pos_integer() | nil, pos_integer()) ::
+          {pos_integer(), :derived | :configured | {:lowered, pos_integer()}}
+  def connection_limit(configured, socket_limit)
+      when (configured == nil or (is_integer(configured) and configured > 0)) and
+             is_integer(socket_limit) and socket_limit > 0 do
+    reserved = max(@reserved_fds, div(socket_limit, 16))
+    derived = max(1, div(socket_limit - reserved, 2))
+
+    cond do
+      configured == nil -> {derived, :derived}
+      configured <= derived -> {configured, :configured}
+      true -> {derived, {:lowered, configured}}
+    end
+  end
+
+  defp log_connection_limit(limit, :derived),
+    do: Logger.info("serving at most #{limit} connections at once (from the descriptor limit)")
+
+  defp log_connection_limit(limit, :configured),
+    do: Logger.info("serving at most #{limit} connections at once (NEPTUNUS_MAX_CONNECTIONS)")
+
+  defp log_connection_limit(limit, {:lowered, configured}) do
+    Logger.warning(
+      "NEPTUNUS_MAX_CONNECTIONS=#{configured} exceeds what #{Neptunus.OS.socket_limit()} " <>
+        "file descriptors hold: serving at most #{limit} connections at once (raise the " <>
+        "limit: LimitNOFILE in the systemd unit, `ulimit -n` elsewhere)"
+    )
+  end
 
   @doc false
   # Opens the listener once yaws' processes are up.

@@ -238,4 +238,28 @@ defmodule Neptunus.ConfigTest do
       end
     end
   end
+
+  describe "max_connections!/1" do
+    test "unset: nil (derived from the descriptor limit at boot)" do
+      assert Config.max_connections!(%{}) == nil
+    end
+
+    test "a count, whitespace tolerated" do
+      assert Config.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => " 2000 "}) == 2000
+      assert Config.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => "1"}) == 1
+      assert Config.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => "1048576"}) == 1_048_576
+    end
+
+    for bad <- ["0", "-5", "1048577", "many", "", "10.5", "1e3"] do
+      test "refuses #{inspect(bad)} with the variable named" do
+        error =
+          assert_raise ArgumentError, fn ->
+            Config.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => unquote(bad)})
+          end
+
+        assert error.message =~ "NEPTUNUS_MAX_CONNECTIONS=#{inspect(unquote(bad))} is not valid"
+        assert error.message =~ "1..1048576"
+      end
+    end
+  end
 end

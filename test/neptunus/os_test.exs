@@ -78,4 +78,51 @@ defmodule Neptunus.OSTest do
     on_exit(fn -> Application.put_env(:neptunus, :os_time_slice_ns, 100_000) end)
     assert OS.port_env() == []
   end
+
+  describe "descriptor limit" do
+    test "reads the soft and hard RLIMIT_NOFILE; raising sets soft to hard and is idempotent" do
+      assert {:ok, {soft, hard}} = OS.fd_limit()
+      assert is_integer(soft) and soft > 0
+      assert hard == :infinity or hard >= soft
+      # the test VM may already run at its hard limit: raising then changes nothing
+      assert {:ok, {^soft, raised}} = OS.raise_fd_limit()
+      assert {:ok, {^raised, ^raised}} = OS.fd_limit()
+      if hard != :infinity, do: assert(raised == hard)
+      assert {:ok, {^raised, ^raised}} = OS.raise_fd_limit()
+    end
+
+    test "the soft limit is raised in a process started below its hard limit" do
+      # a child VM started by a shell with a lower soft limit (its hard limit is ours)
+      {:ok, {_, hard}} = OS.fd_limit()
+      erl = System.find_executable("erl")
+      ebin = :code.lib_dir(:neptunus, :ebin) |> to_string()
+      elixir = :code.lib_dir(:elixir, :ebin) |> to_string()
+
+      script =
+        ~s|'Elixir.Code':ensure_loaded('Elixir.Neptunus.OS'), | <>
+          ~s|io:format("~p ~p ~p~n", ['Elixir.Neptunus.OS':fd_limit(), | <>
+          ~s|'Elixir.Neptunus.OS':raise_fd_limit(), 'Elixir.Neptunus.OS':socket_limit()]), | <>
+          ~s|halt().|
+
+      {out, 0} =
+        System.cmd("sh", [
+          "-c",
+          ~s|ulimit -Sn 200 && exec "$0" -noshell -pa "$1" -pa "$2" -eval "$3"|,
+          erl,
+          ebin,
+          elixir,
+          script
+        ])
+
+      hard_text = if hard == :infinity, do: "infinity", else: to_string(hard)
+
+      if hard != :infinity and hard <= 200 do
+        assert out =~ "{ok,{200,200}}"
+      else
+        assert out =~ "{ok,{200,#{hard_text}}} {ok,{200,"
+        # the VM's sockets stay within the limit it started with
+        assert out =~ ~r/ 200\n$/
+      end
+    end
+  end
 end

@@ -1,0 +1,132 @@
+defmodule NeptunusWeb.ConnectionLog do
+  @moduledoc """
+  Counts the connections the endpoint closes to protect itself, and says so in the log in
+  one line at most every `:report_ms` (10 s) instead of one line per connection.
+
+  yaws logs an error (through `error_logger`) for every connection it closes beyond
+  `max_connections`; under a flood
+  that is thousands of lines a second, which would bury everything else and fill the
+  journal. A primary logger filter (`filter/2`, installed while this process runs) drops
+  that message and counts it; `NeptunusWeb.HeaderDeadline` counts the connections it closes
+  for a slow head (`closed_slow/1`). Every second this process looks at the counts; when
+  there are some and the last report is `:report_ms` old, it logs one warning with both
+  and starts counting again.
+  """
+  use GenServer
+
+  require Logger
+
+  @filter_id :neptunus_connection_log
+  @yaws_max_connections ~c"Max connections reached - closing conn to ~s~n"
+  @refused 1
+  @slow 2
+
+  defstruct counters: nil, report_ms: 10_000, tick_ms: 1_000, last_report: nil
+
+  @type t :: %__MODULE__{
+          counters: :counters.counters_ref() | nil,
+          report_ms: pos_integer(),
+          tick_ms: pos_integer(),
+          last_report: integer() | nil
+        }
+
+  @spec start_link(keyword()) :: GenServer.on_start()
+  def start_link(opts), do: GenServer.start_link(__MODULE__, opts, name: __MODULE__)
+
+  @doc """
+  The logger filter: `:stop` (and counted) for yaws' message about a connection closed
+  beyond `max_connections`, `:ignore` (let other filters decide) for everything else.
+  """
+  @spec filter(:logger.log_event(), :counters.counters_ref()) :: :stop | :ignore
+  def filter(%{msg: {:report, %{format: @yaws_max_connections}}}, counters) do
+    :counters.add(counters, @refused, 1)
+    :stop
+  end
+
+  def filter(%{msg: {@yaws_max_connections, _args}}, counters) do
+    :counters.add(counters, @refused, 1)
+    :stop
+  end
+
+  def filter(_event, _counters), do: :ignore
+
+  @doc "Counts `n` connections closed for taking too long over their request head."
+  @spec closed_slow(non_neg_integer()) :: :ok
+  def closed_slow(n) when is_integer(n) and n >= 0 do
+    case :persistent_term.get({__MODULE__, :counters}, nil) do
+      nil -> :ok
+      counters -> :counters.add(counters, @slow, n)
+    end
+  end
+
+  @doc """
+  The report line for `refused` connections closed beyond the limit and `slow` ones closed
+  for a slow head, or nil when both are 0.
+
+      iex> NeptunusWeb.ConnectionLog.report(0, 0)
+      nil
+      iex> NeptunusWeb.ConnectionLog.report(120, 3)
+      "closed 123 connections: 120 beyond the connection limit, 3 slower than the header timeout"
+  """
+  @spec report(non_neg_integer(), non_neg_integer()) :: String.t() | nil
+  def report(0, 0), do: nil
+
+  def report(refused, slow) do
+    "closed #{refused + slow} connections: #{refused} beyond the connection limit, " <>
+      "#{slow} slower than the header timeout"
+  end
+
+  @impl true
+  def init(opts) do
+    Process.flag(:trap_exit, true)
+    counters = :counters.new(2, [:write_concurrency])
+    :persistent_term.put({__MODULE__, :counters}, counters)
+    _ = :logger.remove_primary_filter(@filter_id)
+    :ok = :logger.add_primary_filter(@filter_id, {&__MODULE__.filter/2, counters})
+
+    state = %__MODULE__{
+      counters: counters,
+      report_ms: Keyword.get(opts, :report_ms, 10_000),
+      tick_ms: Keyword.get(opts, :tick_ms, 1_000)
+    }
+
+    Process.send_after(self(), :tick, state.tick_ms)
+    {:ok, state}
+  end
+
+  @impl true
+  def handle_info(:tick, state) do
+    now = System.monotonic_time(:millisecond)
+    Process.send_after(self(), :tick, state.tick_ms)
+
+    if state.last_report == nil or now - state.last_report >= state.report_ms do
+      refused = take(state.counters, @refused)
+      slow = take(state.counters, @slow)
+
+      case report(refused, slow) do
+        nil ->
+          {:noreply, state}
+
+        line ->
+          Logger.warning(line)
+          {:noreply, %{state | last_report: now}}
+      end
+    else
+      {:noreply, state}
+    end
+  end
+
+  def handle_info(_other, state), do: {:noreply, state}
+
+  @impl true
+  def terminate(_reason, _state) do
+    _ = :logger.remove_primary_filter(@filter_id)
+    :ok
+  end
+
+  defp take(counters, index) do
+    n = :counters.get(counters, index)
+    :counters.sub(counters, index, n)
+    n
+  end
+end

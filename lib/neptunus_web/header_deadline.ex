@@ -1,0 +1,129 @@
+defmodule NeptunusWeb.HeaderDeadline do
+  @moduledoc """
+  Closes a connection that takes longer than `NeptunusWeb.Endpoint.header_timeout_ms/0` to
+  send a request's head, or to start its next request on a kept-alive connection.
+
+  yaws bounds each read of the request line and of each header line (its
+  `keepalive_timeout`), not the whole head: a client sending a short header line every second
+  or so (a "slowloris") would hold its connection, and a descriptor, for as long as it likes.
+  Every `interval_ms` this process looks at yaws' connection processes: one whose stack is in
+  `yaws:http_recv_request/2` or `yaws:http_collect_headers/5` is reading a request head, and
+  the request it reads is told by yaws' `request_start_time` (set when a request line
+  arrives). A process seen reading the same head (same phase, same request) for the timeout is
+  killed: its socket closes, and yaws counts the connection as gone (`NeptunusWeb.ConnectionLog`
+  counts it for the log). A connection that makes
+  progress (its next request, its headers complete) starts a fresh deadline; WebSocket and
+  streaming connections never read a head and are never touched.
+
+  The decision is `sweep/4`, a pure function; this process only observes and kills. It runs
+  in `NeptunusWeb.Endpoint`'s supervisor after yaws, and never fails on a process that ends
+  while it looks.
+  """
+  use GenServer
+
+  @typedoc "What a connection process is reading: the phase and yaws' request start time."
+  @type key :: {:request_line | :headers, term()}
+
+  @typedoc "Each connection reading a head: what it reads, since when (ms, monotonic)."
+  @type seen :: %{pid() => {key(), integer()}}
+
+  defstruct timeout_ms: 5_000, interval_ms: 1_000, seen: %{}
+
+  @type t :: %__MODULE__{timeout_ms: pos_integer(), interval_ms: pos_integer(), seen: seen()}
+
+  @spec start_link(keyword()) :: GenServer.on_start()
+  def start_link(opts), do: GenServer.start_link(__MODULE__, opts, name: __MODULE__)
+
+  @doc """
+  One sweep: given the connections seen before, those reading a head now (`[{pid, key}]`),
+  the time and the timeout, returns the connections to remember and those to close. A
+  connection is closed when it has been reading the same head for `timeout_ms` or more; one
+  no longer reading a head is forgotten.
+
+      iex> {seen, []} = NeptunusWeb.HeaderDeadline.sweep(%{}, [{:a, {:headers, 1}}], 0, 5000)
+      iex> {_, []} = NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 4999, 5000)
+      iex> NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 5000, 5000)
+      {%{}, [:a]}
+      iex> NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 2}}], 5000, 5000)
+      {%{a: {{:headers, 2}, 5000}}, []}
+  """
+  @spec sweep(%{term() => {term(), integer()}}, [{term(), term()}], integer(), pos_integer()) ::
+          {%{term() => {term(), integer()}}, [term()]}
+  def sweep(seen, reading, now, timeout_ms) do
+    Enum.reduce(reading, {%{}, []}, fn {pid, key}, {next, expired} ->
+      case Map.fetch(seen, pid) do
+        {:ok, {^key, since}} when now - since >= timeout_ms -> {next, [pid | expired]}
+        {:ok, {^key, since}} -> {Map.put(next, pid, {key, since}), expired}
+        _ -> {Map.put(next, pid, {key, now}), expired}
+      end
+    end)
+    |> then(fn {next, expired} -> {next, Enum.reverse(expired)} end)
+  end
+
+  @impl true
+  def init(opts) do
+    timeout = Keyword.fetch!(opts, :timeout_ms)
+    interval = Keyword.get(opts, :interval_ms, min(1_000, max(div(timeout, 4), 10)))
+    state = %__MODULE__{timeout_ms: timeout, interval_ms: interval}
+    schedule(state)
+    {:ok, state}
+  end
+
+  @impl true
+  def handle_info(:sweep, state) do
+    now = System.monotonic_time(:millisecond)
+    {seen, expired} = sweep(state.seen, reading_heads(), now, state.timeout_ms)
+
+    Enum.each(expired, &Process.exit(&1, :kill))
+    NeptunusWeb.ConnectionLog.closed_slow(length(expired))
+    schedule(state)
+    {:noreply, %{state | seen: seen}}
+  end
+
+  def handle_info(_other, state), do: {:noreply, state}
+
+  defp schedule(state), do: Process.send_after(self(), :sweep, state.interval_ms)
+
+  # yaws' connection processes that are reading a request head, with what they read.
+  defp reading_heads do
+    for server <- gservs(), pid <- links(server), key = head_key(pid), key != nil, do: {pid, key}
+  end
+
+  # yaws' listener processes: linked to the yaws_server process.
+  defp gservs do
+    case Process.whereis(:yaws_server) do
+      nil -> []
+      pid -> links(pid)
+    end
+  end
+
+  defp links(pid) do
+    case Process.info(pid, :links) do
+      {:links, links} -> Enum.filter(links, &is_pid/1)
+      nil -> []
+    end
+  end
+
+  defp head_key(pid) do
+    case Process.info(pid, [:current_stacktrace, :dictionary]) do
+      [current_stacktrace: stack, dictionary: dictionary] ->
+        if Keyword.get(dictionary, :"$initial_call") == {:yaws_server, :acceptor0, 2} do
+          case phase(stack) do
+            nil -> nil
+            phase -> {phase, Keyword.get(dictionary, :request_start_time)}
+          end
+        end
+
+      _ ->
+        nil
+    end
+  end
+
+  defp phase(stack) do
+    Enum.find_value(stack, fn
+      {:yaws, :http_recv_request, _, _} -> :request_line
+      {:yaws, :http_collect_headers, _, _} -> :headers
+      _ -> nil
+    end)
+  end
+end

@@ -1,0 +1,38 @@
+defmodule NeptunusWeb.ConnectionLogTest do
+  use ExUnit.Case, async: true
+
+  alias NeptunusWeb.ConnectionLog
+
+  doctest ConnectionLog
+
+  defp event(msg), do: %{level: :error, msg: msg, meta: %{}}
+
+  test "yaws' line for a connection closed beyond the limit is dropped and counted" do
+    counters = :counters.new(2, [])
+    format = ~c"Max connections reached - closing conn to ~s~n"
+
+    # as error_logger:format/2 sends it, and as a plain format
+    assert ConnectionLog.filter(
+             event({:report, %{label: {:error_logger, :error_msg}, format: format, args: ["x"]}}),
+             counters
+           ) == :stop
+
+    assert ConnectionLog.filter(event({format, ["x"]}), counters) == :stop
+    assert :counters.get(counters, 1) == 2
+  end
+
+  test "every other event is left to the other filters, uncounted" do
+    counters = :counters.new(2, [])
+
+    for msg <- [
+          {:string, "Max connections reached - closing conn to 1.2.3.4"},
+          {:report, %{format: ~c"Yaws process died: ~p~n", args: [:x]}},
+          {~c"Failed to accept: ~p~n", [:emfile]},
+          {:report, %{anything: :else}}
+        ] do
+      assert ConnectionLog.filter(event(msg), counters) == :ignore
+    end
+
+    assert :counters.get(counters, 1) == 0
+  end
+end

@@ -1,0 +1,78 @@
+defmodule NeptunusWeb.HeaderDeadlineTest do
+  use ExUnit.Case, async: true
+
+  alias NeptunusWeb.HeaderDeadline
+
+  doctest HeaderDeadline
+
+  @timeout 5_000
+
+  test "a connection reading the same head is closed once the timeout has passed" do
+    {seen, []} = HeaderDeadline.sweep(%{}, [{:a, {:request_line, nil}}], 1_000, @timeout)
+    {seen, []} = HeaderDeadline.sweep(seen, [{:a, {:request_line, nil}}], 3_000, @timeout)
+    {seen, []} = HeaderDeadline.sweep(seen, [{:a, {:request_line, nil}}], 5_999, @timeout)
+    assert {%{}, [:a]} = HeaderDeadline.sweep(seen, [{:a, {:request_line, nil}}], 6_000, @timeout)
+  end
+
+  test "progress starts a fresh deadline: headers after the request line, a next request" do
+    {seen, []} = HeaderDeadline.sweep(%{}, [{:a, {:request_line, nil}}], 0, @timeout)
+    # the request line came: now reading its headers
+    {seen, []} = HeaderDeadline.sweep(seen, [{:a, {:headers, :t1}}], 4_000, @timeout)
+    {seen, []} = HeaderDeadline.sweep(seen, [{:a, {:headers, :t1}}], 8_000, @timeout)
+    # the request was served; waiting on the kept-alive connection for the next one
+    {seen, []} = HeaderDeadline.sweep(seen, [{:a, {:request_line, :t1}}], 8_500, @timeout)
+    assert seen == %{a: {{:request_line, :t1}, 8_500}}
+    # a next request (a new start time) between two sweeps
+    {seen, []} = HeaderDeadline.sweep(seen, [{:a, {:headers, :t2}}], 13_000, @timeout)
+    assert seen == %{a: {{:headers, :t2}, 13_000}}
+  end
+
+  test "a connection no longer reading a head (served, upgraded, closed) is forgotten" do
+    {seen, []} =
+      HeaderDeadline.sweep(%{}, [{:a, {:headers, 1}}, {:b, {:headers, 2}}], 0, @timeout)
+
+    {seen, []} = HeaderDeadline.sweep(seen, [{:b, {:headers, 2}}], 3_000, @timeout)
+    assert Map.keys(seen) == [:b]
+    # back to reading later (a new request): a fresh deadline, not the old one
+    {seen, expired} =
+      HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}, {:b, {:headers, 2}}], 5_000, @timeout)
+
+    assert expired == [:b]
+    assert seen == %{a: {{:headers, 1}, 5_000}}
+  end
+
+  test "several connections expire together, in the order observed" do
+    reading = for n <- 1..5, do: {n, {:request_line, nil}}
+    {seen, []} = HeaderDeadline.sweep(%{}, reading, 0, @timeout)
+    assert {%{}, [1, 2, 3, 4, 5]} = HeaderDeadline.sweep(seen, reading, @timeout, @timeout)
+  end
+
+  test "the running process finds a trickling connection and closes it, not a served one" do
+    port = Application.fetch_env!(:neptunus, :endpoint).port
+    {:ok, trickler} = :gen_tcp.connect(~c"127.0.0.1", port, [:binary, active: false])
+    :ok = :gen_tcp.send(trickler, "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n")
+
+    {:ok, served} = :gen_tcp.connect(~c"127.0.0.1", port, [:binary, active: false])
+    :ok = :gen_tcp.send(served, "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+    assert {:ok, "HTTP/1.1 200" <> _} = :gen_tcp.recv(served, 0, 5_000)
+
+    # a header line well within yaws' per-read timeout, again and again, until closed
+    timeout = NeptunusWeb.Endpoint.header_timeout_ms()
+    lines = trickle(trickler, 0, div(timeout, 10))
+    assert lines < 30, "the trickler sent #{lines} lines and was never closed"
+    :gen_tcp.close(served)
+  end
+
+  defp trickle(_socket, 40, _every), do: 40
+
+  defp trickle(socket, n, every) do
+    Process.sleep(every * 2)
+
+    with :ok <- :gen_tcp.send(socket, "X-#{n}: 1\r\n"),
+         {:error, :timeout} <- :gen_tcp.recv(socket, 0, 0) do
+      trickle(socket, n + 1, every)
+    else
+      _ -> n
+    end
+  end
+end
