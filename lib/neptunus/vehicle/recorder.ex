@@ -23,15 +23,18 @@ defmodule Neptunus.Vehicle.Recorder do
 
   Durability: `disk_log` keeps what it is given in memory (up to 64 KiB or 2 s) before it
   writes, so a node killed outright (`kill -9`, the kernel's OOM killer, a crash of the VM)
-  would lose up to 2 s of the dive. The recorder therefore has its log written and synced to
-  disk (`disk_log:sync/1`: written, then `fsync`) every `sync_ms` (default 200) while
-  anything is waiting, and at once after every entry that is not `telemetry` (stops, helm and
-  control events, `recording`, presence). A killed node loses at most the last `sync_ms` and
-  the time of one sync of telemetry, and no other event that had reached the recorder. The
-  writing happens in the `disk_log` process and the recorder (both off the control path: the
-  vehicle only sends them broadcasts); no broadcaster ever waits for the disk. A file left
-  by a killed node is repaired when it is opened (`Neptunus.Recording.entries/1` reads it as
-  far as it is whole).
+  would lose up to 2 s of the dive. So the recorder has its log written and synced
+  (`disk_log:sync/1`: written to the file, then `fsync`) every `sync_ms` (default 100) while
+  anything waits, and at once after every entry that is not `telemetry` (stops, helm and
+  control events, `recording`, presence: `Neptunus.Recording.sync_at_once?/1`). A killed node
+  loses at most the telemetry of the last `sync_ms` plus the time one sync takes (≈ 0.2 ms,
+  tens of ms on a busy disk: `bench/recorder_sync`), within the 0.25 s the recorder promises,
+  and no other event once the recorder has handled it (it is on disk before the recorder
+  takes its next message); with the `fsync`, the same holds when the vehicle computer loses
+  power. The writing happens in the `disk_log` process and
+  the recorder, both off the control path: the vehicle only sends them its broadcasts, and
+  no broadcaster waits for the disk. A file left by a killed node is read as far as it is
+  whole (`Neptunus.Recording.entries/1`) and repaired when opened for writing.
 
   PubSub restarts: the recorder watches the PubSub scope it subscribed with (see
   `Neptunus.PubSub`). When the scope stops, the subscription is gone and nothing reaches the
@@ -57,7 +60,7 @@ defmodule Neptunus.Vehicle.Recorder do
   @default_max_bytes 256 * 1024 * 1024
   @default_min_free_bytes 512 * 1024 * 1024
   @disk_check %{every_ms: 60_000}
-  @default_sync_ms 200
+  @default_sync_ms 100
   @resubscribe_ms 20
   @not_subscribed "not receiving the vehicle's events: the PubSub restarted (subscribing again)"
 

@@ -44,6 +44,38 @@ defmodule Neptunus.Vehicle.RecorderTest do
     assert Path.basename(file) == name
   end
 
+  # What another reader finds in the file being written, without asking the recorder to sync.
+  defp on_disk(id) do
+    %{file: file} = Recorder.status(id)
+    file |> Recording.entries() |> Enum.to_list()
+  end
+
+  test "an event that is not telemetry is on disk as soon as the recorder has handled it", %{
+    tmp_dir: dir
+  } do
+    # no periodic sync during the test
+    id = start!(dir, sync_ms: 3_600_000)
+    for i <- 1..3, do: publish(id, "telemetry", %{t: i * 0.05})
+    publish(id, "stopped", %{reason: "deadman"})
+
+    assert [
+             {_, "telemetry", %{t: 0.05}},
+             {_, "telemetry", %{t: 0.1}},
+             {_, "telemetry", _},
+             {_, "stopped", %{reason: "deadman"}}
+           ] = on_disk(id)
+  end
+
+  test "telemetry is on disk at the recorder's next periodic sync", %{tmp_dir: dir} do
+    id = start!(dir, sync_ms: 3_600_000)
+    for i <- 1..3, do: publish(id, "telemetry", %{t: i * 0.05})
+
+    # the recorder's own timer, sent now
+    send(GenServer.whereis(Neptunus.Fleet.via(Recorder, id)), :sync_tick)
+    assert [{_, "telemetry", %{t: 0.05}}, _, {_, "telemetry", %{t: t}}] = on_disk(id)
+    assert_in_delta t, 0.15, 1.0e-9
+  end
+
   test "a full file is closed and the next one opened: nothing is refused", %{tmp_dir: dir} do
     id = start!(dir, max_bytes: 4_000)
     payload = %{t: 0.0, blob: String.duplicate("x", 300)}
