@@ -31,7 +31,9 @@ defmodule Neptunus.Vehicle.Recorder do
   tens of ms on a busy disk: `bench/recorder_sync`), within the 0.25 s the recorder promises,
   and no other event once the recorder has handled it (it is on disk before the recorder
   takes its next message); with the `fsync`, the same holds when the vehicle computer loses
-  power. The writing happens in the `disk_log` process and
+  power. On a disk slower than that (10 or more messages waiting for the recorder), events
+  too wait for the periodic sync, and one sync follows the other: the recorder never falls
+  ever further behind, it only writes in larger batches. The writing happens in the `disk_log` process and
   the recorder, both off the control path: the vehicle only sends them its broadcasts, and
   no broadcaster waits for the disk. A file left by a killed node is read as far as it is
   whole (`Neptunus.Recording.entries/1`) and repaired when opened for writing.
@@ -47,7 +49,7 @@ defmodule Neptunus.Vehicle.Recorder do
   control or helm. Options: `:id`; `:recording` — `dir` (nil or absent: recording is off;
   default from `config :neptunus, :recording`), `max_bytes` (default 256 MiB),
   `min_free_bytes`, `keep_ms`, `sync_ms` and, for tests, `free_bytes` (a function of the
-  directory),
+  directory), `sync` (syncs a log, like `disk_log:sync/1`),
   `now_ms` (the wall clock in ms, a function) and `rm` (deletes a file, like `File.rm/1`).
   """
   use GenServer
@@ -61,6 +63,8 @@ defmodule Neptunus.Vehicle.Recorder do
   @default_min_free_bytes 512 * 1024 * 1024
   @disk_check %{every_ms: 60_000}
   @default_sync_ms 100
+  # messages waiting beyond which the recorder is behind (see "Durability")
+  @behind 10
   @resubscribe_ms 20
   @not_subscribed "not receiving the vehicle's events: the PubSub restarted (subscribing again)"
 
@@ -84,6 +88,8 @@ defmodule Neptunus.Vehicle.Recorder do
             low_disk: boolean(),
             sync_ms: pos_integer(),
             unsynced: boolean(),
+            tick: reference() | nil,
+            sync: (term() -> :ok | {:error, term()}),
             pubsub: reference() | nil,
             unsubscribed_at: integer() | nil
           }
@@ -101,6 +107,8 @@ defmodule Neptunus.Vehicle.Recorder do
       :now_ms,
       :rm,
       :sync_ms,
+      :sync,
+      :tick,
       :pubsub,
       :unsubscribed_at,
       files: [],
@@ -146,7 +154,8 @@ defmodule Neptunus.Vehicle.Recorder do
       keep_ms: Map.get(config, :keep_ms),
       now_ms: Map.get(config, :now_ms, fn -> System.os_time(:millisecond) end),
       rm: Map.get(config, :rm, &File.rm/1),
-      sync_ms: Map.get(config, :sync_ms, @default_sync_ms)
+      sync_ms: Map.get(config, :sync_ms, @default_sync_ms),
+      sync: Map.get(config, :sync, &:disk_log.sync/1)
     }
 
     if state.dir do
@@ -162,7 +171,6 @@ defmodule Neptunus.Vehicle.Recorder do
     Process.flag(:trap_exit, true)
     state = subscribe(state)
     :timer.send_interval(Map.get(@disk_check, :every_ms), :check_disk)
-    :timer.send_interval(state.sync_ms, :sync_tick)
     {:noreply, state |> check_disk() |> expire()}
   end
 
@@ -177,7 +185,10 @@ defmodule Neptunus.Vehicle.Recorder do
     state = %{state | entries: state.entries + 1, bytes: bytes, unsynced: true}
 
     # events on disk at once, telemetry with the periodic sync (see "Durability")
-    state = if Recording.sync_at_once?(event), do: sync_log(state), else: state
+    state =
+      if Recording.sync_at_once?(event) and not behind?(),
+        do: sync_log(state),
+        else: arm_sync(state)
 
     # the next file before this one passes max_bytes: no entry is ever refused as "full"
     state = if bytes >= state.max_bytes, do: state |> close() |> open_next(), else: state
@@ -186,7 +197,7 @@ defmodule Neptunus.Vehicle.Recorder do
 
   def handle_info({:pubsub, _topic, _event, _payload}, state), do: {:noreply, state}
 
-  def handle_info(:sync_tick, state), do: {:noreply, sync_log(state)}
+  def handle_info(:sync_tick, state), do: {:noreply, sync_log(%{state | tick: nil})}
 
   # The PubSub scope stopped: the subscription is gone (see "PubSub restarts").
   def handle_info({:DOWN, ref, :process, _pid, _reason}, %State{pubsub: ref} = state) do
@@ -274,11 +285,24 @@ defmodule Neptunus.Vehicle.Recorder do
   # Writes what disk_log holds in memory and syncs it (see "Durability"); a failure arrives
   # as disk_log's error_status notification.
   defp sync_log(%State{log: log, unsynced: true} = state) when log != nil do
-    _ = :disk_log.sync(log)
+    _ = state.sync.(log)
     %{state | unsynced: false}
   end
 
   defp sync_log(state), do: state
+
+  # One periodic sync at a time: a sync slower than sync_ms delays the next one instead of
+  # piling up behind it.
+  defp arm_sync(%State{tick: nil} = state),
+    do: %{state | tick: Process.send_after(self(), :sync_tick, state.sync_ms)}
+
+  defp arm_sync(state), do: state
+
+  # A disk slower than the broadcasts: events wait for the periodic sync with the telemetry.
+  defp behind? do
+    {:message_queue_len, waiting} = Process.info(self(), :message_queue_len)
+    waiting >= @behind
+  end
 
   # Retention (opt-in): the vehicle's recordings last written more than keep_ms ago go, each
   # one said on the log topic; never the file being written.
