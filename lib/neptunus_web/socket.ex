@@ -387,7 +387,7 @@ defmodule NeptunusWeb.Socket do
 
   defp watch(%State{presence: nil} = state) do
     case Presence.monitor() do
-      {:ok, ref} -> {:ok, %{state | presence: ref}}
+      {:ok, ref} -> {:ok, presence_back(state, ref)}
       {:error, :not_running} -> :restarting
     end
   end
@@ -445,10 +445,7 @@ defmodule NeptunusWeb.Socket do
   defp handle_other(:presence_back?, %State{presence: nil} = state) do
     case Presence.monitor() do
       {:ok, ref} ->
-        for topic <- Map.keys(state.channels),
-            do: send(self(), {:channel_info, topic, :presence_restarted})
-
-        {:noreply, %{state | presence: ref}}
+        {:noreply, presence_back(state, ref)}
 
       {:error, :not_running} ->
         Process.send_after(self(), :presence_back?, @presence_retry_ms)
@@ -466,6 +463,15 @@ defmodule NeptunusWeb.Socket do
   defp handle_other(msg, state) do
     Logger.debug("socket ignored message #{inspect(msg)}")
     {:noreply, state}
+  end
+
+  # A presence server is watched again: the joined channels track again (none on the first
+  # join; after a restart, whichever of a join and the retry finds the new server first).
+  defp presence_back(state, ref) do
+    for topic <- Map.keys(state.channels),
+        do: send(self(), {:channel_info, topic, :presence_restarted})
+
+    %{state | presence: ref}
   end
 
   defp channel_info(topic, msg, state) do

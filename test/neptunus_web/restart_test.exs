@@ -208,6 +208,29 @@ defmodule NeptunusWeb.RestartTest do
     end
   end
 
+  describe "Presence restart, then a join" do
+    setup do
+      Wire.start_vehicle!("resub-presence-join")
+    end
+
+    test "a join that finds the new server first still has the other channels track again",
+         %{topic: topic} do
+      ada = Wire.client!(topic, %{name: "ada"})
+      sync_until(ada.ws, %{}, &(map_size(&1) == 1))
+
+      with_restart_held(fn -> kill!(Presence) end)
+      # right after the restart, before or after the connection's own retry finds the server
+      Wire.join!(ada.ws, "fleet")
+
+      state =
+        sync_until(ada.ws, %{}, fn state ->
+          refs(state) == refs(Presence.list(topic) |> stringify())
+        end)
+
+      assert Map.keys(state) == ["ada"]
+    end
+  end
+
   # The phoenix JS client's presence sync: presence_state replaces the state, a diff's joins
   # add metas (once per phx_ref) and its leaves remove them.
   defp sync_until(ws, state, done?) do
