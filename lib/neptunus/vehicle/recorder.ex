@@ -207,6 +207,9 @@ defmodule Neptunus.Vehicle.Recorder do
     {:noreply, subscribe(state)}
   end
 
+  # a scope watched before the one the recorder subscribed with
+  def handle_info({:DOWN, _ref, :process, _pid, _reason}, state), do: {:noreply, state}
+
   def handle_info(:subscribe, %State{pubsub: nil} = state), do: {:noreply, subscribe(state)}
   def handle_info(:subscribe, state), do: {:noreply, state}
 
@@ -250,13 +253,20 @@ defmodule Neptunus.Vehicle.Recorder do
   # Subscribes to the vehicle's topic, watching the scope first; retries while it restarts.
   defp subscribe(state) do
     with {:ok, ref} <- PubSub.monitor(),
-         :ok <- PubSub.subscribe(Telemetry.topic(state.id)) do
+         :ok <- subscribe_or_demonitor(state.id, ref) do
       state = %{state | pubsub: ref}
       if state.unsubscribed_at, do: resubscribed(state), else: state
     else
       {:error, :not_running} ->
         Process.send_after(self(), :subscribe, @resubscribe_ms)
         %{state | unsubscribed_at: state.unsubscribed_at || System.monotonic_time(:millisecond)}
+    end
+  end
+
+  defp subscribe_or_demonitor(id, ref) do
+    with {:error, :not_running} = error <- PubSub.subscribe(Telemetry.topic(id)) do
+      Process.demonitor(ref, [:flush])
+      error
     end
   end
 
