@@ -148,8 +148,9 @@ defmodule NeptunusWeb.RestartTest do
       id = "resub-rec-#{System.unique_integer([:positive])}"
       start_supervised!({Recorder, id: id, recording: [dir: dir]})
       topic = Telemetry.topic(id)
-      PubSub.broadcast(topic, "telemetry", %{t: 1.0})
+      # subscribed (handle_continue has run) once a call is answered
       assert %{recording: true, error: nil} = Recorder.status(id)
+      PubSub.broadcast(topic, "telemetry", %{t: 1.0})
 
       with_restart_held(fn ->
         kill!(Neptunus.PubSub)
