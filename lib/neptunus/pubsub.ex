@@ -17,6 +17,29 @@ defmodule Neptunus.PubSub do
 
   Subscriptions end when the subscriber exits (`:pg` monitors members).
 
+  ## When the scope restarts
+
+  The subscriptions live in the scope process (`:pg` keeps them in its own table): when it
+  dies they are gone, and the supervisor starts an empty scope. Until a subscriber joins
+  again, broadcasts to it go nowhere, and nothing says so. So every long-lived subscriber
+  watches the scope it subscribed with (`monitor/0`, taken **before** subscribing) and acts
+  on the `:DOWN`: it subscribes again once the scope is back (`monitor/0` answers
+  `{:error, :not_running}` until then), or, when what it missed cannot be made good, ends
+  and lets its client start afresh. The node's subscribers:
+
+    * a WebSocket connection (`NeptunusWeb.Socket`) closes with 1012 "service restart": its
+      browser may have missed a `stopped`, a `helm` or a presence diff, and only a rejoin
+      gives it the whole state again (the phoenix client reconnects and rejoins by itself);
+    * the recorder (`Neptunus.Vehicle.Recorder`) says it is not recording, with the reason,
+      subscribes again and says so;
+    * a camera viewer (`NeptunusWeb.CameraStream`) subscribes again (frames only replace
+      each other);
+    * the presence server (`NeptunusWeb.Presence`) joins its group again.
+
+  Subscribing is idempotent (a process subscribed to a topic stays subscribed once), so a
+  subscriber that raced a restart and joined the new scope before its `:DOWN` arrived can
+  simply subscribe again.
+
   ## Paced broadcasts
 
   A broadcast to a thousand observers makes a thousand connection processes runnable at
@@ -54,13 +77,49 @@ defmodule Neptunus.PubSub do
     %{id: __MODULE__, start: {:pg, :start_link, [@scope]}, type: :worker}
   end
 
-  @doc "Subscribes the calling process to `topic` as a term subscriber."
-  @spec subscribe(topic()) :: :ok
-  def subscribe(topic), do: :pg.join(@scope, {:term, topic}, self())
+  @doc """
+  Monitors the scope process, for a subscriber to learn that its subscriptions are gone
+  (see "When the scope restarts"): `{:ok, ref}`, then `{:DOWN, ref, :process, pid, reason}`
+  when the scope stops; `{:error, :not_running}` while it is down or restarting.
+  """
+  @spec monitor() :: {:ok, reference()} | {:error, :not_running}
+  def monitor do
+    case Process.whereis(@scope) do
+      nil -> {:error, :not_running}
+      pid -> {:ok, Process.monitor(pid)}
+    end
+  end
 
-  @doc "Subscribes the calling process to pre-encoded frames of `topic`."
-  @spec subscribe_fastlane(topic()) :: :ok
-  def subscribe_fastlane(topic), do: :pg.join(@scope, {:fastlane, topic}, self())
+  @doc """
+  Subscribes the calling process to `topic` as a term subscriber (once: subscribing again
+  changes nothing). `{:error, :not_running}` while the scope is down or restarting.
+  """
+  @spec subscribe(topic()) :: :ok | {:error, :not_running}
+  def subscribe(topic), do: join_once({:term, topic}, [{:term, topic}])
+
+  @doc """
+  Subscribes the calling process to pre-encoded frames of `topic` (once, like
+  `subscribe/1`; a prioritized subscriber stays prioritized).
+  """
+  @spec subscribe_fastlane(topic()) :: :ok | {:error, :not_running}
+  def subscribe_fastlane(topic),
+    do: join_once({:fastlane, topic}, [{:fastlane, topic}, {:fastlane_first, topic}])
+
+  defp join_once(group, groups) do
+    cond do
+      Process.whereis(@scope) == nil ->
+        {:error, :not_running}
+
+      Enum.any?(groups, &(self() in :pg.get_local_members(@scope, &1))) ->
+        :ok
+
+      true ->
+        :pg.join(@scope, group, self())
+    end
+  catch
+    # the scope stopped between the check and the join
+    :exit, {_reason, {:gen_server, :call, _}} -> {:error, :not_running}
+  end
 
   @doc """
   Serves the calling fastlane subscriber of `topic` first (`true`) or with the others

@@ -176,6 +176,20 @@ defmodule Neptunus.Recording do
   end
 
   @doc """
+  Whether the recorder writes an entry of `event` to disk at once (every event but
+  `telemetry`: rare, and each one may be what a dive is remembered by) or with its next
+  periodic sync (`telemetry`, 20 times a second).
+
+      iex> Neptunus.Recording.sync_at_once?("stopped")
+      true
+      iex> Neptunus.Recording.sync_at_once?("telemetry")
+      false
+  """
+  @spec sync_at_once?(String.t()) :: boolean()
+  def sync_at_once?("telemetry"), do: false
+  def sync_at_once?(event) when is_binary(event), do: true
+
+  @doc """
   The numeric series of a payload as `{path, value}`, paths dotted (`"measurement.depth"`),
   in payload order; booleans as 0/1, everything else left out. The same series as the
   developer page's plots.

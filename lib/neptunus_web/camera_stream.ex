@@ -7,7 +7,9 @@ defmodule NeptunusWeb.CameraStream do
 
   Each viewer is one streaming process: it sends the newest frame at once, then every new
   one. A viewer that cannot keep up gets the newest frame, not a queue: frames that arrived
-  while it was writing are dropped for it alone. It ends when the client goes away.
+  while it was writing are dropped for it alone. It ends when the client goes away. When the
+  PubSub scope restarts (its subscription gone, see `Neptunus.PubSub`), it subscribes again
+  as soon as the scope is back: the viewer misses a few frames, not the rest of the stream.
   """
   import NeptunusWeb.Yaws
 
@@ -51,16 +53,17 @@ defmodule NeptunusWeb.CameraStream do
     NeptunusWeb.Yaws.await_stream(
       socket,
       fn yaws ->
-        PubSub.subscribe(Camera.topic(id))
+        pubsub = subscribe(id)
         ref = Process.monitor(yaws)
+        watch = {id, ref, pubsub}
 
         case Camera.latest(id) do
           nil ->
-            stream(socket, yaws, ref)
+            stream(socket, yaws, watch)
 
           frame ->
             if send_frame(socket, frame) == :ok,
-              do: stream(socket, yaws, ref),
+              do: stream(socket, yaws, watch),
               else: done(yaws)
         end
       end,
@@ -68,15 +71,41 @@ defmodule NeptunusWeb.CameraStream do
     )
   end
 
-  defp stream(socket, yaws, ref) do
+  # Subscribes to the camera's frames, watching the PubSub scope (waits while it restarts).
+  defp subscribe(id) do
+    case PubSub.monitor() do
+      {:ok, ref} ->
+        case PubSub.subscribe(Camera.topic(id)) do
+          :ok ->
+            ref
+
+          {:error, :not_running} ->
+            Process.demonitor(ref, [:flush])
+            subscribe_later(id)
+        end
+
+      {:error, :not_running} ->
+        subscribe_later(id)
+    end
+  end
+
+  defp subscribe_later(id) do
+    Process.sleep(20)
+    subscribe(id)
+  end
+
+  defp stream(socket, yaws, {id, ref, pubsub} = watch) do
     receive do
       {:pubsub, _topic, "frame", %{jpeg: frame}} ->
         frame = newest(frame)
 
         case send_frame(socket, frame) do
-          :ok -> stream(socket, yaws, ref)
+          :ok -> stream(socket, yaws, watch)
           {:error, _} -> done(yaws)
         end
+
+      {:DOWN, ^pubsub, :process, _, _} ->
+        stream(socket, yaws, {id, ref, subscribe(id)})
 
       {:DOWN, ^ref, :process, _, _} ->
         :ok

@@ -11,6 +11,9 @@ defmodule NeptunusWeb.Channel do
   browser pre-encoded, see `Neptunus.PubSub`) and unsubscribes on leave.
 
   A channel sends itself a message with `send_self/2`; it arrives in `c:handle_info/2`.
+  The socket sends every joined channel `:presence_restarted` there when the presence
+  server (`NeptunusWeb.Presence`) has restarted and forgotten the connection's presences: a
+  channel that tracks presences tracks them again and pushes a fresh `presence_state`.
   """
 
   defmodule Socket do

@@ -12,6 +12,14 @@ defmodule NeptunusWeb.Presence do
   scope) into `%{key => %{metas: [meta, ...]}}`, the `presence_state` payload.
 
   Every meta carries a unique `phx_ref`, which the JS client uses to tell metas apart.
+
+  Restarts: the presences are in this server's table, so when it dies they are gone, and its
+  pending diffs with them. Each connection watches it (`monitor/0`, see
+  `NeptunusWeb.Socket`) and, once a new server runs, its channels track again and push a
+  fresh `presence_state` to their client, which replaces the client's whole state (metas of
+  the dead server and of connections that went meanwhile disappear); the others' tracks
+  reach it as diffs. The server itself watches the PubSub scope and joins its group again
+  when the scope restarts, so the other nodes find it.
   """
   use GenServer
 
@@ -21,6 +29,20 @@ defmodule NeptunusWeb.Presence do
   @group {__MODULE__, :servers}
   @batch_ms 100
 
+  defmodule State do
+    @moduledoc false
+    @type t :: %__MODULE__{
+            monitors: %{optional(pid()) => reference()},
+            pending: %{optional(String.t()) => [{:join | :leave, String.t(), map()}]},
+            flush: reference() | nil,
+            pubsub: reference() | nil
+          }
+    defstruct monitors: %{}, pending: %{}, flush: nil, pubsub: nil
+  end
+
+  # how often to look for the PubSub scope while it restarts
+  @rejoin_ms 20
+
   @type key :: String.t()
   @type meta :: map()
   @type presences :: %{optional(key()) => %{metas: [meta()]}}
@@ -28,14 +50,33 @@ defmodule NeptunusWeb.Presence do
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(_opts \\ []), do: GenServer.start_link(__MODULE__, nil, name: __MODULE__)
 
+  @doc """
+  Monitors the presence server, for a tracked process to learn that its presences are gone
+  (see "Restarts"): `{:ok, ref}`, or `{:error, :not_running}` while it is down or restarting.
+  """
+  @spec monitor() :: {:ok, reference()} | {:error, :not_running}
+  def monitor do
+    case Process.whereis(__MODULE__) do
+      nil -> {:error, :not_running}
+      pid -> {:ok, Process.monitor(pid)}
+    end
+  end
+
   @doc "Tracks `pid` on `topic` under `key` with `meta`; returns the meta with its phx_ref."
   @spec track(pid(), String.t(), key(), meta()) :: {:ok, meta()}
   def track(pid, topic, key, meta),
     do: GenServer.call(__MODULE__, {:track, pid, topic, key, meta})
 
-  @doc "Untracks `pid` from `topic` (no-op if it is not tracked there)."
+  @doc """
+  Untracks `pid` from `topic` (no-op if it is not tracked there, and while the server is
+  down: its presences went with it).
+  """
   @spec untrack(pid(), String.t()) :: :ok
-  def untrack(pid, topic), do: GenServer.call(__MODULE__, {:untrack, pid, topic})
+  def untrack(pid, topic) do
+    GenServer.call(__MODULE__, {:untrack, pid, topic})
+  catch
+    :exit, {:noproc, _} -> :ok
+  end
 
   @doc "Presences on `topic` across all nodes."
   @spec list(String.t()) :: presences()
@@ -58,6 +99,9 @@ defmodule NeptunusWeb.Presence do
   @spec local_entries(String.t()) :: [{key(), meta()}]
   def local_entries(topic) do
     :ets.match(@table, {{topic, :_}, :"$1", :"$2"}) |> Enum.map(fn [k, m] -> {k, m} end)
+  rescue
+    # the server is restarting: its presences went with it (see "Restarts")
+    ArgumentError -> []
   end
 
   defp group(entries) do
@@ -71,9 +115,26 @@ defmodule NeptunusWeb.Presence do
   @impl true
   def init(nil) do
     :ets.new(@table, [:named_table, :set, :protected, read_concurrency: true])
-    :pg.join(Neptunus.PubSub, @group, self())
     # pending: topic => [{:join | :leave, key, meta}], newest first, flushed every @batch_ms
-    {:ok, %{monitors: %{}, pending: %{}, flush: nil}}
+    {:ok, join_group(%State{})}
+  end
+
+  # Joins the group the other nodes find this server by, watching the scope (see "Restarts").
+  defp join_group(state) do
+    with {:ok, ref} <- PubSub.monitor(),
+         :ok <- safe_join() do
+      %{state | pubsub: ref}
+    else
+      _ ->
+        Process.send_after(self(), :join_group, @rejoin_ms)
+        %{state | pubsub: nil}
+    end
+  end
+
+  defp safe_join do
+    :pg.join(PubSub, @group, self())
+  catch
+    :exit, _ -> :not_running
   end
 
   @impl true
@@ -93,6 +154,12 @@ defmodule NeptunusWeb.Presence do
   end
 
   @impl true
+  def handle_info({:DOWN, ref, :process, _pid, _reason}, %State{pubsub: ref} = state),
+    do: {:noreply, join_group(%{state | pubsub: nil})}
+
+  def handle_info(:join_group, %State{pubsub: nil} = state), do: {:noreply, join_group(state)}
+  def handle_info(:join_group, state), do: {:noreply, state}
+
   def handle_info({:DOWN, _ref, :process, pid, _reason}, state) do
     state =
       Enum.reduce(:ets.match(@table, {{:"$1", pid}, :_, :_}), state, fn [topic], state ->

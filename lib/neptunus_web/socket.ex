@@ -54,6 +54,17 @@ defmodule NeptunusWeb.Socket do
   so the connection checks its socket when it finds itself behind and at every idle check,
   and ends when the socket is gone: its channels are left as for any other closed
   connection (a pilot's helm is freed and the vehicle stops).
+
+  Restarts of the PubSub scope and of the presence server (see `Neptunus.PubSub`, "When the
+  scope restarts"): the connection watches both from its first join. When the scope stops,
+  the connection's subscriptions are gone and its client may have missed any broadcast (a
+  `stopped`, a `helm`, a presence diff); only a rejoin gives a client the whole state again,
+  so the connection closes with 1012 "service restart", and the phoenix client reconnects
+  and rejoins (a pilot's channel is left like on any close: the helm is freed and the vehicle
+  stops, `pilot_disconnected`). When the presence server stops, the connection waits for the
+  new one and sends each joined channel `:presence_restarted` (see `NeptunusWeb.Channel`):
+  the vehicle channel tracks again and pushes a fresh `presence_state`. A join while either
+  is restarting is refused with "server restarting: join again" (the client retries).
   """
   require Logger
 
@@ -71,6 +82,8 @@ defmodule NeptunusWeb.Socket do
   @tcp_notsent_lowat 25
   @shed_report_ms 60_000
   @max_message_bytes 65_536
+  # how often to look for the presence server while it restarts
+  @presence_retry_ms 20
 
   defmodule State do
     @moduledoc false
@@ -86,7 +99,9 @@ defmodule NeptunusWeb.Socket do
             backlog: pos_integer(),
             shed: non_neg_integer(),
             shed_reported_at: integer() | nil,
-            sock: port() | {:ssl, :ssl.sslsocket()} | nil
+            sock: port() | {:ssl, :ssl.sslsocket()} | nil,
+            pubsub: reference() | nil,
+            presence: reference() | nil
           }
     @enforce_keys [:user, :last_seen, :idle_timeout, :budget, :backlog]
     defstruct [
@@ -97,6 +112,8 @@ defmodule NeptunusWeb.Socket do
       :backlog,
       :shed_reported_at,
       :sock,
+      :pubsub,
+      :presence,
       channels: %{},
       piloting: MapSet.new(),
       over_budget: false,
@@ -314,11 +331,14 @@ defmodule NeptunusWeb.Socket do
           %{state | channels: channels}
       end
 
-    case channel_module(topic) do
-      nil ->
+    case {channel_module(topic), watch(state)} do
+      {nil, _} ->
         reply(state, [error_reply(msg, "unmatched topic")])
 
-      module ->
+      {_module, :restarting} ->
+        reply(state, [error_reply(msg, "server restarting: join again")])
+
+      {module, {:ok, state}} ->
         socket = %Channel.Socket{
           topic: topic,
           join_ref: msg.join_ref,
@@ -328,12 +348,8 @@ defmodule NeptunusWeb.Socket do
 
         case safe(fn -> module.join(topic, msg.payload, socket) end) do
           {:ok, {:ok, response, socket}} ->
-            PubSub.subscribe_fastlane(topic)
-            # a join builds large replies (snapshot, presence_state): collect afterwards
-            send(self(), :gc)
             joined = %{module: module, socket: socket}
-            state = %{state | channels: Map.put(state.channels, topic, joined)}
-            reply(state, [Wire.encode_reply(msg.join_ref, msg.ref, topic, :ok, response)])
+            subscribed(state, msg, joined, response)
 
           {:ok, {:error, response}} ->
             reply(state, [Wire.encode_reply(msg.join_ref, msg.ref, topic, :error, response)])
@@ -347,6 +363,39 @@ defmodule NeptunusWeb.Socket do
         end
     end
   end
+
+  defp subscribed(state, %Wire.Message{topic: topic} = msg, joined, response) do
+    case PubSub.subscribe_fastlane(topic) do
+      :ok ->
+        # a join builds large replies (snapshot, presence_state): collect afterwards
+        send(self(), :gc)
+        state = %{state | channels: Map.put(state.channels, topic, joined)}
+        reply(state, [Wire.encode_reply(msg.join_ref, msg.ref, topic, :ok, response)])
+
+      {:error, :not_running} ->
+        # the scope stopped during the join: its :DOWN closes the connection
+        leave_channel(topic, joined, {:shutdown, :left})
+        reply(state, [error_reply(msg, "server restarting: join again")])
+    end
+  end
+
+  # Watches the PubSub scope and the presence server from the first join on (see the
+  # moduledoc): :restarting while either is down.
+  defp watch(%State{pubsub: nil} = state) do
+    case PubSub.monitor() do
+      {:ok, ref} -> watch(%{state | pubsub: ref})
+      {:error, :not_running} -> :restarting
+    end
+  end
+
+  defp watch(%State{presence: nil} = state) do
+    case Presence.monitor() do
+      {:ok, ref} -> {:ok, presence_back(state, ref)}
+      {:error, :not_running} -> :restarting
+    end
+  end
+
+  defp watch(state), do: {:ok, state}
 
   defp channel_module("fleet"), do: FleetChannel
   defp channel_module("vehicle:" <> _id), do: VehicleChannel
@@ -388,6 +437,27 @@ defmodule NeptunusWeb.Socket do
     end
   end
 
+  # The PubSub scope stopped: every subscription of this connection is gone.
+  defp handle_other({:DOWN, ref, :process, _pid, _reason}, %State{pubsub: ref} = state),
+    do: {:close, {1012, "service restart"}, %{state | pubsub: nil}}
+
+  # The presence server stopped: its presences are gone; track again once it is back.
+  defp handle_other({:DOWN, ref, :process, _pid, _reason}, %State{presence: ref} = state),
+    do: handle_other(:presence_back?, %{state | presence: nil})
+
+  defp handle_other(:presence_back?, %State{presence: nil} = state) do
+    case Presence.monitor() do
+      {:ok, ref} ->
+        {:noreply, presence_back(state, ref)}
+
+      {:error, :not_running} ->
+        Process.send_after(self(), :presence_back?, @presence_retry_ms)
+        {:noreply, state}
+    end
+  end
+
+  defp handle_other(:presence_back?, state), do: {:noreply, state}
+
   defp handle_other(:gc, state) do
     :erlang.garbage_collect()
     {:noreply, state}
@@ -396,6 +466,15 @@ defmodule NeptunusWeb.Socket do
   defp handle_other(msg, state) do
     Logger.debug("socket ignored message #{inspect(msg)}")
     {:noreply, state}
+  end
+
+  # A presence server is watched again: the joined channels track again (none on the first
+  # join; after a restart, whichever of a join and the retry finds the new server first).
+  defp presence_back(state, ref) do
+    for topic <- Map.keys(state.channels),
+        do: send(self(), {:channel_info, topic, :presence_restarted})
+
+    %{state | presence: ref}
   end
 
   defp channel_info(topic, msg, state) do

@@ -146,6 +146,29 @@ defmodule Neptunus.PubSubTest do
     assert PubSub.subscriber_count(t) == 0
   end
 
+  test "subscribing twice subscribes once, a prioritized subscriber stays first" do
+    t = topic()
+    assert :ok = PubSub.subscribe(t)
+    assert :ok = PubSub.subscribe(t)
+    PubSub.broadcast(t, "ev", %{n: 1}, Encoder)
+    assert_receive {:pubsub, ^t, "ev", %{n: 1}}
+    refute_receive {:pubsub, ^t, "ev", _}, 20
+
+    pid = subscriber(t, :a, first: true)
+    run(pid, :a, fn -> :ok = PubSub.subscribe_fastlane(t) end)
+    assert :pg.get_members(PubSub, {:fastlane_first, t}) == [pid]
+    assert :pg.get_members(PubSub, {:fastlane, t}) == []
+    assert PubSub.subscriber_count(t) == 2
+  end
+
+  test "monitor/0 watches the scope process" do
+    assert {:ok, ref} = PubSub.monitor()
+    assert is_reference(ref)
+    scope = Process.whereis(PubSub)
+    assert {:monitored_by, watchers} = Process.info(scope, :monitored_by)
+    assert self() in watchers
+  end
+
   test "plan: slices grow to keep the spread, never below the configured size" do
     for count <- [0, 1, 49, 50, 51, 999, 1_000, 1_001, 10_000],
         slice <- [1, 7, 50],

@@ -20,7 +20,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
 
   Presence: keyed by user name, one meta per connection:
   `%{name, role, since, pilot, conn, node, online_at}`; `pilot` is updated on every grant and
-  loss of control.
+  loss of control. When the presence server restarts (`:presence_restarted`), the channel
+  tracks again and pushes `presence_state` anew: the client's presences are right again.
   """
   @behaviour NeptunusWeb.Channel
 
@@ -34,7 +35,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   def join("vehicle:" <> id, _payload, socket) do
     if Fleet.exists?(id) do
       socket = Channel.assign(socket, vehicle_id: id, since: System.os_time(:millisecond))
-      track(socket, false)
+      socket = track(socket, false)
       Channel.send_self(socket, :after_join)
       {:ok, snapshot(id, socket), socket}
     else
@@ -116,15 +117,19 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     {:push, "presence_state", Presence.list(socket.topic), socket}
   end
 
+  # The presence server restarted without this connection's presence (NeptunusWeb.Socket).
+  def handle_info(:presence_restarted, socket) do
+    socket = track(socket, socket.assigns.pilot)
+    {:push, "presence_state", Presence.list(socket.topic), socket}
+  end
+
   # Targeted events from the helm (see `party/1`).
   def handle_info({:helm, "control_granted" = event, payload}, socket) do
-    track(socket, true)
-    {:push, event, payload, socket}
+    {:push, event, payload, track(socket, true)}
   end
 
   def handle_info({:helm, "control_lost" = event, payload}, socket) do
-    track(socket, false)
-    {:push, event, payload, socket}
+    {:push, event, payload, track(socket, false)}
   end
 
   def handle_info({:helm, event, payload}, socket), do: {:push, event, payload, socket}
@@ -192,7 +197,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
         node: Atom.to_string(node())
       })
 
-    :ok
+    Channel.assign(socket, pilot: pilot?)
   end
 
   defp id(socket), do: socket.assigns.vehicle_id

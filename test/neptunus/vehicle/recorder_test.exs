@@ -44,6 +44,66 @@ defmodule Neptunus.Vehicle.RecorderTest do
     assert Path.basename(file) == name
   end
 
+  # What another reader finds in the file being written, without asking the recorder to sync.
+  defp on_disk(id) do
+    %{file: file} = Recorder.status(id)
+    file |> Recording.entries() |> Enum.to_list()
+  end
+
+  test "an event that is not telemetry is on disk as soon as the recorder has handled it", %{
+    tmp_dir: dir
+  } do
+    # no periodic sync during the test
+    id = start!(dir, sync_ms: 3_600_000)
+    for i <- 1..3, do: publish(id, "telemetry", %{t: i * 0.05})
+    publish(id, "stopped", %{reason: "deadman"})
+
+    assert [
+             {_, "telemetry", %{t: 0.05}},
+             {_, "telemetry", %{t: 0.1}},
+             {_, "telemetry", _},
+             {_, "stopped", %{reason: "deadman"}}
+           ] = on_disk(id)
+  end
+
+  test "telemetry is on disk at the recorder's next periodic sync", %{tmp_dir: dir} do
+    id = start!(dir, sync_ms: 3_600_000)
+    for i <- 1..3, do: publish(id, "telemetry", %{t: i * 0.05})
+
+    # the recorder's own timer, sent now
+    send(GenServer.whereis(Neptunus.Fleet.via(Recorder, id)), :sync_tick)
+    assert [{_, "telemetry", %{t: 0.05}}, _, {_, "telemetry", %{t: t}}] = on_disk(id)
+    assert_in_delta t, 0.15, 1.0e-9
+  end
+
+  test "on a disk slower than the events, syncs are batched: the recorder keeps up", %{
+    tmp_dir: dir
+  } do
+    test = self()
+
+    slow_sync = fn log ->
+      Process.sleep(30)
+      send(test, :synced)
+      :disk_log.sync(log)
+    end
+
+    id = start!(dir, sync_ms: 50, sync: slow_sync)
+    for i <- 1..100, do: publish(id, "helm", %{n: i})
+
+    # one sync per event would take 3 s and keep the recorder ever further behind
+    assert Enum.map(on_disk(id), fn {_, "helm", %{n: n}} -> n end) == Enum.to_list(1..100)
+    syncs = count_synced(0)
+    assert syncs in 1..49, "#{syncs} syncs for 100 events"
+  end
+
+  defp count_synced(n) do
+    receive do
+      :synced -> count_synced(n + 1)
+    after
+      0 -> n
+    end
+  end
+
   test "a full file is closed and the next one opened: nothing is refused", %{tmp_dir: dir} do
     id = start!(dir, max_bytes: 4_000)
     payload = %{t: 0.0, blob: String.duplicate("x", 300)}
