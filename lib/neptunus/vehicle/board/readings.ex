@@ -20,7 +20,9 @@ defmodule Neptunus.Vehicle.Board.Readings do
   alias Neptunus.Protocol.{Lines, OpenROV}
 
   @measurements [:depth, :heading, :roll, :pitch, :voltage, :current]
+  @direct_measurements @measurements -- [:current]
   @max_raw_keys 64
+  @max_events 256
 
   @enforce_keys [:lines]
   defstruct [
@@ -28,10 +30,15 @@ defmodule Neptunus.Vehicle.Board.Readings do
     measurement: %{},
     board: %{},
     raw: %{},
+    events: [],
+    pressure_zero: false,
     counters: %{
       lines: 0,
       samples: 0,
       overlong: 0,
+      text: 0,
+      debug: 0,
+      placeholder: 0,
       malformed: 0,
       out_of_range: 0,
       not_a_number: 0,
@@ -39,11 +46,22 @@ defmodule Neptunus.Vehicle.Board.Readings do
     }
   ]
 
+  @typedoc "See `Neptunus.Protocol.BoardLink.event/3`."
+  @type event ::
+          :rawcmd
+          | {:crc, :pass | {:fail, byte(), byte()}}
+          | {:echo, String.t(), boolean()}
+          | {:icmd, String.t()}
+          | {:pong, OpenROV.pong()}
+          | {:board_time, non_neg_integer()}
+
   @typedoc """
   * `lines` — the framer (partial line in progress)
   * `measurement` — latest accepted value of each of the six measurements
   * `board` — latest accepted value of the other known fields
   * `raw` — latest raw value of unknown keys
+  * `events` — what the link needs to know, newest first (`take_events/1`)
+  * `pressure_zero` — the board's latest `pres` was 0.00 (its depth is a placeholder)
   * `counters` — see the moduledoc
   """
   @type t :: %__MODULE__{
@@ -51,6 +69,8 @@ defmodule Neptunus.Vehicle.Board.Readings do
           measurement: map(),
           board: map(),
           raw: %{String.t() => String.t()},
+          events: [event()],
+          pressure_zero: boolean(),
           counters: %{atom() => non_neg_integer()}
         }
 
@@ -61,7 +81,14 @@ defmodule Neptunus.Vehicle.Board.Readings do
   @doc "Forgets the partial line and the latest values (counters are kept): a new link session."
   @spec reset(t()) :: t()
   def reset(%__MODULE__{} = r),
-    do: %{r | lines: Lines.new(r.lines.max), measurement: %{}, board: %{}}
+    do: %{
+      r
+      | lines: Lines.new(r.lines.max),
+        measurement: %{},
+        board: %{},
+        events: [],
+        pressure_zero: false
+    }
 
   @doc "Feeds bytes read at vehicle time `t` (s); returns the samples they complete, in order."
   @spec feed(t(), binary(), float()) :: {t(), [Neptunus.Vehicle.Board.sample()]}
@@ -75,6 +102,14 @@ defmodule Neptunus.Vehicle.Board.Readings do
   end
 
   defp line(text, {r, samples}, t) do
+    if OpenROV.text_line?(text) do
+      {bump(%{r | counters: %{r.counters | lines: r.counters.lines + 1}}, :text, 1), samples}
+    else
+      fields_line(text, {r, samples}, t)
+    end
+  end
+
+  defp fields_line(text, {r, samples}, t) do
     {fields, rejects} = OpenROV.parse_line(text)
 
     counters =
@@ -82,10 +117,27 @@ defmodule Neptunus.Vehicle.Board.Readings do
         Map.update!(c, reason, &(&1 + 1))
       end)
 
+    r = %{r | counters: counters, events: events(fields, r.events)}
+    r = if Map.has_key?(fields, "log"), do: bump(r, :debug, 1), else: r
+    r = pressure(r, fields)
+    {fields, r} = placeholder(fields, r)
+
     {measurement, board, raw, measured?} =
       Enum.reduce(fields, {r.measurement, r.board, r.raw, false}, fn
-        {key, value}, {m, b, raw, _} when key in @measurements ->
+        {key, value}, {m, b, raw, _} when key in @direct_measurements ->
           {Map.put(m, key, value), b, raw, true}
+
+        {:current, value}, {m, b, raw, measured?} ->
+          # the cape's iout is the vehicle's current; the 2.5 controller board's is its own
+          # supply current, and its battery currents BT1I/BT2I are the vehicle's
+          if Map.has_key?(b, :battery1_current),
+            do: {m, Map.put(b, :board_current, value), raw, measured?},
+            else: {Map.put(m, :current, value), b, raw, true}
+
+        {key, value}, {m, b, raw, _} when key in [:battery1_current, :battery2_current] ->
+          b = Map.put(b, key, value)
+          current = Map.get(b, :battery1_current, 0.0) + Map.get(b, :battery2_current, 0.0)
+          {Map.put(m, :current, current), b, raw, true}
 
         {key, value}, {m, b, raw, measured?} when is_atom(key) ->
           {m, Map.put(b, key, value), raw, measured?}
@@ -94,7 +146,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
           {m, b, keep_raw(raw, key, value), measured?}
       end)
 
-    r = %{r | counters: counters, measurement: measurement, board: board, raw: raw}
+    r = %{r | measurement: measurement, board: board, raw: raw}
 
     if measured? and map_size(measurement) == length(@measurements) do
       sample = %{t: t, measurement: measurement, sim: nil, board: board}
@@ -103,6 +155,53 @@ defmodule Neptunus.Vehicle.Board.Readings do
       {r, samples}
     end
   end
+
+  # While the board reports pres:0.00 its depth sensor has not been read since boot (0 mbar is
+  # a vacuum): its deap is the boot placeholder.
+  defp pressure(r, %{pressure: p}), do: %{r | pressure_zero: p == 0.0}
+  defp pressure(r, _fields), do: r
+
+  defp placeholder(%{depth: _} = fields, %{pressure_zero: true} = r),
+    do: {Map.delete(fields, :depth), bump(r, :placeholder, 1)}
+
+  defp placeholder(fields, r), do: {fields, r}
+
+  # What the link needs to know from a line, newest first: the board's replies, its echoes and
+  # its uptime (see Neptunus.Protocol.BoardLink.event/3).
+  defp events(fields, acc) do
+    acc
+    |> event(fields, "rawcmd", fn _ -> {:ok, :rawcmd} end)
+    |> event(fields, "crc", &with({:ok, c} <- OpenROV.parse_crc(&1), do: {:ok, {:crc, c}}))
+    |> event(fields, "cmd", fn value ->
+      with {:ok, name} <- OpenROV.parse_echo(value),
+           do: {:ok, {:echo, name, Map.has_key?(fields, "crc")}}
+    end)
+    |> event(
+      fields,
+      "icmd",
+      &with({:ok, name} <- OpenROV.parse_echo(&1), do: {:ok, {:icmd, name}})
+    )
+    |> event(
+      fields,
+      "pong",
+      &with({:ok, pong} <- OpenROV.parse_pong(&1), do: {:ok, {:pong, pong}})
+    )
+    |> event(fields, :board_time, fn s -> {:ok, {:board_time, round(s * 1000)}} end)
+    |> Enum.take(@max_events)
+  end
+
+  defp event(acc, fields, key, parse) do
+    with {:ok, value} <- Map.fetch(fields, key),
+         {:ok, event} <- parse.(value) do
+      [event | acc]
+    else
+      _ -> acc
+    end
+  end
+
+  @doc "The events seen since the last call, oldest first, and the readings without them."
+  @spec take_events(t()) :: {[event()], t()}
+  def take_events(%__MODULE__{events: events} = r), do: {Enum.reverse(events), %{r | events: []}}
 
   defp keep_raw(raw, key, value) when map_size(raw) < @max_raw_keys or is_map_key(raw, key),
     do: Map.put(raw, key, value)
