@@ -139,6 +139,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   defp command(fw, {:ligt, n}, _now), do: {%{fw | lights: n}, []}
   defp command(fw, {:claser, n}, _now), do: {%{fw | laser: n}, []}
   defp command(fw, {:tilt, us}, _now), do: {%{fw | tilt: us}, []}
+  # motor modifiers (sent by the board link at every open): not modelled here
+  defp command(fw, {mtrmod, _, _, _}, _now) when mtrmod in [:mtrmod1, :mtrmod2], do: {fw, []}
 
   @doc """
   The deadman check at `now` (ms): returns the firmware and bytes to send (`deadman:1;` when it
