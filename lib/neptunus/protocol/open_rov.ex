@@ -1,24 +1,29 @@
 defmodule Neptunus.Protocol.OpenROV do
   @moduledoc """
-  The OpenROV serial protocol between the server and the vehicle's board (115200 8N1),
-  thesis ch. 8.4 and appendix A.8, DESIGN.md §3. Pure: no I/O, never raises on input from the
-  line.
+  The OpenROV serial protocol between the server and the vehicle's board (115200 8N1), as the
+  OpenROV Arduino firmware 2.5.x and 30.x speak it (docs/OPENROV.md). Pure: no I/O, never
+  raises on input from the line.
 
   ## Commands (server → board)
 
   `;`-terminated, no newline: `go(port,vertical,starboard,flag);` with each motor in
   1000..2000 µs (1500 neutral) in the order the motors are wired (see `Neptunus.Wiring`),
-  `ligt(0..255);`, `claser(0..255);`, `tilt(µs);`, `ping(n);`, `stop();`. The encoders take
-  values already in range and raise `FunctionClauseError` otherwise: validating a pilot's
-  input is the caller's job, a bad value here is a bug. `parse_command/1` is the board's
-  side (used by the SITL board and the tests).
+  `ligt(0..255);`, `claser(0..255);`, `tilt(µs);`, `ping(n);`, `stop();`, and the motor
+  modifiers `mtrmod1(a,b,c);` (forward) / `mtrmod2(a,b,c);` (reverse) in percent. The encoders
+  take values already in range and raise `FunctionClauseError` otherwise: validating a
+  pilot's input is the caller's job, a bad value here is a bug. `frame/2` puts a command in the
+  wire form of a firmware line (30.x: a CRC byte first). `parse_command/1`, `unframe/1` and
+  `goms/3` are the board's side (used by the SITL board and the tests).
 
   ## Telemetry (board → server)
 
-  Newline-terminated lines of `key:value;` fields, e.g.
-  `hdgd:123.4;deap:0.52;pitc:1.2;roll:-0.3;yaw:12.0;fthr:0;` and
-  `vout:12.1;iout:0.5;time:12345;pres:1065.3;temp:11.2;`. `parse_line/1` returns the fields
-  it accepts and the ones it rejects:
+  Lines end `\r\n` (`Neptunus.Protocol.Lines` removes the `\r`) and carry `key:value;`
+  fields, e.g. `hdgd:123.40;deap:0.52;pitc:1.20;roll:-0.30;yaw:12.00;fthr:0.00;` and
+  `vout:12.10;iout:0.50;time:12345;pres:1065.30;temp:11.20;`. Some fields are printed without
+  a newline and glue onto the next line (`pong:1,183422;hdgd:…`, `claser:255;`, 30.x
+  `crc:pass;cmd:…;`), and `cmpd:` prints its newline before its `;`, so a line may start
+  with `;`: fields are split on `;` whatever the line, so all of these parse. `parse_line/1`
+  returns the fields it accepts and the ones it rejects:
 
   | key    | field             | board unit        | accepted raw range | SI value           |
   |--------|-------------------|-------------------|--------------------|--------------------|
@@ -33,22 +38,29 @@ defmodule Neptunus.Protocol.OpenROV do
   | `temp` | `:temperature`    | °C                | -40 .. 85          | °C                 |
   | `pres` | `:pressure`       | mbar              | 0 .. 25 000        | Pa                 |
   | `time` | `:board_time`     | ms since boot     | 0 .. 2³² − 1       | s                  |
+  | `BT1I` | `:battery1_current` | A               | 0 .. 30            | A                  |
+  | `BT2I` | `:battery2_current` | A               | 0 .. 30            | A                  |
+  | `SC1I`..`SC3I` | `:esc1_current`..`:esc3_current` | A | 0 .. 30       | A                  |
 
-  The ranges are what the sensors can physically report (the IMU's Euler angles, the
-  depth-sensor's 0..14 bar plus margin down to the thesis' 200 m, the 20 V and 10 A ADC scales;
-  a board that reports its own supply below 5 V would not be running). The thesis' filter
-  (ch. 8.3) used narrower limits — voltage 10..13 V, current 0.01..4 A, angles 0..360° —
-  that reject real readings such as a flat battery; the rate-of-change check belongs to
-  navigation.
+  What the fields mean (which `iout` is the vehicle's current, `fthr`, the depth's reference)
+  differs between the boards: `Neptunus.Vehicle.Board.Readings` maps them. The ranges are what
+  the sensors can physically report (the IMU's Euler angles, the depth sensor's 0..14 bar plus
+  margin down to the thesis' 200 m, the 20 V ADC scale, the cape's 0..5.4 A and the controller
+  board's 0..2 A `iout` with margin, the controller board's battery and ESC current channels; a
+  board that reports its own supply below 5 V would not be running). The rate-of-change check
+  belongs to navigation.
 
-  Unknown keys (`cmd`, `log`, `motors`, `pong`, `fmem`, …) are kept with their raw string
-  value under the key as a string. Known keys become atoms with numbers in SI units.
+  Unknown keys (`cmd`, `icmd`, `rawcmd`, `crc`, `log`, `pong`, `fmem`, 30.x dotted keys such as
+  `BNO055.status` or `Depth.C0`, …) are kept with their raw string value under the key as a
+  string; `parse_pong/1`, `parse_echo/1` and `parse_crc/1` read the ones the link uses. Known
+  keys become atoms with numbers in SI units. Plain-text lines the firmware prints (the 2.5.2
+  depth driver's) are recognised by `text_line?/1` and not parsed.
 
   Rejected fields, each `{reason, key, raw}` (`key` nil when there is none, `raw` at most
   #{32} bytes):
 
     * `:malformed` — not `key:value` (no colon, empty or invalid key: a key is a letter
-      followed by up to 15 letters, digits or `_`);
+      followed by up to 31 letters, digits, `_` or `.`);
     * `:not_a_number` — a known key whose value is not a plain decimal number
       (`nan`, `ovf`, `12.3.4`, …);
     * `:out_of_range` — a known key whose value is outside its range above;
@@ -139,8 +151,8 @@ defmodule Neptunus.Protocol.OpenROV do
 
   @doc """
   `go(port,vertical,starboard,flag);` with the motors' pulse widths in `go()` order; the
-  flag is 1 for `direct` (the firmware bypasses its smoothing ramp), 0 to let it ramp (see
-  `Neptunus.Wiring`).
+  flag is 1 for `direct`, 0 for `ramp` (the 2.5.x and 30.x firmware store it and never read
+  it: the values take effect at its next 50 ms tick either way; see `Neptunus.Wiring`).
 
       iex> Neptunus.Protocol.OpenROV.go({1500, 1750, 1000}, true)
       "go(1500,1750,1000,1);"
@@ -188,7 +200,7 @@ defmodule Neptunus.Protocol.OpenROV do
   def ping(n) when is_integer(n) and n >= 0 and n <= @max_ping, do: "ping(#{n});"
 
   @doc """
-  Stops (and detaches) the motors.
+  Stops the motors: the 2.5.x/30.x firmware drives them to neutral (it does not detach them).
 
       iex> Neptunus.Protocol.OpenROV.stop()
       "stop();"
