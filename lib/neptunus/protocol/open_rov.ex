@@ -38,8 +38,8 @@ defmodule Neptunus.Protocol.OpenROV do
   | `temp` | `:temperature`    | °C                | -40 .. 85          | °C                 |
   | `pres` | `:pressure`       | mbar              | 0 .. 25 000        | Pa                 |
   | `time` | `:board_time`     | ms since boot     | 0 .. 2³² − 1       | s                  |
-  | `BT1I` | `:battery1_current` | A               | 0 .. 30            | A                  |
-  | `BT2I` | `:battery2_current` | A               | 0 .. 30            | A                  |
+  | `BT1I` | `:battery1_current` | A               | 0 .. 10            | A                  |
+  | `BT2I` | `:battery2_current` | A               | 0 .. 10            | A                  |
   | `SC1I`..`SC3I` | `:esc1_current`..`:esc3_current` | A | 0 .. 30       | A                  |
 
   What the fields mean (which `iout` is the vehicle's current, `fthr`, the depth's reference)
@@ -111,8 +111,8 @@ defmodule Neptunus.Protocol.OpenROV do
     "pres" => {:pressure, 0, 25_000, :mbar},
     "time" => {:board_time, 0, 4_294_967_295, :ms},
     # the 2.5 controller board's battery and ESC currents (controllerboard25.cpp)
-    "BT1I" => {:battery1_current, 0, 30, :identity},
-    "BT2I" => {:battery2_current, 0, 30, :identity},
+    "BT1I" => {:battery1_current, 0, 10, :identity},
+    "BT2I" => {:battery2_current, 0, 10, :identity},
     "SC1I" => {:esc1_current, 0, 30, :identity},
     "SC2I" => {:esc2_current, 0, 30, :identity},
     "SC3I" => {:esc3_current, 0, 30, :identity}

@@ -134,10 +134,14 @@ defmodule Neptunus.Vehicle.Board.Readings do
             do: {m, Map.put(b, :board_current, value), raw, measured?},
             else: {Map.put(m, :current, value), b, raw, true}
 
-        {key, value}, {m, b, raw, _} when key in [:battery1_current, :battery2_current] ->
+        {key, value}, {m, b, raw, measured?}
+        when key in [:battery1_current, :battery2_current] ->
           b = Map.put(b, key, value)
-          current = Map.get(b, :battery1_current, 0.0) + Map.get(b, :battery2_current, 0.0)
-          {Map.put(m, :current, current), b, raw, true}
+
+          case battery_current(b) do
+            {:ok, current} -> {Map.put(m, :current, current), b, raw, true}
+            :out_of_range -> {m, b, raw, measured?}
+          end
 
         {key, value}, {m, b, raw, measured?} when is_atom(key) ->
           {m, Map.put(b, key, value), raw, measured?}
@@ -148,12 +152,26 @@ defmodule Neptunus.Vehicle.Board.Readings do
 
     r = %{r | measurement: measurement, board: board, raw: raw}
 
+    r =
+      if (Map.has_key?(fields, :battery1_current) or Map.has_key?(fields, :battery2_current)) and
+           battery_current(board) == :out_of_range,
+         do: bump(r, :out_of_range, 1),
+         else: r
+
     if measured? and map_size(measurement) == length(@measurements) do
       sample = %{t: t, measurement: measurement, sim: nil, board: board}
       {bump(r, :samples, 1), [sample | samples]}
     else
       {r, samples}
     end
+  end
+
+  # The vehicle's current on the 2.5 controller board: both batteries together, a wild point
+  # when the sum is beyond what a current can be (OpenROV.si_range(:current)).
+  defp battery_current(board) do
+    current = Map.get(board, :battery1_current, 0.0) + Map.get(board, :battery2_current, 0.0)
+    {_min, max} = OpenROV.si_range(:current)
+    if current <= max, do: {:ok, current}, else: :out_of_range
   end
 
   # While the board reports pres:0.00 its depth sensor has not been read since boot (0 mbar is

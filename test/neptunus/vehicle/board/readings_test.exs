@@ -144,6 +144,14 @@ defmodule Neptunus.Vehicle.Board.ReadingsFirmwareTest do
     assert s.board.board_current == 0.5 and s.board.esc1_current == 0.4
   end
 
+  test "battery currents summing beyond the current's range are a wild point, not a measurement" do
+    {r, [s], _} = feed("BT1I:1.00;BT2I:1.00;\r\n" <> @status <> @nav)
+    {r, _, _} = feed("BT1I:9.50;BT2I:9.00;\r\n", r)
+    assert r.counters.out_of_range == 1
+    {_r, [s2], _} = feed(@nav, r)
+    assert s2.measurement.current == s.measurement.current
+  end
+
   test "the cape: iout is the vehicle's current" do
     {_r, [s], _} = feed(@status <> @nav)
     assert s.measurement.current == 0.5
