@@ -15,10 +15,12 @@ defmodule Neptunus.Protocol.Pacer do
 
   Commands are queued by key and coalesced: a newer command with the key of a queued one
   replaces it in its place in the queue (the newest `go()` replaces a queued `go()`, a device's
-  newest value replaces its queued one). Nothing else is ever dropped: a neutral `go()` or a
-  `stop()` is either sent or replaced by a newer command of its key, which the caller decides
-  (a newer `go()` supersedes an older one, neutral or not). When nothing is queued and the
-  limits allow, a pushed command goes out at once (`push/4` then `take/2` in the same
+  newest value replaces its queued one). A command pushed as `sticky` (a neutral `go()`, a
+  `stop()`) is never replaced by a later ordinary command: that one queues after it (and is
+  itself replaced by newer ones); a newer sticky command replaces everything queued under its
+  key, in the place of the first. So the board always gets every neutral it was sent, and
+  at most two commands per key wait. Nothing is ever dropped otherwise. When nothing is queued
+  and the limits allow, a pushed command goes out at once (`push/4` then `take/2` in the same
   millisecond).
 
   Times are integer milliseconds of one monotonic clock.
@@ -31,7 +33,7 @@ defmodule Neptunus.Protocol.Pacer do
   @type key :: term()
 
   @typedoc """
-  * `queue` — `{key, bytes}` in sending order
+  * `queue` — `{key, bytes, sticky}` in sending order
   * `sent` — `{at, size}` of the writes inside the current window, newest first
   * `last_at` — when the last command was written
   """
@@ -39,7 +41,7 @@ defmodule Neptunus.Protocol.Pacer do
           window_ms: pos_integer(),
           window_bytes: pos_integer(),
           spacing_ms: non_neg_integer(),
-          queue: [{key(), binary()}],
+          queue: [{key(), binary(), boolean()}],
           sent: [{integer(), pos_integer()}],
           last_at: integer() | nil
         }
@@ -61,22 +63,45 @@ defmodule Neptunus.Protocol.Pacer do
   end
 
   @doc """
-  Queues `bytes` under `key`, replacing a queued command of the same key in its place.
-  Returns `{:error, reason}` (pacer unchanged) for a command that could never be sent: empty,
-  or longer than the window allows.
+  Queues `bytes` under `key`: it replaces the queued command of that key in its place, unless
+  that one is sticky (then it queues after it); with `sticky: true` it replaces every queued
+  command of its key and is never replaced itself (see the moduledoc). Returns
+  `{:error, reason}` (pacer unchanged) for a command that could never be sent: empty, or
+  longer than the window allows.
   """
-  @spec push(t(), key(), binary()) :: {:ok, t()} | {:error, String.t()}
-  def push(%__MODULE__{} = p, _key, bytes)
+  @spec push(t(), key(), binary(), keyword()) :: {:ok, t()} | {:error, String.t()}
+  def push(pacer, key, bytes, opts \\ [])
+
+  def push(%__MODULE__{} = p, _key, bytes, _opts)
       when not is_binary(bytes) or bytes == "" or byte_size(bytes) > p.window_bytes,
       do: {:error, "a command must be 1..#{p.window_bytes} bytes"}
 
-  def push(%__MODULE__{} = p, key, bytes) do
-    queue =
-      if List.keymember?(p.queue, key, 0),
-        do: List.keyreplace(p.queue, key, 0, {key, bytes}),
-        else: p.queue ++ [{key, bytes}]
+  def push(%__MODULE__{} = p, key, bytes, opts) do
+    entry = {key, bytes, Keyword.get(opts, :sticky, false)}
+    {:ok, %{p | queue: enqueue(p.queue, entry)}}
+  end
 
-    {:ok, %{p | queue: queue}}
+  # sticky: in the place of the first queued command of its key, all others of the key removed
+  defp enqueue(queue, {key, _, true} = entry) do
+    case Enum.find_index(queue, &(elem(&1, 0) == key)) do
+      nil ->
+        queue ++ [entry]
+
+      i ->
+        {before, rest} = Enum.split(queue, i)
+        before ++ [entry | Enum.reject(rest, &(elem(&1, 0) == key))]
+    end
+  end
+
+  # ordinary: replaces the last queued command of its key unless that one is sticky
+  defp enqueue(queue, {key, _, false} = entry) do
+    case queue
+         |> Enum.with_index()
+         |> Enum.filter(&(elem(elem(&1, 0), 0) == key))
+         |> List.last() do
+      {{_, _, false}, i} -> List.replace_at(queue, i, entry)
+      _ -> queue ++ [entry]
+    end
   end
 
   @doc """
@@ -90,13 +115,11 @@ defmodule Neptunus.Protocol.Pacer do
     take(p, now, [])
   end
 
-  defp take(%__MODULE__{queue: [{_key, bytes} = first | rest]} = p, now, acc) do
+  defp take(%__MODULE__{queue: [{key, bytes, _sticky} | rest]} = p, now, acc) do
     if ready?(p, now, byte_size(bytes)) do
       p = %{p | queue: rest, sent: [{now, byte_size(bytes)} | p.sent], last_at: now}
-
-      if p.spacing_ms == 0,
-        do: take(p, now, [first | acc]),
-        else: {Enum.reverse([first | acc]), p}
+      acc = [{key, bytes} | acc]
+      if p.spacing_ms == 0, do: take(p, now, acc), else: {Enum.reverse(acc), p}
     else
       {Enum.reverse(acc), p}
     end
@@ -110,7 +133,7 @@ defmodule Neptunus.Protocol.Pacer do
   @spec next_at(t(), integer()) :: integer() | nil
   def next_at(%__MODULE__{queue: []}, _now), do: nil
 
-  def next_at(%__MODULE__{queue: [{_key, bytes} | _]} = p, now) do
+  def next_at(%__MODULE__{queue: [{_key, bytes, _sticky} | _]} = p, now) do
     p = expire(p, now)
     spaced = if p.last_at, do: p.last_at + p.spacing_ms, else: now
     max(now, max(spaced, window_free_at(p, byte_size(bytes), now)))

@@ -15,9 +15,14 @@ defmodule Neptunus.Protocol.PacerTest do
     {writes, _p} =
       Enum.reduce(0..until, {[], Pacer.new()}, fn now, {writes, p} ->
         p =
-          Enum.reduce(Map.get(by_time, now, []), p, fn {_, key, bytes}, p ->
-            {:ok, p} = Pacer.push(p, key, bytes)
-            p
+          Enum.reduce(Map.get(by_time, now, []), p, fn
+            {_, key, bytes}, p ->
+              {:ok, p} = Pacer.push(p, key, bytes)
+              p
+
+            {_, key, bytes, sticky}, p ->
+              {:ok, p} = Pacer.push(p, key, bytes, sticky: sticky)
+              p
           end)
 
         {out, p} = Pacer.take(p, now)
@@ -77,6 +82,28 @@ defmodule Neptunus.Protocol.PacerTest do
     assert [{0, _, "ligt(2);"}, {3, :go, "go(1500,1500,1500,1);"}] = run(pushes, 100)
   end
 
+  test "a queued neutral (sticky) go() is never replaced: a newer go() waits behind it" do
+    pushes = [
+      {0, :ping, "ping(1);"},
+      {1, :go, "go(1500,1500,1500,1);", true},
+      {1, :go, "go(1700,1500,1500,1);", false},
+      {2, :go, "go(1800,1500,1500,1);", false}
+    ]
+
+    assert Enum.map(run(pushes, 100), &elem(&1, 2)) ==
+             ["ping(1);", "go(1500,1500,1500,1);", "go(1800,1500,1500,1);"]
+
+    # a newer neutral supersedes everything queued under go
+    pushes = [
+      {0, :ping, "ping(1);"},
+      {1, :go, "go(1500,1500,1500,1);", true},
+      {1, :go, "go(1700,1500,1500,1);", false},
+      {2, :go, "go(1500,1500,1500,0);", true}
+    ]
+
+    assert Enum.map(run(pushes, 100), &elem(&1, 2)) == ["ping(1);", "go(1500,1500,1500,0);"]
+  end
+
   test "a command alone goes out at once; next_at says when a queued one may go, nil when idle" do
     p = Pacer.new()
     assert Pacer.next_at(p, 0) == nil
@@ -113,23 +140,43 @@ defmodule Neptunus.Protocol.PacerTest do
     gen =
       :proper_types.list(
         {:proper_types.integer(0, 200), :proper_types.elements([:go, :ping, :l, :t, :m]),
-         :proper_types.integer(1, 30)}
+         :proper_types.integer(1, 30), :proper_types.bool()}
       )
 
     check(
       gen,
       fn pushes ->
-        pushes = Enum.map(pushes, fn {t, k, n} -> {t, k, String.duplicate("x", n) <> "#{t}"} end)
+        pushes =
+          pushes
+          |> Enum.with_index()
+          |> Enum.map(fn {{t, k, n, sticky}, i} ->
+            {t, k, String.duplicate("x", n) <> "#{i}", sticky}
+          end)
+
         writes = run(pushes, 1_200)
+        written = MapSet.new(writes, &elem(&1, 2))
+
+        # every sticky command is written unless a later sticky one of its key superseded it
+        in_order = Enum.sort_by(Enum.with_index(pushes), fn {{t, _, _, _}, i} -> {t, i} end)
+
+        stickies_kept =
+          in_order
+          |> Enum.with_index()
+          |> Enum.all?(fn {{{_, k, b, sticky}, _}, pos} ->
+            not sticky or MapSet.member?(written, b) or
+              Enum.any?(Enum.drop(in_order, pos + 1), fn {{_, k2, _, s2}, _} ->
+                k2 == k and s2
+              end)
+          end)
 
         last_pushed =
           pushes
           |> Enum.sort_by(&elem(&1, 0))
-          |> Enum.reduce(%{}, fn {_, k, b}, acc -> Map.put(acc, k, b) end)
+          |> Enum.reduce(%{}, fn {_, k, b, _}, acc -> Map.put(acc, k, b) end)
 
         last_written = Enum.reduce(writes, %{}, fn {_, k, b}, acc -> Map.put(acc, k, b) end)
 
-        window_ok?(writes) and spaced?(writes) and last_written == last_pushed
+        window_ok?(writes) and spaced?(writes) and last_written == last_pushed and stickies_kept
       end,
       200
     )

@@ -13,8 +13,26 @@ defmodule Neptunus.Vehicle.Board.Readings do
   `board` map (e.g. `yaw`, `temperature`, `pressure`, `board_time`, `forward_thrust`);
   unknown keys are kept in `raw` (at most #{64} keys, the latest value of each), not in samples.
 
-  Counters: `lines`, `samples`, `overlong` (lines over the length cap), `malformed`, and the
-  wild points by reason `out_of_range`, `not_a_number`, `key_as_value` (see `OpenROV`).
+  What the fields mean differs between boards, so:
+
+    * **current** — the cape's `iout` is the vehicle's current; the 2.5 controller board's
+      `iout` is its own supply current (kept as `board.board_current`) and the vehicle's
+      current is its two battery currents `BT1I + BT2I` (a sum beyond the current's range is
+      a wild point). A board counts as a controller board once it has reported a battery
+      current.
+    * **depth** — while the board's latest `pres` is 0.00 (its pressure sensor has not been
+      read since boot: 0 mbar is a vacuum), its `deap` is a boot placeholder and is dropped
+      (counted `placeholder`).
+
+  Lines the firmware prints besides fields — the depth driver's plain text
+  (`OpenROV.text_line?/1`) — are counted as `text`, `log` fields as `debug`; neither is
+  malformed. The board's replies the link needs (`pong`, the `cmd:`/`icmd:` echoes, 30.x
+  `crc:` and `rawcmd:` lines, the board's millis from `time`) are collected as events,
+  oldest first, for `take_events/1` (see `Neptunus.Protocol.BoardLink`).
+
+  Counters: `lines`, `samples`, `overlong` (lines over the length cap), `text`, `debug`,
+  `placeholder`, `malformed`, and the wild points by reason `out_of_range`, `not_a_number`,
+  `key_as_value` (see `OpenROV`).
   """
 
   alias Neptunus.Protocol.{Lines, OpenROV}

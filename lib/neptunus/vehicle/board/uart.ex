@@ -249,7 +249,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     case state.link do
       :up ->
         state = bump(state, :commands)
-        {:noreply, command(state, :go, Wiring.go_command(state.wiring, thrusters))}
+        {:noreply, go(state, thrusters)}
 
       _ ->
         {:noreply, bump(state, :dropped_commands)}
@@ -459,7 +459,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     [mtrmod1, mtrmod2] = Wiring.modifier_commands(state.wiring)
 
     state
-    |> command(:go, Wiring.go_command(state.wiring, Allocation.neutral()))
+    |> go(Allocation.neutral())
     |> command(:mtrmod1, mtrmod1)
     |> command(:mtrmod2, mtrmod2)
     |> then(fn state ->
@@ -535,15 +535,23 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   # I/O ------------------------------------------------------------------------------------
 
+  # A neutral go() is sticky: never replaced by a later go() while it waits (Pacer).
+  defp go(state, thrusters) do
+    us = Wiring.to_us(state.wiring, thrusters)
+    command(state, :go, OpenROV.go(us, state.wiring.direct), sticky: us == {1500, 1500, 1500})
+  end
+
   # Queues a command (framed for the firmware) and writes what the pacer allows now.
-  defp command(%State{link: :up} = state, key, text) do
-    case Pacer.push(state.pacer, key, OpenROV.frame(text, state.profile)) do
+  defp command(state, key, text, opts \\ [])
+
+  defp command(%State{link: :up} = state, key, text, opts) do
+    case Pacer.push(state.pacer, key, OpenROV.frame(text, state.profile), opts) do
       {:ok, pacer} -> drain(%{state | pacer: pacer})
       {:error, _} -> bump(state, :dropped_commands)
     end
   end
 
-  defp command(state, _key, _text), do: bump(state, :dropped_commands)
+  defp command(state, _key, _text, _opts), do: bump(state, :dropped_commands)
 
   defp drain(state) do
     now = now_ms()
