@@ -27,8 +27,9 @@ defmodule Neptunus.Vehicle.Board.UART do
       reversed motors, flag). Commands while the link is down are dropped (counted), never
       queued: the next link starts neutral. Writes are paced (`Neptunus.Protocol.Pacer`: at
       most 60 bytes in any 30 ms, commands ≥ 3 ms apart, so the board's 64-byte receive
-      buffer never overflows), a newer `go()` or device value replacing a queued one; a timer
-      runs only while something is queued. Writes never block: when the program's input is
+      buffer never overflows), a newer `go()` or device value replacing a queued one (never a
+      queued neutral `go()`: a newer `go()` waits behind it); a timer runs only while
+      something is queued. Writes never block: when the program's input is
       busy the command is dropped and counted.
     * **Deadman.** Every `ping_interval` (1 s) it sends `ping(n);` — but only while the link is
       up *and* the vehicle's control was heard (`go` or `keepalive/1`, which
