@@ -35,8 +35,9 @@ defmodule Neptunus.Protocol.BoardLink do
   The 30.x firmware prints `rawcmd:` and `crc:` for every command it receives (and
   `crc:fail` for a command without a valid CRC byte); the 2.5 firmware never does, and
   echoes a command as `cmd:…;` on a line of its own (30.x prints `crc:pass;` before the echo,
-  on the same line). The line so detected is kept in `detected`; when it differs from the
-  configured profile, action `{:firmware_mismatch, detected}` once — the profile is never
+  on the same line); given a CRC-prefixed command, a 2.5 board echoes it with the CRC byte
+  before the name (`cmd:<crc>ping(7);`) and does not recognise it. The line so detected is
+  kept in `detected`; when it differs from the configured profile, action `{:firmware_mismatch, detected}` once — the profile is never
   switched on a guess.
 
   ## Confirmed commands
@@ -150,6 +151,9 @@ defmodule Neptunus.Protocol.BoardLink do
     l = %{l | confirmed: l.confirmed + 1}
     if with_crc?, do: detected(l, :openrov_30), else: detected(l, :openrov_25)
   end
+
+  # a board without CRC checking echoing our CRC byte as part of the command's name
+  def event(%__MODULE__{} = l, {:echo_prefixed, _name}, _now), do: detected(l, :openrov_25)
 
   def event(%__MODULE__{} = l, {:icmd, name}, _now) when name in ["stop", "ligt"] do
     {%{l | tripped: l.tripped || "the board's deadman tripped (icmd:#{name})"}, []}

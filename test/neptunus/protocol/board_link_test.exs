@@ -81,6 +81,14 @@ defmodule Neptunus.Protocol.BoardLinkTest do
     assert BoardLink.status(l, 0).firmware_mismatch == false
     {l, [{:firmware_mismatch, :openrov_25}]} = BoardLink.event(l, {:echo, "ping", false}, 0)
     assert BoardLink.status(l, 0).detected_firmware == "openrov-2.5"
+
+    # a 2.5 board echoing our CRC byte as part of the name
+    l = BoardLink.new(:openrov_30)
+
+    assert {l, [{:firmware_mismatch, :openrov_25}]} =
+             BoardLink.event(l, {:echo_prefixed, "go"}, 0)
+
+    assert BoardLink.status(l, 0).commands_confirmed == 0
   end
 
   test "echoes count confirmed commands against sent ones" do

@@ -69,6 +69,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
           :rawcmd
           | {:crc, :pass | {:fail, byte(), byte()}}
           | {:echo, String.t(), boolean()}
+          | {:echo_prefixed, String.t()}
           | {:icmd, String.t()}
           | {:pong, OpenROV.pong()}
           | {:board_time, non_neg_integer()}
@@ -208,10 +209,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
     acc
     |> event(fields, "rawcmd", fn _ -> {:ok, :rawcmd} end)
     |> event(fields, "crc", &with({:ok, c} <- OpenROV.parse_crc(&1), do: {:ok, {:crc, c}}))
-    |> event(fields, "cmd", fn value ->
-      with {:ok, name} <- OpenROV.parse_echo(value),
-           do: {:ok, {:echo, name, Map.has_key?(fields, "crc")}}
-    end)
+    |> event(fields, "cmd", &echo(&1, Map.has_key?(fields, "crc")))
     |> event(
       fields,
       "icmd",
@@ -224,6 +222,22 @@ defmodule Neptunus.Vehicle.Board.Readings do
     )
     |> event(fields, :board_time, fn s -> {:ok, {:board_time, round(s * 1000)}} end)
     |> Enum.take(@max_events)
+  end
+
+  # An echo; a 2.5 board given a CRC-prefixed command echoes it with the CRC byte before the
+  # name (and does not recognise it).
+  defp echo(value, crc?) do
+    case OpenROV.parse_echo(value) do
+      {:ok, name} ->
+        {:ok, {:echo, name, crc?}}
+
+      :error ->
+        with false <- crc?,
+             <<_crc, rest::binary>> <- value,
+             {:ok, name} <- OpenROV.parse_echo(rest),
+             do: {:ok, {:echo_prefixed, name}},
+             else: (_ -> :error)
+    end
   end
 
   defp event(acc, fields, key, parse) do

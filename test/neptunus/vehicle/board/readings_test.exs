@@ -113,6 +113,11 @@ defmodule Neptunus.Vehicle.Board.ReadingsFirmwareTest do
     assert r.counters.malformed == 0
   end
 
+  test "a 2.5 board's echo of a CRC-prefixed command: the CRC byte before the name" do
+    {_r, [], events} = feed(<<"cmd:", 0xAB, "ping(7);\r\n">>)
+    assert events == [{:echo_prefixed, "ping"}]
+  end
+
   test "the 2.5.2 depth driver's plain-text lines are text, log lines debug, never malformed" do
     bytes =
       "Depth Sensor setup.\r\nDepth Sensor: initialized I2C\r\nDepth Sensor is reset\r\n" <>

@@ -95,6 +95,18 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
     assert recv_until(ctx.board, &String.ends_with?(&1, ";")) == "go(1500,1500,1500,1);"
   end
 
+  test "openrov-30 configured, a 2.5 board echoing the CRC byte as part of the name: reported",
+       ctx do
+    start_uart(ctx, firmware: :openrov_30)
+    [{true, _} | _] = recv_framed(ctx.board, 3)
+    write(ctx.board, <<"cmd:", 0x9C, "go(1500,1500,1500,1);\r\n">>)
+
+    assert_receive {:pubsub, _, "firmware", %{configured: "openrov-30", detected: "openrov-2.5"}},
+                   2_000
+
+    assert %{firmware_mismatch: true, commands_confirmed: 0} = UART.link_status(ctx.id)
+  end
+
   test "pong → round-trip time and pong age in the link status; echoes counted as confirmed",
        ctx do
     start_uart(ctx, firmware: :openrov_25)
