@@ -114,7 +114,8 @@ defmodule Fuzz do
 
   def check_sample!(%{measurement: m, board: board}) do
     for {field, value} <- Map.merge(m, board) do
-      {min, max} = OpenROV.si_range(field)
+      # the controller board's own supply current comes from iout, the field :current parses
+      {min, max} = OpenROV.si_range(if field == :board_current, do: :current, else: field)
 
       unless is_float(value) and value >= min and value <= max do
         raise "out-of-range value reached a sample: #{field} = #{inspect(value)}"
@@ -202,6 +203,9 @@ out.("parse_line alone", "#{rate.(expected_lines, stats.parse_us)} lines")
 out.("lines framed / expected", "#{c.lines} / #{expected_lines}")
 out.("overlong dropped / generated", "#{c.overlong} / #{Map.get(stats.kinds, :overlong, 0)}")
 out.("samples (all values in range)", stats.samples)
+out.("plain-text lines (known shapes)", c.text)
+out.("debug fields (log)", c.debug)
+out.("boot placeholder depths", c.placeholder)
 out.("rejects: malformed", c.malformed)
 out.("wild points: out_of_range", c.out_of_range)
 out.("wild points: not_a_number", c.not_a_number)

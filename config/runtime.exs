@@ -6,6 +6,8 @@ import Config
 #   NEPTUNUS_PORT      HTTP/WebSocket port            (default 4000; 4102 under `mix test`)
 #   NEPTUNUS_BIND      address to listen on           (default 127.0.0.1)
 #   NEPTUNUS_VEHICLES  id=board[,id=board...]         (default neptunus-1=simulated)
+#   NEPTUNUS_WIRING    id=wiring[,...]                (sitl/uart motors, modifiers; thesis wiring)
+#   NEPTUNUS_FIRMWARE  id=openrov-2.5|openrov-30[,...] (sitl/uart firmware line; openrov-2.5)
 #
 # Security (Neptunus.Config.auth!/2, tls!/1): NEPTUNUS_SECRET, NEPTUNUS_USERS_FILE,
 # NEPTUNUS_USERS, NEPTUNUS_ANONYMOUS_OBSERVERS, NEPTUNUS_ORIGINS, NEPTUNUS_TOKEN_TTL_S,

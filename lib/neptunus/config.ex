@@ -12,6 +12,7 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_BIND`     | IPv4/IPv6 address to listen on           | `127.0.0.1`            |
   | `NEPTUNUS_VEHICLES` | comma-separated `id=board` pairs         | `neptunus-1=simulated` |
   | `NEPTUNUS_WIRING`   | comma-separated `id=wiring` pairs        | thesis wiring          |
+  | `NEPTUNUS_FIRMWARE` | comma-separated `id=firmware` pairs      | `openrov-2.5`          |
   | `NEPTUNUS_MODELS`   | comma-separated `id=model` pairs         | `neptunus`             |
   | `NEPTUNUS_CAMERAS`  | comma-separated `id=source` pairs        | none                   |
   | `NEPTUNUS_RECORDINGS` | recordings directory, or `off`         | `recordings`           |
@@ -27,10 +28,17 @@ defmodule Neptunus.Config do
   1..32 characters of `a-z A-Z 0-9 _ -`.
 
   Wiring (`sitl` and `uart` vehicles, see `Neptunus.Wiring`): the motors in `go()` order
-  separated by `/`, `-` before a reversed one, optionally `/direct` (`go()`'s 4th argument
-  1: the firmware applies the values at once) or `/ramp` (0: the firmware ramps the power);
-  default `-port/vertical/starboard/direct` (the thesis' Neptunus). Example:
-  `NEPTUNUS_WIRING=rov=port/vertical/-starboard/ramp`.
+  separated by `/`, `-` before a reversed one, optionally `:FORWARD:REVERSE` motor modifiers
+  after a motor (percent, multiples of 100, default 100 and 100; sent as `mtrmod1`/`mtrmod2`),
+  optionally `/direct` or `/ramp` (`go()`'s 4th argument 1 or 0; no effect on OpenROV 2.5.x
+  and 30.x firmware, whose values apply at its next 50 ms tick either way); default
+  `-port/vertical/starboard/direct` (the thesis' Neptunus). Example:
+  `NEPTUNUS_WIRING=rov=port/vertical/-starboard:100:200`.
+
+  Firmware (`sitl` and `uart` vehicles, see docs/OPENROV.md): `openrov-2.5` (OpenROV 2.5.x:
+  plain `;`-terminated commands) or `openrov-30` (OpenROV 30.x: every command prefixed with
+  its CRC-8 byte). Example: `NEPTUNUS_FIRMWARE=rov=openrov-30`. The board link reports a
+  board whose output shows the other line; it never switches on its own.
 
   Model: the vehicle's parameter set in `priv/vehicles/` (`neptunus`, `thesis-4dof`, …, see
   `Neptunus.Dynamics.Params`): what its simulator flies (`simulated` and `sitl` boards, and
@@ -75,6 +83,7 @@ defmodule Neptunus.Config do
               required(:id) => String.t(),
               required(:board) => :sitl,
               required(:wiring) => Neptunus.Wiring.t(),
+              required(:firmware) => Neptunus.Protocol.OpenROV.profile(),
               optional(:sim) => keyword(),
               optional(:camera) => Neptunus.Camera.Source.t()
             }
@@ -84,6 +93,7 @@ defmodule Neptunus.Config do
               required(:device) => String.t(),
               required(:baud) => pos_integer(),
               required(:wiring) => Neptunus.Wiring.t(),
+              required(:firmware) => Neptunus.Protocol.OpenROV.profile(),
               optional(:sim) => keyword(),
               optional(:camera) => Neptunus.Camera.Source.t()
             }
@@ -139,6 +149,7 @@ defmodule Neptunus.Config do
       [] ->
         vehicles
         |> wiring!(Map.get(env, "NEPTUNUS_WIRING", ""))
+        |> firmware!(Map.get(env, "NEPTUNUS_FIRMWARE", ""))
         |> models!(Map.get(env, "NEPTUNUS_MODELS", ""))
         |> cameras!(Map.get(env, "NEPTUNUS_CAMERAS", ""))
 
@@ -176,6 +187,32 @@ defmodule Neptunus.Config do
           do: {id, Neptunus.Wiring.default()}
 
     put_configured(vehicles, Map.merge(defaults, configured), :wiring)
+  end
+
+  # Every sitl/uart vehicle gets a firmware profile: the configured one or openrov-2.5.
+  defp firmware!(vehicles, spec) do
+    configured =
+      pairs!("NEPTUNUS_FIRMWARE", spec, vehicles, "id=firmware pairs, e.g. rov=openrov-30")
+      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
+        cond do
+          board not in [:sitl, :uart] ->
+            bad!("NEPTUNUS_FIRMWARE", spec, "sitl or uart vehicles (#{id} is #{board})")
+
+          true ->
+            case Neptunus.Protocol.BoardLink.parse_profile(text) do
+              {:ok, profile} -> {id, profile}
+              {:error, reason} -> bad!("NEPTUNUS_FIRMWARE", spec, "#{reason} in #{inspect(pair)}")
+            end
+        end
+      end)
+
+    defaults =
+      for %{board: board, id: id} <- vehicles,
+          board in [:sitl, :uart],
+          into: %{},
+          do: {id, :openrov_25}
+
+    put_configured(vehicles, Map.merge(defaults, configured), :firmware)
   end
 
   # A vehicle's parameter set, for the simulator (simulated and sitl boards, and run mode

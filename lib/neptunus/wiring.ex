@@ -13,14 +13,25 @@ defmodule Neptunus.Wiring do
   port thruster backwards (ch. 3.4 and 13); flag 1, as the thesis ran every test.
   Written `-port/vertical/starboard/direct`.
 
-  **The flag** (`go()`'s 4th argument). The thesis calls it "activate the smoothing filter",
-  but the OpenROV firmware (`Thrusters2X1.cpp`: `if (command.args[4] == 1)
-  bypasssmoothing=true;`) reads `1` as *bypass* smoothing: the motors take the new values at
-  once. With `0` the firmware ramps: every 50 ms each motor moves at most 40 µs further from
-  neutral, drops to neutral first when the direction reverses, and reduces power at once. So
-  the configuration names what happens, not the thesis' word: `direct` (1, the default and
-  what the thesis' vehicle ran) or `ramp` (0). `smooth` and `nosmooth` are refused: they
-  meant the opposite of what the firmware does.
+  **Motor modifiers.** The OpenROV firmware (2.5.2 on, `Motor::goms`) multiplies each motor's
+  offset from neutral by a modifier — `forward div 100` above neutral, `reverse div 100`
+  below — and its defaults are 100 forward and **200 reverse**: a reversed motor gets twice
+  the pulse offset of a forward one, and the vehicle yaws on a straight surge. The board link
+  sets the modifiers (`mtrmod1(…);` forward, `mtrmod2(…);` reverse, in `go()` order, see
+  `modifier_commands/1`) at every (re)open and after a board reset. Default 100 and 100 for
+  every motor (equal commands, equal pulse offsets); a motor whose thruster is weaker one way
+  can be given other values, written after the motor as `:FORWARD:REVERSE` in percent, e.g.
+  `-port:100:200/vertical/starboard`. The firmware divides them by 100 as integers, so only
+  multiples of 100 (100..1000) are accepted.
+
+  **The flag** (`go()`'s 4th argument). The OpenROV 2.5.x and 30.x firmware only store it as
+  "bypass smoothing", which nothing reads since the smoothing was removed (September 2014): the
+  values of a `go()` take effect at the firmware's next 50 ms thruster tick either way. It is
+  kept because older firmware ramped with 0 (every 50 ms at most 40 µs further from neutral)
+  and applied the values at once with 1: `direct` sends 1 (the default, what the thesis'
+  vehicle ran), `ramp` sends 0; on 2.5/30 firmware both behave the same. `smooth` and
+  `nosmooth` are refused: the thesis' word for the flag meant the opposite of what the old
+  firmware did with it.
 
       iex> w = Neptunus.Wiring.default()
       iex> Neptunus.Wiring.to_us(w, %{port: 0.5, vertical: 0.0, starboard: 0.5})
@@ -38,16 +49,51 @@ defmodule Neptunus.Wiring do
                "ramp sends 0"
 
   @enforce_keys [:order, :reversed, :direct]
-  defstruct [:order, :reversed, :direct]
+  defstruct [:order, :reversed, :direct, modifiers: %{}]
 
   @typedoc """
   * `order` — the three motors in `go()` order, each of `:port`, `:vertical`, `:starboard`
   * `reversed` — the motors whose command is negated (propeller or wiring reversed)
-  * `direct` — the 4th argument of `go()`: `true` → 1 (the firmware applies the values at
-    once), `false` → 0 (the firmware ramps them)
+  * `direct` — the 4th argument of `go()`: `true` → 1, `false` → 0 (no effect on 2.5/30
+    firmware, see above)
+  * `modifiers` — `{forward, reverse}` in percent per motor; a motor not listed has 100, 100
   """
   @type motor :: :port | :vertical | :starboard
-  @type t :: %__MODULE__{order: [motor()], reversed: [motor()], direct: boolean()}
+  @type modifier :: 100..1000
+  @type t :: %__MODULE__{
+          order: [motor()],
+          reversed: [motor()],
+          direct: boolean(),
+          modifiers: %{optional(motor()) => {modifier(), modifier()}}
+        }
+
+  @doc """
+  The motor modifiers in `go()` order: `{forward, reverse}` with three percentages each.
+
+      iex> Neptunus.Wiring.modifiers(Neptunus.Wiring.default())
+      {{100, 100, 100}, {100, 100, 100}}
+  """
+  @spec modifiers(t()) ::
+          {{modifier(), modifier(), modifier()}, {modifier(), modifier(), modifier()}}
+  def modifiers(%__MODULE__{order: [a, b, c]} = wiring) do
+    [{fa, ra}, {fb, rb}, {fc, rc}] =
+      Enum.map([a, b, c], &Map.get(wiring.modifiers, &1, {100, 100}))
+
+    {{fa, fb, fc}, {ra, rb, rc}}
+  end
+
+  @doc """
+  The commands that set the board's motor modifiers: `mtrmod1` (forward) and `mtrmod2`
+  (reverse).
+
+      iex> Neptunus.Wiring.modifier_commands(Neptunus.Wiring.default())
+      ["mtrmod1(100,100,100);", "mtrmod2(100,100,100);"]
+  """
+  @spec modifier_commands(t()) :: [binary()]
+  def modifier_commands(%__MODULE__{} = wiring) do
+    {forward, reverse} = modifiers(wiring)
+    [OpenROV.mtrmod1(forward), OpenROV.mtrmod2(reverse)]
+  end
 
   @doc "The thesis' Neptunus: `-port/vertical/starboard/direct`."
   @spec default() :: t()
@@ -95,13 +141,18 @@ defmodule Neptunus.Wiring do
 
   @doc """
   Parses the configuration syntax: the three motors in `go()` order separated by `/`, each
-  optionally prefixed with `-` when reversed, then optionally `/direct` or `/ramp`
-  (default direct; see the flag above).
+  optionally prefixed with `-` when reversed and followed by `:FORWARD:REVERSE` modifiers
+  (see above), then optionally `/direct` or `/ramp` (default direct; see the flag above).
 
       iex> Neptunus.Wiring.parse("-port/vertical/starboard")
       {:ok, Neptunus.Wiring.default()}
       iex> Neptunus.Wiring.parse("starboard/-vertical/port/ramp")
       {:ok, %Neptunus.Wiring{order: [:starboard, :vertical, :port], reversed: [:vertical], direct: false}}
+      iex> {:ok, w} = Neptunus.Wiring.parse("-port:100:200/vertical/starboard")
+      iex> Neptunus.Wiring.modifiers(w)
+      {{100, 100, 100}, {200, 100, 100}}
+      iex> {:error, "motor modifiers are percentages 100..1000 in steps of 100" <> _} =
+      ...>   Neptunus.Wiring.parse("port:150:100/vertical/starboard")
       iex> Neptunus.Wiring.parse("port/port/starboard")
       {:error, "each of port, vertical, starboard exactly once (got \\"port/port/starboard\\")"}
   """
@@ -124,22 +175,62 @@ defmodule Neptunus.Wiring do
       {:ok,
        %__MODULE__{
          order: Enum.map(signed, &elem(&1, 0)),
-         reversed: for({motor, true} <- signed, do: motor),
-         direct: direct
+         reversed: for({motor, true, _} <- signed, do: motor),
+         direct: direct,
+         modifiers:
+           for({motor, _, mods} <- signed, mods != {100, 100}, into: %{}, do: {motor, mods})
        }}
     end
   end
 
   defp motors(names, text) do
     signed =
-      Enum.map(names, fn
-        "-" <> name -> {motor(name), true}
-        name -> {motor(name), false}
+      Enum.map(names, fn name ->
+        {reversed, name} =
+          case name do
+            "-" <> name -> {true, name}
+            name -> {false, name}
+          end
+
+        case String.split(name, ":") do
+          [name] ->
+            {:ok, {motor(name), reversed, {100, 100}}}
+
+          [name, f, r] ->
+            with {:ok, mods} <- modifier_pair(f, r), do: {:ok, {motor(name), reversed, mods}}
+
+          _ ->
+            {:error, "a motor is NAME or NAME:FORWARD:REVERSE (got #{inspect(name)})"}
+        end
       end)
 
-    if Enum.sort(Enum.map(signed, &elem(&1, 0))) == Enum.sort(@motors),
-      do: {:ok, signed},
-      else: {:error, "each of port, vertical, starboard exactly once (got #{inspect(text)})"}
+    case Enum.find(signed, &match?({:error, _}, &1)) do
+      nil ->
+        signed = Enum.map(signed, fn {:ok, m} -> m end)
+
+        if Enum.sort(Enum.map(signed, &elem(&1, 0))) == Enum.sort(@motors),
+          do: {:ok, signed},
+          else: {:error, "each of port, vertical, starboard exactly once (got #{inspect(text)})"}
+
+      error ->
+        error
+    end
+  end
+
+  defp modifier_pair(f, r) do
+    with {:ok, f} <- modifier(f), {:ok, r} <- modifier(r), do: {:ok, {f, r}}
+  end
+
+  defp modifier(text) do
+    case Integer.parse(text) do
+      {n, ""} when n in 100..1000 and rem(n, 100) == 0 ->
+        {:ok, n}
+
+      _ ->
+        {:error,
+         "motor modifiers are percentages 100..1000 in steps of 100 (the firmware divides " <>
+           "them by 100 as integers), not #{inspect(text)}"}
+    end
   end
 
   defp motor("port"), do: :port
@@ -155,7 +246,19 @@ defmodule Neptunus.Wiring do
   """
   @spec to_string(t()) :: String.t()
   def to_string(%__MODULE__{} = wiring) do
-    motors = Enum.map(wiring.order, &if(&1 in wiring.reversed, do: "-#{&1}", else: "#{&1}"))
+    motors =
+      Enum.map(wiring.order, fn motor ->
+        sign = if motor in wiring.reversed, do: "-", else: ""
+
+        mods =
+          case Map.get(wiring.modifiers, motor, {100, 100}) do
+            {100, 100} -> ""
+            {f, r} -> ":#{f}:#{r}"
+          end
+
+        "#{sign}#{motor}#{mods}"
+      end)
+
     Enum.join(motors ++ [if(wiring.direct, do: "direct", else: "ramp")], "/")
   end
 end

@@ -59,16 +59,17 @@ defmodule Neptunus.ConfigTest do
   describe "vehicles!/1 boards: sitl and uart, with wiring" do
     alias Neptunus.Wiring
 
-    test "sitl and uart vehicles get the thesis wiring by default" do
+    test "sitl and uart vehicles get the thesis wiring and the openrov-2.5 firmware by default" do
       assert Config.vehicles!(%{"NEPTUNUS_VEHICLES" => "s=sitl,u=uart:/dev/ttyO1,m=simulated"}) ==
                [
-                 %{id: "s", board: :sitl, wiring: Wiring.default()},
+                 %{id: "s", board: :sitl, wiring: Wiring.default(), firmware: :openrov_25},
                  %{
                    id: "u",
                    board: :uart,
                    device: "/dev/ttyO1",
                    baud: 115_200,
-                   wiring: Wiring.default()
+                   wiring: Wiring.default(),
+                   firmware: :openrov_25
                  },
                  %{id: "m", board: :simulated}
                ]
@@ -103,6 +104,35 @@ defmodule Neptunus.ConfigTest do
           Config.vehicles!(%{
             "NEPTUNUS_VEHICLES" => unquote(vehicles),
             "NEPTUNUS_WIRING" => unquote(wiring)
+          })
+        end
+      end
+    end
+  end
+
+  describe "vehicles!/1 firmware (NEPTUNUS_FIRMWARE)" do
+    test "a firmware profile per sitl or uart vehicle" do
+      env = %{
+        "NEPTUNUS_VEHICLES" => "a=uart:/dev/ttyUSB0,b=sitl,c=sitl",
+        "NEPTUNUS_FIRMWARE" => " a=openrov-30 , b=openrov-2.5"
+      }
+
+      assert [%{firmware: :openrov_30}, %{firmware: :openrov_25}, %{firmware: :openrov_25}] =
+               Config.vehicles!(env)
+    end
+
+    for {vehicles, firmware, message} <- [
+          {"a=sitl", "a=openrov-3",
+           ~r/NEPTUNUS_FIRMWARE=.*openrov-2.5 or openrov-30, not "openrov-3"/},
+          {"a=simulated", "a=openrov-30", ~r/NEPTUNUS_FIRMWARE=.*sitl or uart vehicles/},
+          {"a=sitl", "b=openrov-30", ~r/NEPTUNUS_FIRMWARE=.*no vehicle "b"/},
+          {"a=sitl", "openrov-30", ~r/NEPTUNUS_FIRMWARE=.*id=firmware pairs/}
+        ] do
+      test "refuses #{inspect(firmware)} for #{inspect(vehicles)}" do
+        assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
+          Config.vehicles!(%{
+            "NEPTUNUS_VEHICLES" => unquote(vehicles),
+            "NEPTUNUS_FIRMWARE" => unquote(firmware)
           })
         end
       end

@@ -76,4 +76,47 @@ defmodule Neptunus.WiringTest do
 
   defp permutations([]), do: [[]]
   defp permutations(list), do: for(x <- list, rest <- permutations(list -- [x]), do: [x | rest])
+
+  describe "motor modifiers under the firmware's Motor::goms" do
+    # ESC offsets from neutral of port and starboard for a forward surge, the board's
+    # modifiers set as `mods` ({forward, reverse} in go() order)
+    defp surge_offsets(wiring, surge, {forward, reverse}) do
+      us = Wiring.to_us(wiring, %{port: surge, vertical: 0.0, starboard: surge})
+
+      esc =
+        Enum.zip([Tuple.to_list(us), Tuple.to_list(forward), Tuple.to_list(reverse)])
+        |> Enum.map(fn {u, f, r} -> Neptunus.Protocol.OpenROV.goms(u, f, r) - 1500 end)
+
+      positions = Enum.zip(wiring.order, esc) |> Map.new()
+      {positions.port, positions.starboard}
+    end
+
+    test "with the modifiers we send, a straight surge gives equal port and starboard offsets" do
+      wiring = Wiring.default()
+
+      for surge <- [0.1, 0.25, 0.5, 0.8, 1.0] do
+        {port, starboard} = surge_offsets(wiring, surge, Wiring.modifiers(wiring))
+        assert abs(abs(port) - abs(starboard)) <= 10, "surge #{surge}: #{port} vs #{starboard}"
+      end
+    end
+
+    test "with the firmware's defaults (forward 100, reverse 200) the reversed port motor gets more" do
+      {port, starboard} = surge_offsets(Wiring.default(), 0.4, {{100, 100, 100}, {200, 200, 200}})
+
+      assert abs(port) - abs(starboard) > 100
+    end
+
+    test "configured modifiers are sent in go() order; the syntax round-trips" do
+      {:ok, w} = Wiring.parse("starboard:200:100/-vertical/port:100:300/ramp")
+
+      assert Wiring.modifier_commands(w) == [
+               "mtrmod1(200,100,100);",
+               "mtrmod2(100,100,300);"
+             ]
+
+      assert Wiring.parse(Wiring.to_string(w)) == {:ok, w}
+      assert {:error, "motor modifiers" <> _} = Wiring.parse("port:0:100/vertical/starboard")
+      assert {:error, "a motor is NAME" <> _} = Wiring.parse("port:100/vertical/starboard")
+    end
+  end
 end

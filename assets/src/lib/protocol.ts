@@ -134,6 +134,23 @@ export interface Estimate {
 export interface LinkStatus {
   readonly up: boolean;
   readonly reason: string | null;
+  /** what the board's replies say, from a board on a serial link (absent otherwise) */
+  readonly board?: BoardLinkDetails;
+}
+
+/** The board link's liveness fields in telemetry `link` (docs/API.md). */
+export interface BoardLinkDetails {
+  /** last ping → pong round trip (ms) */
+  readonly rtt_ms: number | null;
+  /** how long ago the last pong arrived (ms), at the server */
+  readonly pong_age_ms: number | null;
+  /** whether the board's own deadman is armed (its uptime past 180 s); null: not known */
+  readonly board_deadman_armed: boolean | null;
+  readonly firmware: string;
+  readonly detected_firmware: string | null;
+  readonly firmware_mismatch: boolean;
+  readonly commands_sent: number | null;
+  readonly commands_confirmed: number | null;
 }
 
 export interface WildPoints {
@@ -391,7 +408,26 @@ export function decodeAutopilotStatus(value: unknown): AutopilotStatus | null {
 export function decodeLinkStatus(value: unknown): LinkStatus | null {
   if (!isRecord(value) || typeof value["up"] !== "boolean") return null;
   const reason = value["reason"];
-  return { up: value["up"], reason: typeof reason === "string" ? reason : null };
+  const board = decodeBoardLinkDetails(value);
+  return { up: value["up"], reason: typeof reason === "string" ? reason : null, ...(board ? { board } : {}) };
+}
+
+function decodeBoardLinkDetails(value: Record<string, unknown>): BoardLinkDetails | null {
+  const firmware = value["firmware"];
+  if (typeof firmware !== "string") return null;
+  const num = (v: unknown): number | null => (typeof v === "number" && Number.isFinite(v) ? v : null);
+  const armed = value["board_deadman_armed"];
+  const detected = value["detected_firmware"];
+  return {
+    rtt_ms: num(value["rtt_ms"]),
+    pong_age_ms: num(value["pong_age_ms"]),
+    board_deadman_armed: typeof armed === "boolean" ? armed : null,
+    firmware,
+    detected_firmware: typeof detected === "string" ? detected : null,
+    firmware_mismatch: value["firmware_mismatch"] === true,
+    commands_sent: num(value["commands_sent"]),
+    commands_confirmed: num(value["commands_confirmed"]),
+  };
 }
 
 export interface RecordingStatus {

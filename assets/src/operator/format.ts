@@ -1,6 +1,6 @@
 /** Display helpers of the operator page (pure). */
 
-import type { MeasurementState } from "../lib/protocol";
+import type { BoardLinkDetails, MeasurementState } from "../lib/protocol";
 import { clampUnit, formatFixed, formatHeading, radToDeg } from "../lib/units";
 
 /** Bar geometry for a value in [-1, 1] on a meter centred on zero (percent of the width). */
@@ -74,4 +74,26 @@ export function cameraElement(url: string): "video" | "img" {
 export function downFor(ms: number): string {
   const s = Math.max(0, Math.floor(ms / 1000));
   return s < 60 ? `${s} s` : `${Math.floor(s / 60)} min ${s % 60} s`;
+}
+
+/** The warning shown while the board's own deadman is not armed (its first 180 s). */
+export const BOARD_DEADMAN_NOT_ARMED = "board deadman not armed: only the server's deadman protects";
+
+/**
+ * The board link's liveness for the Link box: a summary line (pong age, round trip, commands
+ * the board confirmed) and warnings (board deadman not armed, firmware mismatch).
+ */
+export function boardLinkText(d: BoardLinkDetails): { summary: string; warnings: string[] } {
+  const parts: string[] = [];
+  parts.push(d.pong_age_ms === null ? "no pong yet" : `pong ${(d.pong_age_ms / 1000).toFixed(1)} s ago`);
+  if (d.rtt_ms !== null) parts.push(`board RTT ${Math.round(d.rtt_ms)} ms`);
+  if (d.commands_sent !== null && d.commands_confirmed !== null) {
+    parts.push(`${d.commands_confirmed}/${d.commands_sent} confirmed`);
+  }
+  const warnings: string[] = [];
+  if (d.board_deadman_armed === false) warnings.push(BOARD_DEADMAN_NOT_ARMED);
+  if (d.firmware_mismatch && d.detected_firmware !== null) {
+    warnings.push(`board talks ${d.detected_firmware}, configured ${d.firmware}`);
+  }
+  return { summary: parts.join(" · "), warnings };
 }

@@ -8,13 +8,14 @@ import { useEffect, useState } from "preact/hooks";
 import { bugPosition, compassTicks } from "../lib/compass";
 import { formatMs } from "../lib/latency";
 import type { Rotation } from "../lib/prefs";
-import type { CameraInfo, CameraStatus, RecordingStatus } from "../lib/protocol";
+import type { BoardLinkDetails, CameraInfo, CameraStatus, RecordingStatus } from "../lib/protocol";
 import { formatHeading, headingDeg, radToDeg } from "../lib/units";
 import type { OperatorState } from "./controller";
 import type { MeasurementState } from "../lib/protocol";
 import {
   CAMERA_RETRY_MS,
   barGeometry,
+  boardLinkText,
   cameraElement,
   fmt,
   measurementDeg,
@@ -185,6 +186,21 @@ function RecCamera(props: { recording: RecordingStatus | null; camera: CameraSta
   );
 }
 
+/** The board link's liveness and warnings (see boardLinkText). */
+function BoardLink(props: { details: BoardLinkDetails }): preact.JSX.Element {
+  const { summary, warnings } = boardLinkText(props.details);
+  return (
+    <>
+      <span data-testid="hud-board-link">{summary}</span>
+      {warnings.map((w) => (
+        <span key={w} class="hud-warn" data-testid="hud-board-warning">
+          {w}
+        </span>
+      ))}
+    </>
+  );
+}
+
 export function Hud(props: { s: OperatorState }): preact.JSX.Element {
   const { s } = props;
   const t = s.telemetry;
@@ -244,6 +260,7 @@ export function Hud(props: { s: OperatorState }): preact.JSX.Element {
             {s.status === "connected" ? "server ✓" : `server ${s.status}`}
             {link ? ` · board ${link.up ? "✓" : `✗ ${link.reason ?? ""}`}` : ""}
           </span>
+          {link?.up && link.board ? <BoardLink details={link.board} /> : null}
           <span>
             RTT <b id="rtt" data-testid="rtt">{formatMs(s.latency.mean)}</b>
             <small> (max {formatMs(s.latency.max)})</small>

@@ -18,6 +18,8 @@ import {
 } from "../../src/lib/prefs";
 import { Store } from "../../src/lib/store";
 import {
+  BOARD_DEADMAN_NOT_ARMED,
+  boardLinkText,
   cameraElement,
   downFor,
   formatDeg,
@@ -27,6 +29,7 @@ import {
   retryUrl,
   showsUnit,
 } from "../../src/operator/format";
+import { decodeLinkStatus } from "../../src/lib/protocol";
 
 describe("demands", () => {
   it("only the selected input mode drives, never the headset, never in DP", () => {
@@ -266,5 +269,39 @@ describe("measurements that are initialising (no valid reading since link up or 
     expect(measurementDeg(Math.PI / 2, "valid")).toBe("90.0");
     expect(measurementHeading(Math.PI, undefined)).toBe("180.0");
     expect(showsUnit("valid") && showsUnit("stale") && showsUnit(null)).toBe(true);
+  });
+});
+
+describe("the board link's liveness (telemetry link fields)", () => {
+  const wire = {
+    up: true,
+    reason: "open",
+    rtt_ms: 12,
+    pong_age_ms: 340,
+    board_uptime_ms: 42_000,
+    board_deadman_armed: false,
+    firmware: "openrov-2.5",
+    detected_firmware: "openrov-30",
+    firmware_mismatch: true,
+    commands_sent: 120,
+    commands_confirmed: 118,
+  };
+
+  it("decodes them under board, and a link without them as before", () => {
+    const link = decodeLinkStatus(wire);
+    expect(link?.board?.rtt_ms).toBe(12);
+    expect(link?.board?.board_deadman_armed).toBe(false);
+    expect(decodeLinkStatus({ up: true, reason: "open" })).toEqual({ up: true, reason: "open" });
+  });
+
+  it("summarises pong age, round trip and confirmed commands; warns while the board's deadman is not armed and on a firmware mismatch", () => {
+    const board = decodeLinkStatus(wire)?.board;
+    if (!board) throw new Error("no board details");
+    const { summary, warnings } = boardLinkText(board);
+    expect(summary).toBe("pong 0.3 s ago · board RTT 12 ms · 118/120 confirmed");
+    expect(warnings).toEqual([BOARD_DEADMAN_NOT_ARMED, "board talks openrov-30, configured openrov-2.5"]);
+    expect(BOARD_DEADMAN_NOT_ARMED).toBe("board deadman not armed: only the server's deadman protects");
+    const armed = boardLinkText({ ...board, board_deadman_armed: true, firmware_mismatch: false, pong_age_ms: null, rtt_ms: null });
+    expect(armed).toEqual({ summary: "no pong yet · 118/120 confirmed", warnings: [] });
   });
 });

@@ -1,24 +1,29 @@
 defmodule Neptunus.Protocol.OpenROV do
   @moduledoc """
-  The OpenROV serial protocol between the server and the vehicle's board (115200 8N1),
-  thesis ch. 8.4 and appendix A.8, DESIGN.md §3. Pure: no I/O, never raises on input from the
-  line.
+  The OpenROV serial protocol between the server and the vehicle's board (115200 8N1), as the
+  OpenROV Arduino firmware 2.5.x and 30.x speak it (docs/OPENROV.md). Pure: no I/O, never
+  raises on input from the line.
 
   ## Commands (server → board)
 
   `;`-terminated, no newline: `go(port,vertical,starboard,flag);` with each motor in
   1000..2000 µs (1500 neutral) in the order the motors are wired (see `Neptunus.Wiring`),
-  `ligt(0..255);`, `claser(0..255);`, `tilt(µs);`, `ping(n);`, `stop();`. The encoders take
-  values already in range and raise `FunctionClauseError` otherwise: validating a pilot's
-  input is the caller's job, a bad value here is a bug. `parse_command/1` is the board's
-  side (used by the SITL board and the tests).
+  `ligt(0..255);`, `claser(0..255);`, `tilt(µs);`, `ping(n);`, `stop();`, and the motor
+  modifiers `mtrmod1(a,b,c);` (forward) / `mtrmod2(a,b,c);` (reverse) in percent. The encoders
+  take values already in range and raise `FunctionClauseError` otherwise: validating a
+  pilot's input is the caller's job, a bad value here is a bug. `frame/2` puts a command in the
+  wire form of a firmware line (30.x: a CRC byte first). `parse_command/1`, `unframe/1` and
+  `goms/3` are the board's side (used by the SITL board and the tests).
 
   ## Telemetry (board → server)
 
-  Newline-terminated lines of `key:value;` fields, e.g.
-  `hdgd:123.4;deap:0.52;pitc:1.2;roll:-0.3;yaw:12.0;fthr:0;` and
-  `vout:12.1;iout:0.5;time:12345;pres:1065.3;temp:11.2;`. `parse_line/1` returns the fields
-  it accepts and the ones it rejects:
+  Lines end `\r\n` (`Neptunus.Protocol.Lines` removes the `\r`) and carry `key:value;`
+  fields, e.g. `hdgd:123.40;deap:0.52;pitc:1.20;roll:-0.30;yaw:12.00;fthr:0.00;` and
+  `vout:12.10;iout:0.50;time:12345;pres:1065.30;temp:11.20;`. Some fields are printed without
+  a newline and glue onto the next line (`pong:1,183422;hdgd:…`, `claser:255;`, 30.x
+  `crc:pass;cmd:…;`), and `cmpd:` prints its newline before its `;`, so a line may start
+  with `;`: fields are split on `;` whatever the line, so all of these parse. `parse_line/1`
+  returns the fields it accepts and the ones it rejects:
 
   | key    | field             | board unit        | accepted raw range | SI value           |
   |--------|-------------------|-------------------|--------------------|--------------------|
@@ -33,22 +38,29 @@ defmodule Neptunus.Protocol.OpenROV do
   | `temp` | `:temperature`    | °C                | -40 .. 85          | °C                 |
   | `pres` | `:pressure`       | mbar              | 0 .. 25 000        | Pa                 |
   | `time` | `:board_time`     | ms since boot     | 0 .. 2³² − 1       | s                  |
+  | `BT1I` | `:battery1_current` | A               | 0 .. 10            | A                  |
+  | `BT2I` | `:battery2_current` | A               | 0 .. 10            | A                  |
+  | `SC1I`..`SC3I` | `:esc1_current`..`:esc3_current` | A | 0 .. 30       | A                  |
 
-  The ranges are what the sensors can physically report (the IMU's Euler angles, the
-  depth-sensor's 0..14 bar plus margin down to the thesis' 200 m, the 20 V and 10 A ADC scales;
-  a board that reports its own supply below 5 V would not be running). The thesis' filter
-  (ch. 8.3) used narrower limits — voltage 10..13 V, current 0.01..4 A, angles 0..360° —
-  that reject real readings such as a flat battery; the rate-of-change check belongs to
-  navigation.
+  What the fields mean (which `iout` is the vehicle's current, `fthr`, the depth's reference)
+  differs between the boards: `Neptunus.Vehicle.Board.Readings` maps them. The ranges are what
+  the sensors can physically report (the IMU's Euler angles, the depth sensor's 0..14 bar plus
+  margin down to the thesis' 200 m, the 20 V ADC scale, the cape's 0..5.4 A and the controller
+  board's 0..2 A `iout` with margin, the controller board's battery and ESC current channels; a
+  board that reports its own supply below 5 V would not be running). The rate-of-change check
+  belongs to navigation.
 
-  Unknown keys (`cmd`, `log`, `motors`, `pong`, `fmem`, …) are kept with their raw string
-  value under the key as a string. Known keys become atoms with numbers in SI units.
+  Unknown keys (`cmd`, `icmd`, `rawcmd`, `crc`, `log`, `pong`, `fmem`, 30.x dotted keys such as
+  `BNO055.status` or `Depth.C0`, …) are kept with their raw string value under the key as a
+  string; `parse_pong/1`, `parse_echo/1` and `parse_crc/1` read the ones the link uses. Known
+  keys become atoms with numbers in SI units. Plain-text lines the firmware prints (the 2.5.2
+  depth driver's) are recognised by `text_line?/1` and not parsed.
 
   Rejected fields, each `{reason, key, raw}` (`key` nil when there is none, `raw` at most
   #{32} bytes):
 
     * `:malformed` — not `key:value` (no colon, empty or invalid key: a key is a letter
-      followed by up to 15 letters, digits or `_`);
+      followed by up to 31 letters, digits, `_` or `.`);
     * `:not_a_number` — a known key whose value is not a plain decimal number
       (`nan`, `ovf`, `12.3.4`, …);
     * `:out_of_range` — a known key whose value is outside its range above;
@@ -74,9 +86,13 @@ defmodule Neptunus.Protocol.OpenROV do
           | {:claser, 0..255}
           | {:tilt, us()}
           | {:ping, non_neg_integer()}
+          | {:mtrmod1, integer(), integer(), integer()}
+          | {:mtrmod2, integer(), integer(), integer()}
           | :stop
 
   @max_raw 32
+  @max_key 32
+  @int16 -32_768..32_767
   @max_number 24
   @max_ping (1 <<< 31) - 1
   @deg :math.pi() / 180
@@ -93,7 +109,13 @@ defmodule Neptunus.Protocol.OpenROV do
     "iout" => {:current, 0, 10, :identity},
     "temp" => {:temperature, -40, 85, :identity},
     "pres" => {:pressure, 0, 25_000, :mbar},
-    "time" => {:board_time, 0, 4_294_967_295, :ms}
+    "time" => {:board_time, 0, 4_294_967_295, :ms},
+    # the 2.5 controller board's battery and ESC currents (controllerboard25.cpp)
+    "BT1I" => {:battery1_current, 0, 10, :identity},
+    "BT2I" => {:battery2_current, 0, 10, :identity},
+    "SC1I" => {:esc1_current, 0, 30, :identity},
+    "SC2I" => {:esc2_current, 0, 30, :identity},
+    "SC3I" => {:esc3_current, 0, 30, :identity}
   }
 
   # the raw ranges above in SI units (the same conversions as convert/2 below)
@@ -129,8 +151,8 @@ defmodule Neptunus.Protocol.OpenROV do
 
   @doc """
   `go(port,vertical,starboard,flag);` with the motors' pulse widths in `go()` order; the
-  flag is 1 for `direct` (the firmware bypasses its smoothing ramp), 0 to let it ramp (see
-  `Neptunus.Wiring`).
+  flag is 1 for `direct`, 0 for `ramp` (the 2.5.x and 30.x firmware store it and never read
+  it: the values take effect at its next 50 ms tick either way; see `Neptunus.Wiring`).
 
       iex> Neptunus.Protocol.OpenROV.go({1500, 1750, 1000}, true)
       "go(1500,1750,1000,1);"
@@ -178,13 +200,76 @@ defmodule Neptunus.Protocol.OpenROV do
   def ping(n) when is_integer(n) and n >= 0 and n <= @max_ping, do: "ping(#{n});"
 
   @doc """
-  Stops (and detaches) the motors.
+  Stops the motors: the 2.5.x/30.x firmware drives them to neutral (it does not detach them).
 
       iex> Neptunus.Protocol.OpenROV.stop()
       "stop();"
   """
   @spec stop() :: binary()
   def stop, do: "stop();"
+
+  @typedoc "A motor modifier in percent, as `mtrmod1/2` send it (see `motor_modifiers/2`)."
+  @type modifier :: 0..1000
+
+  @doc """
+  The motors' forward modifiers, in percent, in `go()` order: `mtrmod1(a,b,c);`. The firmware
+  (`Motor::goms`) multiplies a motor's offset from neutral by `modifier div 100` (an integer
+  division: only multiples of 100 change anything; 100 is ×1), for commands above neutral.
+
+      iex> Neptunus.Protocol.OpenROV.mtrmod1({100, 100, 100})
+      "mtrmod1(100,100,100);"
+  """
+  @spec mtrmod1({modifier(), modifier(), modifier()}) :: binary()
+  def mtrmod1({a, b, c}) when a in 0..1000 and b in 0..1000 and c in 0..1000,
+    do: "mtrmod1(#{a},#{b},#{c});"
+
+  @doc """
+  The motors' reverse modifiers (commands below neutral), in percent, in `go()` order:
+  `mtrmod2(a,b,c);`. The firmware's default is 200 (reverse doubled).
+
+      iex> Neptunus.Protocol.OpenROV.mtrmod2({100, 100, 100})
+      "mtrmod2(100,100,100);"
+  """
+  @spec mtrmod2({modifier(), modifier(), modifier()}) :: binary()
+  def mtrmod2({a, b, c}) when a in 0..1000 and b in 0..1000 and c in 0..1000,
+    do: "mtrmod2(#{a},#{b},#{c});"
+
+  @doc """
+  The ESC pulse width the OpenROV 2.5.2+ firmware writes for a `go()` value (`Motor::goms`):
+  the offset from neutral is multiplied by the integer modifier (`forward div 100` above
+  neutral, `reverse div 100` below; the firmware's defaults are 100 and 200), clamped to
+  1000..2000, then mapped out of the ESCs' dead zone: 1000..1500 onto 1000..1450 and
+  1500..2000 onto 1550..2000 (integer arithmetic, truncating like the Arduino's `map()`).
+  A model of the board, for tests and the SITL board.
+
+      iex> alias Neptunus.Protocol.OpenROV
+      iex> Enum.map([1300, 1500, 1700], &OpenROV.goms(&1, 100, 200))
+      [1090, 1500, 1730]
+  """
+  @spec goms(integer(), integer(), integer()) :: integer()
+  def goms(us, forward, reverse)
+      when is_integer(us) and is_integer(forward) and is_integer(reverse) do
+    modifier =
+      cond do
+        us > 1500 -> div(forward, 100)
+        us < 1500 -> div(reverse, 100)
+        true -> 1
+      end
+
+    pre = (1500 + (us - 1500) * modifier) |> max(1000) |> min(2000)
+
+    final =
+      cond do
+        pre < 1500 -> arduino_map(pre, 1000, 1500, 1000, 1450)
+        pre > 1500 -> arduino_map(pre, 1500, 2000, 1550, 2000)
+        true -> 1500
+      end
+
+    final |> max(1000) |> min(2000)
+  end
+
+  defp arduino_map(x, in_min, in_max, out_min, out_max),
+    do: div((x - in_min) * (out_max - out_min), in_max - in_min) + out_min
 
   # Framing (firmware profiles) -------------------------------------------------------------
 
@@ -295,7 +380,7 @@ defmodule Neptunus.Protocol.OpenROV do
   end
 
   defp split_call(text) do
-    case Regex.run(~r/\A([a-z]+)\(([^()]*)\)\z/, text) do
+    case Regex.run(~r/\A([a-z]+[0-9]?)\(([^()]*)\)\z/, text) do
       [_, name, args] -> {:ok, name, args}
       nil -> {:error, "not a command: #{inspect(truncate(text))}"}
     end
@@ -327,6 +412,14 @@ defmodule Neptunus.Protocol.OpenROV do
   defp command("claser", [n]) when n in 0..255, do: {:ok, {:claser, n}}
   defp command("tilt", [n]) when n in 1000..2000, do: {:ok, {:tilt, n}}
   defp command("ping", [n]) when n >= 0 and n <= @max_ping, do: {:ok, {:ping, n}}
+
+  # the firmware keeps the arguments as 16-bit ints; a negative modifier reverses the motor
+  defp command("mtrmod1", [a, b, c]) when a in @int16 and b in @int16 and c in @int16,
+    do: {:ok, {:mtrmod1, a, b, c}}
+
+  defp command("mtrmod2", [a, b, c]) when a in @int16 and b in @int16 and c in @int16,
+    do: {:ok, {:mtrmod2, a, b, c}}
+
   defp command("stop", []), do: {:ok, :stop}
   defp command(name, _), do: {:error, "#{name}: unknown command or bad arguments"}
 
@@ -351,6 +444,107 @@ defmodule Neptunus.Protocol.OpenROV do
 
     {fields, Enum.reverse(rejects)}
   end
+
+  # Plain-text lines the 2.5.2 depth driver (MS5803_14BA.cpp) prints at setup and every second.
+  @text_lines [
+    ~r/\ADepth Sensor setup\.\z/,
+    ~r/\ADepth Sensor: initialized I2C\z/,
+    ~r/\ADepth Sensor is reset\z/,
+    ~r/\ADepth: Calibration constants are:\z/,
+    ~r/\A(First|Second)-Order Temperature in Degrees C is -?[0-9]+(\.[0-9]+)?\z/
+  ]
+
+  @doc """
+  Whether a line is one of the plain-text lines the firmware prints besides its `key:value;`
+  fields (the 2.5.2 depth driver's setup lines and its temperature lines every second): such
+  a line is counted as `text`, not parsed, and never counted as malformed.
+
+      iex> Neptunus.Protocol.OpenROV.text_line?("First-Order Temperature in Degrees C is 11.52")
+      true
+      iex> Neptunus.Protocol.OpenROV.text_line?("deap:1.00;")
+      false
+  """
+  @spec text_line?(binary()) :: boolean()
+  def text_line?(line) when is_binary(line) do
+    byte_size(line) <= 80 and :binary.match(line, ";") == :nomatch and
+      Enum.any?(@text_lines, &Regex.match?(&1, line))
+  end
+
+  @typedoc """
+  The board's reply to `ping()`: `pong:<argument count>,<millis>;` (`args`, and `millis` the
+  board's uptime in ms); an older or simulated board answering `pong:n;` gives neither.
+  """
+  @type pong :: %{args: non_neg_integer() | nil, millis: non_neg_integer() | nil}
+
+  @doc """
+  Parses the value of a `pong` field.
+
+      iex> Neptunus.Protocol.OpenROV.parse_pong("1,183422")
+      {:ok, %{args: 1, millis: 183422}}
+      iex> Neptunus.Protocol.OpenROV.parse_pong("7")
+      {:ok, %{args: nil, millis: nil}}
+      iex> Neptunus.Protocol.OpenROV.parse_pong("x")
+      :error
+  """
+  @spec parse_pong(binary()) :: {:ok, pong()} | :error
+  def parse_pong(value) when is_binary(value) do
+    case :binary.split(value, ",") do
+      [args, millis] ->
+        with {:ok, a} <- non_neg(args),
+             {:ok, ms} <- non_neg(millis),
+             do: {:ok, %{args: a, millis: ms}}
+
+      [n] ->
+        with {:ok, _} <- non_neg(n), do: {:ok, %{args: nil, millis: nil}}
+    end
+  end
+
+  defp non_neg(text) do
+    case Integer.parse(trim(text)) do
+      {n, ""} when n >= 0 and n <= 4_294_967_295 -> {:ok, n}
+      _ -> :error
+    end
+  end
+
+  @doc """
+  Parses a command echo (the value of a `cmd` or `icmd` field, `name(args)`) into the
+  command's name.
+
+      iex> Neptunus.Protocol.OpenROV.parse_echo("go(1500,1500,1500,0)")
+      {:ok, "go"}
+      iex> Neptunus.Protocol.OpenROV.parse_echo("1500")
+      :error
+  """
+  @spec parse_echo(binary()) :: {:ok, String.t()} | :error
+  def parse_echo(value) when is_binary(value) do
+    case Regex.run(~r/\A([A-Za-z][A-Za-z0-9_]*)\(/, value) do
+      [_, name] -> {:ok, name}
+      nil -> :error
+    end
+  end
+
+  @doc """
+  Parses the value of a 30.x `crc` field: `pass`, or `fail,COMPUTED/RECEIVED` (hex).
+
+      iex> Neptunus.Protocol.OpenROV.parse_crc("pass")
+      {:ok, :pass}
+      iex> Neptunus.Protocol.OpenROV.parse_crc("fail,A1/3B")
+      {:ok, {:fail, 0xA1, 0x3B}}
+  """
+  @spec parse_crc(binary()) :: {:ok, :pass | {:fail, byte(), byte()}} | :error
+  def parse_crc("pass"), do: {:ok, :pass}
+
+  def parse_crc("fail," <> pair) do
+    with [c, r] <- :binary.split(pair, "/"),
+         {computed, ""} when computed in 0..255 <- Integer.parse(c, 16),
+         {received, ""} when received in 0..255 <- Integer.parse(r, 16) do
+      {:ok, {:fail, computed, received}}
+    else
+      _ -> :error
+    end
+  end
+
+  def parse_crc(_), do: :error
 
   @doc """
   Whether a rejected field is a wild point (counted as such) rather than a malformed field.
@@ -522,13 +716,13 @@ defmodule Neptunus.Protocol.OpenROV do
   defp zero_if_empty(digits), do: digits
 
   defp valid_key?(<<first, rest::binary>>)
-       when (first in ?a..?z or first in ?A..?Z) and byte_size(rest) <= 15,
+       when (first in ?a..?z or first in ?A..?Z) and byte_size(rest) <= @max_key - 1,
        do: key_rest?(rest)
 
   defp valid_key?(_), do: false
 
   defp key_rest?(<<c, rest::binary>>)
-       when c in ?a..?z or c in ?A..?Z or c in ?0..?9 or c == ?_,
+       when c in ?a..?z or c in ?A..?Z or c in ?0..?9 or c == ?_ or c == ?.,
        do: key_rest?(rest)
 
   defp key_rest?(<<>>), do: true

@@ -17,7 +17,9 @@ defmodule Neptunus.Vehicle.Telemetry do
         control: %{mode, gain, lights, laser, tilt, run_mode, autopilot: %{depth, heading, position}},
         autopilot: %{depth: %{setpoint, output, overridden} | nil, heading: … | nil,
                      position: %{x, y, heading, phase, distance, output} | nil},
-        link: %{up, reason},
+        link: %{up, reason, rtt_ms, pong_age_ms, board_uptime_ms, board_deadman_armed,
+                firmware, detected_firmware, firmware_mismatch,
+                commands_sent, commands_confirmed},   # all but up, reason only from a board link
         recording: %{on, error},            # from the vehicle's recorder
         camera: %{running, fps, error}}     # only for a vehicle with a camera
 
@@ -39,6 +41,20 @@ defmodule Neptunus.Vehicle.Telemetry do
   alias Neptunus.{Allocation, Periodic, PubSub}
   alias Neptunus.Vehicle.Board
 
+  @link_keys [
+    :up,
+    :reason,
+    :rtt_ms,
+    :pong_age_ms,
+    :board_uptime_ms,
+    :board_deadman_armed,
+    :firmware,
+    :detected_firmware,
+    :firmware_mismatch,
+    :commands_sent,
+    :commands_confirmed
+  ]
+
   @no_estimate %{depth: nil, depth_rate: nil, heading: nil, yaw_rate: nil}
   @initialising Map.new(Neptunus.Navigation.WildPoints.fields(), &{&1, "initialising"})
   @no_autopilot %{depth: nil, heading: nil, position: nil}
@@ -55,7 +71,11 @@ defmodule Neptunus.Vehicle.Telemetry do
             thrusters: map(),
             control: map() | nil,
             autopilot: map(),
-            link: %{up: boolean(), reason: String.t()},
+            link: %{
+              required(:up) => boolean(),
+              required(:reason) => String.t(),
+              optional(atom()) => term()
+            },
             reports: %{optional(:recording | :camera) => map()}
           }
     @enforce_keys [:id, :topic, :periodic, :pace, :command, :thrusters, :autopilot]
@@ -115,10 +135,14 @@ defmodule Neptunus.Vehicle.Telemetry do
   def control(id, %{command: _, thrusters: _, control: _, autopilot: _} = state),
     do: GenServer.cast(via(id), {:control, state})
 
-  @doc "Reports the board link's state (called by boards with a link when it changes)."
-  @spec link(String.t(), %{up: boolean(), reason: String.t()}) :: :ok
-  def link(id, %{up: up, reason: reason}),
-    do: GenServer.cast(via(id), {:link, %{up: up, reason: reason}})
+  @doc """
+  Reports the board link's state (called by boards with a link when it changes, and by
+  `Board.UART` once a second with its liveness fields, see the moduledoc): `up`, `reason` and
+  any of the `@link_keys`.
+  """
+  @spec link(String.t(), %{required(:up) => boolean(), required(:reason) => String.t()}) :: :ok
+  def link(id, %{up: up, reason: reason} = link) when is_boolean(up) and is_binary(reason),
+    do: GenServer.cast(via(id), {:link, Map.take(link, @link_keys)})
 
   @doc """
   Reports the state of one of the vehicle's other parts, carried in every payload under its
@@ -167,7 +191,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   def handle_continue(:link, state) do
     link =
       try do
-        Map.take(Board.link_status(state.id), [:up, :reason])
+        Map.take(Board.link_status(state.id), @link_keys)
       catch
         :exit, _ -> %{up: false, reason: "board not running"}
       end

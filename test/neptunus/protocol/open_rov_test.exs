@@ -295,6 +295,115 @@ defmodule Neptunus.Protocol.OpenROVTest do
     end
   end
 
+  describe "firmware lines: mtrmod, goms, pong, echo, crc, dotted keys, text lines" do
+    test "mtrmod1/2 encode and parse back; out-of-range modifiers are refused by the encoder" do
+      assert OpenROV.parse_command(OpenROV.mtrmod1({100, 200, 300})) ==
+               {:ok, {:mtrmod1, 100, 200, 300}}
+
+      assert OpenROV.parse_command("mtrmod2(100,-100,100);") == {:ok, {:mtrmod2, 100, -100, 100}}
+      assert {:error, _} = OpenROV.parse_command("mtrmod1(100,100);")
+      assert {:error, _} = OpenROV.parse_command("mtrmod1(100,100,40000);")
+      assert_raise FunctionClauseError, fn -> OpenROV.mtrmod1({100, 100, 1100}) end
+    end
+
+    test "goms: the firmware defaults double reverse and step out of the dead zone" do
+      assert Enum.map(
+               [1000, 1250, 1300, 1499, 1500, 1501, 1700, 2000],
+               &OpenROV.goms(&1, 100, 200)
+             ) ==
+               [1000, 1000, 1090, 1448, 1500, 1550, 1730, 2000]
+
+      # modifiers 100/100: symmetric about neutral (within the map()'s integer truncation)
+      for d <- 1..500 do
+        up = OpenROV.goms(1500 + d, 100, 100) - 1500
+        down = 1500 - OpenROV.goms(1500 - d, 100, 100)
+        assert abs(up - down) <= 1
+      end
+
+      # only multiples of 100 count (integer division)
+      assert OpenROV.goms(1300, 100, 150) == OpenROV.goms(1300, 100, 100)
+    end
+
+    test "a glued pong, dotted keys and a line starting with ';' parse without rejects" do
+      assert {%{"pong" => "1,183422", heading: _}, []} =
+               OpenROV.parse_line("pong:1,183422;hdgd:1.00;")
+
+      assert {%{"BNO055.status" => "1", "Depth.C0" => "4000"}, []} =
+               OpenROV.parse_line("BNO055.status:1;Depth.C0:4000;")
+
+      assert {%{board_time: 181.0}, []} = OpenROV.parse_line(";time:181000;")
+
+      assert {%{"crc" => "pass", "cmd" => "go(1500,1500,1500,0)"}, []} =
+               OpenROV.parse_line("crc:pass;cmd:go(1500,1500,1500,0);")
+
+      assert {%{"rawcmd" => "A3,70,69,"}, []} = OpenROV.parse_line("rawcmd:A3,70,69,;")
+    end
+
+    test "property: parse_pong reads every pong the firmware prints" do
+      check(
+        {:proper_types.integer(0, 10), :proper_types.integer(0, 4_294_967_295)},
+        fn {args, ms} ->
+          OpenROV.parse_pong("#{args},#{ms}") == {:ok, %{args: args, millis: ms}}
+        end,
+        1_000
+      )
+    end
+
+    test "property: parse_crc reads every crc line the 30.x firmware prints" do
+      byte = :proper_types.integer(0, 255)
+
+      check(
+        {byte, byte},
+        fn {c, r} ->
+          text = "fail," <> Integer.to_string(c, 16) <> "/" <> Integer.to_string(r, 16)
+          OpenROV.parse_crc(text) == {:ok, {:fail, c, r}}
+        end,
+        1_000
+      )
+    end
+
+    test "property: the echo of any command names it" do
+      us = :proper_types.integer(1000, 2000)
+
+      check(
+        {us, us, us, :proper_types.bool(), :proper_types.integer(0, 255)},
+        fn {a, b, c, s, n} ->
+          Enum.all?(
+            [
+              {OpenROV.go({a, b, c}, s), "go"},
+              {OpenROV.lights(n), "ligt"},
+              {OpenROV.mtrmod1({100, 100, 100}), "mtrmod1"}
+            ],
+            fn {command, name} ->
+              OpenROV.parse_echo(String.trim_trailing(command, ";")) == {:ok, name}
+            end
+          )
+        end,
+        500
+      )
+    end
+
+    test "property: pong, echo and crc parsers never crash on random values" do
+      check(
+        :proper_types.binary(),
+        fn bytes ->
+          (OpenROV.parse_pong(bytes) == :error or match?({:ok, %{}}, OpenROV.parse_pong(bytes))) and
+            (match?({:ok, _}, OpenROV.parse_echo(bytes)) or OpenROV.parse_echo(bytes) == :error) and
+            (match?({:ok, _}, OpenROV.parse_crc(bytes)) or OpenROV.parse_crc(bytes) == :error) and
+            is_boolean(OpenROV.text_line?(bytes))
+        end,
+        2_000
+      )
+    end
+
+    test "text lines: the 2.5.2 depth driver's, and nothing with fields" do
+      assert OpenROV.text_line?("Second-Order Temperature in Degrees C is -1.25")
+      assert OpenROV.text_line?("Depth Sensor: initialized I2C")
+      refute OpenROV.text_line?("Depth Sensor: initialized I2C;deap:1.0")
+      refute OpenROV.text_line?("hello world")
+    end
+  end
+
   describe "properties" do
     test "parse_line never crashes on random bytes and returns the documented shape" do
       check(:proper_types.binary(), &shape?(OpenROV.parse_line(&1)), 2_000)

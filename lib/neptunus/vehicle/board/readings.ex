@@ -13,14 +13,34 @@ defmodule Neptunus.Vehicle.Board.Readings do
   `board` map (e.g. `yaw`, `temperature`, `pressure`, `board_time`, `forward_thrust`);
   unknown keys are kept in `raw` (at most #{64} keys, the latest value of each), not in samples.
 
-  Counters: `lines`, `samples`, `overlong` (lines over the length cap), `malformed`, and the
-  wild points by reason `out_of_range`, `not_a_number`, `key_as_value` (see `OpenROV`).
+  What the fields mean differs between boards, so:
+
+    * **current** — the cape's `iout` is the vehicle's current; the 2.5 controller board's
+      `iout` is its own supply current (kept as `board.board_current`) and the vehicle's
+      current is its two battery currents `BT1I + BT2I` (a sum beyond the current's range is
+      a wild point). A board counts as a controller board once it has reported a battery
+      current.
+    * **depth** — while the board's latest `pres` is 0.00 (its pressure sensor has not been
+      read since boot: 0 mbar is a vacuum), its `deap` is a boot placeholder and is dropped
+      (counted `placeholder`).
+
+  Lines the firmware prints besides fields — the depth driver's plain text
+  (`OpenROV.text_line?/1`) — are counted as `text`, `log` fields as `debug`; neither is
+  malformed. The board's replies the link needs (`pong`, the `cmd:`/`icmd:` echoes, 30.x
+  `crc:` and `rawcmd:` lines, the board's millis from `time`) are collected as events,
+  oldest first, for `take_events/1` (see `Neptunus.Protocol.BoardLink`).
+
+  Counters: `lines`, `samples`, `overlong` (lines over the length cap), `text`, `debug`,
+  `placeholder`, `malformed`, and the wild points by reason `out_of_range`, `not_a_number`,
+  `key_as_value` (see `OpenROV`).
   """
 
   alias Neptunus.Protocol.{Lines, OpenROV}
 
   @measurements [:depth, :heading, :roll, :pitch, :voltage, :current]
+  @direct_measurements @measurements -- [:current]
   @max_raw_keys 64
+  @max_events 256
 
   @enforce_keys [:lines]
   defstruct [
@@ -28,10 +48,15 @@ defmodule Neptunus.Vehicle.Board.Readings do
     measurement: %{},
     board: %{},
     raw: %{},
+    events: [],
+    pressure_zero: false,
     counters: %{
       lines: 0,
       samples: 0,
       overlong: 0,
+      text: 0,
+      debug: 0,
+      placeholder: 0,
       malformed: 0,
       out_of_range: 0,
       not_a_number: 0,
@@ -39,11 +64,23 @@ defmodule Neptunus.Vehicle.Board.Readings do
     }
   ]
 
+  @typedoc "See `Neptunus.Protocol.BoardLink.event/3`."
+  @type event ::
+          :rawcmd
+          | {:crc, :pass | {:fail, byte(), byte()}}
+          | {:echo, String.t(), boolean()}
+          | {:echo_prefixed, String.t()}
+          | {:icmd, String.t()}
+          | {:pong, OpenROV.pong()}
+          | {:board_time, non_neg_integer()}
+
   @typedoc """
   * `lines` — the framer (partial line in progress)
   * `measurement` — latest accepted value of each of the six measurements
   * `board` — latest accepted value of the other known fields
   * `raw` — latest raw value of unknown keys
+  * `events` — what the link needs to know, newest first (`take_events/1`)
+  * `pressure_zero` — the board's latest `pres` was 0.00 (its depth is a placeholder)
   * `counters` — see the moduledoc
   """
   @type t :: %__MODULE__{
@@ -51,6 +88,8 @@ defmodule Neptunus.Vehicle.Board.Readings do
           measurement: map(),
           board: map(),
           raw: %{String.t() => String.t()},
+          events: [event()],
+          pressure_zero: boolean(),
           counters: %{atom() => non_neg_integer()}
         }
 
@@ -61,7 +100,14 @@ defmodule Neptunus.Vehicle.Board.Readings do
   @doc "Forgets the partial line and the latest values (counters are kept): a new link session."
   @spec reset(t()) :: t()
   def reset(%__MODULE__{} = r),
-    do: %{r | lines: Lines.new(r.lines.max), measurement: %{}, board: %{}}
+    do: %{
+      r
+      | lines: Lines.new(r.lines.max),
+        measurement: %{},
+        board: %{},
+        events: [],
+        pressure_zero: false
+    }
 
   @doc "Feeds bytes read at vehicle time `t` (s); returns the samples they complete, in order."
   @spec feed(t(), binary(), float()) :: {t(), [Neptunus.Vehicle.Board.sample()]}
@@ -75,6 +121,14 @@ defmodule Neptunus.Vehicle.Board.Readings do
   end
 
   defp line(text, {r, samples}, t) do
+    if OpenROV.text_line?(text) do
+      {bump(%{r | counters: %{r.counters | lines: r.counters.lines + 1}}, :text, 1), samples}
+    else
+      fields_line(text, {r, samples}, t)
+    end
+  end
+
+  defp fields_line(text, {r, samples}, t) do
     {fields, rejects} = OpenROV.parse_line(text)
 
     counters =
@@ -82,10 +136,31 @@ defmodule Neptunus.Vehicle.Board.Readings do
         Map.update!(c, reason, &(&1 + 1))
       end)
 
+    r = %{r | counters: counters, events: events(fields, r.events)}
+    r = if Map.has_key?(fields, "log"), do: bump(r, :debug, 1), else: r
+    r = pressure(r, fields)
+    {fields, r} = placeholder(fields, r)
+
     {measurement, board, raw, measured?} =
       Enum.reduce(fields, {r.measurement, r.board, r.raw, false}, fn
-        {key, value}, {m, b, raw, _} when key in @measurements ->
+        {key, value}, {m, b, raw, _} when key in @direct_measurements ->
           {Map.put(m, key, value), b, raw, true}
+
+        {:current, value}, {m, b, raw, measured?} ->
+          # the cape's iout is the vehicle's current; the 2.5 controller board's is its own
+          # supply current, and its battery currents BT1I/BT2I are the vehicle's
+          if Map.has_key?(b, :battery1_current),
+            do: {m, Map.put(b, :board_current, value), raw, measured?},
+            else: {Map.put(m, :current, value), b, raw, true}
+
+        {key, value}, {m, b, raw, measured?}
+        when key in [:battery1_current, :battery2_current] ->
+          b = Map.put(b, key, value)
+
+          case battery_current(b) do
+            {:ok, current} -> {Map.put(m, :current, current), b, raw, true}
+            :out_of_range -> {m, b, raw, measured?}
+          end
 
         {key, value}, {m, b, raw, measured?} when is_atom(key) ->
           {m, Map.put(b, key, value), raw, measured?}
@@ -94,7 +169,13 @@ defmodule Neptunus.Vehicle.Board.Readings do
           {m, b, keep_raw(raw, key, value), measured?}
       end)
 
-    r = %{r | counters: counters, measurement: measurement, board: board, raw: raw}
+    r = %{r | measurement: measurement, board: board, raw: raw}
+
+    r =
+      if (Map.has_key?(fields, :battery1_current) or Map.has_key?(fields, :battery2_current)) and
+           battery_current(board) == :out_of_range,
+         do: bump(r, :out_of_range, 1),
+         else: r
 
     if measured? and map_size(measurement) == length(@measurements) do
       sample = %{t: t, measurement: measurement, sim: nil, board: board}
@@ -103,6 +184,74 @@ defmodule Neptunus.Vehicle.Board.Readings do
       {r, samples}
     end
   end
+
+  # The vehicle's current on the 2.5 controller board: both batteries together, a wild point
+  # when the sum is beyond what a current can be (OpenROV.si_range(:current)).
+  defp battery_current(board) do
+    current = Map.get(board, :battery1_current, 0.0) + Map.get(board, :battery2_current, 0.0)
+    {_min, max} = OpenROV.si_range(:current)
+    if current <= max, do: {:ok, current}, else: :out_of_range
+  end
+
+  # While the board reports pres:0.00 its depth sensor has not been read since boot (0 mbar is
+  # a vacuum): its deap is the boot placeholder.
+  defp pressure(r, %{pressure: p}), do: %{r | pressure_zero: p == 0.0}
+  defp pressure(r, _fields), do: r
+
+  defp placeholder(%{depth: _} = fields, %{pressure_zero: true} = r),
+    do: {Map.delete(fields, :depth), bump(r, :placeholder, 1)}
+
+  defp placeholder(fields, r), do: {fields, r}
+
+  # What the link needs to know from a line, newest first: the board's replies, its echoes and
+  # its uptime (see Neptunus.Protocol.BoardLink.event/3).
+  defp events(fields, acc) do
+    acc
+    |> event(fields, "rawcmd", fn _ -> {:ok, :rawcmd} end)
+    |> event(fields, "crc", &with({:ok, c} <- OpenROV.parse_crc(&1), do: {:ok, {:crc, c}}))
+    |> event(fields, "cmd", &echo(&1, Map.has_key?(fields, "crc")))
+    |> event(
+      fields,
+      "icmd",
+      &with({:ok, name} <- OpenROV.parse_echo(&1), do: {:ok, {:icmd, name}})
+    )
+    |> event(
+      fields,
+      "pong",
+      &with({:ok, pong} <- OpenROV.parse_pong(&1), do: {:ok, {:pong, pong}})
+    )
+    |> event(fields, :board_time, fn s -> {:ok, {:board_time, round(s * 1000)}} end)
+    |> Enum.take(@max_events)
+  end
+
+  # An echo; a 2.5 board given a CRC-prefixed command echoes it with the CRC byte before the
+  # name (and does not recognise it).
+  defp echo(value, crc?) do
+    case OpenROV.parse_echo(value) do
+      {:ok, name} ->
+        {:ok, {:echo, name, crc?}}
+
+      :error ->
+        with false <- crc?,
+             <<_crc, rest::binary>> <- value,
+             {:ok, name} <- OpenROV.parse_echo(rest),
+             do: {:ok, {:echo_prefixed, name}},
+             else: (_ -> :error)
+    end
+  end
+
+  defp event(acc, fields, key, parse) do
+    with {:ok, value} <- Map.fetch(fields, key),
+         {:ok, event} <- parse.(value) do
+      [event | acc]
+    else
+      _ -> acc
+    end
+  end
+
+  @doc "The events seen since the last call, oldest first, and the readings without them."
+  @spec take_events(t()) :: {[event()], t()}
+  def take_events(%__MODULE__{events: events} = r), do: {Enum.reverse(events), %{r | events: []}}
 
   defp keep_raw(raw, key, value) when map_size(raw) < @max_raw_keys or is_map_key(raw, key),
     do: Map.put(raw, key, value)

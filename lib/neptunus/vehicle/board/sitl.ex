@@ -19,9 +19,11 @@ defmodule Neptunus.Vehicle.Board.SITL do
   `LINK` is `<tmp>/neptunus-<os pid>/sitl-<id>.tty` unless given as `:link` (per OS process,
   so several nodes or test runs on one machine never share a pty).
 
-  Options: those of `Board.UART` (`:wiring`, `:ping_interval`, …) and of `SITL.Device`
-  (`:hz`, `:firmware`, `:deadman_ms`, `:arm_ms`, `:loop_ms`, `:stall_ms`, `:setup_ms`,
-  `:initial`, `:sim`); `:link`.
+  Options: those of `Board.UART` (`:wiring`, `:firmware`, `:ping_interval`, …) and of
+  `SITL.Device` (`:wiring`, `:firmware`, `:hz`, `:deadman_ms`, `:arm_ms`, `:loop_ms`,
+  `:stall_ms`, `:setup_ms`, `:initial`, `:sim`); `:link`. `:firmware` (`:openrov_25` or
+  `:openrov_30`) goes to both: the board link frames its commands for it and the simulated
+  board behaves like it.
   """
   use Supervisor
 
@@ -32,7 +34,15 @@ defmodule Neptunus.Vehicle.Board.SITL do
 
   @device_opts [:wiring, :hz, :deadman_ms, :initial, :sim, :firmware] ++
                  [:arm_ms, :loop_ms, :stall_ms, :setup_ms]
-  @uart_opts [:wiring, :ping_interval, :keepalive_timeout, :reopen_min, :reopen_max, :max_line]
+  @uart_opts [
+    :wiring,
+    :firmware,
+    :ping_interval,
+    :keepalive_timeout,
+    :reopen_min,
+    :reopen_max,
+    :max_line
+  ]
 
   @impl Board
   @spec start_link(keyword()) :: Supervisor.on_start()

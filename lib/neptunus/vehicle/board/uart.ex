@@ -13,19 +13,37 @@ defmodule Neptunus.Vehicle.Board.UART do
       to `reopen_max`). Every change of `{up, reason}` is broadcast as event `link`
       `%{up: boolean, reason: String.t()}` on `"vehicle:<id>"` and logged; `link_status/1`
       returns it with the counters.
-    * **Neutral on every (re)open**: the first bytes written on a new link are a neutral `go()`.
+    * **Firmware profile** (`:firmware`, `:openrov_25` default or `:openrov_30`): every
+      command is written in the profile's wire form (`Neptunus.Protocol.OpenROV.frame/2`: 30.x
+      wants a CRC byte before each command). What the board's output says about its firmware
+      line is in the link status; a mismatch is logged once and broadcast (event `firmware`
+      `%{configured, detected}`), never acted on (`Neptunus.Protocol.BoardLink`).
+    * **The board's state on every (re)open, board reset and deadman recovery**: a neutral
+      `go()` first, then the motor modifiers (`mtrmod1`/`mtrmod2` from the wiring, see
+      `Neptunus.Wiring`), lights, laser and tilt. A board reset (its uptime going backwards)
+      and every (re)open are also told to navigation (`Navigation.board_reset/2`): its
+      measurements start afresh.
     * **Commands.** `go` casts become `go(...)` with the vehicle's `Neptunus.Wiring` (order,
-      reversed motors, smoothing). Commands while the link is down are dropped (counted), never
-      queued: the next link starts neutral. Writes never block: when the program's input is
+      reversed motors, flag). Commands while the link is down are dropped (counted), never
+      queued: the next link starts neutral. Writes are paced (`Neptunus.Protocol.Pacer`: at
+      most 60 bytes in any 30 ms, commands ≥ 3 ms apart, so the board's 64-byte receive
+      buffer never overflows), a newer `go()` or device value replacing a queued one (never a
+      queued neutral `go()`: a newer `go()` waits behind it); a timer runs only while
+      something is queued. Writes never block: when the program's input is
       busy the command is dropped and counted.
     * **Deadman.** Every `ping_interval` (1 s) it sends `ping(n);` — but only while the link is
       up *and* the vehicle's control was heard (`go` or `keepalive/1`, which
       `Neptunus.Vehicle.Control` calls every second) within `keepalive_timeout` (2 s). If
-      control dies or hangs, pings stop and the board's own deadman stops the motors.
+      control dies or hangs, pings stop and the board's own deadman stops the motors (once
+      armed: 180 s after the board's boot; before that only the server's deadman protects,
+      shown as `board_deadman_armed: false`). Pongs give the round-trip time and the link's
+      liveness (`rtt_ms`, `pong_age_ms`).
     * **Telemetry.** Lines are framed, parsed and checked in `Neptunus.Vehicle.Board.Readings`;
       samples (`sim: nil`, plus the board's other fields under `board`) go to
       navigation (`Neptunus.Vehicle.Board.sample/3`). Garbage and wild points are counted, never
-      passed on.
+      passed on. The board's echoes (`cmd:…;`) count the commands it confirmed. The link's
+      state (`up`, `reason` and the liveness fields) goes to `Telemetry.link/2` on every
+      change and every ping tick.
     * **Shutdown.** It traps exits; on an orderly shutdown it writes a neutral `go()` before the
       port closes (the program flushes it before exiting). After a brutal kill the port
       program sees stdin close and exits; the board's deadman covers the rest.
@@ -37,7 +55,7 @@ defmodule Neptunus.Vehicle.Board.UART do
   require Logger
 
   alias Neptunus.{Allocation, PubSub, Wiring}
-  alias Neptunus.Protocol.OpenROV
+  alias Neptunus.Protocol.{BoardLink, OpenROV, Pacer}
   alias Neptunus.Vehicle.{Board, Telemetry}
   alias Neptunus.Vehicle.Board.{Backoff, Readings}
 
@@ -53,6 +71,10 @@ defmodule Neptunus.Vehicle.Board.UART do
             device: String.t(),
             baud: pos_integer(),
             wiring: Neptunus.Wiring.t(),
+            profile: Neptunus.Protocol.OpenROV.profile(),
+            pacer: Neptunus.Protocol.Pacer.t(),
+            pace_timer: reference() | nil,
+            board_link: Neptunus.Protocol.BoardLink.t(),
             program: String.t(),
             port: port() | nil,
             link: :down | :opening | :up,
@@ -70,13 +92,29 @@ defmodule Neptunus.Vehicle.Board.UART do
             devices: %{optional(:lights | :laser | :tilt) => number()},
             counters: %{atom() => non_neg_integer()}
           }
-    @enforce_keys [:id, :topic, :device, :baud, :wiring, :program, :backoff, :readings]
+    @enforce_keys [
+      :id,
+      :topic,
+      :device,
+      :baud,
+      :wiring,
+      :profile,
+      :pacer,
+      :board_link,
+      :program,
+      :backoff,
+      :readings
+    ]
     defstruct [
       :id,
       :topic,
       :device,
       :baud,
       :wiring,
+      :profile,
+      :pacer,
+      :pace_timer,
+      :board_link,
       :program,
       :backoff,
       :readings,
@@ -112,6 +150,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     * `:device` (required) — e.g. `"/dev/ttyO1"`
     * `:baud` — #{@default_baud} (1200 … 921600, standard rates)
     * `:wiring` — a `Neptunus.Wiring`, default `Neptunus.Wiring.default/0`
+    * `:firmware` — `:openrov_25` (default) or `:openrov_30`
     * `:ping_interval` — ms between deadman pings, default 1000
     * `:keepalive_timeout` — ms since control was last heard after which pings stop, default 2000
     * `:reopen_min`, `:reopen_max` — reopen backoff in ms, default 100 and 5000
@@ -131,10 +170,14 @@ defmodule Neptunus.Vehicle.Board.UART do
   def keepalive(id), do: GenServer.cast(Board.via(id), :keepalive)
 
   @doc """
-  The link's state: `%{up, reason, device, baud, since_ms, counters}` where `since_ms` is how
-  long the link has been in its current state and `counters` merges the link's counters
-  (`opens downs commands dropped_commands dropped_bytes pings pings_withheld`) with the
-  readings' (`lines samples overlong malformed out_of_range not_a_number key_as_value`).
+  The link's state: `%{up, reason, device, baud, since_ms, queued, counters}` and the fields
+  of `Neptunus.Protocol.BoardLink.status/2` (`firmware detected_firmware firmware_mismatch
+  rtt_ms pong_age_ms board_uptime_ms board_deadman_armed board_deadman_tripped commands_sent
+  commands_confirmed crc_failures board_resets deadman_recoveries`), where `since_ms` is how
+  long the link has been in its current state, `queued` the commands waiting for the pacer
+  and `counters` merges the link's counters (`opens downs commands dropped_commands
+  dropped_bytes pings pings_withheld`) with the readings' (`lines samples overlong text debug
+  placeholder malformed out_of_range not_a_number key_as_value`).
   """
   @impl Board
   @spec link_status(String.t()) :: map()
@@ -172,6 +215,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     Process.flag(:trap_exit, true)
     id = Keyword.fetch!(opts, :id)
     now = now_ms()
+    profile = Keyword.get(opts, :firmware) || :openrov_25
 
     state = %State{
       id: id,
@@ -179,6 +223,9 @@ defmodule Neptunus.Vehicle.Board.UART do
       device: Keyword.fetch!(opts, :device),
       baud: Keyword.get(opts, :baud, @default_baud),
       wiring: Keyword.get(opts, :wiring) || Wiring.default(),
+      profile: profile,
+      pacer: Pacer.new(),
+      board_link: BoardLink.new(profile),
       program: Keyword.get(opts, :program, program()),
       backoff:
         Backoff.new(Keyword.get(opts, :reopen_min, 100), Keyword.get(opts, :reopen_max, 5_000)),
@@ -203,7 +250,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     case state.link do
       :up ->
         state = bump(state, :commands)
-        {:noreply, write(state, Wiring.go_command(state.wiring, thrusters))}
+        {:noreply, go(state, thrusters)}
 
       _ ->
         {:noreply, bump(state, :dropped_commands)}
@@ -218,21 +265,30 @@ defmodule Neptunus.Vehicle.Board.UART do
     state = %{state | devices: Map.put(state.devices, device, value)}
 
     case state.link do
-      :up -> {:noreply, state |> bump(:commands) |> write(device_command(device, value))}
-      _ -> {:noreply, bump(state, :dropped_commands)}
+      :up ->
+        {:noreply,
+         state |> bump(:commands) |> command({:device, device}, device_command(device, value))}
+
+      _ ->
+        {:noreply, bump(state, :dropped_commands)}
     end
   end
 
   @impl true
   def handle_call(:link_status, _from, state) do
-    status = %{
-      up: state.link == :up,
-      reason: state.reason,
-      device: state.device,
-      baud: state.baud,
-      since_ms: now_ms() - state.since,
-      counters: Map.merge(state.counters, state.readings.counters)
-    }
+    now = now_ms()
+
+    status =
+      %{
+        up: state.link == :up,
+        reason: state.reason,
+        device: state.device,
+        baud: state.baud,
+        since_ms: now - state.since,
+        queued: Pacer.queued(state.pacer),
+        counters: Map.merge(state.counters, state.readings.counters)
+      }
+      |> Map.merge(BoardLink.status(state.board_link, now))
 
     {:reply, status, state}
   end
@@ -254,8 +310,12 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   def handle_info(:ping, state) do
     Process.send_after(self(), :ping, state.ping_interval)
-    {:noreply, ping(state)}
+    state = ping(state)
+    report_link(state)
+    {:noreply, state}
   end
+
+  def handle_info(:pace, state), do: {:noreply, drain(%{state | pace_timer: nil})}
 
   # The port is linked to us (we trap exits); its exit_status message does the work.
   def handle_info({:EXIT, port, _reason}, state) when is_port(port), do: {:noreply, state}
@@ -267,7 +327,11 @@ defmodule Neptunus.Vehicle.Board.UART do
   @impl true
   def terminate(_reason, %State{link: :up} = state) do
     # Orderly shutdown: neutral first; the program writes it before it exits on stdin close.
-    write(state, Wiring.go_command(state.wiring, Allocation.neutral()))
+    write(
+      state,
+      OpenROV.frame(Wiring.go_command(state.wiring, Allocation.neutral()), state.profile)
+    )
+
     Port.close(state.port)
   catch
     _, _ -> :ok
@@ -302,22 +366,28 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   defp program_message(?o, _path, state) do
     state =
-      %{state | link: :up, since: now_ms(), readings: Readings.reset(state.readings)}
+      %{
+        state
+        | link: :up,
+          since: now_ms(),
+          readings: Readings.reset(state.readings),
+          pacer: Pacer.clear(state.pacer),
+          board_link: BoardLink.opened(state.board_link)
+      }
       |> bump(:opens)
       |> announce(true, "open")
 
-    state = write(state, Wiring.go_command(state.wiring, Allocation.neutral()))
-
-    Enum.reduce(state.devices, state, fn {device, value}, state ->
-      write(state, device_command(device, value))
-    end)
+    board_reset(state, "board link opened")
+    send_state(state)
   end
 
   defp program_message(?r, bytes, state) do
-    t = (now_ms() - state.started_at) / 1000
+    now = now_ms()
+    t = (now - state.started_at) / 1000
     {readings, samples} = Readings.feed(state.readings, bytes, t)
+    {events, readings} = Readings.take_events(readings)
     Enum.each(samples, &Board.sample(state.id, &1))
-    %{state | readings: readings}
+    Enum.reduce(events, %{state | readings: readings}, &board_event(&1, &2, now))
   end
 
   defp program_message(?e, text, state), do: %{state | program_error: text}
@@ -341,6 +411,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     state = %{
       state
       | link: :down,
+        pacer: Pacer.clear(state.pacer),
         backoff: backoff,
         since: if(was_up, do: now, else: state.since)
     }
@@ -362,8 +433,9 @@ defmodule Neptunus.Vehicle.Board.UART do
         else: Logger.warning("vehicle #{state.id}: board link down on #{state.device}: #{reason}")
 
       PubSub.broadcast(state.topic, "link", %{up: up, reason: reason})
-      Telemetry.link(state.id, %{up: up, reason: reason})
-      %{state | announced: {up, reason}}
+      state = %{state | announced: {up, reason}}
+      report_link(state)
+      state
     end
   end
 
@@ -373,7 +445,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     if state.heard_at != nil and now_ms() - state.heard_at <= state.keepalive_timeout do
       n = state.ping_n
       state = %{state | ping_n: rem(n + 1, 2_147_483_647)}
-      state |> bump(:pings) |> write(OpenROV.ping(n))
+      state |> bump(:pings) |> command({:ping, n}, OpenROV.ping(n))
     else
       bump(state, :pings_withheld)
     end
@@ -381,7 +453,134 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   defp ping(state), do: state
 
+  # The board's state -------------------------------------------------------------------------
+
+  # Neutral first, then the motor modifiers, lights, laser and tilt.
+  defp send_state(state) do
+    [mtrmod1, mtrmod2] = Wiring.modifier_commands(state.wiring)
+
+    state
+    |> go(Allocation.neutral())
+    |> command(:mtrmod1, mtrmod1)
+    |> command(:mtrmod2, mtrmod2)
+    |> then(fn state ->
+      Enum.reduce(state.devices, state, fn {device, value}, state ->
+        command(state, {:device, device}, device_command(device, value))
+      end)
+    end)
+  end
+
+  defp board_event(event, state, now) do
+    {board_link, actions} = BoardLink.event(state.board_link, event, now)
+    Enum.reduce(actions, %{state | board_link: board_link}, &board_action/2)
+  end
+
+  defp board_action({:board_reset, reason}, state) do
+    Logger.warning("vehicle #{state.id}: #{reason}: sending its state again")
+    PubSub.broadcast(state.topic, "board", %{event: "reset", reason: reason})
+    board_reset(state, reason)
+    send_state(state)
+  end
+
+  defp board_action({:deadman_recovery, reason}, state) do
+    Logger.warning("vehicle #{state.id}: #{reason}; it was cleared: sending its state again")
+    PubSub.broadcast(state.topic, "board", %{event: "deadman_recovery", reason: reason})
+    send_state(state)
+  end
+
+  defp board_action({:firmware_mismatch, detected}, state) do
+    configured = BoardLink.profile_name(state.profile)
+    detected = BoardLink.profile_name(detected)
+
+    Logger.error(
+      "vehicle #{state.id}: the board on #{state.device} talks like #{detected} firmware, " <>
+        "configured #{configured} (NEPTUNUS_FIRMWARE): its commands may be refused"
+    )
+
+    PubSub.broadcast(state.topic, "firmware", %{configured: configured, detected: detected})
+    report_link(state)
+    state
+  end
+
+  # Navigation starts its measurements afresh (added by the navigation part; called only
+  # where it exists).
+  defp board_reset(state, reason) do
+    navigation = Neptunus.Vehicle.Navigation
+
+    if function_exported?(navigation, :board_reset, 2),
+      do: apply(navigation, :board_reset, [state.id, reason])
+
+    :ok
+  end
+
+  @link_report [
+    :rtt_ms,
+    :pong_age_ms,
+    :board_uptime_ms,
+    :board_deadman_armed,
+    :firmware,
+    :detected_firmware,
+    :firmware_mismatch,
+    :commands_sent,
+    :commands_confirmed
+  ]
+
+  defp report_link(state) do
+    {up, reason} = state.announced || {state.link == :up, state.reason}
+
+    details =
+      if up, do: Map.take(BoardLink.status(state.board_link, now_ms()), @link_report), else: %{}
+
+    Telemetry.link(state.id, Map.merge(details, %{up: up, reason: reason}))
+  end
+
   # I/O ------------------------------------------------------------------------------------
+
+  # A neutral go() is sticky: never replaced by a later go() while it waits (Pacer).
+  defp go(state, thrusters) do
+    us = Wiring.to_us(state.wiring, thrusters)
+    command(state, :go, OpenROV.go(us, state.wiring.direct), sticky: us == {1500, 1500, 1500})
+  end
+
+  # Queues a command (framed for the firmware) and writes what the pacer allows now.
+  defp command(state, key, text, opts \\ [])
+
+  defp command(%State{link: :up} = state, key, text, opts) do
+    case Pacer.push(state.pacer, key, OpenROV.frame(text, state.profile), opts) do
+      {:ok, pacer} -> drain(%{state | pacer: pacer})
+      {:error, _} -> bump(state, :dropped_commands)
+    end
+  end
+
+  defp command(state, _key, _text, _opts), do: bump(state, :dropped_commands)
+
+  defp drain(state) do
+    now = now_ms()
+    {out, pacer} = Pacer.take(state.pacer, now)
+
+    state =
+      Enum.reduce(out, %{state | pacer: pacer}, fn {key, bytes}, state ->
+        dropped = state.counters.dropped_commands
+        state = write(state, bytes)
+
+        cond do
+          state.counters.dropped_commands != dropped -> state
+          match?({:ping, _}, key) -> sent(state, &BoardLink.ping_sent(&1, elem(key, 1), now))
+          true -> sent(state, & &1)
+        end
+      end)
+
+    case {Pacer.next_at(state.pacer, now), state.pace_timer} do
+      {nil, _} ->
+        state
+
+      {at, nil} ->
+        %{state | pace_timer: Process.send_after(self(), :pace, max(at - now, 0))}
+
+      {_at, _timer} ->
+        state
+    end
+  end
 
   # Never blocks: a busy port program means the command is dropped (and counted).
   defp write(%State{port: port} = state, bytes) when is_port(port) do
@@ -393,6 +592,9 @@ defmodule Neptunus.Vehicle.Board.UART do
   end
 
   defp write(state, _bytes), do: bump(state, :dropped_commands)
+
+  defp sent(state, also),
+    do: %{state | board_link: state.board_link |> BoardLink.sent() |> also.()}
 
   defp bump(state, key, n \\ 1),
     do: %{state | counters: Map.update!(state.counters, key, &(&1 + n))}

@@ -64,3 +64,101 @@ defmodule Neptunus.Vehicle.Board.ReadingsTest do
     assert r.counters.samples == 1
   end
 end
+
+defmodule Neptunus.Vehicle.Board.ReadingsFirmwareTest do
+  # Telemetry exactly as the OpenROV firmware writes it (CRLF, glued fields, echoes, plain text).
+  use ExUnit.Case, async: true
+
+  alias Neptunus.Vehicle.Board.Readings
+
+  @nav "hdgd:90.00;deap:1.50;pitc:0.00;roll:0.00;yaw:90.00;fthr:0.00;\r\n"
+  @status "vout:12.10;iout:0.50;time:181000;pres:1165.00;temp:10.00;\r\n"
+
+  defp feed(bytes, r \\ Readings.new()) do
+    {r, samples} = Readings.feed(r, bytes, 0.0)
+    {events, r} = Readings.take_events(r)
+    {r, samples, events}
+  end
+
+  test "a glued pong, the 30.x echo (rawcmd, crc:pass glued to cmd), icmd lines: no malformed field" do
+    bytes =
+      "rawcmd:A3,70,69,6E,67,28,37,29,3B,;\r\n" <>
+        "crc:pass;cmd:ping(7);\r\n" <>
+        "pong:1,183422;" <> @nav <> "icmd:stop();\r\n" <> "crc:fail,A1/3B;" <> @status
+
+    {r, [_], events} = feed(bytes)
+
+    assert events == [
+             :rawcmd,
+             {:crc, :pass},
+             {:echo, "ping", true},
+             {:pong, %{args: 1, millis: 183_422}},
+             {:icmd, "stop"},
+             {:crc, {:fail, 0xA1, 0x3B}},
+             {:board_time, 181_000}
+           ]
+
+    assert r.counters.malformed == 0 and Readings.wild_points(r) == 0
+  end
+
+  test "cmpd's newline before its ';' makes the next line start ';time:'; claser glued; dotted keys kept" do
+    bytes =
+      "cmpd:12.00,3.00,4.00\r\n;time:181000;claser:255;BNO055.status:1;Depth.C0:4000;\r\n" <>
+        @nav <> @status
+
+    {r, [_], events} = feed(bytes)
+    assert {:board_time, 181_000} in events
+    assert r.raw["BNO055.status"] == "1" and r.raw["Depth.C0"] == "4000"
+    assert r.raw["claser"] == "255"
+    assert r.counters.malformed == 0
+  end
+
+  test "a 2.5 board's echo of a CRC-prefixed command: the CRC byte before the name" do
+    {_r, [], events} = feed(<<"cmd:", 0xAB, "ping(7);\r\n">>)
+    assert events == [{:echo_prefixed, "ping"}]
+  end
+
+  test "the 2.5.2 depth driver's plain-text lines are text, log lines debug, never malformed" do
+    bytes =
+      "Depth Sensor setup.\r\nDepth Sensor: initialized I2C\r\nDepth Sensor is reset\r\n" <>
+        "Depth: Calibration constants are:\r\n" <>
+        "First-Order Temperature in Degrees C is 11.52\r\n" <>
+        "Second-Order Temperature in Degrees C is 11.50\r\n" <>
+        "log:Failed to read Depth from I2C\r\nlog:MPU9150 ready;\r\n"
+
+    {r, [], []} = feed(bytes)
+    assert r.counters.text == 6 and r.counters.debug == 2 and r.counters.malformed == 0
+    # a line that only looks like text is still malformed
+    {r, [], []} = feed("Depth Sensor exploded\r\n")
+    assert r.counters.malformed == 1
+  end
+
+  test "while the board reports pres:0.00 its deap is a boot placeholder, not a depth" do
+    boot = "vout:12.10;iout:0.50;time:300;pres:0.00;temp:0.00;\r\n"
+    {r, [], _} = feed(boot <> "hdgd:90.00;deap:0.00;pitc:0.00;roll:0.00;yaw:90.00;fthr:0.00;\r\n")
+    assert r.counters.placeholder == 1
+    refute Map.has_key?(r.measurement, :depth)
+    {_r, [s], _} = feed(@status <> @nav, r)
+    assert s.measurement.depth == 1.5
+  end
+
+  test "the 2.5 controller board: current is BT1I + BT2I, its own iout kept as board_current" do
+    bytes = "BT1I:1.20;BT2I:0.80;SC1I:0.40;SC2I:0.30;SC3I:0.20;\r\n" <> @status <> @nav
+    {_r, [s | _], _} = feed(bytes)
+    assert_in_delta s.measurement.current, 2.0, 1.0e-9
+    assert s.board.board_current == 0.5 and s.board.esc1_current == 0.4
+  end
+
+  test "battery currents summing beyond the current's range are a wild point, not a measurement" do
+    {r, [s], _} = feed("BT1I:1.00;BT2I:1.00;\r\n" <> @status <> @nav)
+    {r, _, _} = feed("BT1I:9.50;BT2I:9.00;\r\n", r)
+    assert r.counters.out_of_range == 1
+    {_r, [s2], _} = feed(@nav, r)
+    assert s2.measurement.current == s.measurement.current
+  end
+
+  test "the cape: iout is the vehicle's current" do
+    {_r, [s], _} = feed(@status <> @nav)
+    assert s.measurement.current == 0.5
+  end
+end

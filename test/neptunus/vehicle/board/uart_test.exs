@@ -15,6 +15,9 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
   alias Neptunus.Vehicle.Board.UART
 
   @neutral "go(1500,1500,1500,1);"
+  @modifiers "mtrmod1(100,100,100);mtrmod2(100,100,100);"
+  # what a new link writes first: neutral, then the motor modifiers
+  @opening @neutral <> @modifiers
   @nav "hdgd:180;deap:2.5;pitc:1;roll:-1;yaw:180;fthr:0;\r\n"
   @status "vout:12.2;iout:0.4;time:5000;pres:1264;temp:9.5;\r\n"
 
@@ -52,7 +55,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     # the board link is on the control path: it runs before the web fan-out
     assert Process.info(uart, :priority) == {:priority, :high}
     assert link_event(true) == "open"
-    assert recv_until(ctx.board, &String.starts_with?(&1, @neutral)) =~ @neutral
+    assert recv_until(ctx.board, &String.starts_with?(&1, @opening)) =~ @neutral
 
     Board.go(ctx.id, %{port: 0.5, vertical: -0.2, starboard: 1.0})
     # default wiring: port reversed
@@ -73,14 +76,15 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     }
 
     start_uart(ctx, wiring: wiring)
-    assert recv_until(ctx.board, &(&1 == "go(1500,1500,1500,0);")) == "go(1500,1500,1500,0);"
+    opening = "go(1500,1500,1500,0);" <> @modifiers
+    assert recv_until(ctx.board, &(&1 == opening)) == opening
     Board.go(ctx.id, %{port: 1.0, vertical: 1.0, starboard: 0.0})
     assert recv_until(ctx.board, &String.ends_with?(&1, ";")) == "go(1500,1000,2000,0);"
   end
 
   test "deadman pings only while control is heard from", ctx do
     start_uart(ctx, keepalive_timeout: 200)
-    recv_until(ctx.board, &String.starts_with?(&1, @neutral))
+    recv_until(ctx.board, &String.starts_with?(&1, @opening))
 
     # control not heard yet: no pings
     assert drain(ctx.board, 200) == ""
@@ -107,7 +111,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
   test "telemetry lines become samples in SI units, sim: nil", ctx do
     start_uart(ctx)
-    recv_until(ctx.board, &String.starts_with?(&1, @neutral))
+    recv_until(ctx.board, &String.starts_with?(&1, @opening))
     write(ctx.board, @nav <> @status <> @nav)
 
     assert_receive {:"$gen_cast", {:sample, s1}}, 2_000
@@ -125,7 +129,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
   test "garbage, wild points and overlong lines are counted, never crash, never reach samples",
        ctx do
     pid = start_uart(ctx, max_line: 128)
-    recv_until(ctx.board, &String.starts_with?(&1, @neutral))
+    recv_until(ctx.board, &String.starts_with?(&1, @opening))
     write(ctx.board, @nav <> @status)
     assert_receive {:"$gen_cast", {:sample, _}}, 2_000
 
@@ -151,7 +155,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
   test "hangup → link down → reopen with backoff → neutral again", ctx do
     start_uart(ctx)
     link_event(true)
-    recv_until(ctx.board, &String.starts_with?(&1, @neutral))
+    recv_until(ctx.board, &String.starts_with?(&1, @opening))
     Board.go(ctx.id, %{port: 1.0, vertical: 1.0, starboard: 1.0})
     recv_until(ctx.board, &String.ends_with?(&1, "1);"))
 
@@ -177,7 +181,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     File.rename!(pair.b, ctx.pair.b)
 
     wait_until(fn -> UART.link_status(ctx.id).up end, "the link back up")
-    assert recv_until(board, &String.starts_with?(&1, @neutral)) =~ @neutral
+    assert recv_until(board, &String.starts_with?(&1, @opening)) =~ @neutral
     assert %{up: true, counters: %{opens: opens}} = UART.link_status(ctx.id)
     assert opens >= 2
   end
@@ -186,7 +190,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
        ctx do
     start_uart(ctx)
     link_event(true)
-    recv_until(ctx.board, &String.starts_with?(&1, @neutral))
+    recv_until(ctx.board, &String.starts_with?(&1, @opening))
 
     UART.lights(ctx.id, 200)
     assert recv_until(ctx.board, &String.ends_with?(&1, ";")) == "ligt(200);"
@@ -203,23 +207,27 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     File.rename!(pair.b, ctx.pair.b)
     wait_until(fn -> UART.link_status(ctx.id).up end, "the link back up")
 
-    # neutral first, then the kept device settings (in whatever chunks the pty delivers them)
-    bytes = recv_until(board, &(&1 |> String.split(";", trim: true) |> length() >= 4))
-    assert [@neutral | resent] = bytes |> String.split(";", trim: true) |> Enum.map(&(&1 <> ";"))
+    # neutral and the modifiers first, then the kept device settings (in whatever chunks the
+    # pty delivers them)
+    bytes = recv_until(board, &(&1 |> String.split(";", trim: true) |> length() >= 6))
+
+    assert [@neutral, "mtrmod1(100,100,100);", "mtrmod2(100,100,100);" | resent] =
+             bytes |> String.split(";", trim: true) |> Enum.map(&(&1 <> ";"))
+
     assert Enum.sort(resent) == ["claser(9);", "ligt(200);", "tilt(2000);"]
   end
 
   test "the port program dying is a link down too ({:exit_status, n}), then it reopens", ctx do
     start_uart(ctx)
     link_event(true)
-    recv_until(ctx.board, &String.starts_with?(&1, @neutral))
+    recv_until(ctx.board, &String.starts_with?(&1, @opening))
 
     {:os_pid, os_pid} = Port.info(:sys.get_state(Board.via(ctx.id)).port, :os_pid)
     System.cmd("kill", ["-KILL", Integer.to_string(os_pid)])
 
     assert link_event(false) == "port program exited with status 137"
     assert link_event(true) == "open"
-    assert recv_until(ctx.board, &String.starts_with?(&1, @neutral)) =~ @neutral
+    assert recv_until(ctx.board, &String.starts_with?(&1, @opening)) =~ @neutral
   end
 
   test "the port program asks for the node's OS time slice (Neptunus.OS)", ctx do
@@ -253,7 +261,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
   test "an orderly shutdown writes neutral before the port closes", ctx do
     start_uart(ctx)
-    recv_until(ctx.board, &String.starts_with?(&1, @neutral))
+    recv_until(ctx.board, &String.starts_with?(&1, @opening))
     Board.go(ctx.id, %{port: 1.0, vertical: 0.0, starboard: 1.0})
     recv_until(ctx.board, &String.ends_with?(&1, ";"))
     stop_supervised!(UART)
