@@ -167,14 +167,7 @@ defmodule Neptunus.Vehicle.SITLTest do
     :ok = Board.lights(id, 120)
     wait_until(fn -> SITL.Device.state(id).firmware.lights == 120 end, "the lights")
 
-    wait_until(
-      fn ->
-        t = Telemetry.latest(id)
-        t != nil and abs(t.measurement.depth - truth(id).z) < 0.05
-      end,
-      "depth telemetry",
-      5_000
-    )
+    wait_until(fn -> depth_right?(id) end, "depth telemetry", 5_000)
 
     z = truth(id).z
     :ok = SITL.Device.reset(id)
@@ -194,26 +187,55 @@ defmodule Neptunus.Vehicle.SITLTest do
   end
 
   # Issue 13, item 1: the board prints deap:0.00 for about a second after every (re)boot. The
-  # server must trust no single first reading: within 1.5 s of the board's first real reading
-  # the telemetry depth must be right (given 2 s here). Today navigation takes the placeholder
-  # and rejects the real depth until three new values came (3 s at 1 Hz; for ever at a steady
-  # depth): this test needs the navigation part of the issue.
-  @tag :issue_13_navigation
-  test "at 3 m, depth telemetry is right soon after the boot placeholder and after a board reset" do
+  # server trusts no single first reading: the telemetry says "initialising" (no number) until
+  # the readings agree after a settle time, so the placeholder is never shown as a depth, and
+  # the true depth is valid again soon after the board's first real reading (1.5 s after the
+  # reset in the estimator's own tests, which run on the board's clock; 2 s here).
+  test "at 3 m, depth is never shown as the boot placeholder and is right again soon after a board reset" do
     id = start_sitl(%{initial: [z: 3.0]})
-
-    depth_right? = fn ->
-      t = Telemetry.latest(id)
-      t != nil and abs(t.measurement.depth - truth(id).z) < 0.05
-    end
-
     board_read? = fn -> SITL.Device.state(id).firmware.depth > 0.0 end
 
     wait_until(board_read?, "the board's first depth reading", 3_000)
-    wait_until(depth_right?, "depth telemetry after the boot placeholder", 2_000)
+    wait_until(fn -> depth_right?(id) end, "depth telemetry after the boot placeholder", 2_000)
+    flush_telemetry()
+
     :ok = SITL.Device.reset(id)
     wait_until(board_read?, "the board's first depth reading after its reset", 3_000)
-    wait_until(depth_right?, "depth telemetry after the board reset", 2_000)
+    wait_until(fn -> depth_right?(id) end, "depth telemetry after the board reset", 2_000)
+
+    # every telemetry frame since the reset: a depth is either initialising (nil) or right
+    frames = collect_telemetry()
+    assert Enum.any?(frames, &(&1.measurement_state.depth == "initialising"))
+
+    for %{measurement: m, measurement_state: st} <- frames do
+      case st.depth do
+        "initialising" -> assert m.depth == nil
+        _ -> assert_in_delta m.depth, 3.0, 0.1
+      end
+    end
+  end
+
+  defp depth_right?(id) do
+    case Telemetry.latest(id) do
+      %{measurement: %{depth: depth}} when is_number(depth) -> abs(depth - truth(id).z) < 0.05
+      _ -> false
+    end
+  end
+
+  defp flush_telemetry do
+    receive do
+      {:pubsub, _, "telemetry", _} -> flush_telemetry()
+    after
+      0 -> :ok
+    end
+  end
+
+  defp collect_telemetry(acc \\ []) do
+    receive do
+      {:pubsub, _, "telemetry", payload} -> collect_telemetry([payload | acc])
+    after
+      0 -> Enum.reverse(acc)
+    end
   end
 
   # Issue 13, items 2, 3 and 5, the board link's part: these need the server to frame commands

@@ -20,9 +20,14 @@ defmodule Neptunus.Vehicle.Board.Readings do
       current is its two battery currents `BT1I + BT2I` (a sum beyond the current's range is
       a wild point). A board counts as a controller board once it has reported a battery
       current.
-    * **depth** — while the board's latest `pres` is 0.00 (its pressure sensor has not been
-      read since boot: 0 mbar is a vacuum), its `deap` is a boot placeholder and is dropped
-      (counted `placeholder`).
+    * **depth** — after a board boots, it prints `deap:0.00` (and `pres:0.00`) until its
+      pressure sensor's first reading, about a second later. So depth is *not live* from a
+      new link session (`reset/1`: a USB Arduino resets on open) and from a board reset the
+      link detected (`board_reset/1`) until the board reports a depth other than 0.00 or a
+      pressure above 0 (0 mbar is a vacuum: a `pres:0.00` makes depth not live again). While
+      not live, a `deap` is a placeholder: the sample's depth is nil (navigation takes it as
+      missing), counted `placeholder`. A depth from before is never carried over into a
+      sample either: the value nobody measured since the board booted is not a depth.
 
   Lines the firmware prints besides fields — the depth driver's plain text
   (`OpenROV.text_line?/1`) — are counted as `text`, `log` fields as `debug`; neither is
@@ -49,7 +54,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
     board: %{},
     raw: %{},
     events: [],
-    pressure_zero: false,
+    depth_live: false,
     counters: %{
       lines: 0,
       samples: 0,
@@ -80,7 +85,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
   * `board` — latest accepted value of the other known fields
   * `raw` — latest raw value of unknown keys
   * `events` — what the link needs to know, newest first (`take_events/1`)
-  * `pressure_zero` — the board's latest `pres` was 0.00 (its depth is a placeholder)
+  * `depth_live` — the board has measured a depth since it booted (see the moduledoc)
   * `counters` — see the moduledoc
   """
   @type t :: %__MODULE__{
@@ -89,7 +94,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
           board: map(),
           raw: %{String.t() => String.t()},
           events: [event()],
-          pressure_zero: boolean(),
+          depth_live: boolean(),
           counters: %{atom() => non_neg_integer()}
         }
 
@@ -106,8 +111,17 @@ defmodule Neptunus.Vehicle.Board.Readings do
         measurement: %{},
         board: %{},
         events: [],
-        pressure_zero: false
+        depth_live: false
     }
+
+  @doc """
+  The board rebooted (the link saw its uptime go backwards) while the link stayed up: its
+  depth is a boot placeholder again until it measures one (see the moduledoc). The other
+  latest values are kept: the board prints them again within a second.
+  """
+  @spec board_reset(t()) :: t()
+  def board_reset(%__MODULE__{} = r),
+    do: %{r | depth_live: false, measurement: Map.put(r.measurement, :depth, nil)}
 
   @doc "Feeds bytes read at vehicle time `t` (s); returns the samples they complete, in order."
   @spec feed(t(), binary(), float()) :: {t(), [Neptunus.Vehicle.Board.sample()]}
@@ -138,8 +152,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
 
     r = %{r | counters: counters, events: events(fields, r.events)}
     r = if Map.has_key?(fields, "log"), do: bump(r, :debug, 1), else: r
-    r = pressure(r, fields)
-    {fields, r} = placeholder(fields, r)
+    {fields, r} = fields |> live_depth(r) |> placeholder()
 
     {measurement, board, raw, measured?} =
       Enum.reduce(fields, {r.measurement, r.board, r.raw, false}, fn
@@ -193,15 +206,27 @@ defmodule Neptunus.Vehicle.Board.Readings do
     if current <= max, do: {:ok, current}, else: :out_of_range
   end
 
-  # While the board reports pres:0.00 its depth sensor has not been read since boot (0 mbar is
-  # a vacuum): its deap is the boot placeholder.
-  defp pressure(r, %{pressure: p}), do: %{r | pressure_zero: p == 0.0}
-  defp pressure(r, _fields), do: r
+  # Depth is live once the board has measured since it booted: a depth other than 0.00 or a
+  # pressure above 0; a pres:0.00 says its sensor has not been read (0 mbar is a vacuum).
+  defp live_depth(fields, r) do
+    live =
+      case fields do
+        %{pressure: p} when p == 0.0 -> false
+        %{pressure: p} when p > 0.0 -> true
+        %{depth: d} when d != 0.0 -> true
+        _ -> r.depth_live
+      end
 
-  defp placeholder(%{depth: _} = fields, %{pressure_zero: true} = r),
-    do: {Map.delete(fields, :depth), bump(r, :placeholder, 1)}
+    {fields, %{r | depth_live: live}}
+  end
 
-  defp placeholder(fields, r), do: {fields, r}
+  # Not live: the deap is the boot placeholder; the sample carries no depth (nil), never an
+  # earlier one.
+  defp placeholder({%{depth: _} = fields, %{depth_live: false} = r}) do
+    {Map.put(fields, :depth, nil), bump(r, :placeholder, 1)}
+  end
+
+  defp placeholder({fields, r}), do: {fields, r}
 
   # What the link needs to know from a line, newest first: the board's replies, its echoes and
   # its uptime (see Neptunus.Protocol.BoardLink.event/3).

@@ -56,7 +56,7 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   alias Neptunus.{Allocation, PubSub, Wiring}
   alias Neptunus.Protocol.{BoardLink, OpenROV, Pacer}
-  alias Neptunus.Vehicle.{Board, Telemetry}
+  alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
   alias Neptunus.Vehicle.Board.{Backoff, Readings}
 
   @behaviour Board
@@ -479,7 +479,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     Logger.warning("vehicle #{state.id}: #{reason}: sending its state again")
     PubSub.broadcast(state.topic, "board", %{event: "reset", reason: reason})
     board_reset(state, reason)
-    send_state(state)
+    send_state(%{state | readings: Readings.board_reset(state.readings)})
   end
 
   defp board_action({:deadman_recovery, reason}, state) do
@@ -502,16 +502,8 @@ defmodule Neptunus.Vehicle.Board.UART do
     state
   end
 
-  # Navigation starts its measurements afresh (added by the navigation part; called only
-  # where it exists).
-  defp board_reset(state, reason) do
-    navigation = Neptunus.Vehicle.Navigation
-
-    if function_exported?(navigation, :board_reset, 2),
-      do: apply(navigation, :board_reset, [state.id, reason])
-
-    :ok
-  end
+  # Navigation starts its measurements afresh: nothing read before is trusted.
+  defp board_reset(state, reason), do: Navigation.board_reset(state.id, reason)
 
   @link_report [
     :rtt_ms,

@@ -135,11 +135,44 @@ defmodule Neptunus.Vehicle.Board.ReadingsFirmwareTest do
 
   test "while the board reports pres:0.00 its deap is a boot placeholder, not a depth" do
     boot = "vout:12.10;iout:0.50;time:300;pres:0.00;temp:0.00;\r\n"
-    {r, [], _} = feed(boot <> "hdgd:90.00;deap:0.00;pitc:0.00;roll:0.00;yaw:90.00;fthr:0.00;\r\n")
+
+    {r, [s], _} =
+      feed(boot <> "hdgd:90.00;deap:0.00;pitc:0.00;roll:0.00;yaw:90.00;fthr:0.00;\r\n")
+
     assert r.counters.placeholder == 1
-    refute Map.has_key?(r.measurement, :depth)
-    {_r, [s], _} = feed(@status <> @nav, r)
+    # the other measurements flow; depth is missing, not 0.00
+    assert s.measurement.depth == nil and s.measurement.heading > 0
+    {_r, samples, _} = feed(@status <> @nav, r)
+    assert List.last(samples).measurement.depth == 1.5
+  end
+
+  @boot_nav "hdgd:90.00;deap:0.00;pitc:0.00;roll:0.00;yaw:90.00;fthr:0.00;\r\n"
+
+  test "a new session: deap:0.00 is a placeholder until the board measures, even before any pres" do
+    # the first second after a USB Arduino's reset: navigation lines with deap:0.00, no pres yet
+    {r, [s | _], _} = feed("vout:12.10;iout:0.50;\r\n" <> @boot_nav <> @boot_nav)
+    assert s.measurement.depth == nil and r.counters.placeholder == 2
+    # its first reading: live from then on, a later 0.00 (at the surface) included
+    {r, [s], _} = feed(String.replace(@boot_nav, "deap:0.00", "deap:1.20"), r)
+    assert s.measurement.depth == 1.2
+    {_r, [s], _} = feed(@boot_nav, r)
+    assert s.measurement.depth == 0.0
+  end
+
+  test "a board reset the link detected: the earlier depth is never carried, 0.00 is a placeholder" do
+    {r, [s], _} = feed(@status <> @nav)
     assert s.measurement.depth == 1.5
+    r = Readings.board_reset(r)
+    # the rebooted board still prints its old pres (once a second) but deap:0.00 every 100 ms
+    {r, [s], _} = feed(@boot_nav, r)
+    assert s.measurement.depth == nil
+
+    {r, samples, _} =
+      feed("vout:12.10;iout:0.50;time:1001;pres:0.00;temp:0.00;\r\n" <> @boot_nav, r)
+
+    assert Enum.all?(samples, &(&1.measurement.depth == nil))
+    {_r, [s], _} = feed(String.replace(@boot_nav, "deap:0.00", "deap:3.01"), r)
+    assert s.measurement.depth == 3.01
   end
 
   test "the 2.5 controller board: current is BT1I + BT2I, its own iout kept as board_current" do
