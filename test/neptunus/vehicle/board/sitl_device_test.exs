@@ -80,6 +80,17 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
     _ = recv_until(port, &(&1 =~ "hdgd:"), 2_000)
     write(port, String.duplicate("tilt(1500);", 9) <> "ping(1);")
     wait_until(fn -> Device.state(id).rx_dropped > 0 end, "dropped bytes", 2_000)
+    # the whole burst is in once a command sent after it has been carried out (the ';' first
+    # ends what is left of the burst's cut command, as it would on the board)
+    Process.sleep(50)
+    write(port, ";ligt(99);")
+
+    wait_until(
+      fn -> Device.state(id).firmware.lights == 99 end,
+      "the command after the burst",
+      2_000
+    )
+
     dropped = Device.state(id).rx_dropped
     assert dropped >= 107 - 64
 
