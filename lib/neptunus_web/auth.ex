@@ -162,7 +162,8 @@ defmodule NeptunusWeb.Auth do
   unknown name, a known one with a cheaper hash, a wrong password — spends exactly this
   (`NeptunusWeb.Auth.Password.check/3`), so its time does not tell which names exist.
   """
-  @spec login_iterations(%{users: map()}) :: pos_integer()
+  @spec login_iterations(%{required(:users) => map(), optional(atom()) => term()}) ::
+          pos_integer()
   def login_iterations(%{users: users}) do
     users
     |> Enum.map(fn {_name, user} -> Password.iterations(user.hash) end)
@@ -325,7 +326,14 @@ defmodule NeptunusWeb.Auth do
       iex> NeptunusWeb.Auth.check_host(%{mode: :secure, origins: ["https://rov.example.org"]}, "rebind.example")
       {:error, 403, "host not allowed: rebind.example (allowed: rov.example.org)"}
   """
-  @spec check_host(%{mode: :local | :secure, origins: [String.t()]}, String.t() | nil) ::
+  @spec check_host(
+          %{
+            required(:mode) => :local | :secure,
+            required(:origins) => [String.t()],
+            optional(atom()) => term()
+          },
+          String.t() | nil
+        ) ::
           :ok | {:error, 403, String.t()}
   def check_host(%{mode: :local}, host), do: check_local_host(:local, host)
   def check_host(%{origins: []}, _host), do: :ok

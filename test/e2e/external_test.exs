@@ -11,7 +11,7 @@ defmodule Neptunus.E2E.ExternalTest do
 
   defp url, do: "http://127.0.0.1:#{Application.fetch_env!(:neptunus, :endpoint).port}"
 
-  defp node!(args, env \\ []) do
+  defp node!(args, env) do
     node = System.find_executable("node") || flunk("node is not installed: run `make setup`")
 
     {output, status} =
