@@ -269,6 +269,33 @@ defmodule Neptunus.Vehicle.SITLTest do
       assert fw.bad_commands == 0 and fw.commands > 0
     end
 
+    for profile <- [:openrov_25, :openrov_30] do
+      test "#{profile}: a burst of lights, laser, tilt and thrust at once never overflows the board's 64-byte buffer" do
+        id = start_sitl(%{firmware: unquote(profile)})
+
+        # everything a pilot's page may send in one moment, several times over
+        for n <- 1..5 do
+          :ok = Board.lights(id, 100 + n)
+          :ok = Board.laser(id, 10 + n)
+          :ok = Board.tilt(id, 0.05 * n)
+          {:ok, _} = Control.thrust(id, motion(0.1 * n, 0.1, 0))
+        end
+
+        wait_until(
+          fn ->
+            fw = SITL.Device.state(id).firmware
+            fw.lights == 105 and fw.laser == 15 and fw.tilt == Board.tilt_us(0.25)
+          end,
+          "the last of each command",
+          3_000
+        )
+
+        state = SITL.Device.state(id)
+        assert state.rx_dropped == 0
+        assert state.firmware.bad_commands == 0
+      end
+    end
+
     test "after a board reset the lights, laser and tilt come back" do
       id = start_sitl()
       :ok = Board.lights(id, 120)
