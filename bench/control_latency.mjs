@@ -39,6 +39,7 @@ import os from 'node:os';
 import { fileURLToPath } from 'node:url';
 import { performance, monitorEventLoopDelay } from 'node:perf_hooks';
 
+const [GAP_MIN, GAP_MAX] = gap();
 const require = createRequire(new URL('../assets/package.json', import.meta.url));
 const WebSocket = require('ws');
 
@@ -206,7 +207,7 @@ async function main() {
         toGoHere.push(got.now - sent);
       }
       await reply;
-      await sleep(5 + Math.random() * 10);
+      await sleep(GAP_MIN + Math.random() * (GAP_MAX - GAP_MIN));
     }
 
     loop.disable();
@@ -266,6 +267,15 @@ function stats(xs) {
 }
 
 function sleep(ms) { return new Promise((r) => setTimeout(r, ms)); }
+
+// the pause after each command arrives, ms: LAT_GAP_MS "MIN-MAX" (default 5-15, ≈ 80 commands/s
+// with the round trip; the board link paces the serial line to 60 bytes per 30 ms, ≈ 55 go()/s
+// with pings: above that, go() commands wait their turn, and the figures show it)
+function gap() {
+  const m = /^(\d+(?:\.\d+)?)-(\d+(?:\.\d+)?)$/.exec(process.env.LAT_GAP_MS ?? '5-15');
+  if (!m) throw new Error(`LAT_GAP_MS must be MIN-MAX in ms, got ${process.env.LAT_GAP_MS}`);
+  return [Number(m[1]), Number(m[2])];
+}
 
 // The port program in pty mode: `opened` resolves when the pty exists (its 'o' frame),
 // `write(text)` sends bytes to the line, `onData(buffer)` gets the bytes read from it.
