@@ -36,23 +36,8 @@ defmodule NeptunusWeb.HardeningTest do
 
   # A raw HTTP/1.1 request with exactly these headers; the connection is read to its end.
   defp request(method, path, headers) do
-    {:ok, socket} =
-      :gen_tcp.connect(~c"127.0.0.1", port(), [:binary, active: false, packet: :raw])
-
-    head = Enum.map(headers, fn {k, v} -> "#{k}: #{v}\r\n" end)
-
-    :ok =
-      :gen_tcp.send(socket, ["#{method} #{path} HTTP/1.1\r\n", head, "Connection: close\r\n\r\n"])
-
-    {head, body} = read_head(socket, <<>>)
-    [status_line | lines] = String.split(head, "\r\n")
-    [_, status | _] = String.split(status_line, " ")
-
-    headers =
-      Map.new(lines, fn line ->
-        [k, v] = String.split(line, ":", parts: 2)
-        {String.downcase(k), String.trim(v)}
-      end)
+    {status, headers, body, socket} =
+      NeptunusWeb.Test.Wire.raw_request(method, path, headers ++ [{"Connection", "close"}])
 
     body =
       case headers do
@@ -61,18 +46,7 @@ defmodule NeptunusWeb.HardeningTest do
       end
 
     :gen_tcp.close(socket)
-    {String.to_integer(status), headers, body}
-  end
-
-  defp read_head(socket, acc) do
-    case :binary.split(acc, "\r\n\r\n") do
-      [head, rest] ->
-        {head, rest}
-
-      [_] ->
-        {:ok, data} = :gen_tcp.recv(socket, 0, 5_000)
-        read_head(socket, acc <> data)
-    end
+    {status, headers, body}
   end
 
   defp read_body(_socket, body, length) when byte_size(body) >= length, do: body

@@ -20,11 +20,20 @@ defmodule NeptunusWeb.Test.Wire do
   """
   @spec raw_get(String.t()) ::
           {integer(), %{String.t() => String.t()}, binary(), :gen_tcp.socket()}
-  def raw_get(path) do
+  def raw_get(path), do: raw_request("GET", path, [{"Host", "127.0.0.1:#{port()}"}])
+
+  @doc """
+  A raw HTTP/1.1 request with exactly `headers` (`[{name, value}]`, nothing added): as
+  `raw_get/1`, `{status, headers, body read so far, socket}`.
+  """
+  @spec raw_request(String.t(), String.t(), [{String.t(), String.t()}]) ::
+          {integer(), %{String.t() => String.t()}, binary(), :gen_tcp.socket()}
+  def raw_request(method, path, headers) do
     {:ok, socket} =
       :gen_tcp.connect(~c"127.0.0.1", port(), [:binary, active: false, packet: :raw])
 
-    :ok = :gen_tcp.send(socket, "GET #{path} HTTP/1.1\r\nHost: 127.0.0.1:#{port()}\r\n\r\n")
+    head = Enum.map(headers, fn {k, v} -> "#{k}: #{v}\r\n" end)
+    :ok = :gen_tcp.send(socket, ["#{method} #{path} HTTP/1.1\r\n", head, "\r\n"])
     {head, body} = read_head(socket, <<>>)
     [status_line | header_lines] = String.split(head, "\r\n")
     [_, status | _] = String.split(status_line, " ")

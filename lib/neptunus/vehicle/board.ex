@@ -83,6 +83,26 @@ defmodule Neptunus.Vehicle.Board do
     sitl: Neptunus.Vehicle.Board.SITL
   }
 
+  @doc """
+  The board link's liveness details a board with a link reports with its state (`up`,
+  `reason`) and telemetry carries under `link` (see `Neptunus.Vehicle.Board.UART.link_status/1`
+  and docs/API.md).
+  """
+  @spec link_details() :: [atom()]
+  def link_details do
+    [
+      :rtt_ms,
+      :pong_age_ms,
+      :board_uptime_ms,
+      :board_deadman_armed,
+      :firmware,
+      :detected_firmware,
+      :firmware_mismatch,
+      :commands_sent,
+      :commands_confirmed
+    ]
+  end
+
   @doc "The implementation module for a configured board type (or a module implementing this behaviour)."
   @spec module(atom()) :: module()
   def module(board) when is_map_key(@boards, board), do: Map.fetch!(@boards, board)

@@ -41,19 +41,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   alias Neptunus.{Allocation, Periodic, PubSub}
   alias Neptunus.Vehicle.Board
 
-  @link_keys [
-    :up,
-    :reason,
-    :rtt_ms,
-    :pong_age_ms,
-    :board_uptime_ms,
-    :board_deadman_armed,
-    :firmware,
-    :detected_firmware,
-    :firmware_mismatch,
-    :commands_sent,
-    :commands_confirmed
-  ]
+  @link_keys [:up, :reason | Board.link_details()]
 
   @no_estimate %{depth: nil, depth_rate: nil, heading: nil, yaw_rate: nil}
   @initialising Map.new(Neptunus.Navigation.WildPoints.fields(), &{&1, "initialising"})

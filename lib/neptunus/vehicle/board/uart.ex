@@ -505,17 +505,7 @@ defmodule Neptunus.Vehicle.Board.UART do
   # Navigation starts its measurements afresh: nothing read before is trusted.
   defp board_reset(state, reason), do: Navigation.board_reset(state.id, reason)
 
-  @link_report [
-    :rtt_ms,
-    :pong_age_ms,
-    :board_uptime_ms,
-    :board_deadman_armed,
-    :firmware,
-    :detected_firmware,
-    :firmware_mismatch,
-    :commands_sent,
-    :commands_confirmed
-  ]
+  @link_report Board.link_details()
 
   defp report_link(state) do
     {up, reason} = state.announced || {state.link == :up, state.reason}
