@@ -1,36 +1,8 @@
 import { describe, expect, it } from "vitest";
 import { HELM_UNSEEN, heartbeatMsOf, helmRejoined, helmView, isPilot, seeGrant, seeHelm, seenView, stampOf } from "../../src/lib/helm";
-import type { Grant, Helm, Party, Session } from "../../src/lib/protocol";
+import { ada, bob, free, grant, main, olga, piloted, requested, session, takeover } from "./helm_fixtures";
 
-const ada: Party = { id: "a", name: "ada", role: "pilot" };
-const bob: Party = { id: "b", name: "bob", role: "pilot" };
-const main: Party = { id: "m", name: "main", role: "main_station" };
-const olga: Party = { id: "o", name: "olga", role: "observer" };
-
-const session = (p: Party): Session => ({ ...p, mode: "secure" });
-
-const base: Helm = {
-  state: "free",
-  epoch: 0,
-  pilot: null,
-  request: null,
-  takeover: null,
-  deadman_ms: 500,
-  heartbeat_ms: 100,
-  request_timeout_ms: 10000,
-  takeover_ms: 3000,
-};
-const piloted = (p: Party, epoch = 1): Helm => ({ ...base, state: "piloted", epoch, pilot: { ...p, since: 0 } });
-const requested = (p: Party, from: Party): Helm => ({
-  ...piloted(p),
-  state: "requested",
-  request: { from, remaining_ms: 10000 },
-});
-const takeover = (p: Party, by: Party): Helm => ({
-  ...piloted(p),
-  state: "takeover",
-  takeover: { by, countdown_ms: 3000 },
-});
+const base = free;
 
 describe("helmView", () => {
   it("free: pilots and the main station may request, observers may not", () => {
@@ -78,14 +50,6 @@ describe("helmView", () => {
 });
 
 describe("HelmSeen", () => {
-  const grant = (p: Party, epoch: number): Grant => ({
-    epoch,
-    pilot: { ...p, since: 0 },
-    control: { mode: "motion", gain: 0.5, lights: null, laser: null, tilt: null, run_mode: null, autopilot: null, command: { surge: 0, heave: 0, yaw: 0 } },
-    deadman_ms: 500,
-    heartbeat_ms: 100,
-  });
-
   it("stamps commands with the grant's epoch, only while piloting", () => {
     let t = helmRejoined(piloted(bob, 4), session(ada), 0);
     expect(stampOf(t)).toBeNull();

@@ -1,34 +1,11 @@
 import { describe, expect, it } from "vitest";
 import { isPilot, stampOf } from "../../src/lib/helm";
-import type { Grant, Helm, Party, Session } from "../../src/lib/protocol";
+import type { Helm } from "../../src/lib/protocol";
 import { INITIAL_REACTIONS, TONES, isNewGrant, pilotName, react } from "../../src/operator/reactions";
 import type { Effect, ReactionEvent, ReactionState } from "../../src/operator/reactions";
+import { ada, bob, free, grant, main, piloted, session, takeover } from "./helm_fixtures";
 
-const ada: Party = { id: "a", name: "ada", role: "pilot" };
-const bob: Party = { id: "b", name: "bob", role: "pilot" };
-const main: Party = { id: "m", name: "main", role: "main_station" };
-const me: Session = { ...ada, mode: "secure" };
-
-const free: Helm = {
-  state: "free",
-  epoch: 0,
-  pilot: null,
-  request: null,
-  takeover: null,
-  deadman_ms: 500,
-  heartbeat_ms: 100,
-  request_timeout_ms: 10000,
-  takeover_ms: 3000,
-};
-const piloted = (p: Party, epoch = 1): Helm => ({ ...free, state: "piloted", epoch, pilot: { ...p, since: 0 } });
-const takeover = (p: Party, by: Party, epoch = 1): Helm => ({ ...piloted(p, epoch), state: "takeover", takeover: { by, countdown_ms: 3000 } });
-const grant = (p: Party, epoch: number): Grant => ({
-  epoch,
-  pilot: { ...p, since: 0 },
-  control: { mode: "motion", gain: 0.5, lights: null, laser: null, tilt: null, run_mode: null, autopilot: null, command: { surge: 0, heave: 0, yaw: 0 } },
-  deadman_ms: 500,
-  heartbeat_ms: 100,
-});
+const me = session(ada);
 
 /** Runs `events` from `state`; the final state and every effect, in order. */
 function run(state: ReactionState, ...events: ReactionEvent[]): { state: ReactionState; effects: Effect[] } {
