@@ -2,14 +2,12 @@ import { describe, expect, it } from "vitest";
 import { HELM_UNSEEN, heartbeatMsOf, helmRejoined, helmView, isPilot, seeGrant, seeHelm, seenView, stampOf } from "../../src/lib/helm";
 import { ada, bob, free, grant, main, olga, piloted, requested, session, takeover } from "./helm_fixtures";
 
-const base = free;
-
 describe("helmView", () => {
   it("free: pilots and the main station may request, observers may not", () => {
-    expect(helmView(base, session(ada))).toMatchObject({ me: "watching", canRequest: true, canTake: false, canRelease: false });
-    expect(helmView(base, session(olga))).toMatchObject({ canRequest: false, canTake: false });
-    expect(helmView(base, session(main))).toMatchObject({ canRequest: true, canTake: false });
-    expect(helmView(base, session(ada)).summary).toBe("Free: nobody pilots");
+    expect(helmView(free, session(ada))).toMatchObject({ me: "watching", canRequest: true, canTake: false, canRelease: false });
+    expect(helmView(free, session(olga))).toMatchObject({ canRequest: false, canTake: false });
+    expect(helmView(free, session(main))).toMatchObject({ canRequest: true, canTake: false });
+    expect(helmView(free, session(ada)).summary).toBe("Free: nobody pilots");
   });
 
   it("piloted: the pilot may release; others request; the main station may also take", () => {
@@ -68,7 +66,7 @@ describe("HelmSeen", () => {
   });
 
   it("reports a deadman restamp while we pilot", () => {
-    const first = seeHelm(helmRejoined(base, session(ada), 0), piloted(ada, 1), 0);
+    const first = seeHelm(helmRejoined(free, session(ada), 0), piloted(ada, 1), 0);
     expect(first.change).toMatchObject({ becamePilot: true });
     expect(stampOf(first.seen)).toBe(1);
     const again = seeHelm(first.seen, piloted(ada, 2), 1);
