@@ -65,8 +65,6 @@ import type { HeadsetState } from "./headset";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
 
-export type { HeadsetState } from "./headset";
-export type { MessageKind } from "./reactions";
 export type TelemetryState = "none" | "live" | "stale";
 export type FieldName =
   | "control_mode"
