@@ -1,11 +1,11 @@
 /**
  * The helm as this client sees it: who pilots, whether we do, what we may do, and the stamp
  * (`epoch`) our thrust commands must carry. Pure: no DOM, no timers; the page feeds it the
- * server's events and the current time (ms, any monotonic clock) and renders `view()`.
+ * server's events and the current time (ms, any monotonic clock) and renders `seenView()`.
  *
  * Stamps (pick-up procedure, docs/API.md): the server refuses a thrust whose `epoch` is not
  * the current one. We take the epoch from our grant; when the server changes it while we
- * pilot (a deadman stop), `onHelm` reports `restamped` — the page must then forget held keys
+ * pilot (a deadman stop), `seeHelm` reports `restamped` — the page must then forget held keys
  * so that only a fresh input moves the vehicle.
  */
 
@@ -126,75 +126,75 @@ export function helmView(helm: Helm | null, session: Session | null, elapsedMs =
   };
 }
 
-/** Follows the helm events for one connection and keeps the stamp for its commands. */
-export class HelmTracker {
-  private helm: Helm | null = null;
-  private receivedAt = 0;
-  private session: Session | null = null;
-  private epoch: number | null = null;
+/**
+ * The helm as one connection has seen it: the last helm (and when it arrived, ms on the
+ * page's monotonic clock), who we are, and the epoch our thrust must carry (null unless we
+ * pilot). A value: the functions below return a new one.
+ */
+export interface HelmSeen {
+  readonly helm: Helm | null;
+  readonly session: Session | null;
+  readonly epoch: number | null;
+  readonly receivedAtMs: number;
+}
 
-  setSession(session: Session | null): void {
-    this.session = session;
-  }
+/** Nothing seen yet (before the first join). */
+export const HELM_UNSEEN: HelmSeen = { helm: null, session: null, epoch: null, receivedAtMs: 0 };
 
-  get current(): Helm | null {
-    return this.helm;
-  }
+/** True while this connection pilots. */
+export function isPilot(seen: HelmSeen): boolean {
+  return seen.session !== null && seen.helm?.pilot?.id === seen.session.id;
+}
 
-  /** True while this connection pilots. */
-  get isPilot(): boolean {
-    return this.session !== null && this.helm?.pilot?.id === this.session.id;
-  }
+/** The epoch to stamp thrust with, or null when we do not pilot. */
+export function stampOf(seen: HelmSeen): number | null {
+  return isPilot(seen) ? seen.epoch : null;
+}
 
-  /** The epoch to stamp thrust with, or null when we do not pilot. */
-  get stamp(): number | null {
-    return this.isPilot ? this.epoch : null;
-  }
+/** Heartbeat period the server asks for (ms). */
+export function heartbeatMsOf(seen: HelmSeen): number {
+  return seen.helm?.heartbeat_ms ?? 100;
+}
 
-  /** Heartbeat period the server asks for (ms). */
-  get heartbeatMs(): number {
-    return this.helm?.heartbeat_ms ?? 100;
-  }
+/** The channel was (re)joined with a fresh snapshot: we pilot nothing on a new join. */
+export function helmRejoined(helm: Helm | null, session: Session | null, nowMs: number): HelmSeen {
+  return { helm, session, epoch: null, receivedAtMs: nowMs };
+}
 
-  onHelm(helm: Helm, now: number): HelmChange {
-    const was = this.isPilot;
-    const oldEpoch = this.epoch;
-    this.helm = helm;
-    this.receivedAt = now;
-    const is = this.isPilot;
-    if (is) this.epoch = helm.epoch;
-    else this.epoch = null;
-    return {
+/** A `helm` broadcast: the new value and what it changed for us. */
+export function seeHelm(seen: HelmSeen, helm: Helm, nowMs: number): { readonly seen: HelmSeen; readonly change: HelmChange } {
+  const was = isPilot(seen);
+  const oldEpoch = seen.epoch;
+  const next0: HelmSeen = { ...seen, helm, receivedAtMs: nowMs };
+  const is = isPilot(next0);
+  const next: HelmSeen = { ...next0, epoch: is ? helm.epoch : null };
+  return {
+    seen: next,
+    change: {
       becamePilot: is && !was,
       lostPilot: was && !is,
       restamped: is && was && oldEpoch !== null && oldEpoch !== helm.epoch,
-    };
-  }
+    },
+  };
+}
 
-  /**
-   * Our grant (from `control_granted` or a `granted` reply — both come for a request on a free
-   * helm). Returns false for a grant already known (same epoch, still piloting): the page must
-   * not treat it as a new pick-up, or it would forget keys that are held and applied.
-   */
-  onGrant(grant: Grant): boolean {
-    if (this.isPilot && this.epoch === grant.epoch) return false;
-    this.epoch = grant.epoch;
-    if (this.helm && this.session && grant.pilot.id === this.session.id) {
-      // the helm broadcast follows; until then, the grant is the news
-      this.helm = { ...this.helm, state: "piloted", epoch: grant.epoch, pilot: grant.pilot, request: null, takeover: null };
-    }
-    return true;
+/**
+ * Our grant (from `control_granted` or a `granted` reply — both come for a request on a free
+ * helm). Null for a grant already known (same epoch, still piloting): the page must not treat
+ * it as a new pick-up, or it would forget keys that are held and applied.
+ */
+export function seeGrant(seen: HelmSeen, grant: Grant): HelmSeen | null {
+  if (isPilot(seen) && seen.epoch === grant.epoch) return null;
+  const { helm, session } = seen;
+  if (helm && session && grant.pilot.id === session.id) {
+    // the helm broadcast follows; until then, the grant is the news
+    const piloted: Helm = { ...helm, state: "piloted", epoch: grant.epoch, pilot: grant.pilot, request: null, takeover: null };
+    return { ...seen, helm: piloted, epoch: grant.epoch };
   }
+  return { ...seen, epoch: grant.epoch };
+}
 
-  /** The channel was (re)joined with a fresh snapshot: we pilot nothing on a new join. */
-  reset(helm: Helm | null, session: Session | null, now: number): void {
-    this.session = session;
-    this.helm = helm;
-    this.receivedAt = now;
-    this.epoch = null;
-  }
-
-  view(now: number): HelmView {
-    return helmView(this.helm, this.session, now - this.receivedAt);
-  }
+/** The view of what was seen, at `nowMs` (countdowns run from when the helm arrived). */
+export function seenView(seen: HelmSeen, nowMs: number): HelmView {
+  return helmView(seen.helm, seen.session, nowMs - seen.receivedAtMs);
 }

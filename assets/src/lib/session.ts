@@ -4,6 +4,7 @@
  * from its holder: its payload (name, expiry) is readable here, see `tokenClaims`.
  */
 
+import { reasonOf } from "./errors";
 import { errorReason, isRecord } from "./protocol";
 import type { AuthMode, Role } from "./protocol";
 
@@ -149,4 +150,106 @@ export async function login(name: string, password: string, fetchFn: Fetch = fet
 export function nextPath(params: URLSearchParams): string {
   const next = params.get("next") ?? "";
   return /^\/(?!\/)[^\\]*$/.test(next) ? next : "/";
+}
+
+/** The login page's address for coming back to `here` (path and query); `reason` is shown there. */
+export function loginUrl(here: string, reason: string | null): string {
+  const query = new URLSearchParams({ next: here });
+  if (reason) query.set("reason", reason);
+  return `/login.html?${query.toString()}`;
+}
+
+/** What a `PageSession` needs from the page (the browser's, or a test's). */
+export interface SessionEnv {
+  readonly tokens: TokenStore;
+  readonly fetch: Fetch;
+  /** wall clock, ms since the Unix epoch (token expiry) */
+  readonly wallMs: () => number;
+  /** monotonic clock, ms (how often the session is rechecked) */
+  readonly monotonicMs: () => number;
+  readonly sleep: (ms: number) => Promise<void>;
+  /** go to the login page (and back here after it), showing `reason` there */
+  readonly toLogin: (reason: string | null) => void;
+  /** the server cannot be reached (`reason`), or (null) it can again */
+  readonly onUnreachable: (reason: string | null) => void;
+}
+
+/** How long `authenticate` waits before asking again after a failure (ms). */
+export const SESSION_RETRY_MS = 2000;
+/** `recheck` asks the server at most this often (ms). */
+export const SESSION_RECHECK_MS = 5000;
+
+/**
+ * A page's session: the stored token, whether the server accepts it, and the way to the
+ * login page. A token the server refuses (401) is dropped: the page goes on without one,
+ * or to the login page when the server is in secure mode and lets no anonymous observer in.
+ */
+export class PageSession {
+  private readonly env: SessionEnv;
+  private currentToken: string | null = null;
+  private lastCheckMs: number | null = null;
+
+  constructor(env: SessionEnv) {
+    this.env = env;
+  }
+
+  /** The token the page connects with (null: none, or one that names no user). */
+  get token(): string | null {
+    return this.currentToken;
+  }
+
+  /**
+   * Who we are: the session for our stored token, asking again every SESSION_RETRY_MS while
+   * the server cannot be reached. Null when the page was sent to the login page.
+   */
+  async authenticate(): Promise<SessionInfo | null> {
+    for (;;) {
+      this.currentToken = loadToken(this.env.tokens, this.env.wallMs());
+      try {
+        let session: SessionInfo;
+        try {
+          session = await fetchSession(this.currentToken, this.env.fetch);
+        } catch (err) {
+          if (!(err instanceof AuthError) || err.status !== 401) throw err;
+          this.env.tokens.removeItem(TOKEN_KEY);
+          this.currentToken = null;
+          session = await fetchSession(null, this.env.fetch);
+        }
+        if (session.mode === "secure" && session.user === null && !session.anonymous_observers) {
+          this.env.toLogin(null);
+          return null;
+        }
+        if (session.user === null) this.currentToken = null;
+        this.env.onUnreachable(null);
+        return session;
+      } catch (err) {
+        this.env.onUnreachable(reasonOf(err));
+        await this.env.sleep(SESSION_RETRY_MS);
+      }
+    }
+  }
+
+  /**
+   * After a connection error (a refused upgrade looks like a network error from the page):
+   * is our token still good? At most every SESSION_RECHECK_MS; a refused token is dropped and
+   * the page sent to the login page with the server's reason.
+   */
+  async recheck(): Promise<void> {
+    const now = this.env.monotonicMs();
+    if (this.currentToken === null || (this.lastCheckMs !== null && now - this.lastCheckMs < SESSION_RECHECK_MS)) return;
+    this.lastCheckMs = now;
+    try {
+      await fetchSession(this.currentToken, this.env.fetch);
+    } catch (err) {
+      if (err instanceof AuthError && err.status === 401) {
+        this.env.tokens.removeItem(TOKEN_KEY);
+        this.env.toLogin(err.message);
+      }
+    }
+  }
+
+  /** Forgets the token (the sign-out link then goes to the login page). */
+  signOut(): void {
+    this.env.tokens.removeItem(TOKEN_KEY);
+  }
 }

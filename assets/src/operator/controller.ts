@@ -13,6 +13,9 @@
  * - Safety: window blur, a hidden page, closing it or changing the input mode sends `stop` (and
  *   shows it); after any stop, loss of control or grant every input is forgotten — only a fresh
  *   press, touch or stick movement moves the vehicle. Safety stops and a takeover beep.
+ *   These reactions are decided by `react` (reactions.ts, pure); this class carries out its
+ *   effects (`perform`). Session handling is `PageSession` (lib/session.ts), head tracking
+ *   `HeadsetInput` (headset.ts).
  * - Settings (control mode, run mode, autopilot, gain, lights, laser, tilt) go to the server as
  *   typed; its `error` reason is shown beside the field.
  */
@@ -21,17 +24,14 @@ import { accepts, demandEqual, stickMode } from "../input/demand";
 import type { InputMode, ThrustDemand } from "../input/demand";
 import { GamepadPoller } from "../input/gamepad";
 import type { GamepadOptions } from "../input/gamepad";
-import { startHeadPose } from "../input/head_pose";
-import type { HeadPose } from "../input/head_pose";
-import { HeadsetFilter, headAngles } from "../input/headset";
-import type { HeadAngles, HeadReference, Quaternion } from "../input/headset";
 import { KeyboardInput, keyboardDemand } from "../input/keyboard";
 import { TouchTracker, touchDemand } from "../input/touch";
 import type { TouchControl, TouchState } from "../input/touch";
 import { beep } from "../lib/beep";
 import { ClockOffset, ageOnArrival, telemetryAge } from "../lib/clock";
-import { formDegrees, formValue, isSafetyStop } from "../lib/forms";
-import { HelmTracker } from "../lib/helm";
+import { reasonOf } from "../lib/errors";
+import { formDegrees, formValue } from "../lib/forms";
+import { heartbeatMsOf, isPilot, seenView, stampOf } from "../lib/helm";
 import type { HelmView } from "../lib/helm";
 import { LatencyTracker } from "../lib/latency";
 import type { LatencySummary } from "../lib/latency";
@@ -50,20 +50,21 @@ import type {
   CameraInfo,
   ControlMode,
   ControlSettings,
-  Helm,
   LinkStatus,
   PresenceEntry,
   Role,
   RunMode,
   Telemetry,
 } from "../lib/protocol";
-import { AuthError, TOKEN_KEY, fetchSession, loadToken } from "../lib/session";
-import type { SessionInfo } from "../lib/session";
+import { PageSession, loginUrl } from "../lib/session";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
 import type { ConnectionStatus, VehicleChannel } from "../lib/vehicle_client";
+import { HEADSET_OFF, HeadsetInput } from "./headset";
+import type { HeadsetState } from "./headset";
+import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
+import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
 
-export type MessageKind = "info" | "warn" | "error";
 export type TelemetryState = "none" | "live" | "stale";
 export type FieldName =
   | "control_mode"
@@ -79,15 +80,6 @@ export type FieldName =
 export interface FieldStatus {
   readonly state: "busy" | "ok" | "error";
   readonly text: string;
-}
-
-export interface HeadsetState {
-  readonly status: "off" | "starting" | "webxr" | "orientation" | "error";
-  readonly message: string;
-  readonly reference: HeadReference | null;
-  readonly angles: HeadAngles | null;
-  readonly lastHeading: number | null;
-  readonly lastTilt: number | null;
 }
 
 export interface OperatorState {
@@ -122,7 +114,6 @@ export interface OperatorState {
 
 const STALE_AFTER_MS = 1000;
 const RETRY_MS = 2000;
-const SESSION_RECHECK_MS = 5000;
 const PING_MS = 1000;
 /** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
 const CLOCK_MS = 10_000;
@@ -133,12 +124,6 @@ function freshness(ageMs: number): Pick<OperatorState, "telemetryState" | "telem
   return ageMs > STALE_AFTER_MS
     ? { telemetryState: "stale", telemetryAgeMs: Math.round(ageMs / 100) * 100 }
     : { telemetryState: "live", telemetryAgeMs: 0 };
-}
-
-function reasonOf(err: unknown): string {
-  if (err instanceof CommandError) return err.reason;
-  if (err instanceof Error) return err.message;
-  return String(err);
 }
 
 function sleep(ms: number): Promise<void> {
@@ -159,14 +144,6 @@ function displayName(params: URLSearchParams): string | undefined {
   return name === "" ? undefined : name;
 }
 
-/** Goes to the login page (and back here after it); `reason` is shown there. */
-function toLogin(reason: string | null): void {
-  const next = window.location.pathname + window.location.search;
-  const query = new URLSearchParams({ next });
-  if (reason) query.set("reason", reason);
-  window.location.assign(`/login.html?${query.toString()}`);
-}
-
 function touchFirstDevice(): boolean {
   return typeof window.matchMedia === "function" && window.matchMedia("(pointer: coarse)").matches;
 }
@@ -174,17 +151,16 @@ function touchFirstDevice(): boolean {
 export class OperatorController {
   readonly store: Store<OperatorState>;
   private readonly params: URLSearchParams;
-  private readonly helm = new HelmTracker();
+  /** the helm as seen, the heartbeat, the takeover warning: see reactions.ts */
+  private reactions: ReactionState = INITIAL_REACTIONS;
   private readonly latency = new LatencyTracker();
   private readonly keyboard: KeyboardInput;
   private readonly touch = new TouchTracker();
   private readonly gamepad: GamepadPoller;
-  private readonly headsetFilter = new HeadsetFilter();
-  private headPose: HeadPose | null = null;
-  private headsetWatchdog: number | null = null;
+  private readonly headset: HeadsetInput;
+  private readonly session: PageSession;
   private client: NeptunusClient | null = null;
   private vehicle: VehicleChannel | null = null;
-  private token: string | null = null;
   private lastTelemetryAt: number | null = null;
   /** how old the newest telemetry was when it arrived (ms; null while the clock offset is unknown) */
   private lastTelemetryLate: number | null = null;
@@ -192,8 +168,6 @@ export class OperatorController {
   private readonly clock = new ClockOffset(60);
   private clockPending = false;
   private heartbeat: number | null = null;
-  private lastSessionCheck = 0;
-  private warnedTakeover = false;
   private heldKeys: ReadonlySet<string> = new Set();
 
   constructor(params: URLSearchParams) {
@@ -204,7 +178,7 @@ export class OperatorController {
       disconnectedAt: null,
       vehicleId: null,
       banner: null,
-      helm: this.helm.view(0),
+      helm: seenView(INITIAL_REACTIONS.helm, 0),
       pilotName: null,
       presence: [],
       telemetry: null,
@@ -219,7 +193,7 @@ export class OperatorController {
       gamepad: null,
       gamepadOptions: loadGamepadOptions(storage()),
       touch: this.touch.current,
-      headset: { status: "off", message: "", reference: null, angles: null, lastHeading: null, lastTilt: null },
+      headset: HEADSET_OFF,
       sent: null,
       message: { text: "", kind: "info", source: null },
       fields: {},
@@ -241,6 +215,33 @@ export class OperatorController {
         if (stickMode(this.controlMode)) this.demand("gamepad", d);
       },
       onPad: (pad) => this.store.update({ gamepad: pad }),
+    });
+    this.headset = new HeadsetInput({
+      get: () => this.state.headset,
+      update: (patch) => this.store.update((s) => ({ headset: { ...s.headset, ...patch } })),
+      vehicleHeading: () => this.state.telemetry?.measurement.heading,
+      steering: () => {
+        const vehicle = this.vehicle;
+        return this.state.inputMode === "headset" && isPilot(this.reactions.helm) && vehicle && vehicle.joined ? vehicle : null;
+      },
+      nowMs: () => performance.now(),
+      onControl: (control) => this.store.update({ control }),
+      onResult: (error) => (error === null ? this.setField("headset", "ok", "") : this.setField("headset", "error", error)),
+    });
+    this.session = new PageSession({
+      // read when used: a page whose storage is blocked still renders (and says why it cannot connect)
+      tokens: {
+        getItem: (key) => window.localStorage.getItem(key),
+        setItem: (key, value) => window.localStorage.setItem(key, value),
+        removeItem: (key) => window.localStorage.removeItem(key),
+      },
+      fetch: (input, init) => fetch(input, init),
+      wallMs: () => Date.now(),
+      monotonicMs: () => performance.now(),
+      sleep,
+      toLogin: (reason) => window.location.assign(loginUrl(window.location.pathname + window.location.search, reason)),
+      onUnreachable: (reason) =>
+        reason === null ? this.clearMessage("session") : this.showMessage(`Cannot reach the server: ${reason}`, "warn", "session"),
     });
   }
 
@@ -268,11 +269,14 @@ export class OperatorController {
     window.setInterval(() => this.readClock(), CLOCK_MS);
     if (this.state.inputMode === "gamepad") this.gamepad.start();
 
-    const session = await this.authenticate();
+    const session = await this.session.authenticate();
+    if (session === null) return; // leaving for the login page
+    this.store.update({ banner: { mode: session.mode, user: session.user } });
+    const token = this.session.token;
     const name = displayName(this.params);
     const client = new NeptunusClient({
       ...(session.mode === "local" && name !== undefined ? { name } : {}),
-      ...(this.token !== null ? { token: this.token } : {}),
+      ...(token !== null ? { token } : {}),
     });
     this.client = client;
     client.socket.onClose(() => {
@@ -282,7 +286,7 @@ export class OperatorController {
       if (!this.vehicle) this.setStatus("connecting");
     });
     // a refused upgrade (expired or revoked token) looks like a network error from here
-    client.socket.onError(() => void this.recheckSession());
+    client.socket.onError(() => void this.session.recheck());
     client.connect();
     const id = await this.chooseVehicle(client);
     this.openVehicle(client, id);
@@ -294,49 +298,6 @@ export class OperatorController {
       status,
       disconnectedAt: status === "connected" ? null : was === "connected" || this.state.disconnectedAt === null ? performance.now() : this.state.disconnectedAt,
     });
-  }
-
-  /** Who we are: the session for our stored token; the login page when one is needed. */
-  private async authenticate(): Promise<SessionInfo> {
-    for (;;) {
-      this.token = loadToken(window.localStorage, Date.now());
-      try {
-        let session: SessionInfo;
-        try {
-          session = await fetchSession(this.token);
-        } catch (err) {
-          if (!(err instanceof AuthError) || err.status !== 401) throw err;
-          window.localStorage.removeItem(TOKEN_KEY);
-          this.token = null;
-          session = await fetchSession(null);
-        }
-        if (session.mode === "secure" && session.user === null && !session.anonymous_observers) {
-          toLogin(null);
-          return new Promise<SessionInfo>(() => undefined); // leaving the page
-        }
-        if (session.user === null) this.token = null;
-        this.store.update({ banner: { mode: session.mode, user: session.user } });
-        this.clearMessage("session");
-        return session;
-      } catch (err) {
-        this.showMessage(`Cannot reach the server: ${reasonOf(err)}`, "warn", "session");
-        await sleep(RETRY_MS);
-      }
-    }
-  }
-
-  private async recheckSession(): Promise<void> {
-    const now = Date.now();
-    if (this.token === null || now - this.lastSessionCheck < SESSION_RECHECK_MS) return;
-    this.lastSessionCheck = now;
-    try {
-      await fetchSession(this.token);
-    } catch (err) {
-      if (err instanceof AuthError && err.status === 401) {
-        window.localStorage.removeItem(TOKEN_KEY);
-        toLogin(err.message);
-      }
-    }
   }
 
   private async chooseVehicle(client: NeptunusClient): Promise<string> {
@@ -367,57 +328,39 @@ export class OperatorController {
     this.store.update({ vehicleId: id, rotation: loadRotation(storage(), id) });
     const vehicle = client.vehicle(id, {
       snapshot: (snapshot) => {
-        // a (re)join: whatever we held is gone (the server freed the helm when we left)
-        this.stopHeartbeat();
-        this.resetInputs();
-        this.helm.reset(snapshot.helm, snapshot.session, performance.now());
+        this.dispatch({ type: "joined", helm: snapshot.helm, session: snapshot.session, atMs: performance.now() });
         this.store.update({
           pilotName: snapshot.pilot?.name ?? null,
-          camera: cameraWithToken(snapshot.camera, this.token),
+          camera: cameraWithToken(snapshot.camera, this.session.token),
           control: snapshot.control,
           sent: null,
         });
-        this.renderHelm();
         if (snapshot.telemetry) this.onTelemetry(snapshot.telemetry);
-        this.clearMessage("join");
       },
       telemetry: (t) => this.onTelemetry(t),
-      helm: (h) => this.onHelm(h),
+      helm: (h) => {
+        this.store.update({ pilotName: h.pilot?.name ?? null });
+        this.dispatch({ type: "helm", helm: h, atMs: performance.now() });
+      },
       controlGranted: (grant) => {
-        // the reply to our request and the server's event both carry it: once is news
-        if (!this.helm.onGrant(grant)) return;
-        this.store.update({ pilotName: grant.pilot.name, control: grant.control });
-        this.resetInputs();
-        this.startHeartbeat();
-        this.showMessage("You have control. The thrusters are neutral: move with the selected input.", "info", "helm");
-        this.renderHelm();
+        if (isNewGrant(this.reactions, grant)) this.store.update({ pilotName: grant.pilot.name, control: grant.control });
+        this.dispatch({ type: "granted", grant });
       },
-      controlLost: (reason) => {
-        this.stopHeartbeat();
-        this.resetInputs();
-        this.showMessage(`You no longer have control: ${reason}`, "warn", "helm");
+      controlLost: (reason) => this.dispatch({ type: "lost", reason }),
+      controlRequest: (from) => this.dispatch({ type: "request", from }),
+      requestDenied: (reason) => this.dispatch({ type: "denied", reason }),
+      stopped: (reason) => {
+        this.store.update({ lastStop: { reason, at: Date.now() } });
+        this.dispatch({ type: "stopped", reason });
       },
-      controlRequest: (from) => {
-        beep(2, 660);
-        this.showMessage(`${from.name} requests control.`, "warn", "helm");
-      },
-      requestDenied: (reason) => this.showMessage(`Control request refused: ${reason}`, "warn", "helm"),
-      stopped: (reason) => this.onStopped(reason),
       link: (link) => {
         this.store.update({ link });
-        if (!link.up) beep(2, 440);
+        this.dispatch({ type: "link", up: link.up });
       },
       presence: (entries) => this.store.update({ presence: entries }),
       status: (status) => {
         this.setStatus(status);
-        if (status !== "connected") {
-          // Key-ups may be lost and the server stops the vehicle when our socket closes;
-          // the operator presses again once we are back.
-          this.stopHeartbeat();
-          this.resetInputs();
-          this.latency.reset();
-          this.store.update({ latency: this.latency.summary, sent: null });
-        }
+        if (status !== "connected") this.dispatch({ type: "disconnected" });
       },
       protocolError: (what, payload) => {
         console.warn(`neptunus: unexpected ${what} payload`, payload);
@@ -449,37 +392,53 @@ export class OperatorController {
     });
   }
 
-  private onHelm(h: Helm): void {
-    const change = this.helm.onHelm(h, performance.now());
-    this.store.update({ pilotName: h.pilot?.name ?? null });
-    if (change.becamePilot) this.startHeartbeat();
-    if (change.lostPilot) {
-      this.stopHeartbeat();
-      this.resetInputs();
-    }
-    if (change.restamped) {
-      // a deadman stop: the server holds thrust neutral until a fresh command
-      this.resetInputs();
-      this.showMessage("Stopped by the deadman (no heartbeat): press the keys again.", "warn", "helm");
-    }
-    const takeover = this.helm.view(performance.now()).takeover;
-    if (takeover?.concernsMe && !this.warnedTakeover) beep(3, 990);
-    this.warnedTakeover = takeover !== null;
+  // ------------------------------------------------------------------------------------------
+  // Reactions (helm, stops, disconnection): decided by `react`, carried out here
+
+  private dispatch(event: ReactionEvent): void {
+    const { state, effects } = react(this.reactions, event);
+    this.reactions = state;
+    for (const effect of effects) this.perform(effect);
     this.renderHelm();
   }
 
-  private onStopped(reason: string): void {
-    this.store.update({ lastStop: { reason, at: Date.now() } });
-    if (isSafetyStop(reason)) beep(2, 520, 120, 80);
-    if (this.helm.isPilot) {
-      // held input must be pressed again to count after any stop
-      this.resetInputs();
+  private perform(effect: Effect): void {
+    switch (effect.type) {
+      case "reset_inputs":
+        this.resetInputs();
+        return;
+      case "heartbeat":
+        if (effect.on) this.startHeartbeat();
+        else this.stopHeartbeat();
+        return;
+      case "reset_latency":
+        this.latency.reset();
+        this.store.update({ latency: this.latency.summary });
+        return;
+      case "send_stop": {
+        const { reason, announce } = effect;
+        this.vehicle?.stop(reason).then(
+          () => (announce ? this.dispatch({ type: "stop_sent", reason }) : undefined),
+          (err: unknown) => this.dispatch({ type: "refused", what: "Stop", reason: reasonOf(err) }),
+        );
+        return;
+      }
+      case "beep": {
+        const tone = TONES[effect.sound];
+        beep(tone.count, tone.hz, tone.ms, tone.gapMs);
+        return;
+      }
+      case "message":
+        this.showMessage(effect.text, effect.kind, effect.source);
+        return;
+      case "clear_message":
+        this.clearMessage(effect.source);
+        return;
     }
-    this.showMessage(`Vehicle stopped: ${reason}`, isSafetyStop(reason) ? "warn" : "info", "command");
   }
 
   private renderHelm(): void {
-    this.store.update({ helm: this.helm.view(performance.now()) });
+    this.store.update({ helm: seenView(this.reactions.helm, performance.now()) });
   }
 
   private tick(): void {
@@ -514,14 +473,12 @@ export class OperatorController {
     if (this.heartbeat !== null) return;
     this.heartbeat = window.setInterval(() => {
       const vehicle = this.vehicle;
-      if (!vehicle || !vehicle.joined || !this.helm.isPilot) return;
+      if (!vehicle || !vehicle.joined || !isPilot(this.reactions.helm)) return;
       vehicle.heartbeat().then(
         (rtt) => this.addLatency(rtt),
-        (err: unknown) => {
-          if (reasonOf(err) === "not_in_control") this.stopHeartbeat();
-        },
+        (err: unknown) => this.dispatch({ type: "heartbeat_refused", reason: reasonOf(err) }),
       );
-    }, this.helm.heartbeatMs);
+    }, heartbeatMsOf(this.reactions.helm));
   }
 
   private stopHeartbeat(): void {
@@ -530,7 +487,7 @@ export class OperatorController {
   }
 
   private pingIfWatching(): void {
-    if (this.heartbeat !== null || !this.client || this.state.status !== "connected") return;
+    if (this.reactions.heartbeat || !this.client || this.state.status !== "connected") return;
     this.client.ping().then(
       (rtt) => this.addLatency(rtt),
       () => undefined,
@@ -551,23 +508,21 @@ export class OperatorController {
     if (demandEqual(demand, this.state.sent)) return;
     const vehicle = this.vehicle;
     if (!vehicle || !vehicle.joined) {
-      this.showMessage("Not connected: command not sent.", "warn", "command");
+      this.dispatch({ type: "thrust_blocked", why: "not_connected" });
       return;
     }
-    const stamp = this.helm.stamp;
+    const stamp = stampOf(this.reactions.helm);
     if (stamp === null) {
-      const who = this.helm.current?.pilot?.name;
-      const pilots = who ? ` (${who} pilots)` : "";
-      this.showMessage(`Not in control${pilots}: request control first.`, "warn", "command");
+      this.dispatch({ type: "thrust_blocked", why: "not_in_control" });
       return;
     }
     this.store.update({ sent: demand });
     const push = demand.kind === "motion" ? vehicle.thrust(demand.axes, stamp) : vehicle.thrustManual(demand.thrusters, stamp);
     push.then(
-      () => this.clearMessage("command"),
+      () => this.dispatch({ type: "thrust_sent" }),
       (err: unknown) => {
         if (demandEqual(this.state.sent, demand)) this.store.update({ sent: null });
-        this.commandFailed("Thrust", err);
+        this.refused("Thrust", err);
       },
     );
   }
@@ -583,19 +538,12 @@ export class OperatorController {
 
   /** Stops the vehicle for `reason` (when we pilot) and forgets every input. */
   safetyStop(reason: string): void {
-    this.resetInputs();
-    const vehicle = this.vehicle;
-    if (!vehicle || !vehicle.joined || !this.helm.isPilot) return;
-    vehicle.stop(reason).then(
-      () => this.showMessage(`Stopped: ${reason}.`, "warn", "command"),
-      (err: unknown) => this.commandFailed("Stop", err),
-    );
+    this.dispatch({ type: "safety_stop", reason, joined: this.vehicle?.joined ?? false });
   }
 
   /** The pilot's stop button. */
   stop(): void {
-    this.resetInputs();
-    this.vehicle?.stop("pilot_stop").catch((err: unknown) => this.commandFailed("Stop", err));
+    this.dispatch({ type: "pilot_stop" });
   }
 
   setInputMode(mode: InputMode): void {
@@ -605,7 +553,7 @@ export class OperatorController {
     saveInputMode(storage(), mode);
     if (mode === "gamepad") this.gamepad.start();
     else this.gamepad.stop();
-    if (mode !== "headset") this.stopHeadset();
+    if (mode !== "headset") this.headset.stop();
   }
 
   setGamepadOptions(options: GamepadOptions): void {
@@ -635,84 +583,17 @@ export class OperatorController {
   // ------------------------------------------------------------------------------------------
   // Headset
 
-  async startHeadset(): Promise<void> {
-    this.stopHeadset();
-    this.updateHeadset({ status: "starting", message: "starting head tracking…" });
-    try {
-      const pose = await startHeadPose(
-        (q) => this.onHeadPose(q),
-        () => this.updateHeadset({ status: "off", message: "the headset session ended" }),
-      );
-      this.headPose = pose;
-      this.updateHeadset({
-        status: pose.source,
-        message: pose.source === "webxr" ? "WebXR headset" : "waiting for the orientation sensor…",
-      });
-      this.headsetWatchdog = window.setTimeout(() => {
-        if (this.state.headset.angles === null) {
-          this.updateHeadset({ status: "error", message: "no head pose arrives: this device has no working orientation sensor" });
-        }
-      }, 3000);
-    } catch (err) {
-      this.updateHeadset({ status: "error", message: reasonOf(err) });
-    }
+  startHeadset(): Promise<void> {
+    return this.headset.start();
   }
 
   stopHeadset(): void {
-    this.headPose?.stop();
-    this.headPose = null;
-    if (this.headsetWatchdog !== null) window.clearTimeout(this.headsetWatchdog);
-    this.headsetWatchdog = null;
-    this.headsetFilter.reset();
-    if (this.state.headset.status !== "off") {
-      this.updateHeadset({ status: "off", message: "", reference: null, angles: null });
-    }
+    this.headset.stop();
   }
 
   /** Takes the current head direction as straight ahead at the vehicle's current heading. */
   captureHeadReference(): void {
-    const angles = this.state.headset.angles;
-    const heading = this.state.telemetry?.measurement.heading;
-    if (!angles || heading === undefined || !Number.isFinite(heading)) {
-      this.updateHeadset({ message: "no head pose or vehicle heading to take as reference yet" });
-      return;
-    }
-    this.headsetFilter.reset();
-    this.updateHeadset({ reference: { yaw: angles.yaw, heading }, message: "reference set: turn your head to steer" });
-  }
-
-  private onHeadPose(q: Quaternion): void {
-    const angles = headAngles(q);
-    const h = this.state.headset;
-    const status = h.status === "orientation" && h.angles === null ? { message: "orientation sensor" } : {};
-    this.updateHeadset({ angles, ...status });
-    if (this.state.inputMode !== "headset" || h.reference === null || !this.helm.isPilot) return;
-    const vehicle = this.vehicle;
-    if (!vehicle || !vehicle.joined) return;
-    const out = this.headsetFilter.update(performance.now(), h.reference, angles);
-    if (out.heading !== undefined) {
-      const heading = out.heading;
-      this.updateHeadset({ lastHeading: heading });
-      vehicle.autopilot({ heading }).then(
-        (control) => {
-          this.store.update({ control });
-          this.setField("headset", "ok", "");
-        },
-        (err: unknown) => this.setField("headset", "error", `heading: ${reasonOf(err)}`),
-      );
-    }
-    if (out.tilt !== undefined) {
-      const tilt = out.tilt;
-      this.updateHeadset({ lastTilt: tilt });
-      vehicle.setValue("set_tilt", tilt).then(
-        (control) => this.store.update({ control }),
-        (err: unknown) => this.setField("headset", "error", `tilt: ${reasonOf(err)}`),
-      );
-    }
-  }
-
-  private updateHeadset(patch: Partial<HeadsetState>): void {
-    this.store.update((s) => ({ headset: { ...s.headset, ...patch } }));
+    this.headset.capture();
   }
 
   // ------------------------------------------------------------------------------------------
@@ -722,38 +603,33 @@ export class OperatorController {
     this.vehicle
       ?.requestControl()
       .then((reply) => {
-        if (reply.status === "pending") {
-          const pilot = this.helm.current?.pilot?.name ?? "the pilot";
-          this.showMessage(`Waiting for ${pilot} to answer…`, "info", "helm");
-        }
+        if (reply.status === "pending") this.dispatch({ type: "request_pending" });
       })
-      .catch((err: unknown) => this.commandFailed("Request", err));
+      .catch((err: unknown) => this.refused("Request", err));
   }
 
   takeControl(): void {
     this.vehicle
       ?.takeControl()
       .then((reply) => {
-        if (reply.status === "takeover") {
-          this.showMessage(`Taking control in ${Math.ceil(reply.countdown_ms / 1000)} s…`, "warn", "helm");
-        }
+        if (reply.status === "takeover") this.dispatch({ type: "takeover_started", countdownMs: reply.countdown_ms });
       })
-      .catch((err: unknown) => this.commandFailed("Take control", err));
+      .catch((err: unknown) => this.refused("Take control", err));
   }
 
   releaseControl(): void {
-    this.vehicle?.releaseControl().catch((err: unknown) => this.commandFailed("Release", err));
+    this.vehicle?.releaseControl().catch((err: unknown) => this.refused("Release", err));
   }
 
   answerRequest(accept: boolean): void {
     this.vehicle
       ?.answerRequest(accept)
-      .then(() => this.clearMessage("helm"))
-      .catch((err: unknown) => this.commandFailed("Answer", err));
+      .then(() => this.dispatch({ type: "answered" }))
+      .catch((err: unknown) => this.refused("Answer", err));
   }
 
   signOut(): void {
-    window.localStorage.removeItem(TOKEN_KEY);
+    this.session.signOut();
   }
 
   // ------------------------------------------------------------------------------------------
@@ -815,14 +691,8 @@ export class OperatorController {
     if (this.state.message.source === source) this.showMessage("", "info", null);
   }
 
-  private commandFailed(what: string, err: unknown): void {
-    const reason = reasonOf(err);
-    if (reason === "not_in_control") {
-      const who = this.helm.current?.pilot?.name;
-      this.showMessage(`${what} refused: not in control${who ? ` (pilot: ${who})` : ""}`, "error", "command");
-    } else {
-      this.showMessage(`${what} refused: ${reason}`, "error", "command");
-    }
+  private refused(what: string, err: unknown): void {
+    this.dispatch({ type: "refused", what, reason: reasonOf(err) });
   }
 
   /** Keys held now (for the on-screen key hints). */

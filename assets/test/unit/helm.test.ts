@@ -1,43 +1,13 @@
 import { describe, expect, it } from "vitest";
-import { HelmTracker, helmView } from "../../src/lib/helm";
-import type { Grant, Helm, Party, Session } from "../../src/lib/protocol";
-
-const ada: Party = { id: "a", name: "ada", role: "pilot" };
-const bob: Party = { id: "b", name: "bob", role: "pilot" };
-const main: Party = { id: "m", name: "main", role: "main_station" };
-const olga: Party = { id: "o", name: "olga", role: "observer" };
-
-const session = (p: Party): Session => ({ ...p, mode: "secure" });
-
-const base: Helm = {
-  state: "free",
-  epoch: 0,
-  pilot: null,
-  request: null,
-  takeover: null,
-  deadman_ms: 500,
-  heartbeat_ms: 100,
-  request_timeout_ms: 10000,
-  takeover_ms: 3000,
-};
-const piloted = (p: Party, epoch = 1): Helm => ({ ...base, state: "piloted", epoch, pilot: { ...p, since: 0 } });
-const requested = (p: Party, from: Party): Helm => ({
-  ...piloted(p),
-  state: "requested",
-  request: { from, remaining_ms: 10000 },
-});
-const takeover = (p: Party, by: Party): Helm => ({
-  ...piloted(p),
-  state: "takeover",
-  takeover: { by, countdown_ms: 3000 },
-});
+import { HELM_UNSEEN, heartbeatMsOf, helmRejoined, helmView, isPilot, seeGrant, seeHelm, seenView, stampOf } from "../../src/lib/helm";
+import { ada, bob, free, grant, main, olga, piloted, requested, session, takeover } from "./helm_fixtures";
 
 describe("helmView", () => {
   it("free: pilots and the main station may request, observers may not", () => {
-    expect(helmView(base, session(ada))).toMatchObject({ me: "watching", canRequest: true, canTake: false, canRelease: false });
-    expect(helmView(base, session(olga))).toMatchObject({ canRequest: false, canTake: false });
-    expect(helmView(base, session(main))).toMatchObject({ canRequest: true, canTake: false });
-    expect(helmView(base, session(ada)).summary).toBe("Free: nobody pilots");
+    expect(helmView(free, session(ada))).toMatchObject({ me: "watching", canRequest: true, canTake: false, canRelease: false });
+    expect(helmView(free, session(olga))).toMatchObject({ canRequest: false, canTake: false });
+    expect(helmView(free, session(main))).toMatchObject({ canRequest: true, canTake: false });
+    expect(helmView(free, session(ada)).summary).toBe("Free: nobody pilots");
   });
 
   it("piloted: the pilot may release; others request; the main station may also take", () => {
@@ -77,43 +47,42 @@ describe("helmView", () => {
   });
 });
 
-describe("HelmTracker", () => {
-  const grant = (p: Party, epoch: number): Grant => ({
-    epoch,
-    pilot: { ...p, since: 0 },
-    control: { mode: "motion", gain: 0.5, lights: null, laser: null, tilt: null, run_mode: null, autopilot: null, command: { surge: 0, heave: 0, yaw: 0 } },
-    deadman_ms: 500,
-    heartbeat_ms: 100,
-  });
-
+describe("HelmSeen", () => {
   it("stamps commands with the grant's epoch, only while piloting", () => {
-    const t = new HelmTracker();
-    t.reset(piloted(bob, 4), session(ada), 0);
-    expect(t.stamp).toBeNull();
-    expect(t.onGrant(grant(ada, 5))).toBe(true);
+    let t = helmRejoined(piloted(bob, 4), session(ada), 0);
+    expect(stampOf(t)).toBeNull();
+    const granted = seeGrant(t, grant(ada, 5));
+    expect(granted).not.toBeNull();
+    t = granted ?? t;
     // the same grant again (reply and event): not news
-    expect(t.onGrant(grant(ada, 5))).toBe(false);
-    expect(t.isPilot).toBe(true);
-    expect(t.stamp).toBe(5);
-    expect(t.onHelm(piloted(ada, 5), 1)).toEqual({ becamePilot: false, lostPilot: false, restamped: false });
-    expect(t.onHelm(piloted(bob, 6), 2)).toEqual({ becamePilot: false, lostPilot: true, restamped: false });
-    expect(t.stamp).toBeNull();
+    expect(seeGrant(t, grant(ada, 5))).toBeNull();
+    expect(isPilot(t)).toBe(true);
+    expect(stampOf(t)).toBe(5);
+    const same = seeHelm(t, piloted(ada, 5), 1);
+    expect(same.change).toEqual({ becamePilot: false, lostPilot: false, restamped: false });
+    const lost = seeHelm(same.seen, piloted(bob, 6), 2);
+    expect(lost.change).toEqual({ becamePilot: false, lostPilot: true, restamped: false });
+    expect(stampOf(lost.seen)).toBeNull();
   });
 
   it("reports a deadman restamp while we pilot", () => {
-    const t = new HelmTracker();
-    t.reset(base, session(ada), 0);
-    expect(t.onHelm(piloted(ada, 1), 0)).toMatchObject({ becamePilot: true });
-    expect(t.stamp).toBe(1);
-    expect(t.onHelm(piloted(ada, 2), 1)).toEqual({ becamePilot: false, lostPilot: false, restamped: true });
-    expect(t.stamp).toBe(2);
+    const first = seeHelm(helmRejoined(free, session(ada), 0), piloted(ada, 1), 0);
+    expect(first.change).toMatchObject({ becamePilot: true });
+    expect(stampOf(first.seen)).toBe(1);
+    const again = seeHelm(first.seen, piloted(ada, 2), 1);
+    expect(again.change).toEqual({ becamePilot: false, lostPilot: false, restamped: true });
+    expect(stampOf(again.seen)).toBe(2);
+  });
+
+  it("a grant for someone else keeps the helm, and nothing seen is no pilot", () => {
+    expect(isPilot(HELM_UNSEEN)).toBe(false);
+    const t = helmRejoined(piloted(bob, 4), session(ada), 0);
+    expect(seeGrant(t, grant(bob, 5))).toEqual({ ...t, epoch: 5 });
   });
 
   it("counts down from when the helm arrived", () => {
-    const t = new HelmTracker();
-    t.reset(null, session(ada), 0);
-    t.onHelm(takeover(ada, main), 1000);
-    expect(t.view(2500).takeover?.remainingMs).toBe(1500);
-    expect(t.heartbeatMs).toBe(100);
+    const { seen } = seeHelm(helmRejoined(null, session(ada), 0), takeover(ada, main), 1000);
+    expect(seenView(seen, 2500).takeover?.remainingMs).toBe(1500);
+    expect(heartbeatMsOf(seen)).toBe(100);
   });
 });
