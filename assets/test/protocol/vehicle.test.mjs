@@ -153,11 +153,21 @@ function assertTelemetry(t, where = "telemetry") {
     Math.abs(t.sent_at - Date.now()) < 60_000,
     `${where}.sent_at = ${t.sent_at} is not epoch milliseconds near now (${Date.now()})`,
   );
-  assertNumbers(t.measurement, ["depth", "heading", "roll", "pitch", "voltage", "current"], `${where}.measurement`);
-  assert.ok(
-    t.measurement.heading >= 0 && t.measurement.heading < 2 * Math.PI,
-    `${where}.measurement.heading = ${t.measurement.heading} rad outside [0, 2π)`,
-  );
+  // each measurement: a number once valid (or stale), null while it is initialising (docs/API.md)
+  const states = t.measurement_state;
+  assert.ok(states && typeof states === "object", `${where}.measurement_state must be an object`);
+  for (const k of ["depth", "heading", "roll", "pitch", "voltage", "current"]) {
+    const state = states[k];
+    assert.ok(["initialising", "valid", "stale"].includes(state), `${where}.measurement_state.${k} = ${JSON.stringify(state)}`);
+    if (state === "initialising") assert.equal(t.measurement[k], null, `${where}.measurement.${k} must be null while initialising`);
+    else assertNumbers(t.measurement, [k], `${where}.measurement`);
+  }
+  if (states.heading !== "initialising") {
+    assert.ok(
+      t.measurement.heading >= 0 && t.measurement.heading < 2 * Math.PI,
+      `${where}.measurement.heading = ${t.measurement.heading} rad outside [0, 2π)`,
+    );
+  }
   assertNumbers(t.sim, ["x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r"], `${where}.sim`);
   assertNumbers(t.command, ["surge", "heave", "yaw"], `${where}.command`);
   assertThrusters(t.thrusters, `${where}.thrusters`);
