@@ -32,7 +32,8 @@ defmodule NeptunusWeb.Socket.Router do
     * `{:text, data}`, `{:binary, data}` — a frame from the client;
     * `{:channel_info, topic, msg}` — a channel's own message (`NeptunusWeb.Channel.send_self/2`),
       for its `handle_info/2`; dropped when the topic is not joined;
-    * `{:closed, reason}` — the connection is closing: every channel is left;
+    * `{:closed, reason}` — the connection is closing: every channel is left (its
+      `terminate/2` gets `{:shutdown, reason}`);
     * `{:watched, msg, :ok | :restarting}`, `{:subscribed, msg, frame, :ok | :restarting}` —
       the answers to the requests below.
 
