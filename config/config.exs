@@ -14,10 +14,10 @@ config :neptunus,
   fanout_slice: 50,
   fanout_gap_ms: 2,
   # a piloting connection runs at :high while it sends at most this many frames per second
-  # (NeptunusWeb.PilotBudget)
+  # (NeptunusWeb.Socket.FlowControl)
   pilot_frames_per_s: 200,
   # a connection with this many messages waiting drops stale telemetry frames: its client
-  # reads slower than the telemetry arrives (NeptunusWeb.Socket); and the kernel holds at
+  # reads slower than the telemetry arrives (NeptunusWeb.Socket.FlowControl); and the kernel holds at
   # most socket_unsent_bytes of a connection's frames unsent (Linux, TCP_NOTSENT_LOWAT)
   socket_backlog: 8,
   socket_unsent_bytes: 4_096,

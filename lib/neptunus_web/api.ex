@@ -34,7 +34,7 @@ defmodule NeptunusWeb.API do
   require Logger
 
   alias Neptunus.Recording
-  alias NeptunusWeb.{Auth, Socket}
+  alias NeptunusWeb.Auth
   alias NeptunusWeb.Channels.Wire
 
   @max_body 4096
@@ -88,7 +88,7 @@ defmodule NeptunusWeb.API do
     host = headers |> headers(:host) |> text()
     {address, _port} = arg(arg, :client_ip_port)
 
-    with :ok <- Auth.check_origin(Socket.header(headers, "origin"), host, Auth.config().origins),
+    with :ok <- Auth.check_origin(header(headers, "origin"), host, Auth.config().origins),
          {:ok, %{"name" => name, "password" => password}} <- body(arg),
          {:ok, session} <- Auth.login(name, password, address) do
       {200, session}
@@ -111,15 +111,6 @@ defmodule NeptunusWeb.API do
       {_user, _password, ~c"Bearer " ++ token} -> token |> to_string() |> String.trim()
       _ -> Map.get(query(arg), "token")
     end
-  end
-
-  defp query(arg) do
-    case arg(arg, :querydata) do
-      :undefined -> %{}
-      query -> query |> to_string() |> URI.decode_query()
-    end
-  rescue
-    _ -> %{}
   end
 
   defp authorized(arg, fun) do
@@ -341,9 +332,6 @@ defmodule NeptunusWeb.API do
         {:error, 400, "body missing or too large"}
     end
   end
-
-  defp text(:undefined), do: nil
-  defp text(value), do: to_string(value)
 
   def respond([{:status, _} | _] = response), do: response
   @doc false

@@ -47,7 +47,7 @@ defmodule Neptunus.Vehicle.Helm do
   of telemetry makes every observer's connection process runnable at once (1 000 of them for
   a few milliseconds of both cores); a command must not wait behind them. Their work is
   bounded — commands come only through the pilot's connection (which runs at `:high` too,
-  within a frame budget, see `NeptunusWeb.Socket` and `NeptunusWeb.PilotBudget`), the rest
+  within a frame budget, see `NeptunusWeb.Socket` and `NeptunusWeb.Socket.FlowControl`), the rest
   on fixed-rate timers and the board's serial line — so they cannot starve `:normal` and
   `:low` processes. Other connections run at `:low`, which still runs whenever nothing more
   urgent is runnable.
