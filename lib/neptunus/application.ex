@@ -22,7 +22,8 @@ defmodule Neptunus.Application do
     vehicles = Application.fetch_env!(:neptunus, :vehicles)
 
     children = [
-      Neptunus.PubSub,
+      # the fastlane subscribers are WebSocket connections: frames in the Channels format
+      {Neptunus.PubSub, encoder: NeptunusWeb.Channels.Wire},
       {Neptunus.Fleet, vehicles},
       NeptunusWeb.Presence,
       {NeptunusWeb.Endpoint, endpoint}

@@ -129,7 +129,7 @@ defmodule Neptunus.Scenario do
   @doc "Parses and validates a scenario from JSON text."
   @spec parse(binary()) :: {:ok, t()} | {:error, String.t()}
   def parse(json) when is_binary(json) do
-    with {:ok, map} <- NeptunusWeb.Channels.Wire.decode_json(json), do: validate(map)
+    with {:ok, map} <- Neptunus.JSON.decode(json), do: validate(map)
   end
 
   @doc "Validates a decoded scenario (string keys)."

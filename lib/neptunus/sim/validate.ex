@@ -181,11 +181,9 @@ defmodule Neptunus.Sim.Validate do
   def show(value) do
     text =
       try do
-        value |> :jiffy.encode([:use_nil]) |> IO.iodata_to_binary()
+        Neptunus.JSON.encode!(value)
       rescue
-        _ -> inspect(value)
-      catch
-        _, _ -> inspect(value)
+        ArgumentError -> inspect(value)
       end
 
     if String.length(text) > 60, do: String.slice(text, 0, 57) <> "...", else: text
