@@ -52,7 +52,7 @@ defmodule Neptunus.Dynamics.Params do
   """
 
   alias Neptunus.Dynamics.{Linear, Thruster}
-  alias Neptunus.Sim.Validate, as: V
+  alias Neptunus.Validate, as: V
 
   @enforce_keys [
     :name,

@@ -138,10 +138,6 @@ defmodule Neptunus.Vehicle.Control do
   @spec simulator(String.t()) :: pid() | nil
   def simulator(id), do: GenServer.call(via(id), :simulator)
 
-  @doc "The topic of vehicle `id`'s log entries (the developer logger)."
-  @spec log_topic(String.t()) :: String.t()
-  def log_topic(id), do: "log:" <> id
-
   defp via(id), do: Fleet.via(__MODULE__, id)
 
   # the run-mode simulator flies the vehicle's own parameter set (`sim: [vehicle: …]`, from
@@ -264,7 +260,7 @@ defmodule Neptunus.Vehicle.Control do
   defp act({:stopped, reason}, state) do
     PubSub.broadcast(state.topic, "stopped", %{reason: reason})
 
-    PubSub.broadcast(log_topic(state.id), "log", %{
+    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
       category: "safety",
       level: "warning",
       message: "stopped: #{reason}",
@@ -277,7 +273,7 @@ defmodule Neptunus.Vehicle.Control do
   end
 
   defp act({:notice, text}, state) do
-    PubSub.broadcast(log_topic(state.id), "log", %{
+    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
       category: "autopilot",
       level: "warning",
       message: text,

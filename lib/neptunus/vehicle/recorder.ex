@@ -57,7 +57,7 @@ defmodule Neptunus.Vehicle.Recorder do
   require Logger
 
   alias Neptunus.{Fleet, PubSub, Recording}
-  alias Neptunus.Vehicle.{Control, Telemetry}
+  alias Neptunus.Vehicle.Telemetry
 
   @default_max_bytes 256 * 1024 * 1024
   @default_min_free_bytes 512 * 1024 * 1024
@@ -345,7 +345,7 @@ defmodule Neptunus.Vehicle.Recorder do
 
   defp log(state, level, message, fields) do
     PubSub.broadcast(
-      Control.log_topic(state.id),
+      Telemetry.log_topic(state.id),
       "log",
       Map.merge(fields, %{
         category: if(level == "error", do: "errors", else: "recording"),

@@ -116,6 +116,13 @@ defmodule Neptunus.Vehicle.Telemetry do
   def topic(id), do: "vehicle:" <> id
 
   @doc """
+  The topic of vehicle `id`'s log entries (the developer logger): the control loop, the
+  recorder and the camera publish there, `NeptunusWeb.Channels.LogChannel` serves it.
+  """
+  @spec log_topic(String.t()) :: String.t()
+  def log_topic(id), do: "log:" <> id
+
+  @doc """
   Reports a board sample (called by `Neptunus.Vehicle.Navigation`, with the filtered
   `measurement`, the `estimate` and the `wild_points` counts).
   """
