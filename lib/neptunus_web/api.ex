@@ -53,9 +53,9 @@ defmodule NeptunusWeb.API do
       respond({500, %{error: "internal error"}})
   end
 
-  @doc "The health document (also used by tests and the fleet channel)."
+  # The body of `GET /api/health` (see the moduledoc).
   @spec health() :: map()
-  def health do
+  defp health do
     %{
       status: "ok",
       version: Application.spec(:neptunus, :vsn) |> to_string(),

@@ -183,10 +183,6 @@ defmodule Neptunus.Vehicle.Board.UART do
   @spec link_status(String.t()) :: map()
   def link_status(id), do: GenServer.call(Board.via(id), :link_status)
 
-  @doc "The latest raw values of unknown telemetry keys (`fmem`, `pong`, `cmd`, …)."
-  @spec raw(String.t()) :: %{String.t() => String.t()}
-  def raw(id), do: GenServer.call(Board.via(id), :raw)
-
   @doc "Sets the lights (0..255): `ligt(n);`. Kept and re-sent after every (re)open."
   @impl Board
   @spec lights(String.t(), 0..255) :: :ok
@@ -292,8 +288,6 @@ defmodule Neptunus.Vehicle.Board.UART do
 
     {:reply, status, state}
   end
-
-  def handle_call(:raw, _from, state), do: {:reply, state.readings.raw, state}
 
   @impl true
   def handle_info({port, {:data, <<tag, data::binary>>}}, %State{port: port} = state) do
