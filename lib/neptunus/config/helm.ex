@@ -19,11 +19,20 @@ defmodule Neptunus.Config.Helm do
   """
   @spec helm!(Config.env()) :: keyword(pos_integer())
   def helm!(env) do
+    default = Neptunus.Vehicle.Helm.defaults()
+
     [
-      deadman_ms: Config.env_integer!(env, "NEPTUNUS_DEADMAN_MS", 500, 100..10_000),
+      deadman_ms:
+        Config.env_integer!(env, "NEPTUNUS_DEADMAN_MS", default[:deadman_ms], 100..10_000),
       request_timeout_ms:
-        Config.env_integer!(env, "NEPTUNUS_REQUEST_TIMEOUT_MS", 10_000, 1000..120_000),
-      takeover_ms: Config.env_integer!(env, "NEPTUNUS_TAKEOVER_MS", 3_000, 0..30_000)
+        Config.env_integer!(
+          env,
+          "NEPTUNUS_REQUEST_TIMEOUT_MS",
+          default[:request_timeout_ms],
+          1000..120_000
+        ),
+      takeover_ms:
+        Config.env_integer!(env, "NEPTUNUS_TAKEOVER_MS", default[:takeover_ms], 0..30_000)
     ]
   end
 end

@@ -7,6 +7,8 @@ defmodule Neptunus.Config.Recording do
 
   alias Neptunus.Config
 
+  @mib 1024 * 1024
+
   @doc """
   Recording (`config :neptunus, :recording`, see `Neptunus.Vehicle.Recorder`):
   `NEPTUNUS_RECORDINGS` — the directory (relative to the working directory, created when
@@ -37,13 +39,20 @@ defmodule Neptunus.Config.Recording do
         dir -> recording_dir!(dir)
       end
 
+    defaults = Neptunus.Vehicle.Recorder.defaults()
+
     %{
       dir: dir,
       max_bytes:
-        Config.env_integer!(env, "NEPTUNUS_RECORDING_MAX_MB", 256, 1..65_536) * 1024 * 1024,
+        Config.env_integer!(env, "NEPTUNUS_RECORDING_MAX_MB", mib(defaults.max_bytes), 1..65_536) *
+          @mib,
       min_free_bytes:
-        Config.env_integer!(env, "NEPTUNUS_RECORDING_MIN_FREE_MB", 512, 0..1_048_576) * 1024 *
-          1024,
+        Config.env_integer!(
+          env,
+          "NEPTUNUS_RECORDING_MIN_FREE_MB",
+          mib(defaults.min_free_bytes),
+          0..1_048_576
+        ) * @mib,
       keep_ms: keep_ms!(env)
     }
   end
@@ -77,4 +86,6 @@ defmodule Neptunus.Config.Recording do
         Config.bad!("NEPTUNUS_RECORDINGS", dir, "a usable directory (#{reason}), or off")
     end
   end
+
+  defp mib(bytes), do: div(bytes, @mib)
 end
