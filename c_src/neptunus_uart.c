@@ -10,7 +10,6 @@
  * first byte is a tag:
  *
  *   VM -> program   'w' DATA     write DATA to the line (queued while the line is busy)
- *                   'x'          discard output not yet written (our queue and the driver's)
  *                   's'          ask for counters; answered with 's'
  *   program -> VM   'o' PATH     the line is open and configured (for pty: the slave's path)
  *                   'r' DATA     bytes read from the line
@@ -317,14 +316,6 @@ static void cmd_write(const unsigned char *data, size_t len)
     drain_queue();
 }
 
-static void cmd_discard(const unsigned char *data, size_t len)
-{
-    (void)data;
-    (void)len;
-    out_len = 0;
-    (void)tcflush(line_fd, TCOFLUSH);
-}
-
 static void cmd_stats(const unsigned char *data, size_t len)
 {
     (void)data;
@@ -340,7 +331,6 @@ struct command {
 
 static const struct command commands[] = {
     {'w', cmd_write},
-    {'x', cmd_discard},
     {'s', cmd_stats},
 };
 

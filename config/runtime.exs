@@ -9,16 +9,16 @@ import Config
 #   NEPTUNUS_WIRING    id=wiring[,...]                (sitl/uart motors, modifiers; thesis wiring)
 #   NEPTUNUS_FIRMWARE  id=openrov-2.5|openrov-30[,...] (sitl/uart firmware line; openrov-2.5)
 #
-# Security (Neptunus.Config.auth!/2, tls!/1): NEPTUNUS_SECRET, NEPTUNUS_USERS_FILE,
+# Security (Neptunus.Config.Auth, Neptunus.Config.TLS): NEPTUNUS_SECRET, NEPTUNUS_USERS_FILE,
 # NEPTUNUS_USERS, NEPTUNUS_ANONYMOUS_OBSERVERS, NEPTUNUS_ORIGINS, NEPTUNUS_TOKEN_TTL_S,
 # NEPTUNUS_LOGIN_ATTEMPTS, NEPTUNUS_TLS_CERT, NEPTUNUS_TLS_KEY. Bound to anything but
 # loopback without a secret and users, the node refuses to start.
-# Helm (Neptunus.Config.helm!/1): NEPTUNUS_DEADMAN_MS, NEPTUNUS_REQUEST_TIMEOUT_MS,
+# Helm (Neptunus.Config.Helm): NEPTUNUS_DEADMAN_MS, NEPTUNUS_REQUEST_TIMEOUT_MS,
 # NEPTUNUS_TAKEOVER_MS.
-# Recording (Neptunus.Config.recording!/2): NEPTUNUS_RECORDINGS (directory or off),
+# Recording (Neptunus.Config.Recording): NEPTUNUS_RECORDINGS (directory or off),
 # NEPTUNUS_RECORDING_MAX_MB, NEPTUNUS_RECORDING_MIN_FREE_MB, NEPTUNUS_RECORDING_KEEP_DAYS.
-# Scheduling (Neptunus.Config.os_time_slice_ns!/1, Neptunus.OS): NEPTUNUS_OS_SLICE_US.
-# Connections (Neptunus.Config.max_connections!/1, NeptunusWeb.Endpoint):
+# Scheduling (Neptunus.Config.OS, Neptunus.OS): NEPTUNUS_OS_SLICE_US.
+# Connections (Neptunus.Config.Endpoint, NeptunusWeb.Endpoint):
 # NEPTUNUS_MAX_CONNECTIONS, the most client connections at once (1..1048576); more are closed
 # as soon as they are accepted. Unset: derived from the file descriptor limit, leaving room
 # for files, port programs and recordings (and a configured value is lowered to that).
@@ -26,18 +26,18 @@ env = System.get_env()
 
 endpoint =
   env
-  |> Neptunus.Config.endpoint!(Application.get_env(:neptunus, :default_port, 4000))
-  |> Map.put(:tls, Neptunus.Config.tls!(env))
-  |> Map.put(:max_connections, Neptunus.Config.max_connections!(env))
+  |> Neptunus.Config.Endpoint.endpoint!(Application.get_env(:neptunus, :default_port, 4000))
+  |> Map.put(:tls, Neptunus.Config.TLS.tls!(env))
+  |> Map.put(:max_connections, Neptunus.Config.Endpoint.max_connections!(env))
 
 config :neptunus,
   endpoint: endpoint,
-  vehicles: Neptunus.Config.vehicles!(env),
-  auth: Neptunus.Config.auth!(env, endpoint),
-  helm: Neptunus.Config.helm!(env),
-  os_time_slice_ns: Neptunus.Config.os_time_slice_ns!(env),
+  vehicles: Neptunus.Config.Vehicles.vehicles!(env),
+  auth: Neptunus.Config.Auth.auth!(env, endpoint),
+  helm: Neptunus.Config.Helm.helm!(env),
+  os_time_slice_ns: Neptunus.Config.OS.os_time_slice_ns!(env),
   recording:
-    Neptunus.Config.recording!(
+    Neptunus.Config.Recording.recording!(
       env,
       Application.get_env(:neptunus, :default_recordings, "recordings")
     )

@@ -15,14 +15,16 @@ defmodule Neptunus.Application do
   @impl true
   def start(_type, _args) do
     # before the vehicles start their port programs (which ask for the same slice)
-    Neptunus.OS.apply_configured()
+    Neptunus.OS.apply_configured(Application.get_env(:neptunus, :os_time_slice_ns))
     # before the port programs and the endpoint: they inherit and size by it
     Neptunus.OS.apply_fd_limit()
     endpoint = Application.fetch_env!(:neptunus, :endpoint)
-    vehicles = Application.fetch_env!(:neptunus, :vehicles)
+    settings = vehicle_settings(Application.get_all_env(:neptunus))
+    vehicles = Enum.map(Application.fetch_env!(:neptunus, :vehicles), &Map.merge(settings, &1))
 
     children = [
-      Neptunus.PubSub,
+      # the fastlane subscribers are WebSocket connections: frames in the Channels format
+      {Neptunus.PubSub, encoder: NeptunusWeb.Channels.Wire},
       {Neptunus.Fleet, vehicles},
       NeptunusWeb.Presence,
       {NeptunusWeb.Endpoint, endpoint}
@@ -37,5 +39,32 @@ defmodule Neptunus.Application do
 
       {:ok, pid}
     end
+  end
+
+  @vehicle_keys [
+    :telemetry_hz,
+    :sim_hz,
+    :fanout_slice,
+    :fanout_gap_ms,
+    :helm,
+    :recording,
+    :os_time_slice_ns
+  ]
+
+  @doc """
+  The node-wide settings every configured vehicle gets as options of its processes (pure):
+  those of #{inspect(@vehicle_keys)} that the application's environment `app_env` sets.
+  The configuration is read here, once; a vehicle's own map (e.g. `helm:` of a test
+  vehicle) wins over these. Unset keys are left out: each process has its default.
+
+      iex> Neptunus.Application.vehicle_settings(telemetry_hz: 10, endpoint: %{}, helm: [deadman_ms: 800])
+      %{telemetry_hz: 10, helm: [deadman_ms: 800]}
+  """
+  @spec vehicle_settings(keyword()) :: map()
+  def vehicle_settings(app_env) do
+    app_env
+    |> Keyword.take(@vehicle_keys)
+    |> Enum.reject(fn {_key, value} -> is_nil(value) end)
+    |> Map.new()
   end
 end

@@ -15,7 +15,7 @@ defmodule Neptunus.Fleet do
 
   @type vehicle_id :: String.t()
 
-  @spec start_link([Neptunus.Config.vehicle()]) :: Supervisor.on_start()
+  @spec start_link([Neptunus.Config.Vehicles.vehicle()]) :: Supervisor.on_start()
   def start_link(vehicles), do: Supervisor.start_link(__MODULE__, vehicles, name: __MODULE__)
 
   @doc "The `:via` name of a vehicle's process `module`."
@@ -32,7 +32,7 @@ defmodule Neptunus.Fleet do
   end
 
   @doc "Starts a vehicle under the fleet."
-  @spec start_vehicle(Neptunus.Config.vehicle()) :: DynamicSupervisor.on_start_child()
+  @spec start_vehicle(Neptunus.Config.Vehicles.vehicle()) :: DynamicSupervisor.on_start_child()
   def start_vehicle(%{id: _, board: _} = vehicle) do
     DynamicSupervisor.start_child(@vehicles, {Vehicle.Supervisor, vehicle})
   end
@@ -73,7 +73,7 @@ defmodule Neptunus.Fleet do
   @doc false
   # Starts the configured vehicles synchronously (so they exist before the endpoint opens)
   # and again whenever the DynamicSupervisor restarts (rest_for_one).
-  @spec start_configured([Neptunus.Config.vehicle()]) :: :ignore
+  @spec start_configured([Neptunus.Config.Vehicles.vehicle()]) :: :ignore
   def start_configured(vehicles) do
     Enum.each(vehicles, fn vehicle -> {:ok, _} = start_vehicle(vehicle) end)
     :ignore

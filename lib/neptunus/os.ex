@@ -90,25 +90,29 @@ defmodule Neptunus.OS do
   end
 
   @doc """
-  The environment for a port program of ours: `NEPTUNUS_SLICE_NS` when the node asks for a
-  slice, so the program asks for it too (a port program is started by the VM's helper
-  process, not by a thread that has the slice).
+  The environment for a port program of ours when the node asks for a slice of `ns`
+  nanoseconds (the configured `:os_time_slice_ns`, given to the board processes as their
+  option of that name; nil: none): `NEPTUNUS_SLICE_NS`, so the program asks for it too (a
+  port program is started by the VM's helper process, not by a thread that has the slice).
+
+      iex> Neptunus.OS.port_env(100_000)
+      [{~c"NEPTUNUS_SLICE_NS", ~c"100000"}]
+      iex> Neptunus.OS.port_env(nil)
+      []
   """
-  @spec port_env() :: [{charlist(), charlist()}]
-  def port_env do
-    case Application.get_env(:neptunus, :os_time_slice_ns) do
-      ns when is_integer(ns) and ns > 0 -> [{~c"NEPTUNUS_SLICE_NS", Integer.to_charlist(ns)}]
-      _ -> []
-    end
-  end
+  @spec port_env(pos_integer() | nil) :: [{charlist(), charlist()}]
+  def port_env(ns) when is_integer(ns) and ns > 0,
+    do: [{~c"NEPTUNUS_SLICE_NS", Integer.to_charlist(ns)}]
+
+  def port_env(nil), do: []
 
   @doc """
-  At the node's start: requests `:os_time_slice_ns` (nil: nothing to do) and logs what came
-  of it. Never fails the start.
+  At the node's start: requests the configured slice of `ns` nanoseconds
+  (`:os_time_slice_ns`; nil: nothing to do) and logs what came of it. Never fails the start.
   """
-  @spec apply_configured() :: :ok
-  def apply_configured do
-    case Application.get_env(:neptunus, :os_time_slice_ns) do
+  @spec apply_configured(pos_integer() | nil) :: :ok
+  def apply_configured(ns) do
+    case ns do
       ns when is_integer(ns) and ns > 0 ->
         us = div(ns, 1000)
 

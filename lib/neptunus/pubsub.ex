@@ -57,7 +57,7 @@ defmodule Neptunus.PubSub do
   """
 
   @scope __MODULE__
-  @default_encoder NeptunusWeb.Channels.Wire
+  @encoder_key {__MODULE__, :encoder}
 
   @type topic :: String.t()
   @type event :: String.t()
@@ -71,11 +71,30 @@ defmodule Neptunus.PubSub do
   """
   @type pace :: %{slice: pos_integer(), gap_ms: pos_integer(), spread_ms: non_neg_integer()}
 
-  @doc "Child spec: the `:pg` scope. Start it before anything that subscribes."
-  @spec child_spec(term()) :: Supervisor.child_spec()
-  def child_spec(_arg) do
-    %{id: __MODULE__, start: {:pg, :start_link, [@scope]}, type: :worker}
+  @doc """
+  Child spec: the `:pg` scope. Start it before anything that subscribes.
+
+  `encoder:` (required) is the module whose `encode_broadcast(topic, event, payload) ::
+  binary` makes the fastlane subscribers' frames in `broadcast/3` and `broadcast_paced/4`:
+  the fan-out does not know the wire format, whoever starts it (the application) says which.
+  """
+  @spec child_spec(encoder: module()) :: Supervisor.child_spec()
+  def child_spec(opts) do
+    encoder = Keyword.fetch!(opts, :encoder)
+    %{id: __MODULE__, start: {__MODULE__, :start_link, [encoder]}, type: :worker}
   end
+
+  @doc "Starts the scope with the default `encoder` (see `child_spec/1`)."
+  @spec start_link(module()) :: {:ok, pid()} | {:error, term()}
+  def start_link(encoder) when is_atom(encoder) do
+    # unchanged on a restart of the scope: persistent_term only copies on a new value
+    if :persistent_term.get(@encoder_key, nil) != encoder,
+      do: :persistent_term.put(@encoder_key, encoder)
+
+    :pg.start_link(@scope)
+  end
+
+  defp default_encoder, do: :persistent_term.get(@encoder_key)
 
   @doc """
   Monitors the scope process, for a subscriber to learn that its subscriptions are gone
@@ -153,11 +172,12 @@ defmodule Neptunus.PubSub do
   @doc """
   Broadcasts `event` with `payload` on `topic` to every subscriber on every node.
 
-  `encoder` is a module with `encode_broadcast(topic, event, payload) :: binary`; the frame is
-  only encoded when there is at least one fastlane subscriber.
+  `encoder` is a module with `encode_broadcast(topic, event, payload) :: binary` (by default
+  the one the scope was started with, see `child_spec/1`); the frame is only encoded when
+  there is at least one fastlane subscriber.
   """
   @spec broadcast(topic(), event(), map(), module()) :: :ok
-  def broadcast(topic, event, payload, encoder \\ @default_encoder) do
+  def broadcast(topic, event, payload, encoder \\ default_encoder()) do
     case send_terms_and_first(topic, event, payload, encoder) do
       nil -> :ok
       {frame, others, _first} -> deliver(topic, event, frame, others)
@@ -171,7 +191,7 @@ defmodule Neptunus.PubSub do
   `deliver_slice/1`.
   """
   @spec broadcast_paced(topic(), event(), map(), pace(), module()) :: :ok
-  def broadcast_paced(topic, event, payload, pace, encoder \\ @default_encoder) do
+  def broadcast_paced(topic, event, payload, pace, encoder \\ default_encoder()) do
     case send_terms_and_first(topic, event, payload, encoder) do
       nil ->
         :ok

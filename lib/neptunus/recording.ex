@@ -13,7 +13,7 @@ defmodule Neptunus.Recording do
   lines of every entry (what the developer page replays).
   """
 
-  alias NeptunusWeb.Channels.Wire
+  alias Neptunus.JSON
 
   @typedoc "A recorded entry: wall clock (ms), event, payload."
   @type entry :: {integer(), String.t(), map()}
@@ -311,7 +311,7 @@ defmodule Neptunus.Recording do
     entries
     |> decimate(every)
     |> Stream.map(fn {at, event, payload} ->
-      [Wire.encode_json(%{at: at, event: event, payload: payload}), "\n"]
+      [JSON.encode!(%{at: at, event: event, payload: payload}), "\n"]
     end)
   end
 

@@ -56,12 +56,12 @@ defmodule Neptunus.Scenario do
   apply in the order `control_mode`, `gain`, `thrust`, `autopilot`, `tau`, `current`.
 
   `parse/1` and `validate/1` never raise; errors name the field
-  (see `Neptunus.Sim.Validate`), e.g. `events[2].thrust.surge must be a number in [-1, 1], got 2`.
+  (see `Neptunus.Validate`), e.g. `events[2].thrust.surge must be a number in [-1, 1], got 2`.
   """
 
   alias Neptunus.Dynamics.Params
   alias Neptunus.Dynamics.State
-  alias Neptunus.Sim.Validate, as: V
+  alias Neptunus.Validate, as: V
 
   @max_steps 10_000_000
 
@@ -129,7 +129,7 @@ defmodule Neptunus.Scenario do
   @doc "Parses and validates a scenario from JSON text."
   @spec parse(binary()) :: {:ok, t()} | {:error, String.t()}
   def parse(json) when is_binary(json) do
-    with {:ok, map} <- NeptunusWeb.Channels.Wire.decode_json(json), do: validate(map)
+    with {:ok, map} <- Neptunus.JSON.decode(json), do: validate(map)
   end
 
   @doc "Validates a decoded scenario (string keys)."

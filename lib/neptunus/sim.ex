@@ -85,13 +85,22 @@ defmodule Neptunus.Sim do
           tau_ext: Dynamics.tau()
         }
 
+  @default_hz 100
+
+  @doc """
+  The default integration rate (Hz) of a simulation, and of the simulators the vehicles
+  run (`Board.Simulated`, `Board.SITL.Device`; `config :neptunus, :sim_hz` overrides it).
+  """
+  @spec default_hz() :: pos_integer()
+  def default_hz, do: @default_hz
+
   @doc """
   A new simulation, at rest with the thrusters neutral. Options:
 
     * `:vehicle` — parameter set name (`"thesis-4dof"`, `"neptunus"`, see
       `Neptunus.Dynamics.Params.available/0`; atoms like `:thesis_4dof` work too) or a
       `Neptunus.Dynamics.Params`; default `"thesis-4dof"`. (`:params` is accepted as an alias.)
-    * `:dt` — integration step in s, default 0.01
+    * `:dt` — integration step in s, default `1 / default_hz()` (0.01)
     * `:initial` — keyword or map of `Dynamics.State` fields, default `[z: 1.0]` (1 m deep);
       a 4-DOF set rejects non-zero `phi`, `theta`, `p`, `q`
     * `:current` — water current `{n, e, d}` or `[n, e, d]`, m/s NED, default zero
@@ -112,7 +121,7 @@ defmodule Neptunus.Sim do
   @spec new(keyword()) :: t()
   def new(opts \\ []) do
     params = opts |> vehicle() |> tether_override(opts[:tether_length])
-    dt = Keyword.get(opts, :dt, 0.01) * 1.0
+    dt = Keyword.get(opts, :dt, 1 / @default_hz) * 1.0
     if dt <= 0.0, do: raise(ArgumentError, "dt must be > 0, got #{dt}")
     seed = Keyword.get(opts, :seed, 0)
     dyn = initial(Keyword.get(opts, :initial, z: 1.0), params)

@@ -2,7 +2,7 @@ defmodule Neptunus.Wiring do
   @moduledoc """
   How a vehicle's thrusters are wired to the board: which motor is in which position of the
   `go(m1,m2,m3,flag);` command, which motors turn the opposite way, and the flag.
-  Pure; configuration per vehicle (`NEPTUNUS_WIRING`, see `Neptunus.Config`).
+  Pure; configuration per vehicle (`NEPTUNUS_WIRING`, see `Neptunus.Config.Vehicles`).
 
   Thruster values everywhere else are in the physical sense (positive pushes forward for
   port/starboard, down for vertical, see `Neptunus.Allocation`); this module is the only

@@ -33,9 +33,8 @@ defmodule NeptunusWeb.API do
 
   require Logger
 
-  alias Neptunus.Recording
+  alias Neptunus.{JSON, Recording}
   alias NeptunusWeb.Auth
-  alias NeptunusWeb.Channels.Wire
 
   @max_body 4096
 
@@ -54,9 +53,9 @@ defmodule NeptunusWeb.API do
       respond({500, %{error: "internal error"}})
   end
 
-  @doc "The health document (also used by tests and the fleet channel)."
+  # The body of `GET /api/health` (see the moduledoc).
   @spec health() :: map()
-  def health do
+  defp health do
     %{
       status: "ok",
       version: Application.spec(:neptunus, :vsn) |> to_string(),
@@ -322,10 +321,9 @@ defmodule NeptunusWeb.API do
   defp body(arg) do
     case arg(arg, :clidata) do
       data when is_binary(data) and byte_size(data) <= @max_body ->
-        try do
-          {:ok, :jiffy.decode(data, [:return_maps])}
-        catch
-          _, _ -> {:error, 400, "body must be JSON: {\"name\": …, \"password\": …}"}
+        case JSON.decode(data) do
+          {:ok, json} -> {:ok, json}
+          {:error, _} -> {:error, 400, "body must be JSON: {\"name\": …, \"password\": …}"}
         end
 
       _ ->
@@ -345,7 +343,7 @@ defmodule NeptunusWeb.API do
       | Enum.map(headers, fn {name, value} ->
           {:header, {String.to_charlist(name), header_value(value)}}
         end)
-    ] ++ [{:content, ~c"application/json", Wire.encode_json(body)}]
+    ] ++ [{:content, ~c"application/json", JSON.encode!(body)}]
   end
 
   defp header_value(value) when is_integer(value), do: Integer.to_charlist(value)

@@ -5,7 +5,7 @@ defmodule NeptunusWeb.Auth do
   ## Modes
 
     * **local** — the server listens on a loopback address and no secret is configured
-      (`Neptunus.Config.auth!/2` allows nothing else without a secret). No logins: every
+      (`Neptunus.Config.Auth.auth!/2` allows nothing else without a secret). No logins: every
       connection is a `pilot` named by its `name` parameter, and the pages show a banner
       saying so. Every HTTP request — pages, assets, the API, the camera, WebSocket
       upgrades — must name a loopback host (`Host: localhost`, `127.x.x.x`, `[::1]`;
@@ -25,7 +25,7 @@ defmodule NeptunusWeb.Auth do
   request's `Host` must be one of their hosts. Requests without `Origin` come from programs, not browsers, and are let through
   to the token check.
 
-  ## Configuration (`config :neptunus, :auth`, built by `Neptunus.Config.auth!/2`)
+  ## Configuration (`config :neptunus, :auth`, built by `Neptunus.Config.Auth.auth!/2`)
 
       %{mode: :local | :secure, secret: binary | nil,
         users: %{name => %{name, role, hash}}, anonymous_observers: boolean,

@@ -8,8 +8,8 @@ defmodule NeptunusWeb.Endpoint do
     * the vehicles' cameras (`NeptunusWeb.CameraStream`) at `/camera/<id>.mjpg`.
 
   It starts last in the application and so stops first. Options come from
-  `config :neptunus, :endpoint` (`%{port, bind, tls}`, validated by `Neptunus.Config`):
-  with `tls: %{certfile, keyfile}` it serves HTTPS and `wss:` only (yaws sconf `ssl`).
+  `config :neptunus, :endpoint` (`%{port, bind, tls}`, validated by
+  `Neptunus.Config.Endpoint` and `Neptunus.Config.TLS`): with `tls: %{certfile, keyfile}` it serves HTTPS and `wss:` only (yaws sconf `ssl`).
 
   Every request passes `NeptunusWeb.Guard` first (the `Host` check against DNS rebinding)
   and every response gets its security headers (`Content-Security-Policy`,
@@ -46,7 +46,7 @@ defmodule NeptunusWeb.Endpoint do
   # recorder's logs, the VM's own (at least this many, or 1/16 of the limit)
   @reserved_fds 64
 
-  @spec start_link(Neptunus.Config.endpoint()) :: Supervisor.on_start()
+  @spec start_link(Neptunus.Config.Endpoint.endpoint()) :: Supervisor.on_start()
   def start_link(config), do: Supervisor.start_link(__MODULE__, config, name: __MODULE__)
 
   @doc "The URL the endpoint serves on."

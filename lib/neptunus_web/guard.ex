@@ -19,8 +19,8 @@ defmodule NeptunusWeb.Guard do
 
   require Record
 
+  alias Neptunus.JSON
   alias NeptunusWeb.Auth
-  alias NeptunusWeb.Channels.Wire
 
   @hrl Path.wildcard(Path.join([__DIR__, "../../erl_libs/yaws-*/include/yaws_api.hrl"]))
        |> List.first()
@@ -60,7 +60,7 @@ defmodule NeptunusWeb.Guard do
         arg
 
       {:error, status, reason} ->
-        body = IO.iodata_to_binary(Wire.encode_json(%{error: reason}))
+        body = IO.iodata_to_binary(JSON.encode!(%{error: reason}))
 
         response =
           rewrite_response(

@@ -55,7 +55,7 @@ defmodule NeptunusWeb.Socket do
 
   alias Neptunus.PubSub
   alias NeptunusWeb.{Auth, Presence}
-  alias NeptunusWeb.Channels.{FleetChannel, LogChannel, VehicleChannel, Wire}
+  alias NeptunusWeb.Channels.{FleetChannel, LogChannel, VehicleChannel}
   alias NeptunusWeb.Socket.{FlowControl, Router}
 
   @routes [{"fleet", FleetChannel}, {"vehicle:*", VehicleChannel}, {"log:*", LogChannel}]
@@ -130,7 +130,7 @@ defmodule NeptunusWeb.Socket do
   end
 
   defp http_error(status, reason) do
-    [{:status, status}, {:content, ~c"application/json", Wire.encode_json(%{error: reason})}]
+    [{:status, status}, {:content, ~c"application/json", Neptunus.JSON.encode!(%{error: reason})}]
   end
 
   # yaws WebSocket callbacks (basic mode). yaws does not catch exceptions from handle_info

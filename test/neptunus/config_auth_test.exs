@@ -1,5 +1,5 @@
 defmodule Neptunus.ConfigAuthTest do
-  # Neptunus.Config.auth!/2, tls!/1 and helm!/1: security and helm settings from the
+  # Neptunus.Config.Auth, .TLS and .Helm: security and helm settings from the
   # environment (the doctests run in config_test.exs).
   use ExUnit.Case, async: true
 
@@ -16,14 +16,14 @@ defmodule Neptunus.ConfigAuthTest do
 
   describe "auth!/2" do
     test "loopback without secret or users: local mode", %{hash: _} do
-      assert %{mode: :local, users: users, secret: nil} = Config.auth!(%{}, @loopback)
+      assert %{mode: :local, users: users, secret: nil} = Config.Auth.auth!(%{}, @loopback)
       assert users == %{}
-      assert %{mode: :local} = Config.auth!(%{}, %{bind: {0, 0, 0, 0, 0, 0, 0, 1}})
+      assert %{mode: :local} = Config.Auth.auth!(%{}, %{bind: {0, 0, 0, 0, 0, 0, 0, 1}})
     end
 
     test "any other address without a secret and users refuses, saying what to set" do
       for bind <- [{0, 0, 0, 0}, {192, 168, 0, 12}, {0, 0, 0, 0, 0, 0, 0, 0}] do
-        error = assert_raise ArgumentError, fn -> Config.auth!(%{}, %{bind: bind}) end
+        error = assert_raise ArgumentError, fn -> Config.Auth.auth!(%{}, %{bind: bind}) end
         assert error.message =~ "NEPTUNUS_BIND=#{:inet.ntoa(bind)} serves beyond this computer"
         assert error.message =~ "Set NEPTUNUS_SECRET"
         assert error.message =~ "NEPTUNUS_USERS_FILE"
@@ -51,7 +51,7 @@ defmodule Neptunus.ConfigAuthTest do
                  origins: ["https://rov.example.org", "http://10.0.0.2:4000"],
                  token_ttl_s: 3600,
                  login_attempts_per_minute: 5
-               } = Config.auth!(env, where)
+               } = Config.Auth.auth!(env, where)
 
         assert users["olga"] == %{name: "olga", role: :observer, hash: hash}
       end
@@ -63,16 +63,16 @@ defmodule Neptunus.ConfigAuthTest do
       path = Path.join(dir, "users")
       File.write!(path, "# the crew\n\nada pilot #{hash}   # Ada\n  main  main_station #{hash}\n")
       env = %{"NEPTUNUS_SECRET" => @secret, "NEPTUNUS_USERS_FILE" => path}
-      assert %{users: %{"ada" => _, "main" => _}} = Config.auth!(env, @anywhere)
+      assert %{users: %{"ada" => _, "main" => _}} = Config.Auth.auth!(env, @anywhere)
 
       File.write!(path, "ada pilot #{hash}\nbob pilot\n")
-      error = assert_raise ArgumentError, fn -> Config.auth!(env, @anywhere) end
+      error = assert_raise ArgumentError, fn -> Config.Auth.auth!(env, @anywhere) end
       assert error.message =~ "#{path}, line 2"
 
       missing = %{env | "NEPTUNUS_USERS_FILE" => Path.join(dir, "nope")}
 
       assert_raise ArgumentError, ~r/NEPTUNUS_USERS_FILE=.*readable file/, fn ->
-        Config.auth!(missing, @anywhere)
+        Config.Auth.auth!(missing, @anywhere)
       end
     end
 
@@ -89,18 +89,18 @@ defmodule Neptunus.ConfigAuthTest do
 
       log =
         ExUnit.CaptureLog.capture_log(fn ->
-          assert %{users: %{"ada" => _}} = Config.auth!(env, @anywhere)
+          assert %{users: %{"ada" => _}} = Config.Auth.auth!(env, @anywhere)
         end)
 
       assert log =~ "NEPTUNUS_USERS_FILE #{path} is open to others (mode 644)"
       assert log =~ "chmod 600 #{path}"
 
       File.chmod!(path, 0o640)
-      log = ExUnit.CaptureLog.capture_log(fn -> Config.auth!(env, @anywhere) end)
+      log = ExUnit.CaptureLog.capture_log(fn -> Config.Auth.auth!(env, @anywhere) end)
       assert log =~ "is open to its group (mode 640)"
 
       File.chmod!(path, 0o600)
-      assert ExUnit.CaptureLog.capture_log(fn -> Config.auth!(env, @anywhere) end) == ""
+      assert ExUnit.CaptureLog.capture_log(fn -> Config.Auth.auth!(env, @anywhere) end) == ""
     end
 
     for {env, message} <- [
@@ -140,7 +140,7 @@ defmodule Neptunus.ConfigAuthTest do
           end)
 
         assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
-          Config.auth!(env, @loopback)
+          Config.Auth.auth!(env, @loopback)
         end
       end
     end
@@ -155,18 +155,18 @@ defmodule Neptunus.ConfigAuthTest do
       File.write!(key, "")
 
       assert %{certfile: ^cert, keyfile: ^key} =
-               Config.tls!(%{"NEPTUNUS_TLS_CERT" => cert, "NEPTUNUS_TLS_KEY" => key})
+               Config.TLS.tls!(%{"NEPTUNUS_TLS_CERT" => cert, "NEPTUNUS_TLS_KEY" => key})
 
       assert_raise ArgumentError, ~r/NEPTUNUS_TLS_KEY.*private key/, fn ->
-        Config.tls!(%{"NEPTUNUS_TLS_CERT" => cert})
+        Config.TLS.tls!(%{"NEPTUNUS_TLS_CERT" => cert})
       end
 
       assert_raise ArgumentError, ~r/NEPTUNUS_TLS_CERT.*certificate/, fn ->
-        Config.tls!(%{"NEPTUNUS_TLS_KEY" => key})
+        Config.TLS.tls!(%{"NEPTUNUS_TLS_KEY" => key})
       end
 
       assert_raise ArgumentError, ~r/NEPTUNUS_TLS_KEY=.*no such file/, fn ->
-        Config.tls!(%{"NEPTUNUS_TLS_CERT" => cert, "NEPTUNUS_TLS_KEY" => key <> ".missing"})
+        Config.TLS.tls!(%{"NEPTUNUS_TLS_CERT" => cert, "NEPTUNUS_TLS_KEY" => key <> ".missing"})
       end
     end
   end
@@ -174,14 +174,14 @@ defmodule Neptunus.ConfigAuthTest do
   describe "helm!/1" do
     test "values and ranges" do
       assert [deadman_ms: 250, request_timeout_ms: 5000, takeover_ms: 0] =
-               Config.helm!(%{
+               Config.Helm.helm!(%{
                  "NEPTUNUS_DEADMAN_MS" => "250",
                  "NEPTUNUS_REQUEST_TIMEOUT_MS" => "5000",
                  "NEPTUNUS_TAKEOVER_MS" => "0"
                })
 
       assert_raise ArgumentError, ~r/NEPTUNUS_DEADMAN_MS="50".*100\.\.10000/, fn ->
-        Config.helm!(%{"NEPTUNUS_DEADMAN_MS" => "50"})
+        Config.Helm.helm!(%{"NEPTUNUS_DEADMAN_MS" => "50"})
       end
     end
   end

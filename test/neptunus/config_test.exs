@@ -1,41 +1,49 @@
 defmodule Neptunus.ConfigTest do
   use ExUnit.Case, async: true
   doctest Neptunus.Config
+  doctest Neptunus.Config.Endpoint
+  doctest Neptunus.Config.Vehicles
+  doctest Neptunus.Config.Auth
+  doctest Neptunus.Config.TLS
+  doctest Neptunus.Config.Helm
+  doctest Neptunus.Config.Recording
+  doctest Neptunus.Config.OS
 
   alias Neptunus.Config
 
   describe "endpoint!/2" do
     test "defaults" do
-      assert Config.endpoint!(%{}, 4102) == %{port: 4102, bind: {127, 0, 0, 1}}
+      assert Config.Endpoint.endpoint!(%{}, 4102) == %{port: 4102, bind: {127, 0, 0, 1}}
     end
 
     test "IPv6 bind" do
-      assert %{bind: {0, 0, 0, 0, 0, 0, 0, 1}} = Config.endpoint!(%{"NEPTUNUS_BIND" => "::1"}, 1)
+      assert %{bind: {0, 0, 0, 0, 0, 0, 0, 1}} =
+               Config.Endpoint.endpoint!(%{"NEPTUNUS_BIND" => "::1"}, 1)
     end
 
     for bad <- ["", "abc", "0", "65536", "80.5", "-1", "4000x"] do
       test "port #{inspect(bad)} is refused with the variable named" do
         assert_raise ArgumentError, ~r/NEPTUNUS_PORT=.*TCP port number/, fn ->
-          Config.endpoint!(%{"NEPTUNUS_PORT" => unquote(bad)}, 4000)
+          Config.Endpoint.endpoint!(%{"NEPTUNUS_PORT" => unquote(bad)}, 4000)
         end
       end
     end
 
     test "bad bind address" do
       assert_raise ArgumentError, ~r/NEPTUNUS_BIND="localhost:80".*IP address/, fn ->
-        Config.endpoint!(%{"NEPTUNUS_BIND" => "localhost:80"}, 4000)
+        Config.Endpoint.endpoint!(%{"NEPTUNUS_BIND" => "localhost:80"}, 4000)
       end
     end
   end
 
   describe "vehicles!/1" do
     test "default is one simulated vehicle" do
-      assert Config.vehicles!(%{}) == [%{id: "neptunus-1", board: :simulated}]
+      assert Config.Vehicles.vehicles!(%{}) == [%{id: "neptunus-1", board: :simulated}]
     end
 
     test "several vehicles, whitespace tolerated" do
       assert [%{id: "a"}, %{id: "b_2"}] =
-               Config.vehicles!(%{"NEPTUNUS_VEHICLES" => " a=simulated ,b_2= simulated"})
+               Config.Vehicles.vehicles!(%{"NEPTUNUS_VEHICLES" => " a=simulated ,b_2= simulated"})
     end
 
     for {bad, message} <- [
@@ -50,7 +58,7 @@ defmodule Neptunus.ConfigTest do
         ] do
       test "refuses #{inspect(bad)}" do
         assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
-          Config.vehicles!(%{"NEPTUNUS_VEHICLES" => unquote(bad)})
+          Config.Vehicles.vehicles!(%{"NEPTUNUS_VEHICLES" => unquote(bad)})
         end
       end
     end
@@ -60,7 +68,9 @@ defmodule Neptunus.ConfigTest do
     alias Neptunus.Wiring
 
     test "sitl and uart vehicles get the thesis wiring and the openrov-2.5 firmware by default" do
-      assert Config.vehicles!(%{"NEPTUNUS_VEHICLES" => "s=sitl,u=uart:/dev/ttyO1,m=simulated"}) ==
+      assert Config.Vehicles.vehicles!(%{
+               "NEPTUNUS_VEHICLES" => "s=sitl,u=uart:/dev/ttyO1,m=simulated"
+             }) ==
                [
                  %{id: "s", board: :sitl, wiring: Wiring.default(), firmware: :openrov_25},
                  %{
@@ -81,7 +91,7 @@ defmodule Neptunus.ConfigTest do
         "NEPTUNUS_WIRING" => " a=starboard/-vertical/port/ramp , b=port/vertical/starboard"
       }
 
-      assert [%{baud: 57_600, wiring: wa}, %{wiring: wb}] = Config.vehicles!(env)
+      assert [%{baud: 57_600, wiring: wa}, %{wiring: wb}] = Config.Vehicles.vehicles!(env)
       assert Wiring.to_string(wa) == "starboard/-vertical/port/ramp"
       assert Wiring.to_string(wb) == "port/vertical/starboard/direct"
     end
@@ -101,7 +111,7 @@ defmodule Neptunus.ConfigTest do
         ] do
       test "refuses #{inspect(vehicles)} with wiring #{inspect(wiring)}" do
         assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
-          Config.vehicles!(%{
+          Config.Vehicles.vehicles!(%{
             "NEPTUNUS_VEHICLES" => unquote(vehicles),
             "NEPTUNUS_WIRING" => unquote(wiring)
           })
@@ -118,7 +128,7 @@ defmodule Neptunus.ConfigTest do
       }
 
       assert [%{firmware: :openrov_30}, %{firmware: :openrov_25}, %{firmware: :openrov_25}] =
-               Config.vehicles!(env)
+               Config.Vehicles.vehicles!(env)
     end
 
     for {vehicles, firmware, message} <- [
@@ -130,7 +140,7 @@ defmodule Neptunus.ConfigTest do
         ] do
       test "refuses #{inspect(firmware)} for #{inspect(vehicles)}" do
         assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
-          Config.vehicles!(%{
+          Config.Vehicles.vehicles!(%{
             "NEPTUNUS_VEHICLES" => unquote(vehicles),
             "NEPTUNUS_FIRMWARE" => unquote(firmware)
           })
@@ -146,7 +156,7 @@ defmodule Neptunus.ConfigTest do
         "NEPTUNUS_MODELS" => " a=thesis-4dof, c=neptunus ,b=thesis-4dof"
       }
 
-      assert [a, b, c, d] = Config.vehicles!(env)
+      assert [a, b, c, d] = Config.Vehicles.vehicles!(env)
       assert a.sim == [vehicle: "thesis-4dof"]
       assert b.sim == [vehicle: "thesis-4dof"]
       assert c.sim == [vehicle: "neptunus"]
@@ -161,7 +171,7 @@ defmodule Neptunus.ConfigTest do
         ] do
       test "refuses #{inspect(models)}" do
         assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
-          Config.vehicles!(%{
+          Config.Vehicles.vehicles!(%{
             "NEPTUNUS_VEHICLES" => "a=simulated",
             "NEPTUNUS_MODELS" => unquote(models)
           })
@@ -172,7 +182,7 @@ defmodule Neptunus.ConfigTest do
 
   describe "recording!/2" do
     test "a directory (created later when missing), off, and the file size" do
-      assert Config.recording!(%{"NEPTUNUS_RECORDINGS" => " /tmp/rec-x "}, "recordings") ==
+      assert Config.Recording.recording!(%{"NEPTUNUS_RECORDINGS" => " /tmp/rec-x "}, "recordings") ==
                %{
                  dir: "/tmp/rec-x",
                  max_bytes: 256 * 1024 * 1024,
@@ -180,37 +190,37 @@ defmodule Neptunus.ConfigTest do
                  keep_ms: nil
                }
 
-      assert Config.recording!(%{}, nil).dir == nil
+      assert Config.Recording.recording!(%{}, nil).dir == nil
 
-      assert Config.recording!(%{"NEPTUNUS_RECORDING_MAX_MB" => "2"}, "r").max_bytes ==
+      assert Config.Recording.recording!(%{"NEPTUNUS_RECORDING_MAX_MB" => "2"}, "r").max_bytes ==
                2 * 1024 * 1024
     end
 
     test "refuses a file, an empty value and a bad size" do
       assert_raise ArgumentError, ~r/NEPTUNUS_RECORDINGS=.*a directory \(this is a file\)/, fn ->
-        Config.recording!(%{"NEPTUNUS_RECORDINGS" => "mix.exs"}, nil)
+        Config.Recording.recording!(%{"NEPTUNUS_RECORDINGS" => "mix.exs"}, nil)
       end
 
       assert_raise ArgumentError, ~r/NEPTUNUS_RECORDINGS=.*a directory, or off/, fn ->
-        Config.recording!(%{"NEPTUNUS_RECORDINGS" => " "}, nil)
+        Config.Recording.recording!(%{"NEPTUNUS_RECORDINGS" => " "}, nil)
       end
 
       for bad <- ["0", "65537", "big"] do
         assert_raise ArgumentError, ~r/NEPTUNUS_RECORDING_MAX_MB/, fn ->
-          Config.recording!(%{"NEPTUNUS_RECORDING_MAX_MB" => bad}, nil)
+          Config.Recording.recording!(%{"NEPTUNUS_RECORDING_MAX_MB" => bad}, nil)
         end
       end
 
       assert_raise ArgumentError, ~r/NEPTUNUS_RECORDING_MIN_FREE_MB/, fn ->
-        Config.recording!(%{"NEPTUNUS_RECORDING_MIN_FREE_MB" => "-1"}, nil)
+        Config.Recording.recording!(%{"NEPTUNUS_RECORDING_MIN_FREE_MB" => "-1"}, nil)
       end
 
-      assert Config.recording!(%{"NEPTUNUS_RECORDING_MIN_FREE_MB" => "0"}, nil).min_free_bytes ==
+      assert Config.Recording.recording!(%{"NEPTUNUS_RECORDING_MIN_FREE_MB" => "0"}, nil).min_free_bytes ==
                0
     end
 
     test "retention: days, forever, or a clear error" do
-      keep = &Config.recording!(%{"NEPTUNUS_RECORDING_KEEP_DAYS" => &1}, nil).keep_ms
+      keep = &Config.Recording.recording!(%{"NEPTUNUS_RECORDING_KEEP_DAYS" => &1}, nil).keep_ms
       assert keep.(" 1 ") == 86_400_000
       assert keep.("3650") == 3650 * 86_400_000
       assert keep.("forever") == nil and keep.(" forever ") == nil
@@ -225,8 +235,8 @@ defmodule Neptunus.ConfigTest do
 
   describe "os_time_slice_ns!/1 (NEPTUNUS_OS_SLICE_US)" do
     test "microseconds in 100..100000, default, or a clear error" do
-      slice = &Config.os_time_slice_ns!(%{"NEPTUNUS_OS_SLICE_US" => &1})
-      assert Config.os_time_slice_ns!(%{}) == 100_000
+      slice = &Config.OS.os_time_slice_ns!(%{"NEPTUNUS_OS_SLICE_US" => &1})
+      assert Config.OS.os_time_slice_ns!(%{}) == 100_000
       assert slice.(" 100 ") == 100_000
       assert slice.("100000") == 100_000_000
       assert slice.("default") == nil and slice.(" default ") == nil
@@ -246,10 +256,14 @@ defmodule Neptunus.ConfigTest do
         "NEPTUNUS_CAMERAS" => "b=v4l2:/dev/video0@1280x720@30, a=testsrc"
       }
 
-      assert [a, b] = Config.vehicles!(env)
+      assert [a, b] = Config.Vehicles.vehicles!(env)
       assert a.camera == %{kind: :testsrc, width: 640, height: 480, fps: 15}
       assert b.camera == %{kind: :v4l2, device: "/dev/video0", width: 1280, height: 720, fps: 30}
-      refute Map.has_key?(hd(Config.vehicles!(%{"NEPTUNUS_VEHICLES" => "a=simulated"})), :camera)
+
+      refute Map.has_key?(
+               hd(Config.Vehicles.vehicles!(%{"NEPTUNUS_VEHICLES" => "a=simulated"})),
+               :camera
+             )
     end
 
     for {cameras, message} <- [
@@ -260,7 +274,7 @@ defmodule Neptunus.ConfigTest do
         ] do
       test "refuses #{inspect(cameras)}" do
         assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
-          Config.vehicles!(%{
+          Config.Vehicles.vehicles!(%{
             "NEPTUNUS_VEHICLES" => "a=simulated",
             "NEPTUNUS_CAMERAS" => unquote(cameras)
           })
@@ -271,20 +285,22 @@ defmodule Neptunus.ConfigTest do
 
   describe "max_connections!/1" do
     test "unset: nil (derived from the descriptor limit at boot)" do
-      assert Config.max_connections!(%{}) == nil
+      assert Config.Endpoint.max_connections!(%{}) == nil
     end
 
     test "a count, whitespace tolerated" do
-      assert Config.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => " 2000 "}) == 2000
-      assert Config.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => "1"}) == 1
-      assert Config.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => "1048576"}) == 1_048_576
+      assert Config.Endpoint.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => " 2000 "}) == 2000
+      assert Config.Endpoint.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => "1"}) == 1
+
+      assert Config.Endpoint.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => "1048576"}) ==
+               1_048_576
     end
 
     for bad <- ["0", "-5", "1048577", "many", "", "10.5", "1e3"] do
       test "refuses #{inspect(bad)} with the variable named" do
         error =
           assert_raise ArgumentError, fn ->
-            Config.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => unquote(bad)})
+            Config.Endpoint.max_connections!(%{"NEPTUNUS_MAX_CONNECTIONS" => unquote(bad)})
           end
 
         assert error.message =~ "NEPTUNUS_MAX_CONNECTIONS=#{inspect(unquote(bad))} is not valid"

@@ -5,6 +5,8 @@ defmodule Neptunus.OSTest do
 
   alias Neptunus.OS
 
+  doctest Neptunus.OS, only: [port_env: 1]
+
   setup do
     on_exit(fn ->
       OS.request_time_slice(Application.get_env(:neptunus, :os_time_slice_ns) || 0)
@@ -72,11 +74,8 @@ defmodule Neptunus.OSTest do
   end
 
   test "port programs get NEPTUNUS_SLICE_NS while the node asks for a slice" do
-    assert OS.port_env() == [{~c"NEPTUNUS_SLICE_NS", ~c"100000"}]
-
-    Application.put_env(:neptunus, :os_time_slice_ns, nil)
-    on_exit(fn -> Application.put_env(:neptunus, :os_time_slice_ns, 100_000) end)
-    assert OS.port_env() == []
+    assert OS.port_env(100_000) == [{~c"NEPTUNUS_SLICE_NS", ~c"100000"}]
+    assert OS.port_env(nil) == []
   end
 
   describe "descriptor limit" do

@@ -53,8 +53,6 @@ defmodule Neptunus.SimSixDofTest do
   alias Neptunus.{Dynamics, Sim}
   alias Neptunus.Sim.{Current, Sensors}
 
-  doctest Neptunus.Sim.Validate
-
   @cmd %{port: 0.6, vertical: -0.4, starboard: 0.2}
 
   defp noisy(opts \\ []),

@@ -8,7 +8,7 @@ defmodule Neptunus.Test.Vehicles do
   @spec variant((map() -> map())) :: Params.t()
   def variant(fun) do
     path = Path.join(:code.priv_dir(:neptunus), "vehicles/neptunus.json")
-    {:ok, map} = path |> File.read!() |> NeptunusWeb.Channels.Wire.decode_json()
+    {:ok, map} = path |> File.read!() |> Neptunus.JSON.decode()
     {:ok, params} = map |> fun.() |> Params.from_map()
     params
   end

@@ -46,7 +46,7 @@ defmodule Mix.Tasks.Neptunus.Simulate do
     Mix.Task.run("app.config")
 
     scenario =
-      with {:ok, json} <- Neptunus.Sim.Validate.read_file(file),
+      with {:ok, json} <- Neptunus.Validate.read_file(file),
            {:ok, scenario} <- Scenario.parse(json) do
         scenario
       else

@@ -28,7 +28,7 @@ defmodule Neptunus.Control.Command do
   """
 
   alias Neptunus.PID
-  alias Neptunus.Sim.Validate, as: V
+  alias Neptunus.Validate, as: V
 
   @max_depth 200
   @tilt_max :math.pi() / 4

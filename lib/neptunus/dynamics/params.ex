@@ -52,7 +52,7 @@ defmodule Neptunus.Dynamics.Params do
   """
 
   alias Neptunus.Dynamics.{Linear, Thruster}
-  alias Neptunus.Sim.Validate, as: V
+  alias Neptunus.Validate, as: V
 
   @enforce_keys [
     :name,
@@ -167,7 +167,7 @@ defmodule Neptunus.Dynamics.Params do
   @spec load_file(Path.t(), String.t() | nil) :: {:ok, t()} | {:error, String.t()}
   def load_file(file, name \\ nil) do
     with {:ok, json} <- V.read_file(file),
-         {:ok, map} <- NeptunusWeb.Channels.Wire.decode_json(json),
+         {:ok, map} <- Neptunus.JSON.decode(json),
          {:ok, params} <- from_map(map),
          :ok <- check_name(params, name) do
       {:ok, params}

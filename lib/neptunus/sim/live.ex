@@ -17,11 +17,11 @@ defmodule Neptunus.Sim.Live do
   Both reply `{:ok, %{sim: status}}` with `status` =
   `%{vehicle, t, dt, current: [n, e, d], tether_length, noise, seed, paused}`.
   Errors: `"<event> is only available on a simulated vehicle (board: uart)"`, unknown or
-  missing fields, wrong types or ranges (field named, see `Neptunus.Sim.Validate`).
+  missing fields, wrong types or ranges (field named, see `Neptunus.Validate`).
   """
 
   alias Neptunus.Fleet
-  alias Neptunus.Sim.Validate, as: V
+  alias Neptunus.Validate, as: V
   alias Neptunus.Vehicle.{Board, Control}
 
   @events ["sim_reset", "sim_set"]

@@ -25,7 +25,7 @@ defmodule Neptunus.Vehicle.Camera do
 
   alias Neptunus.{Fleet, PubSub}
   alias Neptunus.Camera.{MJPEG, Source}
-  alias Neptunus.Vehicle.{Control, Telemetry}
+  alias Neptunus.Vehicle.Telemetry
 
   @max_backoff_ms 30_000
 
@@ -254,7 +254,7 @@ defmodule Neptunus.Vehicle.Camera do
     Logger.warning("vehicle #{state.id} camera: #{reason}; retrying in #{state.backoff_ms} ms")
 
     if state.error != reason do
-      PubSub.broadcast(Control.log_topic(state.id), "log", %{
+      PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
         category: "errors",
         level: "warning",
         message: "camera: #{reason}",

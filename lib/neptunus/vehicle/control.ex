@@ -17,7 +17,7 @@ defmodule Neptunus.Vehicle.Control do
     `Neptunus.Control.Core`). Such changes are told to the pilot: telemetry's
     `autopilot.depth.waiting` / `heading.waiting`, and a `log` entry (category `autopilot`)
     on `"log:<id>"`.
-  * **Control loop**: while an autopilot or DP is engaged it runs at `control_hz` (default
+  * **Control loop**: while an autopilot or DP is engaged it runs at `control: [hz: …]` (default
     #{50} Hz) on absolute deadlines of the monotonic clock (`Neptunus.Periodic`): each tick
     steps the PIDs by the time elapsed and commands the board when the output changes.
   * **Run mode `simulator`** (vehicles with a real board): the thrusters stop, and a
@@ -65,7 +65,7 @@ defmodule Neptunus.Vehicle.Control do
 
   @doc """
   Options: `:id` (required), `:gain` (k in [0, 1], default #{@default_gain}), `:control` —
-  keyword of `hz` (control loop rate, default from config `:control_hz`, #{@default_hz}),
+  keyword of `hz` (control loop rate, default #{@default_hz}),
   `gains`, `stale_after`, `deadband`, `dp` (see `Neptunus.Control.Core.new/1`) and
   `simulator` (options of the run-mode simulator, `Board.Simulated.start_link/1`).
   """
@@ -138,17 +138,13 @@ defmodule Neptunus.Vehicle.Control do
   @spec simulator(String.t()) :: pid() | nil
   def simulator(id), do: GenServer.call(via(id), :simulator)
 
-  @doc "The topic of vehicle `id`'s log entries (the developer logger)."
-  @spec log_topic(String.t()) :: String.t()
-  def log_topic(id), do: "log:" <> id
-
   defp via(id), do: Fleet.via(__MODULE__, id)
 
   # the run-mode simulator flies the vehicle's own parameter set (`sim: [vehicle: …]`, from
-  # NEPTUNUS_MODELS) unless `control: [simulator: [sim: …]]` says otherwise
+  # NEPTUNUS_MODELS) at the vehicle's `sim_hz` unless `control: [simulator: …]` says otherwise
   defp simulator_opts(opts, control) do
     model = opts |> Keyword.get(:sim, []) |> Keyword.take([:vehicle])
-    simulator = Keyword.get(control, :simulator, [])
+    simulator = Keyword.merge(Keyword.take(opts, [:sim_hz]), Keyword.get(control, :simulator, []))
     Keyword.put(simulator, :sim, Keyword.merge(model, Keyword.get(simulator, :sim, [])))
   end
 
@@ -160,7 +156,7 @@ defmodule Neptunus.Vehicle.Control do
     Process.flag(:priority, :high)
     id = Keyword.fetch!(opts, :id)
     control = Keyword.get(opts, :control, [])
-    hz = Keyword.get(control, :hz, Application.get_env(:neptunus, :control_hz, @default_hz))
+    hz = Keyword.get(control, :hz, @default_hz)
 
     run_modes =
       case Board.type(id) do
@@ -264,7 +260,7 @@ defmodule Neptunus.Vehicle.Control do
   defp act({:stopped, reason}, state) do
     PubSub.broadcast(state.topic, "stopped", %{reason: reason})
 
-    PubSub.broadcast(log_topic(state.id), "log", %{
+    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
       category: "safety",
       level: "warning",
       message: "stopped: #{reason}",
@@ -277,7 +273,7 @@ defmodule Neptunus.Vehicle.Control do
   end
 
   defp act({:notice, text}, state) do
-    PubSub.broadcast(log_topic(state.id), "log", %{
+    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
       category: "autopilot",
       level: "warning",
       message: text,
@@ -316,7 +312,7 @@ defmodule Neptunus.Vehicle.Control do
           source: :simulator,
           initial: initial,
           sim: opts
-        ] ++ Keyword.take(state.simulator_opts, [:hz])
+        ] ++ Keyword.take(state.simulator_opts, [:sim_hz])
       )
 
     set_source(state.id, :simulator)

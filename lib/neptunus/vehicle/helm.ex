@@ -54,9 +54,10 @@ defmodule Neptunus.Vehicle.Helm do
 
   ## Options
 
-  `:id` (required) and `:helm`, a keyword list overriding the application's `:helm`
-  config: `deadman_ms` (500), `request_timeout_ms` (10 000), `takeover_ms` (3 000),
-  `heartbeat_ms` (100, what clients are told to send), `tick_ms`, `clock`.
+  `:id` (required) and `:helm`, a keyword list overriding `defaults/0`: `deadman_ms` (500),
+  `request_timeout_ms` (10 000), `takeover_ms` (3 000), `heartbeat_ms` (100, what clients
+  are told to send), `tick_ms`, `clock`. The node's vehicles get the application's `:helm`
+  config (`Neptunus.Config.Helm`) here, from `Neptunus.Application`.
   """
   @behaviour :gen_statem
 
@@ -67,6 +68,10 @@ defmodule Neptunus.Vehicle.Helm do
   alias Neptunus.Vehicle.{Control, Telemetry}
 
   @defaults [deadman_ms: 500, request_timeout_ms: 10_000, takeover_ms: 3_000, heartbeat_ms: 100]
+
+  @doc "The helm's timing when `:helm` does not say (the one place of these defaults)."
+  @spec defaults() :: keyword(pos_integer())
+  def defaults, do: @defaults
 
   @type party :: %{
           required(:id) => String.t(),
@@ -204,10 +209,7 @@ defmodule Neptunus.Vehicle.Helm do
     Process.flag(:priority, :high)
     id = Keyword.fetch!(opts, :id)
 
-    config =
-      @defaults
-      |> Keyword.merge(Enum.to_list(Application.get_env(:neptunus, :helm, [])))
-      |> Keyword.merge(Keyword.get(opts, :helm, []))
+    config = Keyword.merge(@defaults, Keyword.get(opts, :helm, []))
 
     deadman_ms = Keyword.fetch!(config, :deadman_ms)
 

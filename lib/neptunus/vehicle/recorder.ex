@@ -46,9 +46,9 @@ defmodule Neptunus.Vehicle.Recorder do
 
   Its state is in every telemetry payload as `recording: %{on, error}`. It comes after the
   helm in the vehicle's tree: its failures never restart the board,
-  control or helm. Options: `:id`; `:recording` — `dir` (nil or absent: recording is off;
-  default from `config :neptunus, :recording`), `max_bytes` (default 256 MiB),
-  `min_free_bytes`, `keep_ms`, `sync_ms` and, for tests, `free_bytes` (a function of the
+  control or helm. Options: `:id`; `:recording` — `dir` (nil or absent: recording is off; the
+  node's vehicles get `config :neptunus, :recording` here, from `Neptunus.Application`),
+  `max_bytes` and `min_free_bytes` (`defaults/0`), `keep_ms`, `sync_ms` and, for tests, `free_bytes` (a function of the
   directory), `sync` (syncs a log, like `disk_log:sync/1`),
   `now_ms` (the wall clock in ms, a function) and `rm` (deletes a file, like `File.rm/1`).
   """
@@ -57,7 +57,7 @@ defmodule Neptunus.Vehicle.Recorder do
   require Logger
 
   alias Neptunus.{Fleet, PubSub, Recording}
-  alias Neptunus.Vehicle.{Control, Telemetry}
+  alias Neptunus.Vehicle.Telemetry
 
   @default_max_bytes 256 * 1024 * 1024
   @default_min_free_bytes 512 * 1024 * 1024
@@ -139,10 +139,17 @@ defmodule Neptunus.Vehicle.Recorder do
     :exit, _ -> :ok
   end
 
+  @doc """
+  The file size and free disk limits when `:recording` does not say (the one place of
+  these defaults; `Neptunus.Config.Recording` gives them to the environment variables).
+  """
+  @spec defaults() :: %{max_bytes: pos_integer(), min_free_bytes: non_neg_integer()}
+  def defaults, do: %{max_bytes: @default_max_bytes, min_free_bytes: @default_min_free_bytes}
+
   @impl true
   def init(opts) do
     id = Keyword.fetch!(opts, :id)
-    config = Keyword.get(opts, :recording, Application.get_env(:neptunus, :recording, []))
+    config = Keyword.get(opts, :recording, [])
     config = Map.new(config)
 
     state = %State{
@@ -345,7 +352,7 @@ defmodule Neptunus.Vehicle.Recorder do
 
   defp log(state, level, message, fields) do
     PubSub.broadcast(
-      Control.log_topic(state.id),
+      Telemetry.log_topic(state.id),
       "log",
       Map.merge(fields, %{
         category: if(level == "error", do: "errors", else: "recording"),

@@ -27,13 +27,13 @@ defmodule Neptunus.Vehicle.Supervisor do
 
   alias Neptunus.Vehicle.{Board, Camera, Control, Helm, Navigation, Recorder, Telemetry}
 
-  @spec start_link(Neptunus.Config.vehicle()) :: Supervisor.on_start()
+  @spec start_link(Neptunus.Config.Vehicles.vehicle()) :: Supervisor.on_start()
   def start_link(%{id: id, board: board} = vehicle) do
     name = {:via, Registry, {Neptunus.Fleet.Registry, {__MODULE__, id}, board}}
     Supervisor.start_link(__MODULE__, vehicle, name: name)
   end
 
-  @spec child_spec(Neptunus.Config.vehicle()) :: Supervisor.child_spec()
+  @spec child_spec(Neptunus.Config.Vehicles.vehicle()) :: Supervisor.child_spec()
   def child_spec(%{id: id} = vehicle) do
     %{id: {__MODULE__, id}, start: {__MODULE__, :start_link, [vehicle]}, type: :supervisor}
   end

@@ -41,6 +41,10 @@ defmodule Neptunus.Vehicle.Telemetry do
   alias Neptunus.{Allocation, Periodic, PubSub}
   alias Neptunus.Vehicle.Board
 
+  @default_hz 20
+  @default_fanout_slice 50
+  @default_fanout_gap_ms 2
+
   @link_keys [:up, :reason | Board.link_details()]
 
   @no_estimate %{depth: nil, depth_rate: nil, heading: nil, yaw_rate: nil}
@@ -94,6 +98,11 @@ defmodule Neptunus.Vehicle.Telemetry do
           optional(atom()) => term()
         }
 
+  @doc """
+  Options: `:id` (required), `:telemetry_hz` (broadcast rate, default #{@default_hz}),
+  `:fanout_slice` (default #{@default_fanout_slice}) and `:fanout_gap_ms` (default
+  #{@default_fanout_gap_ms}): see the moduledoc.
+  """
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts) do
     GenServer.start_link(__MODULE__, opts, name: via(Keyword.fetch!(opts, :id)))
@@ -102,6 +111,13 @@ defmodule Neptunus.Vehicle.Telemetry do
   @doc "The topic of vehicle `id`."
   @spec topic(String.t()) :: String.t()
   def topic(id), do: "vehicle:" <> id
+
+  @doc """
+  The topic of vehicle `id`'s log entries (the developer logger): the control loop, the
+  recorder and the camera publish there, `NeptunusWeb.Channels.LogChannel` serves it.
+  """
+  @spec log_topic(String.t()) :: String.t()
+  def log_topic(id), do: "log:" <> id
 
   @doc """
   Reports a board sample (called by `Neptunus.Vehicle.Navigation`, with the filtered
@@ -152,17 +168,15 @@ defmodule Neptunus.Vehicle.Telemetry do
   @impl true
   def init(opts) do
     id = Keyword.fetch!(opts, :id)
-    hz = Keyword.get(opts, :hz, Application.get_env(:neptunus, :telemetry_hz, 20))
+    hz = Keyword.get(opts, :telemetry_hz, @default_hz)
 
     state = %State{
       id: id,
       topic: topic(id),
       periodic: Periodic.new(hz),
       pace: %{
-        slice:
-          Keyword.get(opts, :fanout_slice, Application.get_env(:neptunus, :fanout_slice, 50)),
-        gap_ms:
-          Keyword.get(opts, :fanout_gap_ms, Application.get_env(:neptunus, :fanout_gap_ms, 2)),
+        slice: Keyword.get(opts, :fanout_slice, @default_fanout_slice),
+        gap_ms: Keyword.get(opts, :fanout_gap_ms, @default_fanout_gap_ms),
         spread_ms: div(500, hz)
       },
       command: %{surge: 0.0, heave: 0.0, yaw: 0.0},

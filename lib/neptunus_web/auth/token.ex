@@ -33,8 +33,7 @@ defmodule NeptunusWeb.Auth.Token do
   def sign(name, secret, now, ttl_s) do
     payload =
       %{"sub" => name, "iat" => now, "exp" => now + ttl_s}
-      |> :jiffy.encode()
-      |> IO.iodata_to_binary()
+      |> Neptunus.JSON.encode!()
       |> b64()
 
     signed = @version <> "." <> payload
@@ -55,7 +54,8 @@ defmodule NeptunusWeb.Auth.Token do
          true <- :crypto.hash_equals(mac(secret, @version <> "." <> payload), pad(signature)),
          {:ok, json} <- Base.url_decode64(payload, padding: false),
          {:ok, %{"sub" => name, "iat" => iat, "exp" => exp}}
-         when is_binary(name) and is_integer(iat) and is_integer(exp) <- decode(json) do
+         when is_binary(name) and is_integer(iat) and is_integer(exp) <-
+           Neptunus.JSON.decode(json) do
       if now < exp,
         do: {:ok, %{name: name, issued_at: iat, expires_at: exp}},
         else: {:error, "token expired"}
@@ -74,12 +74,6 @@ defmodule NeptunusWeb.Auth.Token do
   # hash_equals/2 needs equal sizes; a wrong-sized signature is simply wrong
   defp pad(signature) when byte_size(signature) == 32, do: signature
   defp pad(_signature), do: <<0::256>>
-
-  defp decode(json) do
-    {:ok, :jiffy.decode(json, [:return_maps])}
-  catch
-    _, _ -> :error
-  end
 
   defp b64(bytes), do: Base.url_encode64(bytes, padding: false)
 end

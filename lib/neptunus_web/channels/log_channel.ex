@@ -1,7 +1,7 @@
 defmodule NeptunusWeb.Channels.LogChannel do
   @moduledoc """
   Topic `log:<id>`: the developer logger's entries for vehicle `id`, as the vehicle's
-  processes publish them on the PubSub topic `Neptunus.Vehicle.Control.log_topic/1`.
+  processes publish them on the PubSub topic `Neptunus.Vehicle.Telemetry.log_topic/1`.
 
   Anyone connected may join (observers included): the log is read-only and carries nothing
   the vehicle topic does not already show. The entries reach the browser as the broadcast

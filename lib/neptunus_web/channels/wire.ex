@@ -1,6 +1,6 @@
 defmodule NeptunusWeb.Channels.Wire do
   @moduledoc """
-  Phoenix Channels v2 JSON frame codec (pure).
+  Phoenix Channels v2 JSON frame codec (pure), on `Neptunus.JSON`.
 
   A v2 frame is a JSON text frame holding a five-element array:
 
@@ -31,10 +31,9 @@ defmodule NeptunusWeb.Channels.Wire do
   Error reasons (byte positions are jiffy's: 1-based, pointing at or just
   before the offending byte, one past the end for truncated input):
 
-    * `"empty frame"` (`decode_json/1`: `"empty JSON input"`)
-    * `"invalid JSON at byte N: <what>"`, e.g. `unexpected end of input`,
-      `invalid string (bad escape or invalid UTF-8)`, `unexpected data after the JSON value`
-    * `"invalid JSON: number out of range"`
+    * `"empty frame"`
+    * `"invalid JSON at byte N: <what>"`, `"invalid JSON: number out of range"` (from
+      `Neptunus.JSON.decode/2`)
     * `"frame must be a JSON array [join_ref, ref, topic, event, payload]"`
     * `"frame must have 5 elements, got N"`
     * `"join_ref must be a string or null"`, `"ref must be a string or null"`
@@ -90,11 +89,7 @@ defmodule NeptunusWeb.Channels.Wire do
   @typedoc "Whatever addressing fields could be read from a rejected frame."
   @type partial :: %{join_ref: String.t() | nil, ref: String.t() | nil, topic: String.t() | nil}
 
-  @decode_opts [:return_maps, {:null_term, nil}]
-  # Frame fields (topics, refs) are often kept in process state: copy them
-  # instead of keeping sub-binaries of the whole frame alive.
-  @frame_decode_opts [:copy_strings | @decode_opts]
-  @encode_opts [:use_nil]
+  alias Neptunus.JSON
 
   @empty_partial %{join_ref: nil, ref: nil, topic: nil}
 
@@ -105,7 +100,9 @@ defmodule NeptunusWeb.Channels.Wire do
   def decode(""), do: {:error, "empty frame", @empty_partial}
 
   def decode(frame) when is_binary(frame) do
-    case json_decode(frame, @frame_decode_opts) do
+    # Frame fields (topics, refs) are often kept in process state: copy them
+    # instead of keeping sub-binaries of the whole frame alive.
+    case JSON.decode(frame, copy_strings: true) do
       {:ok, term} -> validate(term)
       {:error, reason} -> {:error, reason, @empty_partial}
     end
@@ -118,7 +115,7 @@ defmodule NeptunusWeb.Channels.Wire do
   """
   @spec encode(String.t() | nil, String.t() | nil, String.t(), String.t(), map()) :: binary()
   def encode(join_ref, ref, topic, event, payload) when is_map(payload) do
-    encode_json([join_ref, ref, topic, event, payload])
+    JSON.encode!([join_ref, ref, topic, event, payload])
   end
 
   @doc """
@@ -139,58 +136,7 @@ defmodule NeptunusWeb.Channels.Wire do
   @spec encode_broadcast(String.t(), String.t(), map()) :: binary()
   def encode_broadcast(topic, event, payload), do: encode(nil, nil, topic, event, payload)
 
-  @doc """
-  Encodes any JSON-expressible term to a binary (`nil` → `null`). Raises
-  `ArgumentError` on terms JSON cannot express.
-
-      iex> NeptunusWeb.Channels.Wire.encode_json(%{ok: true, items: [1, nil, "x"]})
-      ~s({"ok":true,"items":[1,null,"x"]})
-  """
-  @spec encode_json(term()) :: binary()
-  def encode_json(term) do
-    term |> :jiffy.encode(@encode_opts) |> IO.iodata_to_binary()
-  catch
-    kind, reason ->
-      raise ArgumentError,
-            "cannot encode as JSON: #{encode_error(kind, reason)} in #{inspect(term, limit: 20)}"
-  end
-
-  @doc """
-  Decodes JSON text: objects become maps with string keys, `null` becomes
-  `nil`. Never raises.
-
-      iex> NeptunusWeb.Channels.Wire.decode_json(~s({"a": [1, null]}))
-      {:ok, %{"a" => [1, nil]}}
-
-      iex> NeptunusWeb.Channels.Wire.decode_json(~s({"a": }))
-      {:error, "invalid JSON at byte 7: invalid JSON"}
-  """
-  @spec decode_json(binary()) :: {:ok, term()} | {:error, String.t()}
-  def decode_json(""), do: {:error, "empty JSON input"}
-  def decode_json(json) when is_binary(json), do: json_decode(json, @decode_opts)
-  def decode_json(_json), do: {:error, "JSON input must be a binary"}
-
   # Decoding
-
-  defp json_decode(json, opts) do
-    {:ok, :jiffy.decode(json, opts)}
-  catch
-    _kind, reason -> {:error, decode_error(reason)}
-  end
-
-  defp decode_error({pos, what}) when is_integer(pos) and is_atom(what),
-    do: "invalid JSON at byte #{pos}: #{describe(what)}"
-
-  defp decode_error({:range, _}), do: "invalid JSON: number out of range"
-  defp decode_error(_other), do: "invalid JSON"
-
-  defp describe(:truncated_json), do: "unexpected end of input"
-  defp describe(:invalid_trailing_data), do: "unexpected data after the JSON value"
-  defp describe(:invalid_string), do: "invalid string (bad escape or invalid UTF-8)"
-  defp describe(:invalid_number), do: "invalid number"
-  defp describe(:invalid_literal), do: "invalid literal (expected true, false or null)"
-  defp describe(:invalid_json), do: "invalid JSON"
-  defp describe(other), do: other |> Atom.to_string() |> String.replace("_", " ")
 
   defp validate([join_ref, ref, topic, event, payload] = frame) do
     partial = partial(frame)
@@ -239,14 +185,4 @@ defmodule NeptunusWeb.Channels.Wire do
 
   defp ref?(value), do: is_nil(value) or is_binary(value)
   defp name?(value), do: is_binary(value) and value != ""
-
-  # Encoding
-
-  defp encode_error(:error, {:invalid_string, bin}), do: "invalid UTF-8 string #{inspect(bin)}"
-  defp encode_error(:error, {:invalid_ejson, term}), do: "unsupported term #{inspect(term)}"
-
-  defp encode_error(:error, {:invalid_object_member_key, key}),
-    do: "unsupported object key #{inspect(key)}"
-
-  defp encode_error(kind, reason), do: Exception.format_banner(kind, reason)
 end

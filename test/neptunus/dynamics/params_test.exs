@@ -7,7 +7,7 @@ defmodule Neptunus.Dynamics.ParamsTest do
 
   defp document(name \\ "neptunus") do
     path = Path.join(:code.priv_dir(:neptunus), "vehicles/#{name}.json")
-    {:ok, map} = path |> File.read!() |> NeptunusWeb.Channels.Wire.decode_json()
+    {:ok, map} = path |> File.read!() |> Neptunus.JSON.decode()
     map
   end
 

@@ -2,7 +2,7 @@ defmodule Neptunus.Vehicle.CameraTest do
   use ExUnit.Case, async: true
 
   alias Neptunus.PubSub
-  alias Neptunus.Vehicle.{Camera, Control}
+  alias Neptunus.Vehicle.{Camera, Telemetry}
 
   @moduletag :capture_log
 
@@ -13,7 +13,7 @@ defmodule Neptunus.Vehicle.CameraTest do
   defp start!(source) do
     id = "cam-#{System.unique_integer([:positive])}"
     PubSub.subscribe(Camera.topic(id))
-    PubSub.subscribe(Control.log_topic(id))
+    PubSub.subscribe(Telemetry.log_topic(id))
     start_supervised!({Camera, id: id, camera: source})
     id
   end

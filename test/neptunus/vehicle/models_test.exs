@@ -13,7 +13,7 @@ defmodule Neptunus.Vehicle.ModelsTest do
     id = "m-#{System.unique_integer([:positive])}"
 
     [vehicle] =
-      Config.vehicles!(%{
+      Config.Vehicles.vehicles!(%{
         "NEPTUNUS_VEHICLES" => "#{id}=simulated",
         "NEPTUNUS_MODELS" => "#{id}=thesis-4dof"
       })
@@ -33,7 +33,7 @@ defmodule Neptunus.Vehicle.ModelsTest do
 
   test "without a model the simulator and the filter use neptunus" do
     id = "m-#{System.unique_integer([:positive])}"
-    [vehicle] = Config.vehicles!(%{"NEPTUNUS_VEHICLES" => "#{id}=simulated"})
+    [vehicle] = Config.Vehicles.vehicles!(%{"NEPTUNUS_VEHICLES" => "#{id}=simulated"})
     start_supervised!({Neptunus.Vehicle.Supervisor, vehicle})
 
     assert Board.Simulated.state(id).sim.params.name == "neptunus"

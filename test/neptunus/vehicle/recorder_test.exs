@@ -2,7 +2,7 @@ defmodule Neptunus.Vehicle.RecorderTest do
   use ExUnit.Case, async: true
 
   alias Neptunus.{PubSub, Recording}
-  alias Neptunus.Vehicle.{Control, Recorder, Telemetry}
+  alias Neptunus.Vehicle.{Recorder, Telemetry}
 
   @moduletag :tmp_dir
   @moduletag :capture_log
@@ -136,7 +136,7 @@ defmodule Neptunus.Vehicle.RecorderTest do
     blocker = Path.join(dir, "a-file")
     File.write!(blocker, "not a directory")
     id = "rec-#{System.unique_integer([:positive])}"
-    PubSub.subscribe(Control.log_topic(id))
+    PubSub.subscribe(Telemetry.log_topic(id))
     PubSub.subscribe(Telemetry.topic(id))
 
     start_supervised!({Recorder, id: id, recording: [dir: blocker]})
@@ -234,7 +234,7 @@ defmodule Neptunus.Vehicle.RecorderTest do
     File.mkdir_p!(not_a_file)
     File.touch!(not_a_file, now - 30 * day)
 
-    PubSub.subscribe(Control.log_topic(id))
+    PubSub.subscribe(Telemetry.log_topic(id))
     start_supervised!({Recorder, id: id, recording: [dir: dir, keep_ms: 10 * day * 1000, rm: rm]})
     %{file: current, recording: true} = Recorder.status(id)
 
@@ -275,7 +275,7 @@ defmodule Neptunus.Vehicle.RecorderTest do
   test "stops before the disk fills and resumes in a new file when there is room", %{tmp_dir: dir} do
     free = start_supervised!({Agent, fn -> 10 * 1_048_576 end}, id: :free)
     id = "rec-#{System.unique_integer([:positive])}"
-    PubSub.subscribe(Control.log_topic(id))
+    PubSub.subscribe(Telemetry.log_topic(id))
     PubSub.subscribe(Telemetry.topic(id))
 
     recording = [

@@ -12,7 +12,7 @@ defmodule Neptunus.VehicleTest do
   setup context do
     id = "t-#{System.unique_integer([:positive])}"
     PubSub.subscribe(Telemetry.topic(id))
-    PubSub.subscribe(Control.log_topic(id))
+    PubSub.subscribe(Telemetry.log_topic(id))
     clock = start_supervised!({Agent, fn -> 0 end})
 
     helm = [

@@ -6,7 +6,7 @@ defmodule NeptunusWeb.Channels.LogChannelTest do
   import NeptunusWeb.Test.Wire
 
   alias Neptunus.PubSub
-  alias Neptunus.Vehicle.Control
+  alias Neptunus.Vehicle.Telemetry
   alias NeptunusWeb.Auth.{Password, Token}
   alias NeptunusWeb.Test.WSClient
 
@@ -25,7 +25,7 @@ defmodule NeptunusWeb.Channels.LogChannelTest do
     {jr, reply} = join!(ws, "log:" <> id)
     assert reply == %{"vehicle" => id}
 
-    PubSub.broadcast(Control.log_topic(id), "log", %{
+    PubSub.broadcast(Telemetry.log_topic(id), "log", %{
       category: "gain",
       level: "info",
       message: "gain 0.7",
@@ -54,7 +54,7 @@ defmodule NeptunusWeb.Channels.LogChannelTest do
     ref = WSClient.unique_ref()
     WSClient.push(ws, jr, ref, "log:" <> id, "phx_leave", %{})
     WSClient.recv_until(ws, &match?([_, ^ref, _, "phx_reply", _], &1))
-    PubSub.broadcast(Control.log_topic(id), "log", %{category: "gain", message: "late", at: 2})
+    PubSub.broadcast(Telemetry.log_topic(id), "log", %{category: "gain", message: "late", at: 2})
     no_event!(ws, "log", 200)
   end
 
@@ -86,7 +86,9 @@ defmodule NeptunusWeb.Channels.LogChannelTest do
       for params <- [%{"token" => token}, %{}] do
         ws = connect!(params)
         {_jr, %{"vehicle" => ^id}} = join!(ws, "log:" <> id)
-        PubSub.broadcast(Control.log_topic(id), "log", %{category: "link", message: "up", at: 3})
+
+        PubSub.broadcast(Telemetry.log_topic(id), "log", %{category: "link", message: "up", at: 3})
+
         assert %{"category" => "link"} = event!(ws, "log")
       end
     end

@@ -365,23 +365,6 @@ defmodule NeptunusWeb.Channels.WireTest do
     end
   end
 
-  describe "encode_json/1 and decode_json/1" do
-    test "round trip of any JSON value" do
-      for term <- [nil, true, 1, -2.5, "s", [], [1, [2, [nil]]], %{"a" => %{"b" => []}}] do
-        assert Wire.decode_json(Wire.encode_json(term)) == {:ok, term}
-      end
-    end
-
-    test "decode_json accepts non-frame JSON and reports errors" do
-      assert Wire.decode_json("42") == {:ok, 42}
-      assert Wire.decode_json(~s({"a":null})) == {:ok, %{"a" => nil}}
-      assert Wire.decode_json("") == {:error, "empty JSON input"}
-      assert Wire.decode_json("{") == {:error, "invalid JSON at byte 2: unexpected end of input"}
-      assert Wire.decode_json(<<"\"", 0xFE, "\"">>) |> elem(0) == :error
-      assert Wire.decode_json(:nope) == {:error, "JSON input must be a binary"}
-    end
-  end
-
   # Properties (PropEr)
 
   defp check(property, numtests \\ 1000) do
@@ -441,7 +424,7 @@ defmodule NeptunusWeb.Channels.WireTest do
     frame_like =
       :proper_types.fixed_list([leaf, leaf, leaf, leaf, :proper_types.oneof([object, leaf])])
 
-    let(:proper_types.oneof([leaf, array, object, frame_like]), &Wire.encode_json/1)
+    let(:proper_types.oneof([leaf, array, object, frame_like]), &Neptunus.JSON.encode!/1)
   end
 
   defp decode_result_ok?({:ok, %Message{} = m}) do
@@ -468,15 +451,6 @@ defmodule NeptunusWeb.Channels.WireTest do
 
   test "property: decode never raises on well-formed JSON of any shape" do
     check(:proper.forall(json_value(), &decode_result_ok?(Wire.decode(&1))))
-  end
-
-  test "property: decode_json never raises" do
-    check(
-      :proper.forall(json_soup(), fn bin ->
-        match?({:ok, _}, Wire.decode_json(bin)) or
-          match?({:error, r} when is_binary(r), Wire.decode_json(bin))
-      end)
-    )
   end
 
   defp ref_gen, do: :proper_types.oneof([:proper_types.exactly(nil), :proper_unicode.utf8()])

@@ -438,7 +438,7 @@ defmodule NeptunusWeb.Socket.RouterTest do
                 :proper_types.integer()
               ])
             ),
-            &Wire.encode_json/1
+            &Neptunus.JSON.encode!/1
           )
         ])
 

@@ -64,7 +64,7 @@ defmodule Neptunus.Vehicle.Board.Simulated do
   @type command :: :reset | {:set, %{optional(:paused | :current | :tether_length) => term()}}
 
   @doc """
-  Options: `:id` (required), `:hz` (integration rate, default from config `:sim_hz`),
+  Options: `:id` (required), `:sim_hz` (integration rate, default `Neptunus.Sim.default_hz/0`),
   `:initial` (keyword of `Dynamics.State` fields), `:sim` (keyword of `Neptunus.Sim.new/1`
   options; defaults `vehicle: "neptunus"`, `noise: true`, a random `seed`), `:stats`
   (record tick lateness, default false), `:name` (default `Board.via(id)`), `:source`
@@ -113,7 +113,7 @@ defmodule Neptunus.Vehicle.Board.Simulated do
 
   @impl true
   def init(opts) do
-    hz = Keyword.get(opts, :hz, Application.get_env(:neptunus, :sim_hz, 100))
+    hz = Keyword.get(opts, :sim_hz, Sim.default_hz())
 
     sim_opts =
       [vehicle: "neptunus", noise: true, seed: :erlang.unique_integer([:positive])]

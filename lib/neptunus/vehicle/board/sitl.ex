@@ -20,8 +20,9 @@ defmodule Neptunus.Vehicle.Board.SITL do
   so several nodes or test runs on one machine never share a pty).
 
   Options: those of `Board.UART` (`:wiring`, `:firmware`, `:ping_interval`, …) and of
-  `SITL.Device` (`:wiring`, `:firmware`, `:hz`, `:deadman_ms`, `:arm_ms`, `:loop_ms`,
-  `:stall_ms`, `:setup_ms`, `:initial`, `:sim`); `:link`. `:firmware` (`:openrov_25` or
+  `SITL.Device` (`:wiring`, `:firmware`, `:sim_hz` as its `:hz`, `:deadman_ms`, `:arm_ms`,
+  `:loop_ms`, `:stall_ms`, `:setup_ms`, `:initial`, `:sim`), `:os_time_slice_ns` to both;
+  `:link`. `:firmware` (`:openrov_25` or
   `:openrov_30`) goes to both: the board link frames its commands for it and the simulated
   board behaves like it.
   """
@@ -32,10 +33,11 @@ defmodule Neptunus.Vehicle.Board.SITL do
 
   @behaviour Board
 
-  @device_opts [:wiring, :hz, :deadman_ms, :initial, :sim, :firmware] ++
+  @device_opts [:wiring, :deadman_ms, :os_time_slice_ns, :initial, :sim, :firmware] ++
                  [:arm_ms, :loop_ms, :stall_ms, :setup_ms]
   @uart_opts [
     :wiring,
+    :os_time_slice_ns,
     :firmware,
     :ping_interval,
     :keepalive_timeout,
@@ -79,10 +81,19 @@ defmodule Neptunus.Vehicle.Board.SITL do
     link = Keyword.get(opts, :link) || link_path(id)
 
     children = [
-      {Board.SITL.Device, [id: id, link: link] ++ Keyword.take(opts, @device_opts)},
+      {Board.SITL.Device,
+       [id: id, link: link] ++ device_hz(opts) ++ Keyword.take(opts, @device_opts)},
       {UART, [id: id, device: link, baud: 115_200] ++ Keyword.take(opts, @uart_opts)}
     ]
 
     Supervisor.init(children, strategy: :one_for_one, max_restarts: 10, max_seconds: 10)
+  end
+
+  # the vehicle's `:sim_hz` is the device's integration rate
+  defp device_hz(opts) do
+    case Keyword.fetch(opts, :sim_hz) do
+      {:ok, hz} -> [hz: hz]
+      :error -> []
+    end
   end
 end

@@ -6,7 +6,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   (`neptunus_uart pty LINK`), whose slave end is symlinked at `link` for
   `Neptunus.Vehicle.Board.UART` to open.
 
-  It steps the simulation at `hz` (default config `:sim_hz`, 100 Hz) on absolute deadlines
+  It steps the simulation at `hz` (default `Neptunus.Sim.default_hz/0`, 100 Hz) on absolute deadlines
   (`Neptunus.Periodic`, at most #{20} catch-up steps per tick); at each step it gives the
   firmware the simulator's reading, runs the firmware's loop up to now, sends what it wrote and
   drives the simulator with the thrusters the firmware's ESC pulses give. Received bytes go to
@@ -55,7 +55,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   @firmware_opts [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms]
 
   @doc """
-  Options: `:id` and `:link` (path for the pty's slave end) required; `:hz`; the firmware's
+  Options: `:id` and `:link` (path for the pty's slave end) required; `:hz` (default
+  `Neptunus.Sim.default_hz/0`); `:os_time_slice_ns` (the slice its port program asks for,
+  `Neptunus.OS`); the firmware's
   (`Neptunus.Vehicle.Board.SITL.Firmware.new/2`): `:firmware` (`:openrov_25` default or
   `:openrov_30`), `:wiring` (`Neptunus.Wiring`, default the thesis'), `:deadman_ms` (2000),
   `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20); `:initial` and
@@ -88,7 +90,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   def init(opts) do
     id = Keyword.fetch!(opts, :id)
     link = Keyword.fetch!(opts, :link)
-    hz = Keyword.get(opts, :hz, Application.get_env(:neptunus, :sim_hz, 100))
+    hz = Keyword.get(opts, :hz, Sim.default_hz())
     # a bad firmware option stops the device here with a clear error, before any pty exists
     firmware =
       Firmware.new(System.monotonic_time(:millisecond), Keyword.take(opts, @firmware_opts))
@@ -101,7 +103,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
         {:packet, 2},
         :exit_status,
         :use_stdio,
-        {:env, Neptunus.OS.port_env()},
+        {:env, Neptunus.OS.port_env(Keyword.get(opts, :os_time_slice_ns))},
         args: ["pty", link]
       ])
 

@@ -76,6 +76,7 @@ defmodule Neptunus.Vehicle.Board.UART do
             pace_timer: reference() | nil,
             board_link: Neptunus.Protocol.BoardLink.t(),
             program: String.t(),
+            port_env: [{charlist(), charlist()}],
             port: port() | nil,
             link: :down | :opening | :up,
             reason: String.t(),
@@ -122,6 +123,7 @@ defmodule Neptunus.Vehicle.Board.UART do
       :announced,
       :program_error,
       :heard_at,
+      port_env: [],
       link: :down,
       reason: "not opened yet",
       since: 0,
@@ -156,6 +158,8 @@ defmodule Neptunus.Vehicle.Board.UART do
     * `:reopen_min`, `:reopen_max` — reopen backoff in ms, default 100 and 5000
     * `:max_line` — longest telemetry line kept, bytes, default 512
     * `:program` — path of the port program, default `priv/neptunus_uart`
+    * `:os_time_slice_ns` — the OS time slice the port program asks for (`Neptunus.OS`),
+      default none
   """
   @impl Board
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -182,10 +186,6 @@ defmodule Neptunus.Vehicle.Board.UART do
   @impl Board
   @spec link_status(String.t()) :: map()
   def link_status(id), do: GenServer.call(Board.via(id), :link_status)
-
-  @doc "The latest raw values of unknown telemetry keys (`fmem`, `pong`, `cmd`, …)."
-  @spec raw(String.t()) :: %{String.t() => String.t()}
-  def raw(id), do: GenServer.call(Board.via(id), :raw)
 
   @doc "Sets the lights (0..255): `ligt(n);`. Kept and re-sent after every (re)open."
   @impl Board
@@ -227,6 +227,7 @@ defmodule Neptunus.Vehicle.Board.UART do
       pacer: Pacer.new(),
       board_link: BoardLink.new(profile),
       program: Keyword.get(opts, :program, program()),
+      port_env: Neptunus.OS.port_env(Keyword.get(opts, :os_time_slice_ns)),
       backoff:
         Backoff.new(Keyword.get(opts, :reopen_min, 100), Keyword.get(opts, :reopen_max, 5_000)),
       readings: Readings.new(Keyword.get(opts, :max_line, 512)),
@@ -293,8 +294,6 @@ defmodule Neptunus.Vehicle.Board.UART do
     {:reply, status, state}
   end
 
-  def handle_call(:raw, _from, state), do: {:reply, state.readings.raw, state}
-
   @impl true
   def handle_info({port, {:data, <<tag, data::binary>>}}, %State{port: port} = state) do
     {:noreply, program_message(tag, data, state)}
@@ -354,7 +353,7 @@ defmodule Neptunus.Vehicle.Board.UART do
         {:packet, 2},
         :exit_status,
         :use_stdio,
-        {:env, Neptunus.OS.port_env()},
+        {:env, state.port_env},
         args: args
       ])
 

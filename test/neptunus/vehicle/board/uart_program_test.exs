@@ -120,6 +120,14 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     assert exit_status(a) == 69
   end
 
+  test "the program knows only the tags the VM sends: 'x' (discard) is gone" do
+    pair = socat_pair!()
+    a = open!(pair.a)
+    Port.command(a, "x")
+    assert error_text(a) =~ "unknown tag 0x78"
+    assert exit_status(a) == 69
+  end
+
   test "the program exits when the VM closes the port (stdin EOF)" do
     pair = socat_pair!()
     a = open!(pair.a)

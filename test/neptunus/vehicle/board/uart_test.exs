@@ -230,8 +230,9 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     assert recv_until(ctx.board, &String.starts_with?(&1, @opening)) =~ @neutral
   end
 
-  test "the port program asks for the node's OS time slice (Neptunus.OS)", ctx do
-    start_uart(ctx)
+  test "the port program asks for the OS time slice of its option (Neptunus.OS)", ctx do
+    # the node's vehicles get the configured slice as this option (Neptunus.Application)
+    start_uart(ctx, os_time_slice_ns: Application.fetch_env!(:neptunus, :os_time_slice_ns))
     link_event(true)
     {:os_pid, os_pid} = Port.info(:sys.get_state(Board.via(ctx.id)).port, :os_pid)
     {:ok, [{_, program_ns}]} = Neptunus.OS.thread_slices(os_pid)

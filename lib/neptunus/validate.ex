@@ -1,6 +1,7 @@
-defmodule Neptunus.Sim.Validate do
+defmodule Neptunus.Validate do
   @moduledoc """
-  Checks on untrusted JSON-decoded data (string keys) whose errors name the field, for the
+  Checks on untrusted JSON-decoded data (string keys) whose errors name the field: the one
+  validation vocabulary of the node, for control commands (`Neptunus.Control.Command`), the
   vehicle parameter files (`Neptunus.Dynamics.Params`), scenarios (`Neptunus.Scenario`) and
   the live simulator's commands (`Neptunus.Sim.Live`). Pure.
 
@@ -19,10 +20,10 @@ defmodule Neptunus.Sim.Validate do
 
   Values are shown as JSON (cut at 60 characters).
 
-      iex> Neptunus.Sim.Validate.number(2, "events[0].gain", min: 0, max: 1)
+      iex> Neptunus.Validate.number(2, "events[0].gain", min: 0, max: 1)
       {:error, "events[0].gain must be a number in [0, 1], got 2"}
 
-      iex> Neptunus.Sim.Validate.object(%{"t" => 1, "x" => 2}, "events[3]", ["t"], ["gain"])
+      iex> Neptunus.Validate.object(%{"t" => 1, "x" => 2}, "events[3]", ["t"], ["gain"])
       {:error, "unknown field: events[3].x (expected one of: gain, t)"}
   """
 
@@ -100,9 +101,9 @@ defmodule Neptunus.Sim.Validate do
   Applies `fun.(item, index)` to each item in order and collects the `{:ok, value}` results,
   stopping at the first error, which is returned as it is.
 
-      iex> Neptunus.Sim.Validate.map_ok([1, 2], fn x, i -> {:ok, x + i} end)
+      iex> Neptunus.Validate.map_ok([1, 2], fn x, i -> {:ok, x + i} end)
       {:ok, [1, 3]}
-      iex> Neptunus.Sim.Validate.map_ok([1, :x, :y], fn x, _ -> if is_integer(x), do: {:ok, x}, else: {:error, x} end)
+      iex> Neptunus.Validate.map_ok([1, :x, :y], fn x, _ -> if is_integer(x), do: {:ok, x}, else: {:error, x} end)
       {:error, :x}
   """
   @spec map_ok(Enumerable.t(), (term(), non_neg_integer() -> {:ok, term()} | term())) ::
@@ -181,11 +182,9 @@ defmodule Neptunus.Sim.Validate do
   def show(value) do
     text =
       try do
-        value |> :jiffy.encode([:use_nil]) |> IO.iodata_to_binary()
+        Neptunus.JSON.encode!(value)
       rescue
-        _ -> inspect(value)
-      catch
-        _, _ -> inspect(value)
+        ArgumentError -> inspect(value)
       end
 
     if String.length(text) > 60, do: String.slice(text, 0, 57) <> "...", else: text

@@ -1,0 +1,314 @@
+defmodule Neptunus.Config.Vehicles do
+  @moduledoc """
+  The vehicles (`config :neptunus, :vehicles`, see `Neptunus.Fleet`) from
+  `NEPTUNUS_VEHICLES` (`id=board` pairs, default `neptunus-1=simulated`) and, per vehicle,
+  `NEPTUNUS_WIRING`, `NEPTUNUS_FIRMWARE`, `NEPTUNUS_MODELS` and `NEPTUNUS_CAMERAS` (`id=value`
+  pairs, every id a configured vehicle).
+
+  Boards: `simulated` (the built-in simulator), `sitl` (the simulator behind a pseudo-terminal
+  speaking the OpenROV protocol, through the real board link), `uart:DEVICE[@BAUD]` (a real
+  board, e.g. `uart:/dev/ttyO1@115200`; baud 1200 … 921600, default 115200). Vehicle ids are
+  1..32 characters of `a-z A-Z 0-9 _ -`.
+
+  Wiring (`sitl` and `uart` vehicles, see `Neptunus.Wiring`): the motors in `go()` order
+  separated by `/`, `-` before a reversed one, optionally `:FORWARD:REVERSE` motor modifiers
+  after a motor (percent, multiples of 100, default 100 and 100; sent as `mtrmod1`/`mtrmod2`),
+  optionally `/direct` or `/ramp` (`go()`'s 4th argument 1 or 0; no effect on OpenROV 2.5.x
+  and 30.x firmware, whose values apply at its next 50 ms tick either way); default
+  `-port/vertical/starboard/direct` (the thesis' Neptunus). Example:
+  `NEPTUNUS_WIRING=rov=port/vertical/-starboard:100:200`.
+
+  Firmware (`sitl` and `uart` vehicles, see docs/OPENROV.md): `openrov-2.5` (OpenROV 2.5.x:
+  plain `;`-terminated commands) or `openrov-30` (OpenROV 30.x: every command prefixed with
+  its CRC-8 byte). Example: `NEPTUNUS_FIRMWARE=rov=openrov-30`. The board link reports a
+  board whose output shows the other line; it never switches on its own.
+
+  Model: the vehicle's parameter set in `priv/vehicles/` (`neptunus`, `thesis-4dof`, …, see
+  `Neptunus.Dynamics.Params`): what its simulator flies (`simulated` and `sitl` boards, and
+  run mode simulator on a real board) and the model of its navigation filter. Example:
+  `NEPTUNUS_MODELS=a=thesis-4dof`.
+
+  Camera (see `Neptunus.Camera.Source`): `v4l2:DEVICE[@WxH][@FPS]` (a webcam through ffmpeg,
+  its own MJPEG), `testsrc[@WxH][@FPS]` (ffmpeg's test pattern) or `exec:PROGRAM [ARGS]` (any
+  program writing MJPEG to its output). Example:
+  `NEPTUNUS_CAMERAS=rov=v4l2:/dev/video0@1280x720@30`.
+  """
+
+  alias Neptunus.Config
+
+  @typedoc "A vehicle; `sim: [vehicle: name]` when `NEPTUNUS_MODELS` names its parameter set."
+  @type vehicle ::
+          %{
+            required(:id) => String.t(),
+            required(:board) => :simulated,
+            optional(:sim) => keyword()
+          }
+          | %{
+              required(:id) => String.t(),
+              required(:board) => :sitl,
+              required(:wiring) => Neptunus.Wiring.t(),
+              required(:firmware) => Neptunus.Protocol.OpenROV.profile(),
+              optional(:sim) => keyword(),
+              optional(:camera) => Neptunus.Camera.Source.t()
+            }
+          | %{
+              required(:id) => String.t(),
+              required(:board) => :uart,
+              required(:device) => String.t(),
+              required(:baud) => pos_integer(),
+              required(:wiring) => Neptunus.Wiring.t(),
+              required(:firmware) => Neptunus.Protocol.OpenROV.profile(),
+              optional(:sim) => keyword(),
+              optional(:camera) => Neptunus.Camera.Source.t()
+            }
+
+  @default_vehicles "neptunus-1=simulated"
+  @boards %{"simulated" => :simulated, "sitl" => :sitl}
+  @bauds [1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 921_600]
+
+  @default_vehicles "neptunus-1=simulated"
+  @boards %{"simulated" => :simulated, "sitl" => :sitl}
+  @bauds [1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 921_600]
+
+  @doc """
+  Vehicles from `NEPTUNUS_VEHICLES` (and their wiring from `NEPTUNUS_WIRING`).
+
+      iex> Neptunus.Config.Vehicles.vehicles!(%{"NEPTUNUS_VEHICLES" => "a=simulated, b=simulated"})
+      [%{id: "a", board: :simulated}, %{id: "b", board: :simulated}]
+
+      iex> [rov] = Neptunus.Config.Vehicles.vehicles!(%{"NEPTUNUS_VEHICLES" => "rov=uart:/dev/ttyO1@57600"})
+      iex> Map.take(rov, [:id, :board, :device, :baud])
+      %{id: "rov", board: :uart, device: "/dev/ttyO1", baud: 57600}
+  """
+  @spec vehicles!(Config.env()) :: [vehicle()]
+  def vehicles!(env) do
+    spec = Map.get(env, "NEPTUNUS_VEHICLES", @default_vehicles)
+
+    vehicles =
+      spec
+      |> String.split(",")
+      |> Enum.map(&String.trim/1)
+      |> Enum.map(&vehicle!(&1, spec))
+
+    if vehicles == [] or spec |> String.trim() == "" do
+      Config.bad!("NEPTUNUS_VEHICLES", spec, "at least one vehicle, e.g. #{@default_vehicles}")
+    end
+
+    ids = Enum.map(vehicles, & &1.id)
+
+    case ids -- Enum.uniq(ids) do
+      [] ->
+        vehicles
+        |> wiring!(Map.get(env, "NEPTUNUS_WIRING", ""))
+        |> firmware!(Map.get(env, "NEPTUNUS_FIRMWARE", ""))
+        |> models!(Map.get(env, "NEPTUNUS_MODELS", ""))
+        |> cameras!(Map.get(env, "NEPTUNUS_CAMERAS", ""))
+
+      [dup | _] ->
+        Config.bad!("NEPTUNUS_VEHICLES", spec, "unique vehicle ids (#{inspect(dup)} repeats)")
+    end
+  end
+
+  # Every sitl/uart vehicle gets a wiring: the configured one or the default.
+  defp wiring!(vehicles, spec) do
+    configured =
+      pairs!(
+        "NEPTUNUS_WIRING",
+        spec,
+        vehicles,
+        "id=wiring pairs, e.g. rov=-port/vertical/starboard"
+      )
+      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
+        cond do
+          board not in [:sitl, :uart] ->
+            Config.bad!("NEPTUNUS_WIRING", spec, "sitl or uart vehicles (#{id} is #{board})")
+
+          true ->
+            case Neptunus.Wiring.parse(text) do
+              {:ok, wiring} ->
+                {id, wiring}
+
+              {:error, reason} ->
+                Config.bad!("NEPTUNUS_WIRING", spec, "#{reason} in #{inspect(pair)}")
+            end
+        end
+      end)
+
+    defaults =
+      for %{board: board, id: id} <- vehicles,
+          board in [:sitl, :uart],
+          into: %{},
+          do: {id, Neptunus.Wiring.default()}
+
+    put_configured(vehicles, Map.merge(defaults, configured), :wiring)
+  end
+
+  # Every sitl/uart vehicle gets a firmware profile: the configured one or openrov-2.5.
+  defp firmware!(vehicles, spec) do
+    configured =
+      pairs!("NEPTUNUS_FIRMWARE", spec, vehicles, "id=firmware pairs, e.g. rov=openrov-30")
+      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
+        cond do
+          board not in [:sitl, :uart] ->
+            Config.bad!("NEPTUNUS_FIRMWARE", spec, "sitl or uart vehicles (#{id} is #{board})")
+
+          true ->
+            case Neptunus.Protocol.BoardLink.parse_profile(text) do
+              {:ok, profile} ->
+                {id, profile}
+
+              {:error, reason} ->
+                Config.bad!("NEPTUNUS_FIRMWARE", spec, "#{reason} in #{inspect(pair)}")
+            end
+        end
+      end)
+
+    defaults =
+      for %{board: board, id: id} <- vehicles,
+          board in [:sitl, :uart],
+          into: %{},
+          do: {id, :openrov_25}
+
+    put_configured(vehicles, Map.merge(defaults, configured), :firmware)
+  end
+
+  # A vehicle's parameter set, for the simulator (simulated and sitl boards, and run mode
+  # simulator on a real board) and for the navigation filter's model.
+  defp models!(vehicles, spec) do
+    configured =
+      pairs!("NEPTUNUS_MODELS", spec, vehicles, "id=model pairs, e.g. rov=thesis-4dof")
+      |> Map.new(fn {%{id: id}, _pair, name} ->
+        if name in Neptunus.Dynamics.Params.available() do
+          {id, [vehicle: name]}
+        else
+          Config.bad!(
+            "NEPTUNUS_MODELS",
+            spec,
+            "a parameter set of priv/vehicles/ for #{id}: one of " <>
+              Enum.join(Neptunus.Dynamics.Params.available(), ", ") <> " (got #{inspect(name)})"
+          )
+        end
+      end)
+
+    put_configured(vehicles, configured, :sim)
+  end
+
+  # A vehicle's camera source (Neptunus.Camera.Source).
+  defp cameras!(vehicles, spec) do
+    configured =
+      pairs!("NEPTUNUS_CAMERAS", spec, vehicles, "id=source pairs, e.g. rov=v4l2:/dev/video0")
+      |> Map.new(fn {%{id: id}, pair, text} ->
+        case Neptunus.Camera.Source.parse(text) do
+          {:ok, source} ->
+            {id, source}
+
+          {:error, reason} ->
+            Config.bad!("NEPTUNUS_CAMERAS", spec, "#{reason} in #{inspect(pair)}")
+        end
+      end)
+
+    put_configured(vehicles, configured, :camera)
+  end
+
+  # each vehicle with a configured value (by id) gets it under `key`
+  defp put_configured(vehicles, configured, key) do
+    Enum.map(vehicles, fn %{id: id} = vehicle ->
+      case Map.fetch(configured, id) do
+        {:ok, value} -> Map.put(vehicle, key, value)
+        :error -> vehicle
+      end
+    end)
+  end
+
+  # The `id=value` pairs of a per-vehicle variable as `{vehicle, pair, value}`; every id
+  # must be a configured vehicle.
+  defp pairs!(var, spec, vehicles, shape) do
+    spec
+    |> String.split(",", trim: true)
+    |> Enum.map(&String.trim/1)
+    |> Enum.reject(&(&1 == ""))
+    |> Enum.map(fn pair ->
+      case String.split(pair, "=", parts: 2) do
+        [id, text] ->
+          id = String.trim(id)
+
+          case Enum.find(vehicles, &(&1.id == id)) do
+            nil ->
+              Config.bad!(var, spec, "ids of configured vehicles (no vehicle #{inspect(id)})")
+
+            vehicle ->
+              {vehicle, pair, String.trim(text)}
+          end
+
+        _ ->
+          Config.bad!(var, spec, shape)
+      end
+    end)
+  end
+
+  defp vehicle!(pair, spec) do
+    case String.split(pair, "=", parts: 2) do
+      [id, board] ->
+        id = String.trim(id)
+
+        unless Regex.match?(~r/^[A-Za-z0-9_-]{1,32}$/, id) do
+          Config.bad!(
+            "NEPTUNUS_VEHICLES",
+            spec,
+            "vehicle ids of 1..32 characters a-z A-Z 0-9 _ - (got #{inspect(id)})"
+          )
+        end
+
+        case board(String.trim(board)) do
+          {:ok, board} ->
+            Map.put(board, :id, id)
+
+          {:bad_uart, why} ->
+            Config.bad!(
+              "NEPTUNUS_VEHICLES",
+              spec,
+              "uart:DEVICE[@BAUD] in #{inspect(pair)}: #{why}"
+            )
+
+          :error ->
+            Config.bad!(
+              "NEPTUNUS_VEHICLES",
+              spec,
+              "a known board in #{inspect(pair)}: one of " <>
+                "#{Enum.join(Map.keys(@boards), ", ")}, uart:DEVICE[@BAUD]"
+            )
+        end
+
+      _ ->
+        Config.bad!(
+          "NEPTUNUS_VEHICLES",
+          spec,
+          "id=board pairs separated by commas, e.g. rov=simulated"
+        )
+    end
+  end
+
+  defp board("uart:" <> device_baud) do
+    {device, baud} =
+      case String.split(device_baud, "@") do
+        [device] -> {device, "115200"}
+        [device, baud] -> {device, baud}
+        _ -> {"", ""}
+      end
+
+    cond do
+      not String.starts_with?(device, "/") ->
+        {:bad_uart, "the device must be an absolute path such as /dev/ttyO1"}
+
+      not match?({_, ""}, Integer.parse(baud)) or elem(Integer.parse(baud), 0) not in @bauds ->
+        {:bad_uart, "the baud rate must be one of #{Enum.join(@bauds, ", ")}"}
+
+      true ->
+        {:ok, %{board: :uart, device: device, baud: String.to_integer(baud)}}
+    end
+  end
+
+  defp board(name) do
+    with {:ok, board} <- Map.fetch(@boards, name), do: {:ok, %{board: board}}
+  end
+end
