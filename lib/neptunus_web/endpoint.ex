@@ -104,7 +104,7 @@ defmodule NeptunusWeb.Endpoint do
       arg_rewrite_mod: NeptunusWeb.Guard,
       extra_response_headers: [{:extramod, NeptunusWeb.Guard}],
       # Accepted sockets inherit these. Without nodelay, Nagle holds each small reply until
-      # the client's delayed ACK (~40 ms): measured reply p90 43 ms → 1.4 ms with it.
+      # the client's delayed ACK (~40 ms on every reply; figures in bench/README.md).
       # A send that cannot go on for send_timeout_ms (the client stopped reading: a frozen
       # tab, a dead link the kernel still holds) closes the connection; without it the
       # sender would wait forever while its mailbox (telemetry, camera frames) grows.
