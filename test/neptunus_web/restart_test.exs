@@ -198,9 +198,11 @@ defmodule NeptunusWeb.RestartTest do
       for name <- ~w(ada bob) do
         ws = clients[name].ws
         # the state this client converges to is the server's, with the new metas
+        # (both connections track again, each in its own time: wait for the state with both)
         state =
           sync_until(ws, states[name], fn state ->
-            refs(state) == refs(Presence.list(topic) |> stringify())
+            Map.keys(state) == ~w(ada bob) and
+              refs(state) == refs(Presence.list(topic) |> stringify())
           end)
 
         assert Map.keys(state) == ~w(ada bob)
