@@ -13,11 +13,16 @@ defmodule Neptunus.Protocol.BoardLink do
 
   ## Board reset
 
-  The board's millis (from `pong` and from the `time` field) never go backwards while it runs;
-  when they do, the board has restarted (a USB Arduino resets when its port is opened; a
-  brown-out resets it too). A restarted board has forgotten the motor modifiers, lights,
-  laser and tilt: action `{:board_reset, reason}`. (A wrap of the 32-bit millis after 49.7
-  days is not a reset.)
+  The board's millis never go backwards while it runs; when they do, the board has restarted
+  (a USB Arduino resets when its port is opened; a brown-out resets it too). A restarted
+  board has forgotten the motor modifiers, lights, laser and tilt: action
+  `{:board_reset, reason}`. (A wrap of the 32-bit millis after 49.7 days is not a reset.)
+  The millis come from two sources that are not sampled alike: a `pong` carries them as the
+  ping arrives, the `time` field the value the firmware took at its last navigation tick
+  (every ~101 ms, later still when its loop runs late), so a `time` printed just after a
+  `pong` can be behind it while the board runs on. So a `time` is compared only with the
+  previous `time`, and a `pong` (the freshest reading) with every earlier reading of the
+  board's current life; a reset starts a new life for both.
 
   ## The board's deadman
 
@@ -63,6 +68,7 @@ defmodule Neptunus.Protocol.BoardLink do
     pong_at: nil,
     board_ms: nil,
     board_ms_at: nil,
+    clocks: %{},
     pong_ms: nil,
     tripped: nil,
     sent: 0,
@@ -77,6 +83,7 @@ defmodule Neptunus.Protocol.BoardLink do
   * `outstanding` — `{n, sent_at}` of the pings not answered yet, oldest first
   * `rtt_ms` — the last round trip; `pong_at` — when the last pong arrived (our clock)
   * `board_ms`, `board_ms_at` — the board's latest millis and when we saw them
+  * `clocks` — the board's last millis from each source (`:pong`, `:time`) in its current life
   * `pong_ms` — the board's millis in its last pong
   * `tripped` — why the board's deadman is believed tripped, nil when it is not
   * counters: `sent`, `confirmed`, `crc_failures`, `resets`, `deadman_recoveries`
@@ -90,6 +97,7 @@ defmodule Neptunus.Protocol.BoardLink do
           pong_at: integer() | nil,
           board_ms: non_neg_integer() | nil,
           board_ms_at: integer() | nil,
+          clocks: %{optional(:pong | :time) => non_neg_integer()},
           pong_ms: non_neg_integer() | nil,
           tripped: String.t() | nil,
           sent: non_neg_integer(),
@@ -121,6 +129,7 @@ defmodule Neptunus.Protocol.BoardLink do
         pong_at: nil,
         board_ms: nil,
         board_ms_at: nil,
+        clocks: %{},
         pong_ms: nil,
         tripped: nil
     }
@@ -161,7 +170,7 @@ defmodule Neptunus.Protocol.BoardLink do
 
   def event(%__MODULE__{} = l, {:icmd, _name}, _now), do: {l, []}
 
-  def event(%__MODULE__{} = l, {:board_time, ms}, now), do: clock(l, ms, now)
+  def event(%__MODULE__{} = l, {:board_time, ms}, now), do: clock(l, :time, ms, now)
 
   def event(%__MODULE__{} = l, {:pong, pong}, now) do
     l =
@@ -175,7 +184,7 @@ defmodule Neptunus.Protocol.BoardLink do
     {l, reset_actions} =
       case pong.millis do
         nil -> {l, []}
-        ms -> clock(l, ms, now)
+        ms -> clock(l, :pong, ms, now)
       end
 
     {l, deadman_actions} = pong_deadman(l, pong.millis, reset_actions != [])
@@ -207,17 +216,25 @@ defmodule Neptunus.Protocol.BoardLink do
     end
   end
 
-  defp clock(l, ms, now) do
-    backwards? = l.board_ms != nil and ms < l.board_ms and not wrapped?(l.board_ms, ms)
-    was = l.board_ms
+  defp clock(l, source, ms, now) do
+    previous =
+      case source do
+        :pong -> l.clocks |> Map.values() |> Enum.max(fn -> nil end)
+        :time -> Map.get(l.clocks, :time)
+      end
+
+    backwards? = previous != nil and ms < previous and not wrapped?(previous, ms)
+    was = max(l.board_ms || 0, previous || 0)
     l = %{l | board_ms: ms, board_ms_at: now}
 
     if backwards? do
       reason = "board restarted (its uptime went from #{seconds(was)} s to #{seconds(ms)} s)"
-      # a restarted board's deadman is disarmed and its earlier pongs are of another life
-      {%{l | resets: l.resets + 1, tripped: nil, pong_ms: nil}, [{:board_reset, reason}]}
+      # a restarted board's deadman is disarmed, and its earlier readings and pongs are of
+      # another life
+      {%{l | resets: l.resets + 1, tripped: nil, pong_ms: nil, clocks: %{source => ms}},
+       [{:board_reset, reason}]}
     else
-      {l, []}
+      {%{l | clocks: Map.put(l.clocks, source, ms)}, []}
     end
   end
 

@@ -39,6 +39,23 @@ defmodule Neptunus.Protocol.BoardLinkTest do
     {_, [{:board_reset, _}]} = BoardLink.event(l, pong(100), 2_100)
   end
 
+  test "a time field behind the last pong is the firmware's sampling, not a reset" do
+    # the firmware samples `time` at its 101 ms navigation tick and prints it later: just after
+    # a pong it can be behind it while the board runs on (seen under load: 315.3 s, then 315.2 s)
+    l = BoardLink.new(:openrov_25)
+    {l, []} = feed(l, [{{:board_time, 314_300}, 0}, {pong(315_300), 990}])
+    {l, []} = BoardLink.event(l, {:board_time, 315_200}, 1_000)
+    {l, []} = BoardLink.event(l, pong(316_300), 2_000)
+    assert l.resets == 0
+
+    # a real reset is still seen, once, whichever source shows it first
+    {l, [{:board_reset, reason}]} = BoardLink.event(l, pong(400), 2_500)
+    assert reason =~ "316.3 s to 0.4 s"
+    {l, []} = BoardLink.event(l, {:board_time, 1_001}, 3_100)
+    {l, []} = BoardLink.event(l, pong(1_400), 3_500)
+    assert l.resets == 1
+  end
+
   test "a 32-bit millis wrap is not a reset" do
     l = BoardLink.new(:openrov_25)
     {l, []} = BoardLink.event(l, {:board_time, 4_294_967_000}, 0)

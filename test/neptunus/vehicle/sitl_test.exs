@@ -310,6 +310,15 @@ defmodule Neptunus.Vehicle.SITLTest do
 
       wait_until(settled, "lights, laser and tilt")
       tilt = SITL.Device.state(id).firmware.tilt
+      # mid-dive: the board has been up for a while, so its clock going back shows the reset
+      # (a board that resets within a second or two of its boot may give the same millis
+      # again at its next reply: docs/OPENROV.md)
+      wait_until(
+        fn -> (Board.link_status(id).board_uptime_ms || 0) > 3_000 end,
+        "3 s of the board's uptime",
+        6_000
+      )
+
       :ok = SITL.Device.reset(id)
 
       wait_until(
