@@ -76,7 +76,8 @@ async function main() {
   let reply = [], toTelemetry = [];
   let pending = null; // {us, sent}: the newest command not yet seen in telemetry
   pilot.onEvent = (event, payload) => {
-    if (event === 'control_granted' && payload.epoch != null) epoch = payload.epoch;
+    // a grant, and a deadman stop (`helm` with a new epoch), give the stamp for the next thrust
+    if ((event === 'control_granted' || event === 'helm') && payload.epoch != null) epoch = payload.epoch;
     else if (event === 'stopped') { stops++; lastStop = payload.reason; }
     else if (event === 'telemetry' && payload.thrusters) {
       if (pending && payload.thrusters.port_us === pending.us) { toTelemetry.push(performance.now() - pending.sent); pending = null; }
