@@ -97,6 +97,7 @@ bench: setup assets
 	bench/control_latency
 	bench/recording_export
 	bench/recorder_sync
+	bench/soak
 	@if [ "$$(id -u)" = 0 ]; then bench/slow_link; else echo "bench/slow_link skipped: it needs root (a network namespace and a shaped link)"; fi
 
 # Build it on the machine it runs on (the BeagleBone's Debian): the release carries that
