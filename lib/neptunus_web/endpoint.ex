@@ -1,6 +1,6 @@
 defmodule NeptunusWeb.Endpoint do
   @moduledoc """
-  The web edge: yaws, embedded under this supervisor (`:one_for_all`), serving
+  The web edge: yaws, embedded under this supervisor, serving
 
     * `priv/static` (the operator page and its assets) at `/`,
     * the HTTP API (`NeptunusWeb.API`) under `/api`,
@@ -15,7 +15,21 @@ defmodule NeptunusWeb.Endpoint do
   and every response gets its security headers (`Content-Security-Policy`,
   `X-Frame-Options`, `X-Content-Type-Options`).
 
-  The login rate limiter (`NeptunusWeb.Auth.RateLimit`) runs here too, before yaws.
+  ## Supervision
+
+  `:rest_for_one`, in this order:
+
+    1. `NeptunusWeb.Endpoint.Server` — yaws' own processes and the listener, `:one_for_all`
+       (yaws' processes depend on each other: one of them lost and yaws restarts whole,
+       closing every connection);
+    2. `NeptunusWeb.Auth.RateLimit` — the login rate limiter;
+    3. `NeptunusWeb.ConnectionLog` — the count of connections closed to protect the endpoint;
+    4. `NeptunusWeb.HeaderDeadline` — the deadline on request heads (it watches yaws'
+       connection processes, so it restarts with yaws).
+
+  A helper that crashes restarts alone (with the helpers after it) and never takes yaws or
+  a connection with it: the pilot's WebSocket stays up. While a helper restarts, only a
+  request that needs it at that instant fails (a login during the rate limiter's restart).
 
   ## Connections and file descriptors
 
@@ -144,14 +158,21 @@ defmodule NeptunusWeb.Endpoint do
       restart: :transient
     }
 
+    server = %{
+      id: NeptunusWeb.Endpoint.Server,
+      start: {Supervisor, :start_link, [yaws_children ++ [listener], server_options()]},
+      type: :supervisor
+    }
+
     deadline = {NeptunusWeb.HeaderDeadline, timeout_ms: header_timeout_ms()}
 
     Supervisor.init(
-      [NeptunusWeb.Auth.RateLimit, NeptunusWeb.ConnectionLog | yaws_children] ++
-        [listener, deadline],
-      strategy: :one_for_all
+      [server, NeptunusWeb.Auth.RateLimit, NeptunusWeb.ConnectionLog, deadline],
+      strategy: :rest_for_one
     )
   end
+
+  defp server_options, do: [strategy: :one_for_all, name: NeptunusWeb.Endpoint.Server]
 
   @doc """
   How long (ms) a send to a client may wait for the client to read before the connection
