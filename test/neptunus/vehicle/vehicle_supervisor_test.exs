@@ -38,4 +38,31 @@ defmodule Neptunus.Vehicle.SupervisorTest do
     assert Enum.all?(Map.values(Board.Simulated.state(id).sim.thrusters), &(&1 == 0))
     assert Fleet.whereis(Recorder, id) == recorder
   end
+
+  test "a request while the helm restarts is refused with a reason, not an exit" do
+    id = "vsup-helm-#{System.unique_integer([:positive])}"
+    {:ok, _} = Fleet.start_vehicle(%{id: id, board: :simulated})
+    on_exit(fn -> Fleet.stop_vehicle(id) end)
+
+    chain =
+      Fleet.whereis(Neptunus.Vehicle.Supervisor, id)
+      |> Supervisor.which_children()
+      |> Enum.find_value(fn {child, pid, _, _} ->
+        child == Neptunus.Vehicle.Supervisor.Control && pid
+      end)
+
+    # the helm down and not yet restarted
+    :ok = :sys.suspend(chain)
+    helm = Fleet.whereis(Neptunus.Vehicle.Helm, id)
+    ref = Process.monitor(helm)
+    Process.exit(helm, :kill)
+    assert_receive {:DOWN, ^ref, :process, ^helm, :killed}
+
+    party = %{id: "p1", name: "pilot", role: :pilot, pid: self(), notify: fn _, _ -> :ok end}
+    assert {:error, "vehicle restarting" <> _} = Neptunus.Vehicle.Helm.request_control(id, party)
+    assert {:error, "vehicle restarting" <> _} = Neptunus.Vehicle.Helm.heartbeat(id, party)
+    assert :ok = Neptunus.Vehicle.Helm.leave(id, "p1", "pilot_left")
+
+    :ok = :sys.resume(chain)
+  end
 end
