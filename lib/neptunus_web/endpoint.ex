@@ -21,7 +21,8 @@ defmodule NeptunusWeb.Endpoint do
 
     1. `NeptunusWeb.Endpoint.Server` — yaws' own processes and the listener, `:one_for_all`
        (yaws' processes depend on each other: one of them lost and yaws restarts whole,
-       closing every connection);
+       closing every connection; its server process is killed rather than stopped, which
+       would wait a second first);
     2. `NeptunusWeb.Auth.RateLimit` — the login rate limiter;
     3. `NeptunusWeb.ConnectionLog` — the count of connections closed to protect the endpoint;
     4. `NeptunusWeb.HeaderDeadline` — the deadline on request heads (it watches yaws'
@@ -160,7 +161,9 @@ defmodule NeptunusWeb.Endpoint do
 
     server = %{
       id: NeptunusWeb.Endpoint.Server,
-      start: {Supervisor, :start_link, [yaws_children ++ [listener], server_options()]},
+      start:
+        {Supervisor, :start_link,
+         [Enum.map(yaws_children, &brutal_server/1) ++ [listener], server_options()]},
       type: :supervisor
     }
 
@@ -173,6 +176,16 @@ defmodule NeptunusWeb.Endpoint do
   end
 
   defp server_options, do: [strategy: :one_for_all, name: NeptunusWeb.Endpoint.Server]
+
+  # yaws' server process, stopped in order, waits a whole second (`timer:sleep(1000)`)
+  # before it looks whether its connections have ended; so when another of yaws' processes
+  # crashes and the group restarts, the endpoint would be gone for over a second. Killed,
+  # it takes its listener, acceptors and connections (all linked to it) down at once.
+  defp brutal_server({:yaws_server, start, restart, _shutdown, type, modules}),
+    do: {:yaws_server, start, restart, :brutal_kill, type, modules}
+
+  defp brutal_server(%{id: :yaws_server} = spec), do: Map.put(spec, :shutdown, :brutal_kill)
+  defp brutal_server(spec), do: spec
 
   @doc """
   How long (ms) a send to a client may wait for the client to read before the connection

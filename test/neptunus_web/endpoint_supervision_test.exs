@@ -44,4 +44,42 @@ defmodule NeptunusWeb.EndpointSupervisionTest do
       WSClient.close(pilot.ws)
     end
   end
+
+  # The issue's bound (R2): the service is back within 1 s of a crash.
+  test "a crash of one of yaws' processes: a client is granted control again within 1 s",
+       %{topic: topic} do
+    pilot = Wire.client!(topic, %{name: "pilot"})
+    assert {"ok", _} = Wire.push_and_reply(pilot.ws, pilot.jr, topic, "request_control", %{})
+    Wire.event!(pilot.ws, "control_granted")
+
+    # a kept-alive HTTP connection, as a browser holds one
+    {200, _, _, _socket} = Wire.raw_get("/")
+
+    pid = Process.whereis(:yaws_ws_sup)
+    t0 = System.monotonic_time(:millisecond)
+    Process.exit(pid, :kill)
+    assert_receive {:ws, _, :closed}, 2_000
+
+    granted_at =
+      Enum.find_value(1..100, fn _ ->
+        with {:ok, ws} <- Wire.connect(%{name: "pilot"}),
+             {:ok, _} <- safe_join(ws, topic),
+             {"ok", %{"status" => "granted"}} <-
+               Wire.push_and_reply(ws, "1", topic, "request_control", %{}) do
+          System.monotonic_time(:millisecond)
+        else
+          _ ->
+            Process.sleep(20)
+            nil
+        end
+      end)
+
+    assert granted_at - t0 <= 1_000, "granted #{granted_at - t0} ms after the crash"
+  end
+
+  defp safe_join(ws, topic) do
+    WSClient.join(ws, topic, %{}, "1")
+  catch
+    _, _ -> :error
+  end
 end
