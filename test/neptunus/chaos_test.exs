@@ -612,13 +612,6 @@ defmodule Neptunus.ChaosTest do
   defp affects?({:app, _, _}, _id), do: true
   defp affects?(target, id), do: vehicle_of(target) == id
 
-  defp kills_before(log, at) do
-    for {n, what, _target, _t0, os_at, _} <- log,
-        os_at <= at + 50,
-        os_at >= at - 2_000,
-        do: {n, what}
-  end
-
   # -- baseline -------------------------------------------------------------------------
 
   defp measure do
