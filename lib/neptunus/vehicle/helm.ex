@@ -198,19 +198,20 @@ defmodule Neptunus.Vehicle.Helm do
 
   # A request while the helm is down (its vehicle's control chain restarting after a crash)
   # is refused with a reason instead of crashing the caller (a client's channel): the new
-  # helm drives neutral and says `stopped` as it starts, and the client may ask again.
+  # helm drives neutral and says `stopped` as it starts, and the client may ask again. A
+  # vehicle that no longer runs is no restart: the caller exits as before.
   defp call(id, request) do
     :gen_statem.call(via(id), request)
   catch
-    :exit, {reason, {:gen_statem, :call, _}} when reason in [:noproc, :normal, :killed] ->
-      {:error, @restarting}
-
-    :exit, {{:shutdown, _}, {:gen_statem, :call, _}} ->
-      {:error, @restarting}
-
-    :exit, {:shutdown, {:gen_statem, :call, _}} ->
-      {:error, @restarting}
+    :exit, {reason, {:gen_statem, :call, _}} = exit ->
+      if helm_down?(reason) and Neptunus.Fleet.exists?(id),
+        do: {:error, @restarting},
+        else: :erlang.raise(:exit, exit, __STACKTRACE__)
   end
+
+  defp helm_down?(reason) when reason in [:noproc, :normal, :killed, :shutdown], do: true
+  defp helm_down?({:shutdown, _}), do: true
+  defp helm_down?(_), do: false
 
   defp via(id), do: Neptunus.Fleet.via(__MODULE__, id)
 
