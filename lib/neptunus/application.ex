@@ -7,6 +7,13 @@ defmodule Neptunus.Application do
       ├── Neptunus.Fleet          registry + one supervisor per vehicle
       ├── NeptunusWeb.Presence    who watches which topic
       └── NeptunusWeb.Endpoint    yaws: static files, HTTP API, WebSocket (last up, first down)
+
+  Restart intensity: the default, 3 restarts in 5 s. A restart of PubSub or Presence is
+  cheap and tells every client (docs/API.md), so a single crash, or a few spread over time,
+  is absorbed; a node where they crash more often than that has a fault that restarting
+  does not cure, and the application stops (its vehicles driven neutral as their processes
+  shut down) for the service manager to start the node again. The chaos test spaces its
+  kills of these processes as real failures would be (2 s apart).
   """
   use Application
 

@@ -1,6 +1,6 @@
 defmodule NeptunusWeb.Endpoint do
   @moduledoc """
-  The web edge: yaws, embedded under this supervisor (`:one_for_all`), serving
+  The web edge: yaws, embedded under this supervisor, serving
 
     * `priv/static` (the operator page and its assets) at `/`,
     * the HTTP API (`NeptunusWeb.API`) under `/api`,
@@ -15,7 +15,22 @@ defmodule NeptunusWeb.Endpoint do
   and every response gets its security headers (`Content-Security-Policy`,
   `X-Frame-Options`, `X-Content-Type-Options`).
 
-  The login rate limiter (`NeptunusWeb.Auth.RateLimit`) runs here too, before yaws.
+  ## Supervision
+
+  `:rest_for_one`, in this order:
+
+    1. `NeptunusWeb.Endpoint.Server` — yaws' own processes and the listener, `:one_for_all`
+       (yaws' processes depend on each other: one of them lost and yaws restarts whole,
+       closing every connection; its server process is killed rather than stopped, which
+       would wait a second first);
+    2. `NeptunusWeb.Auth.RateLimit` — the login rate limiter;
+    3. `NeptunusWeb.ConnectionLog` — the count of connections closed to protect the endpoint;
+    4. `NeptunusWeb.HeaderDeadline` — the deadline on request heads (it watches yaws'
+       connection processes, so it restarts with yaws).
+
+  A helper that crashes restarts alone (with the helpers after it) and never takes yaws or
+  a connection with it: the pilot's WebSocket stays up. While a helper restarts, only a
+  request that needs it at that instant fails (a login during the rate limiter's restart).
 
   ## Connections and file descriptors
 
@@ -144,14 +159,33 @@ defmodule NeptunusWeb.Endpoint do
       restart: :transient
     }
 
+    server = %{
+      id: NeptunusWeb.Endpoint.Server,
+      start:
+        {Supervisor, :start_link,
+         [Enum.map(yaws_children, &brutal_server/1) ++ [listener], server_options()]},
+      type: :supervisor
+    }
+
     deadline = {NeptunusWeb.HeaderDeadline, timeout_ms: header_timeout_ms()}
 
     Supervisor.init(
-      [NeptunusWeb.Auth.RateLimit, NeptunusWeb.ConnectionLog | yaws_children] ++
-        [listener, deadline],
-      strategy: :one_for_all
+      [server, NeptunusWeb.Auth.RateLimit, NeptunusWeb.ConnectionLog, deadline],
+      strategy: :rest_for_one
     )
   end
+
+  defp server_options, do: [strategy: :one_for_all, name: NeptunusWeb.Endpoint.Server]
+
+  # yaws' server process, stopped in order, waits a whole second (`timer:sleep(1000)`)
+  # before it looks whether its connections have ended; so when another of yaws' processes
+  # crashes and the group restarts, the endpoint would be gone for over a second. Killed,
+  # it takes its listener, acceptors and connections (all linked to it) down at once.
+  defp brutal_server({:yaws_server, start, restart, _shutdown, type, modules}),
+    do: {:yaws_server, start, restart, :brutal_kill, type, modules}
+
+  defp brutal_server(%{id: :yaws_server} = spec), do: Map.put(spec, :shutdown, :brutal_kill)
+  defp brutal_server(spec), do: spec
 
   @doc """
   How long (ms) a send to a client may wait for the client to read before the connection

@@ -82,6 +82,8 @@ defmodule Neptunus.Vehicle.Helm do
         }
   @type reply :: {:ok, map()} | {:error, String.t()}
 
+  @restarting "vehicle restarting: try again"
+
   defmodule Data do
     @moduledoc false
     @type t :: %__MODULE__{
@@ -181,8 +183,11 @@ defmodule Neptunus.Vehicle.Helm do
   """
   @spec leave(String.t(), String.t(), String.t()) :: :ok
   def leave(id, party_id, reason) do
-    {:ok, _} = call(id, {:helm, {:leave, party_id, reason}})
-    :ok
+    # a helm that is restarting has forgotten every party already
+    case call(id, {:helm, {:leave, party_id, reason}}) do
+      {:ok, _} -> :ok
+      {:error, @restarting} -> :ok
+    end
   end
 
   @doc "The helm as broadcast in `helm` (see docs/API.md)."
@@ -193,7 +198,25 @@ defmodule Neptunus.Vehicle.Helm do
   @spec check_deadman(String.t()) :: :ok
   def check_deadman(id), do: call(id, :check_deadman)
 
-  defp call(id, request), do: :gen_statem.call(via(id), request)
+  defp call(id, :status), do: :gen_statem.call(via(id), :status)
+  defp call(id, :check_deadman), do: :gen_statem.call(via(id), :check_deadman)
+
+  # A request while the helm is down (its vehicle's control chain restarting after a crash)
+  # is refused with a reason instead of crashing the caller (a client's channel): the new
+  # helm drives neutral and says `stopped` as it starts, and the client may ask again. A
+  # vehicle that no longer runs is no restart: the caller exits as before.
+  defp call(id, request) do
+    :gen_statem.call(via(id), request)
+  catch
+    :exit, {reason, {:gen_statem, :call, _}} = exit ->
+      if helm_down?(reason) and Neptunus.Fleet.exists?(id),
+        do: {:error, @restarting},
+        else: :erlang.raise(:exit, exit, __STACKTRACE__)
+  end
+
+  defp helm_down?(reason) when reason in [:noproc, :normal, :killed, :shutdown], do: true
+  defp helm_down?({:shutdown, _}), do: true
+  defp helm_down?(_), do: false
 
   defp via(id), do: Neptunus.Fleet.via(__MODULE__, id)
 

@@ -9,8 +9,10 @@ defmodule Neptunus.Vehicle.Board.UART do
     * **Link.** Opens the device at the configured baud (raw 8N1). The link is *up* once the
       program reports the device open; it is *down* when opening fails, the device hangs up
       or is unplugged, or the program exits for any reason (`{port, {:exit_status, n}}`).
-      Then it reopens after a backoff (`Neptunus.Vehicle.Board.Backoff`: `reopen_min` doubling
-      to `reopen_max`). Every change of `{up, reason}` is broadcast as event `link`
+      A link that was up for at least 100 ms is reopened at once (the board keeps the
+      last `go()` until a link writes neutral: every open does first); after that, or when
+      it flapped faster, it reopens after a backoff (`Neptunus.Vehicle.Board.Backoff`:
+      `reopen_min` doubling to `reopen_max`). Every change of `{up, reason}` is broadcast as event `link`
       `%{up: boolean, reason: String.t()}` on `"vehicle:<id>"` and logged; `link_status/1`
       returns it with the counters.
     * **Firmware profile** (`:firmware`, `:openrov_25` default or `:openrov_30`): every
@@ -51,6 +53,9 @@ defmodule Neptunus.Vehicle.Board.UART do
   `t` of a sample is the time since this process started (s, monotonic).
   """
   use GenServer
+
+  # a link up at least this long (ms) before it went down is reopened without waiting
+  @reopen_at_once_after_ms 100
 
   require Logger
 
@@ -404,7 +409,16 @@ defmodule Neptunus.Vehicle.Board.UART do
     now = now_ms()
     was_up = state.link == :up
     backoff = if was_up, do: Backoff.up_for(state.backoff, now - state.since), else: state.backoff
-    {delay, backoff} = Backoff.next(backoff)
+
+    # A link that was up for a while is tried again at once: the board keeps the last go()
+    # until a new link writes neutral (its own deadman is seconds away, and not armed for
+    # minutes after boot). Failures after that back off; a link that was up for less than
+    # 100 ms (one that flaps) backs off at once.
+    {delay, backoff} =
+      if was_up and now - state.since >= @reopen_at_once_after_ms,
+        do: {0, backoff},
+        else: Backoff.next(backoff)
+
     Process.send_after(self(), :reopen, delay)
 
     state = %{

@@ -1,0 +1,59 @@
+defmodule Neptunus.Vehicle.Board.UARTReopenTest do
+  # The board link's port program dies while the vehicle moves: the link opens again at once
+  # and writes neutral, instead of leaving the board on its last go() for the backoff.
+  use ExUnit.Case, async: true
+
+  @moduletag :uart
+  @moduletag :capture_log
+
+  import Neptunus.Test.Pty, only: [wait_until: 3]
+
+  alias Neptunus.{Fleet, PubSub, Wiring}
+  alias Neptunus.Vehicle.{Board, Control, Telemetry}
+  alias Neptunus.Vehicle.Board.SITL
+
+  test "a killed port program: the board is at neutral long before the backoff's 5 s" do
+    id = "reopen-#{System.unique_integer([:positive])}"
+    PubSub.subscribe(Telemetry.topic(id))
+
+    {:ok, _} =
+      Fleet.start_vehicle(%{
+        id: id,
+        board: :sitl,
+        wiring: Wiring.default(),
+        sim: [noise: false],
+        reopen_min: 5_000,
+        reopen_max: 10_000
+      })
+
+    on_exit(fn -> Fleet.stop_vehicle(id) end)
+    assert_receive {:pubsub, _, "link", %{up: true}}, 5_000
+    # the helm's stop as it starts, before we drive
+    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}, 5_000
+    # up for longer than reopen_min would need: only a link up a while reopens at once
+    Process.sleep(200)
+
+    assert {:ok, _} =
+             Control.thrust(id, %{"mode" => "motion", "surge" => 1, "heave" => 0, "yaw" => 0})
+
+    neutral = {1500, 1500, 1500}
+
+    wait_until(
+      fn -> SITL.Device.state(id).firmware.target_us != neutral end,
+      "the board to drive",
+      2_000
+    )
+
+    {:os_pid, os_pid} = :sys.get_state(Fleet.whereis(Board, id)).port |> Port.info(:os_pid)
+    {_, 0} = System.cmd("kill", ["-KILL", Integer.to_string(os_pid)])
+
+    assert_receive {:pubsub, _, "link", %{up: false}}, 2_000
+    assert_receive {:pubsub, _, "link", %{up: true}}, 2_000
+
+    wait_until(
+      fn -> SITL.Device.state(id).firmware.target_us == neutral end,
+      "the board at neutral",
+      2_000
+    )
+  end
+end

@@ -1,0 +1,68 @@
+defmodule Neptunus.Vehicle.SupervisorTest do
+  # A crash in the control chain drives the thrusters neutral without waiting for the
+  # recorder or the camera, and restarts neither.
+  use ExUnit.Case, async: true
+
+  @moduletag :capture_log
+  @moduletag :tmp_dir
+
+  alias Neptunus.{Fleet, PubSub}
+  alias Neptunus.Vehicle.{Board, Control, Recorder, Telemetry}
+
+  test "a telemetry crash: neutral at once while the recorder is busy; recorder kept",
+       %{tmp_dir: dir} do
+    id = "vsup-#{System.unique_integer([:positive])}"
+    PubSub.subscribe(Telemetry.topic(id))
+    {:ok, _} = Fleet.start_vehicle(%{id: id, board: :simulated, recording: [dir: dir]})
+    on_exit(fn -> Fleet.stop_vehicle(id) end)
+    # the helm's own stop as it starts
+    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}, 2_000
+
+    assert {:ok, _} =
+             Control.thrust(id, %{"mode" => "motion", "surge" => 1, "heave" => 0, "yaw" => 0})
+
+    assert Enum.any?(Map.values(Board.Simulated.state(id).sim.thrusters), &(&1 != 0))
+
+    recorder = Fleet.whereis(Recorder, id)
+    control = Fleet.whereis(Control, id)
+    # a recorder busy for 4 s (a disk that hangs a sync): it cannot stop before then
+    spawn(fn -> :sys.replace_state(recorder, fn s -> Process.sleep(4_000) && s end, 10_000) end)
+    Process.sleep(50)
+
+    Process.exit(Fleet.whereis(Telemetry, id), :kill)
+
+    # the new Control says it stopped, and the board is neutral, while the recorder is still
+    # busy
+    assert_receive {:pubsub, _, "stopped", _}, 2_000
+    assert Fleet.whereis(Control, id) != control
+    assert Enum.all?(Map.values(Board.Simulated.state(id).sim.thrusters), &(&1 == 0))
+    assert Fleet.whereis(Recorder, id) == recorder
+  end
+
+  test "a request while the helm restarts is refused with a reason, not an exit" do
+    id = "vsup-helm-#{System.unique_integer([:positive])}"
+    {:ok, _} = Fleet.start_vehicle(%{id: id, board: :simulated})
+    on_exit(fn -> Fleet.stop_vehicle(id) end)
+
+    chain =
+      Fleet.whereis(Neptunus.Vehicle.Supervisor, id)
+      |> Supervisor.which_children()
+      |> Enum.find_value(fn {child, pid, _, _} ->
+        child == Neptunus.Vehicle.Supervisor.Control && pid
+      end)
+
+    # the helm down and not yet restarted
+    :ok = :sys.suspend(chain)
+    helm = Fleet.whereis(Neptunus.Vehicle.Helm, id)
+    ref = Process.monitor(helm)
+    Process.exit(helm, :kill)
+    assert_receive {:DOWN, ^ref, :process, ^helm, :killed}
+
+    party = %{id: "p1", name: "pilot", role: :pilot, pid: self(), notify: fn _, _ -> :ok end}
+    assert {:error, "vehicle restarting" <> _} = Neptunus.Vehicle.Helm.request_control(id, party)
+    assert {:error, "vehicle restarting" <> _} = Neptunus.Vehicle.Helm.heartbeat(id, party)
+    assert :ok = Neptunus.Vehicle.Helm.leave(id, "p1", "pilot_left")
+
+    :ok = :sys.resume(chain)
+  end
+end

@@ -1,0 +1,85 @@
+defmodule NeptunusWeb.EndpointSupervisionTest do
+  # The endpoint's helpers (rate limiter, connection log, header deadline) crash and restart
+  # without taking yaws, or any connection, with them. Kills application-wide processes, so
+  # it runs alone (async: false).
+  use ExUnit.Case, async: false
+
+  alias NeptunusWeb.Test.{Wire, WSClient}
+
+  @moduletag :capture_log
+
+  setup do
+    Wire.start_vehicle!("endpoint-sup")
+  end
+
+  for helper <- [
+        NeptunusWeb.Auth.RateLimit,
+        NeptunusWeb.ConnectionLog,
+        NeptunusWeb.HeaderDeadline
+      ] do
+    test "killing #{inspect(helper)} keeps the pilot's connection and control", %{topic: topic} do
+      helper = unquote(helper)
+      pilot = Wire.client!(topic, %{name: "pilot"})
+      assert {"ok", _} = Wire.push_and_reply(pilot.ws, pilot.jr, topic, "request_control", %{})
+      Wire.event!(pilot.ws, "control_granted")
+      yaws = Process.whereis(NeptunusWeb.Endpoint.Server)
+
+      pid = Process.whereis(helper)
+      ref = Process.monitor(pid)
+      Process.exit(pid, :kill)
+      assert_receive {:DOWN, ^ref, :process, ^pid, :killed}
+
+      # it comes back, alone
+      Neptunus.Test.Pty.wait_until(
+        fn -> is_pid(Process.whereis(helper)) and Process.whereis(helper) != pid end,
+        "#{inspect(helper)} to restart"
+      )
+
+      assert Process.whereis(NeptunusWeb.Endpoint.Server) == yaws
+      # the pilot's connection is still open and still in control
+      refute_receive {:ws, _, {:close, _, _}}, 300
+      refute_received {:ws, _, :closed}
+      assert {"ok", _} = Wire.push_and_reply(pilot.ws, pilot.jr, topic, "heartbeat", %{})
+      assert %{pilot: %{}} = Neptunus.Vehicle.Helm.status(String.trim_leading(topic, "vehicle:"))
+      WSClient.close(pilot.ws)
+    end
+  end
+
+  # The issue's bound (R2): the service is back within 1 s of a crash.
+  test "a crash of one of yaws' processes: a client is granted control again within 1 s",
+       %{topic: topic} do
+    pilot = Wire.client!(topic, %{name: "pilot"})
+    assert {"ok", _} = Wire.push_and_reply(pilot.ws, pilot.jr, topic, "request_control", %{})
+    Wire.event!(pilot.ws, "control_granted")
+
+    # a kept-alive HTTP connection, as a browser holds one
+    {200, _, _, _socket} = Wire.raw_get("/")
+
+    pid = Process.whereis(:yaws_ws_sup)
+    t0 = System.monotonic_time(:millisecond)
+    Process.exit(pid, :kill)
+    assert_receive {:ws, _, :closed}, 2_000
+
+    granted_at =
+      Enum.find_value(1..100, fn _ ->
+        with {:ok, ws} <- Wire.connect(%{name: "pilot"}),
+             {:ok, _} <- safe_join(ws, topic),
+             {"ok", %{"status" => "granted"}} <-
+               Wire.push_and_reply(ws, "1", topic, "request_control", %{}) do
+          System.monotonic_time(:millisecond)
+        else
+          _ ->
+            Process.sleep(20)
+            nil
+        end
+      end)
+
+    assert granted_at - t0 <= 1_000, "granted #{granted_at - t0} ms after the crash"
+  end
+
+  defp safe_join(ws, topic) do
+    WSClient.join(ws, topic, %{}, "1")
+  catch
+    _, _ -> :error
+  end
+end
