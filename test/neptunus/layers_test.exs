@@ -23,6 +23,13 @@ defmodule Neptunus.LayersTest do
     assert calls == []
   end
 
-  defp core?(module), do: String.starts_with?(Atom.to_string(module), "Elixir.Neptunus.")
+  # the test support modules (Neptunus.Test.*, compiled into the test build) are not the core
+  defp core?(module) do
+    name = Atom.to_string(module)
+
+    String.starts_with?(name, "Elixir.Neptunus.") and
+      not String.starts_with?(name, "Elixir.Neptunus.Test.")
+  end
+
   defp web?(module), do: String.starts_with?(Atom.to_string(module), "Elixir.NeptunusWeb.")
 end
