@@ -111,55 +111,38 @@ defmodule Neptunus.Config.Vehicles do
 
   # Every sitl/uart vehicle gets a wiring: the configured one or the default.
   defp wiring!(vehicles, spec) do
-    configured =
-      pairs!(
-        "NEPTUNUS_WIRING",
-        spec,
-        vehicles,
-        "id=wiring pairs, e.g. rov=-port/vertical/starboard"
-      )
-      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
-        cond do
-          board not in [:sitl, :uart] ->
-            Config.bad!("NEPTUNUS_WIRING", spec, "sitl or uart vehicles (#{id} is #{board})")
-
-          true ->
-            case Neptunus.Wiring.parse(text) do
-              {:ok, wiring} ->
-                {id, wiring}
-
-              {:error, reason} ->
-                Config.bad!("NEPTUNUS_WIRING", spec, "#{reason} in #{inspect(pair)}")
-            end
-        end
-      end)
-
-    defaults =
-      for %{board: board, id: id} <- vehicles,
-          board in [:sitl, :uart],
-          into: %{},
-          do: {id, Neptunus.Wiring.default()}
-
-    put_configured(vehicles, Map.merge(defaults, configured), :wiring)
+    serial_setting!(vehicles, spec, %{
+      var: "NEPTUNUS_WIRING",
+      expected: "id=wiring pairs, e.g. rov=-port/vertical/starboard",
+      key: :wiring,
+      parse: &Neptunus.Wiring.parse/1,
+      default: Neptunus.Wiring.default()
+    })
   end
 
   # Every sitl/uart vehicle gets a firmware profile: the configured one or openrov-2.5.
   defp firmware!(vehicles, spec) do
+    serial_setting!(vehicles, spec, %{
+      var: "NEPTUNUS_FIRMWARE",
+      expected: "id=firmware pairs, e.g. rov=openrov-30",
+      key: :firmware,
+      parse: &Neptunus.Protocol.BoardLink.parse_profile/1,
+      default: :openrov_25
+    })
+  end
+
+  # A setting of the vehicles on a serial line (sitl, uart): `id=value` pairs parsed with
+  # `parse`, the default for every such vehicle not named; refused for any other board.
+  defp serial_setting!(vehicles, spec, %{var: var} = setting) do
     configured =
-      pairs!("NEPTUNUS_FIRMWARE", spec, vehicles, "id=firmware pairs, e.g. rov=openrov-30")
+      pairs!(var, spec, vehicles, setting.expected)
       |> Map.new(fn {%{id: id, board: board}, pair, text} ->
-        cond do
-          board not in [:sitl, :uart] ->
-            Config.bad!("NEPTUNUS_FIRMWARE", spec, "sitl or uart vehicles (#{id} is #{board})")
+        if board not in [:sitl, :uart],
+          do: Config.bad!(var, spec, "sitl or uart vehicles (#{id} is #{board})")
 
-          true ->
-            case Neptunus.Protocol.BoardLink.parse_profile(text) do
-              {:ok, profile} ->
-                {id, profile}
-
-              {:error, reason} ->
-                Config.bad!("NEPTUNUS_FIRMWARE", spec, "#{reason} in #{inspect(pair)}")
-            end
+        case setting.parse.(text) do
+          {:ok, value} -> {id, value}
+          {:error, reason} -> Config.bad!(var, spec, "#{reason} in #{inspect(pair)}")
         end
       end)
 
@@ -167,9 +150,9 @@ defmodule Neptunus.Config.Vehicles do
       for %{board: board, id: id} <- vehicles,
           board in [:sitl, :uart],
           into: %{},
-          do: {id, :openrov_25}
+          do: {id, setting.default}
 
-    put_configured(vehicles, Map.merge(defaults, configured), :firmware)
+    put_configured(vehicles, Map.merge(defaults, configured), setting.key)
   end
 
   # A vehicle's parameter set, for the simulator (simulated and sitl boards, and run mode
