@@ -38,6 +38,7 @@ import { existsSync, readFileSync, writeFileSync } from 'node:fs';
 import os from 'node:os';
 import { fileURLToPath } from 'node:url';
 import { performance, monitorEventLoopDelay } from 'node:perf_hooks';
+import { channelsSocket } from './support/channels.mjs';
 
 const [GAP_MIN, GAP_MAX] = gap();
 const require = createRequire(new URL('../assets/package.json', import.meta.url));
@@ -326,28 +327,7 @@ function uartPty(program, link) {
 
 // A raw Phoenix Channels v2 socket: push() resolves with the phx_reply payload.
 function connect(name) {
-  return new Promise((resolve, reject) => {
-    const ws = new WebSocket(wsUrl(name), { perMessageDeflate: false });
-    let ref = 0;
-    const pending = new Map();
-    const client = {
-      ws,
-      onEvent: null,
-      push(topic, event, payload) {
-        const r = String(++ref);
-        ws.send(JSON.stringify([event === 'phx_join' ? r : '1', r, topic, event, payload]));
-        return new Promise((res) => pending.set(r, res));
-      },
-      close() { ws.close(1000); },
-    };
-    ws.on('message', (data) => {
-      const [, r, , event, payload] = JSON.parse(data.toString());
-      if (event === 'phx_reply' && pending.has(r)) { pending.get(r)(payload); pending.delete(r); }
-      else if (client.onEvent) client.onEvent(event, payload);
-    });
-    ws.once('open', () => resolve(client));
-    ws.once('error', reject);
-  });
+  return channelsSocket(WebSocket, wsUrl(name));
 }
 
 // ---------------------------------------------------------------------------------------

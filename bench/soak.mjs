@@ -28,6 +28,7 @@ import { fileURLToPath } from 'node:url';
 import { performance } from 'node:perf_hooks';
 import os from 'node:os';
 import path from 'node:path';
+import { channelsSocket } from './support/channels.mjs';
 
 const require = createRequire(new URL('../assets/package.json', import.meta.url));
 const WebSocket = require('ws');
@@ -249,28 +250,8 @@ function pct(xs, p) {
 
 // A raw Phoenix Channels v2 socket: push() resolves with the phx_reply payload.
 function connect(name) {
-  return new Promise((resolve, reject) => {
-    const ws = new WebSocket(wsUrl(name), { perMessageDeflate: false });
-    let ref = 0;
-    const pending = new Map();
-    const client = {
-      onEvent: null,
-      push(topic, event, payload) {
-        const r = String(++ref);
-        ws.send(JSON.stringify([event === 'phx_join' ? r : '1', r, topic, event, payload]));
-        return new Promise((res) => pending.set(r, res));
-      },
-      close() { ws.close(1000); },
-    };
-    ws.on('message', (data) => {
-      const [, r, , event, payload] = JSON.parse(data.toString());
-      if (event === 'phx_reply' && pending.has(r)) { pending.get(r)(payload); pending.delete(r); }
-      else if (client.onEvent) client.onEvent(event, payload);
-    });
-    ws.on('close', (code) => { if (!client.closing) { console.error(`pilot socket closed by the server (${code})`); } });
-    ws.once('open', () => resolve(client));
-    ws.once('error', reject);
-    client.close = () => { client.closing = true; ws.close(1000); };
+  return channelsSocket(WebSocket, wsUrl(name), {
+    onClosed: (code) => console.error(`pilot socket closed by the server (${code})`),
   });
 }
 

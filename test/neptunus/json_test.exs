@@ -63,14 +63,7 @@ defmodule Neptunus.JSONTest do
   end
 
   test "property: encode! then decode gives the value back" do
-    leaf =
-      :proper_types.oneof([
-        :proper_types.exactly(nil),
-        :proper_types.boolean(),
-        :proper_types.integer(),
-        :proper_types.float(),
-        :proper_unicode.utf8()
-      ])
+    leaf = Properties.json_leaf()
 
     object = Properties.bind(:proper_types.list({:proper_unicode.utf8(), leaf}), &Map.new/1)
     value = :proper_types.oneof([leaf, :proper_types.list(leaf), object])

@@ -30,6 +30,18 @@ defmodule Neptunus.Test.Properties do
     end
   end
 
+  @doc "A JSON scalar: null, a boolean, an integer, a float or a UTF-8 string."
+  @spec json_leaf() :: term()
+  def json_leaf do
+    :proper_types.oneof([
+      :proper_types.exactly(nil),
+      :proper_types.boolean(),
+      :proper_types.integer(),
+      :proper_types.float(),
+      :proper_unicode.utf8()
+    ])
+  end
+
   @doc "PropEr's `?LET(X, Gen, f(X))`."
   @spec bind(term(), (term() -> term())) :: term()
   def bind(generator, fun), do: :proper_types.bind(generator, fun, false)

@@ -409,14 +409,7 @@ defmodule NeptunusWeb.Channels.WireTest do
 
   # Well-formed JSON of any shape (most of it not a valid frame).
   defp json_value do
-    leaf =
-      :proper_types.oneof([
-        :proper_types.exactly(nil),
-        :proper_types.boolean(),
-        :proper_types.integer(),
-        :proper_types.float(),
-        :proper_unicode.utf8()
-      ])
+    leaf = Neptunus.Test.Properties.json_leaf()
 
     array = :proper_types.list(leaf)
     object = let(:proper_types.list({:proper_unicode.utf8(), leaf}), &Map.new/1)
