@@ -1,4 +1,4 @@
-/** Parties, helms and grants for the helm tests (helm.test.ts, reactions.test.ts). */
+/** Parties, helms and grants for the helm tests (helm.test.ts, reactions.test.ts, protocol.test.ts). */
 
 import type { Grant, Helm, Party, Session } from "../../src/lib/protocol";
 

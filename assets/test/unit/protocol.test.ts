@@ -20,6 +20,7 @@ import {
   presenceEntry,
 } from "../../src/lib/protocol";
 import { barGeometry } from "../../src/operator/format";
+import { free } from "./helm_fixtures";
 
 const telemetry = {
   t: 12.5,
@@ -37,17 +38,7 @@ const telemetry = {
   },
 };
 
-const helm = {
-  state: "free",
-  epoch: 0,
-  pilot: null,
-  request: null,
-  takeover: null,
-  deadman_ms: 500,
-  heartbeat_ms: 100,
-  request_timeout_ms: 10000,
-  takeover_ms: 3000,
-};
+const helm = free;
 
 /** What decodeTelemetry gives for `input` when it has no fields of later servers. */
 const plain = (input: Record<string, unknown>, over: Record<string, unknown> = {}): Record<string, unknown> => ({
