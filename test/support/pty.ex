@@ -17,6 +17,23 @@ defmodule Neptunus.Test.Pty do
 
   @type pair :: %{dir: String.t(), a: String.t(), b: String.t(), port: port(), os_pid: integer()}
 
+  @doc """
+  A board-link test rig for a vehicle id starting with `prefix`: a socat pair, the test's own
+  end (`board`, on `a`) open, and the calling test process registered as the vehicle's
+  navigation and telemetry (so it hears what the link tells them) and subscribed to the
+  vehicle's topic. Returns `%{id, pair, board}`; the link under test opens `pair.b`.
+  """
+  @spec board_rig!(String.t()) :: %{id: String.t(), pair: map(), board: port()}
+  def board_rig!(prefix) do
+    id = "#{prefix}-#{System.unique_integer([:positive])}"
+    pair = socat_pair!()
+    board = open!(pair.a)
+    {:ok, _} = Registry.register(Neptunus.Fleet.Registry, {Neptunus.Vehicle.Navigation, id}, nil)
+    {:ok, _} = Registry.register(Neptunus.Fleet.Registry, {Neptunus.Vehicle.Telemetry, id}, nil)
+    Neptunus.PubSub.subscribe(Neptunus.Vehicle.Telemetry.topic(id))
+    %{id: id, pair: pair, board: board}
+  end
+
   @doc "Starts socat with ends `a` and `b` (or the given link names) in a new temporary directory."
   @spec socat_pair!(keyword()) :: pair()
   def socat_pair!(opts \\ []) do

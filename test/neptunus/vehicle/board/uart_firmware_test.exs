@@ -9,19 +9,13 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
 
   import Neptunus.Test.Pty
 
-  alias Neptunus.PubSub
   alias Neptunus.Protocol.OpenROV
-  alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
+  alias Neptunus.Vehicle.Board
   alias Neptunus.Vehicle.Board.UART
 
+  # the test process stands in for the vehicle's navigation and telemetry
   setup do
-    id = "uartfw-#{System.unique_integer([:positive])}"
-    pair = socat_pair!()
-    board = open!(pair.a)
-    {:ok, _} = Registry.register(Neptunus.Fleet.Registry, {Navigation, id}, nil)
-    {:ok, _} = Registry.register(Neptunus.Fleet.Registry, {Telemetry, id}, nil)
-    PubSub.subscribe(Telemetry.topic(id))
-    {:ok, id: id, pair: pair, board: board}
+    {:ok, board_rig!("uartfw")}
   end
 
   defp start_uart(ctx, opts) do

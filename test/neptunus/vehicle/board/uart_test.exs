@@ -10,8 +10,8 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
   import Neptunus.Test.Pty
 
-  alias Neptunus.{PubSub, Wiring}
-  alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
+  alias Neptunus.Wiring
+  alias Neptunus.Vehicle.Board
   alias Neptunus.Vehicle.Board.UART
 
   @neutral "go(1500,1500,1500,1);"
@@ -21,15 +21,9 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
   @nav "hdgd:180;deap:2.5;pitc:1;roll:-1;yaw:180;fthr:0;\r\n"
   @status "vout:12.2;iout:0.4;time:5000;pres:1264;temp:9.5;\r\n"
 
+  # the test process stands in for the vehicle's navigation and telemetry
   setup do
-    id = "uart-#{System.unique_integer([:positive])}"
-    pair = socat_pair!()
-    board = open!(pair.a)
-    {:ok, _} = Registry.register(Neptunus.Fleet.Registry, {Navigation, id}, nil)
-    # ... and for its telemetry process, which hears about link changes
-    {:ok, _} = Registry.register(Neptunus.Fleet.Registry, {Telemetry, id}, nil)
-    PubSub.subscribe(Telemetry.topic(id))
-    {:ok, id: id, pair: pair, board: board}
+    {:ok, board_rig!("uart")}
   end
 
   defp start_uart(ctx, opts \\ []) do
