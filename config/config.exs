@@ -14,19 +14,20 @@ import Config
 #                        half the period, so a crowd of observers never holds the cores for a
 #                        whole burst (Neptunus.Vehicle.Telemetry, Neptunus.PubSub.broadcast_paced/5;
 #                        the pilot's connection is served first)
+#
+# The web layer's (read once at boot into NeptunusWeb.Settings; defaults in
+# Neptunus.Config.Endpoint.web_settings!/1):
+#
 #   send_timeout_ms      a send to a client that has not read for this long closes the
 #                        connection (NeptunusWeb.Endpoint)
-
-# The connections' settings, read by NeptunusWeb.Socket (which has defaults of its own):
-config :neptunus,
-  # a piloting connection runs at :high while it sends at most this many frames per second
-  # (NeptunusWeb.Socket.FlowControl)
-  pilot_frames_per_s: 200,
-  # a connection with this many messages waiting drops stale telemetry frames: its client
-  # reads slower than the telemetry arrives (NeptunusWeb.Socket.FlowControl); and the kernel holds at
-  # most socket_unsent_bytes of a connection's frames unsent (Linux, TCP_NOTSENT_LOWAT)
-  socket_backlog: 8,
-  socket_unsent_bytes: 4_096
+#   header_timeout_ms    the most time a client has to send a request's head
+#   socket_idle_timeout_ms  a WebSocket silent this long is closed (NeptunusWeb.Socket)
+#   pilot_frames_per_s   a piloting connection runs at :high while it sends at most this many
+#                        frames per second (NeptunusWeb.Socket.FlowControl)
+#   socket_backlog       a connection with this many messages waiting drops stale telemetry
+#                        frames: its client reads slower than the telemetry arrives
+#   socket_unsent_bytes  the kernel holds at most this many bytes of a connection's frames
+#                        unsent (Linux, TCP_NOTSENT_LOWAT)
 
 config :logger, :console, format: "$time [$level] $message\n"
 

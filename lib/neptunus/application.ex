@@ -21,20 +21,22 @@ defmodule Neptunus.Application do
 
   @impl true
   def start(_type, _args) do
+    # the configuration is read here, once: the processes get their settings as options
+    app_env = Application.get_all_env(:neptunus)
     # before the vehicles start their port programs (which ask for the same slice)
-    Neptunus.OS.apply_configured(Application.get_env(:neptunus, :os_time_slice_ns))
+    Neptunus.OS.apply_configured(Keyword.get(app_env, :os_time_slice_ns))
     # before the port programs and the endpoint: they inherit and size by it
     Neptunus.OS.apply_fd_limit()
-    endpoint = Application.fetch_env!(:neptunus, :endpoint)
-    settings = vehicle_settings(Application.get_all_env(:neptunus))
-    vehicles = Enum.map(Application.fetch_env!(:neptunus, :vehicles), &Map.merge(settings, &1))
+    web = Neptunus.Config.Endpoint.web_settings!(app_env)
+    settings = vehicle_settings(app_env)
+    vehicles = Enum.map(Keyword.fetch!(app_env, :vehicles), &Map.merge(settings, &1))
 
     children = [
       # the fastlane subscribers are WebSocket connections: frames in the Channels format
       {Neptunus.PubSub, encoder: NeptunusWeb.Channels.Wire},
       {Neptunus.Fleet, vehicles},
       NeptunusWeb.Presence,
-      {NeptunusWeb.Endpoint, endpoint}
+      {NeptunusWeb.Endpoint, web}
     ]
 
     with {:ok, pid} <-

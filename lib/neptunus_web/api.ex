@@ -134,7 +134,7 @@ defmodule NeptunusWeb.API do
     end
   end
 
-  defp recording_dir, do: Map.get(Map.new(Application.get_env(:neptunus, :recording, [])), :dir)
+  defp recording_dir, do: NeptunusWeb.Settings.get().recording_dir
 
   defp recordings(arg) do
     vehicle = Map.get(query(arg), "vehicle")

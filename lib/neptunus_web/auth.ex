@@ -31,7 +31,8 @@ defmodule NeptunusWeb.Auth do
         users: %{name => %{name, role, hash}}, anonymous_observers: boolean,
         origins: [String.t()], token_ttl_s: pos_integer, login_attempts_per_minute: pos_integer}
 
-  It is read at every connection and login, so tests can change it at run time.
+  It is read once at boot into the web settings (`NeptunusWeb.Settings`, `auth`), which
+  every connection and login reads.
   """
 
   alias NeptunusWeb.Auth.{Password, RateLimit, Token}
@@ -48,19 +49,9 @@ defmodule NeptunusWeb.Auth do
           login_attempts_per_minute: pos_integer()
         }
 
-  @local %{
-    mode: :local,
-    secret: nil,
-    users: %{},
-    anonymous_observers: false,
-    origins: [],
-    token_ttl_s: 12 * 3600,
-    login_attempts_per_minute: 10
-  }
-
-  @doc "The current configuration (local mode when none is set)."
+  @doc "The configuration, from the web settings (`NeptunusWeb.Settings`)."
   @spec config() :: config()
-  def config, do: Map.merge(@local, Map.new(Application.get_env(:neptunus, :auth, %{})))
+  def config, do: NeptunusWeb.Settings.get().auth
 
   @doc "`:local` or `:secure`."
   @spec mode() :: :local | :secure
@@ -246,14 +237,9 @@ defmodule NeptunusWeb.Auth do
     if allowed?, do: :ok, else: {:error, 403, "origin not allowed: #{origin}"}
   end
 
-  @doc "`\"https\"` when the endpoint serves TLS (`config :neptunus, :endpoint`), else `\"http\"`."
+  @doc "`\"https\"` when the endpoint serves TLS (`NeptunusWeb.Settings`), else `\"http\"`."
   @spec server_scheme() :: String.t()
-  def server_scheme do
-    case Application.get_env(:neptunus, :endpoint) do
-      %{tls: tls} when tls != nil -> "https"
-      _ -> "http"
-    end
-  end
+  def server_scheme, do: NeptunusWeb.Settings.scheme(NeptunusWeb.Settings.get())
 
   defp same_origin?(_origin, nil, _server_scheme), do: false
 

@@ -7,9 +7,11 @@ defmodule NeptunusWeb.Endpoint do
     * the Phoenix Channels v2 WebSocket (`NeptunusWeb.Socket`) at `/socket/websocket`,
     * the vehicles' cameras (`NeptunusWeb.CameraStream`) at `/camera/<id>.mjpg`.
 
-  It starts last in the application and so stops first. Options come from
-  `config :neptunus, :endpoint` (`%{port, bind, tls}`, validated by
-  `Neptunus.Config.Endpoint` and `Neptunus.Config.TLS`): with `tls: %{certfile, keyfile}` it serves HTTPS and `wss:` only (yaws sconf `ssl`).
+  It starts last in the application and so stops first. Its option is the web layer's
+  settings (`NeptunusWeb.Settings`, built from the configuration once at boot by
+  `Neptunus.Config.Endpoint.web_settings!/1`), which it stores for the connection processes
+  when it starts: with `tls: %{certfile, keyfile}` it serves HTTPS and `wss:` only (yaws
+  sconf `ssl`).
 
   Every request passes `NeptunusWeb.Guard` first (the `Host` check against DNS rebinding)
   and every response gets its security headers (`Content-Security-Policy`,
@@ -54,41 +56,31 @@ defmodule NeptunusWeb.Endpoint do
 
   require Logger
 
+  alias NeptunusWeb.Settings
+
   @server_id ~c"neptunus"
-  @default_send_timeout_ms 15_000
-  @default_header_timeout_ms 5_000
   # descriptors kept for everything but client connections: files, port programs, the
   # recorder's logs, the VM's own (at least this many, or 1/16 of the limit)
   @reserved_fds 64
 
-  @spec start_link(Neptunus.Config.Endpoint.endpoint()) :: Supervisor.on_start()
-  def start_link(config), do: Supervisor.start_link(__MODULE__, config, name: __MODULE__)
+  @spec start_link(Settings.t()) :: Supervisor.on_start()
+  def start_link(%Settings{} = settings),
+    do: Supervisor.start_link(__MODULE__, settings, name: __MODULE__)
 
   @doc "The URL the endpoint serves on."
   @spec url() :: String.t()
-  def url do
-    %{port: port, bind: bind} = config = Application.fetch_env!(:neptunus, :endpoint)
-
-    host =
-      case bind do
-        {0, 0, 0, 0} -> "127.0.0.1"
-        {0, 0, 0, 0, 0, 0, 0, 0} -> "[::1]"
-        {_, _, _, _} -> :inet.ntoa(bind)
-        _ -> "[#{:inet.ntoa(bind)}]"
-      end
-
-    scheme = if Map.get(config, :tls), do: "https", else: "http"
-    "#{scheme}://#{host}:#{port}"
-  end
+  def url, do: Settings.url(Settings.get())
 
   @impl true
-  def init(%{port: port, bind: bind} = config) do
+  def init(%Settings{port: port, bind: bind} = settings) do
+    # read by every connection process (NeptunusWeb.Settings)
+    Settings.put(settings)
     docroot = Application.app_dir(:neptunus, "priv/static") |> String.to_charlist()
     logdir = Path.join(System.tmp_dir!(), "neptunus-yaws-#{port}")
     File.mkdir_p!(logdir)
 
     {max_connections, source} =
-      connection_limit(Map.get(config, :max_connections), Neptunus.OS.socket_limit())
+      connection_limit(settings.max_connections, Neptunus.OS.socket_limit())
 
     log_connection_limit(max_connections, source)
 
@@ -101,7 +93,7 @@ defmodule NeptunusWeb.Endpoint do
       max_connections: max_connections,
       # how long yaws waits for the request line, each header line, the next request on a
       # kept-alive connection (and a TLS handshake) before it closes the connection
-      keepalive_timeout: header_timeout_ms()
+      keepalive_timeout: settings.header_timeout_ms
     ]
 
     sconf = [
@@ -127,13 +119,13 @@ defmodule NeptunusWeb.Endpoint do
         listen_opts: [
           backlog: 1024,
           nodelay: true,
-          send_timeout: send_timeout_ms(),
+          send_timeout: settings.send_timeout_ms,
           send_timeout_close: true
         ]
       ]
     ]
 
-    if Map.get(config, :tls) == nil and not match?({127, _, _, _}, bind) and
+    if settings.tls == nil and not match?({127, _, _, _}, bind) and
          bind != {0, 0, 0, 0, 0, 0, 0, 1} do
       Logger.warning(
         "serving #{:inet.ntoa(bind)}:#{port} without TLS: passwords and login tokens cross " <>
@@ -142,7 +134,7 @@ defmodule NeptunusWeb.Endpoint do
     end
 
     sconf =
-      case Map.get(config, :tls) do
+      case settings.tls do
         %{certfile: cert, keyfile: key} ->
           sconf ++ [ssl: [certfile: String.to_charlist(cert), keyfile: String.to_charlist(key)]]
 
@@ -167,7 +159,7 @@ defmodule NeptunusWeb.Endpoint do
       type: :supervisor
     }
 
-    deadline = {NeptunusWeb.HeaderDeadline, timeout_ms: header_timeout_ms()}
+    deadline = {NeptunusWeb.HeaderDeadline, timeout_ms: settings.header_timeout_ms}
 
     Supervisor.init(
       [server, NeptunusWeb.Auth.RateLimit, NeptunusWeb.ConnectionLog, deadline],
@@ -189,20 +181,18 @@ defmodule NeptunusWeb.Endpoint do
 
   @doc """
   How long (ms) a send to a client may wait for the client to read before the connection
-  is closed: `config :neptunus, :send_timeout_ms`, default #{@default_send_timeout_ms}.
+  is closed (`NeptunusWeb.Settings`, `config :neptunus, :send_timeout_ms`).
   """
   @spec send_timeout_ms() :: pos_integer()
-  def send_timeout_ms,
-    do: Application.get_env(:neptunus, :send_timeout_ms, @default_send_timeout_ms)
+  def send_timeout_ms, do: Settings.get().send_timeout_ms
 
   @doc """
   How long (ms) a client may take to send a request's head (request line and headers), and
-  how long a kept-alive connection may wait for its next request: `config :neptunus,
-  :header_timeout_ms`, default #{@default_header_timeout_ms}.
+  how long a kept-alive connection may wait for its next request (`NeptunusWeb.Settings`,
+  `config :neptunus, :header_timeout_ms`).
   """
   @spec header_timeout_ms() :: pos_integer()
-  def header_timeout_ms,
-    do: Application.get_env(:neptunus, :header_timeout_ms, @default_header_timeout_ms)
+  def header_timeout_ms, do: Settings.get().header_timeout_ms
 
   @doc """
   The most connections to serve at once, given the configured maximum (nil: none configured)

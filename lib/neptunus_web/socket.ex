@@ -21,19 +21,21 @@ defmodule NeptunusWeb.Socket do
   expired token (see `NeptunusWeb.Auth`). A refused upgrade is the only refusal that closes
   anything: who may *command* is decided per command by the vehicle's helm.
 
-  Liveness: a connection silent for 60 s (config `:socket_idle_timeout_ms`; the phoenix
+  The settings below are `NeptunusWeb.Settings`, read when the connection starts.
+
+  Liveness: a connection silent for 60 s (`idle_timeout_ms`; the phoenix
   client heartbeats every 30 s) is closed with 1000 "heartbeat timeout". A client that
   stops reading altogether has its socket closed by the endpoint's send timeout
-  (`NeptunusWeb.Endpoint`, `:send_timeout_ms`); yaws is not told, so the connection checks
+  (`NeptunusWeb.Endpoint`, `send_timeout_ms`); yaws is not told, so the connection checks
   its socket when it finds itself behind and at every idle check, and ends when the socket
   is gone: its channels are left as for any other closed connection (a pilot's helm is
   freed and the vehicle stops).
 
-  Slow clients: on Linux the kernel may hold only `:socket_unsent_bytes` (default 4 096) of
+  Slow clients: on Linux the kernel may hold only `unsent_bytes` (default 4 096) of
   a connection's frames unsent (`TCP_NOTSENT_LOWAT`, plain and TLS sockets alike). Without
   it the kernel grows the send buffer to megabytes and a slow client's backlog forms there,
   where nothing can drop stale telemetry; with it the backlog forms in the mailbox, where
-  `FlowControl` drops it (`:socket_backlog`, default 8 waiting messages). While piloting,
+  `FlowControl` drops it (`backlog`, default 8 waiting messages). While piloting,
   the connection also gets its telemetry first (`Neptunus.PubSub.prioritize/2`). Frames of
   a topic the connection has left (still in flight, or from a paced broadcast's later
   slice) are dropped.
@@ -60,10 +62,6 @@ defmodule NeptunusWeb.Socket do
 
   @routes [{"fleet", FleetChannel}, {"vehicle:*", VehicleChannel}, {"log:*", LogChannel}]
 
-  @default_idle_timeout_ms 60_000
-  @default_pilot_frames_per_s 200
-  @default_backlog 8
-  @default_unsent 4_096
   @ipproto_tcp 6
   @tcp_notsent_lowat 25
   @max_message_bytes 65_536
@@ -139,14 +137,13 @@ defmodule NeptunusWeb.Socket do
 
   @doc false
   def init([_arg, %{user: user}]) do
-    idle_timeout =
-      Application.get_env(:neptunus, :socket_idle_timeout_ms, @default_idle_timeout_ms)
+    settings = NeptunusWeb.Settings.get()
+    idle_timeout = settings.idle_timeout_ms
 
     flow =
       FlowControl.new(
-        pilot_frames_per_s:
-          Application.get_env(:neptunus, :pilot_frames_per_s, @default_pilot_frames_per_s),
-        backlog: Application.get_env(:neptunus, :socket_backlog, @default_backlog)
+        pilot_frames_per_s: settings.pilot_frames_per_s,
+        backlog: settings.backlog
       )
 
     # an observer until the helm grants this connection control (FlowControl)
@@ -408,12 +405,12 @@ defmodule NeptunusWeb.Socket do
     end
   end
 
-  # Linux: the kernel takes a frame only while less than :socket_unsent_bytes of this
+  # Linux: the kernel takes a frame only while less than `unsent_bytes` of this
   # connection's earlier frames wait there unsent (TCP_NOTSENT_LOWAT). On a slow link the
   # backlog then forms in the mailbox, where stale telemetry is dropped, instead of in a
   # send buffer that the kernel grows to megabytes: seconds of old data for the client.
   defp limit_unsent(sock) do
-    case {:os.type(), Application.get_env(:neptunus, :socket_unsent_bytes, @default_unsent)} do
+    case {:os.type(), NeptunusWeb.Settings.get().unsent_bytes} do
       {{:unix, :linux}, bytes} when is_integer(bytes) and bytes > 0 and sock != nil ->
         # best effort: a kernel without the option only keeps the larger buffer
         _ = setopts(sock, [{:raw, @ipproto_tcp, @tcp_notsent_lowat, <<bytes::native-32>>}])

@@ -71,8 +71,7 @@ defmodule Neptunus.E2E.ExternalTest do
       )
 
     File.rm_rf!(dir)
-    previous = Application.get_env(:neptunus, :recording)
-    Application.put_env(:neptunus, :recording, %{dir: dir, max_bytes: 1_000_000})
+    NeptunusWeb.Test.Wire.settings!(recording_dir: dir)
 
     try do
       start = System.os_time(:millisecond) - 600_000
@@ -96,7 +95,6 @@ defmodule Neptunus.E2E.ExternalTest do
         {"E2E_RECORDING", name}
       ])
     after
-      Application.put_env(:neptunus, :recording, previous)
       File.rm_rf!(dir)
     end
   end
@@ -105,8 +103,8 @@ defmodule Neptunus.E2E.ExternalTest do
     unless File.exists?(Path.join(@root, "priv/static/login.html")),
       do: flunk("priv/static is not built: run `make assets`")
 
-    # The test server switches to secure mode for this test (NeptunusWeb.Auth reads its
-    # configuration at every connection and login).
+    # The test server switches to secure mode for this test (NeptunusWeb.Auth reads the
+    # web settings at every connection and login).
     logins = %{"e2e-pilot" => "pilot pw", "e2e-main" => "main pw", "e2e-olga" => "olga pw"}
     roles = %{"e2e-pilot" => :pilot, "e2e-main" => :main_station, "e2e-olga" => :observer}
 
@@ -116,16 +114,15 @@ defmodule Neptunus.E2E.ExternalTest do
         {name, %{name: name, role: Map.fetch!(roles, name), hash: hash}}
       end)
 
-    previous = Application.get_env(:neptunus, :auth)
-    on_exit(fn -> Application.put_env(:neptunus, :auth, previous) end)
-
-    Application.put_env(:neptunus, :auth, %{
-      mode: :secure,
-      secret: Base.encode64(:crypto.strong_rand_bytes(32)),
-      users: users,
-      anonymous_observers: false,
-      origins: []
-    })
+    NeptunusWeb.Test.Wire.settings!(
+      auth: %{
+        mode: :secure,
+        secret: Base.encode64(:crypto.strong_rand_bytes(32)),
+        users: users,
+        anonymous_observers: false,
+        origins: []
+      }
+    )
 
     NeptunusWeb.Auth.RateLimit.reset()
 

@@ -16,8 +16,6 @@ defmodule NeptunusWeb.CameraStreamTest do
   @secret "camera-test-secret-" <> String.duplicate("z", 20)
 
   setup do
-    auth = Application.get_env(:neptunus, :auth)
-    on_exit(fn -> Application.put_env(:neptunus, :auth, auth) end)
     id = "camv-#{System.unique_integer([:positive])}"
     camera = %{kind: :exec, program: "/bin/sh", args: [@script, "0"]}
     {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated, camera: camera})

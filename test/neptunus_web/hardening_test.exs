@@ -17,15 +17,7 @@ defmodule NeptunusWeb.HardeningTest do
   doctest NeptunusWeb.Guard
 
   setup %{tmp_dir: dir} do
-    recording = Application.get_env(:neptunus, :recording)
-    auth = Application.get_env(:neptunus, :auth)
-
-    on_exit(fn ->
-      Application.put_env(:neptunus, :recording, recording)
-      Application.put_env(:neptunus, :auth, auth)
-    end)
-
-    Application.put_env(:neptunus, :recording, %{dir: dir, max_bytes: 1_000_000})
+    NeptunusWeb.Test.Wire.settings!(recording_dir: dir)
     RateLimit.reset()
     vehicle = "host-#{System.unique_integer([:positive])}"
     File.mkdir_p!(Path.join(dir, vehicle))

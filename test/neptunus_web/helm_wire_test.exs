@@ -296,7 +296,6 @@ defmodule NeptunusWeb.HelmWireTest do
 
   describe "roles (secure mode)" do
     setup do
-      previous = Application.get_env(:neptunus, :auth)
       hash = Password.hash("pw", iterations: 1000)
 
       users =
@@ -304,15 +303,15 @@ defmodule NeptunusWeb.HelmWireTest do
             into: %{},
             do: {name, %{name: name, role: role, hash: hash}}
 
-      Application.put_env(:neptunus, :auth, %{
-        mode: :secure,
-        secret: @secret,
-        users: users,
-        anonymous_observers: false,
-        origins: []
-      })
-
-      on_exit(fn -> Application.put_env(:neptunus, :auth, previous) end)
+      NeptunusWeb.Test.Wire.settings!(
+        auth: %{
+          mode: :secure,
+          secret: @secret,
+          users: users,
+          anonymous_observers: false,
+          origins: []
+        }
+      )
     end
 
     defp as(ctx, user) do

@@ -1,6 +1,6 @@
 defmodule NeptunusWeb.RecordingsAPITest do
   # /api/recordings against the running endpoint; the recording directory is switched at run
-  # time (the API reads it at every request) and restored after each test.
+  # time (the web settings, which the API reads at every request) and restored after each test.
   use ExUnit.Case, async: false
 
   import NeptunusWeb.Test.Wire, only: [secure!: 2, secure!: 3, raw_get: 1]
@@ -14,15 +14,7 @@ defmodule NeptunusWeb.RecordingsAPITest do
   @secret "recordings-test-secret-" <> String.duplicate("y", 20)
 
   setup %{tmp_dir: dir} do
-    recording = Application.get_env(:neptunus, :recording)
-    auth = Application.get_env(:neptunus, :auth)
-
-    on_exit(fn ->
-      Application.put_env(:neptunus, :recording, recording)
-      Application.put_env(:neptunus, :auth, auth)
-    end)
-
-    Application.put_env(:neptunus, :recording, %{dir: dir, max_bytes: 1_000_000})
+    NeptunusWeb.Test.Wire.settings!(recording_dir: dir)
     id = "api-rec-#{System.unique_integer([:positive])}"
     start_supervised!({Recorder, id: id, recording: [dir: dir]})
     _ = Recorder.status(id)
@@ -167,7 +159,7 @@ defmodule NeptunusWeb.RecordingsAPITest do
   end
 
   test "recording off: an empty list, exports 404" do
-    Application.put_env(:neptunus, :recording, %{dir: nil, max_bytes: 1})
+    NeptunusWeb.Test.Wire.settings!(recording_dir: nil)
     {200, _, body} = get("/api/recordings")
     assert json(body) == %{"recording" => false, "recordings" => []}
     {404, _, body} = get("/api/recordings/a/20200101-000000Z-1.log")

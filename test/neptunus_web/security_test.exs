@@ -13,8 +13,6 @@ defmodule NeptunusWeb.SecurityTest do
   @secret "security-test-secret-" <> String.duplicate("x", 20)
 
   setup do
-    previous = Application.get_env(:neptunus, :auth)
-    on_exit(fn -> Application.put_env(:neptunus, :auth, previous) end)
     RateLimit.reset()
     :ok
   end
@@ -215,7 +213,7 @@ defmodule NeptunusWeb.SecurityTest do
   test "a refused upgrade leaves the endpoint serving" do
     secure!()
     assert {401, _} = refused(connect())
-    Application.put_env(:neptunus, :auth, %{mode: :local})
+    NeptunusWeb.Test.Wire.settings!(auth: %{mode: :local})
     ws = connect!()
     WSClient.push(ws, nil, "hb", "phoenix", "heartbeat", %{})
     assert [nil, "hb", "phoenix", "phx_reply", %{"status" => "ok"}] = WSClient.recv_frame(ws)

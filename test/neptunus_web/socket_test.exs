@@ -66,8 +66,7 @@ defmodule NeptunusWeb.SocketTest do
   end
 
   test "a silent connection is closed; heartbeats keep it open" do
-    Application.put_env(:neptunus, :socket_idle_timeout_ms, 300)
-    on_exit(fn -> Application.delete_env(:neptunus, :socket_idle_timeout_ms) end)
+    NeptunusWeb.Test.Wire.settings!(idle_timeout_ms: 300)
     silent = connect!()
     lively = connect!()
 
@@ -305,8 +304,7 @@ defmodule NeptunusWeb.SocketTest do
 
   test "a pilot that sends more frames than its budget runs at :normal until the next second",
        %{topic: topic} do
-    Application.put_env(:neptunus, :pilot_frames_per_s, 20)
-    on_exit(fn -> Application.delete_env(:neptunus, :pilot_frames_per_s) end)
+    NeptunusWeb.Test.Wire.settings!(pilot_frames_per_s: 20)
     ada = connect!("Ada")
     {ada_jr, _} = join!(ada, topic)
     [ada_pid] = connections(topic)
@@ -396,7 +394,7 @@ defmodule NeptunusWeb.SocketTest do
       assert [_, _, ^topic, "stopped", %{"reason" => "test"}] =
                Enum.find(frames, &match?([_, _, _, "stopped", %{"reason" => "test"}], &1))
 
-      backlog = Application.get_env(:neptunus, :socket_backlog)
+      backlog = NeptunusWeb.Settings.get().backlog
       assert length(ks) in 1..backlog
       assert List.last(ks) == 100
       assert ks == Enum.sort(ks) and hd(ks) > 100 - backlog
@@ -441,17 +439,25 @@ defmodule NeptunusWeb.SocketTest do
       :sys.resume(ws)
     end
 
-    test "the kernel holds at most :socket_unsent_bytes of a connection's frames unsent",
+    test "the kernel holds at most `unsent_bytes` of a connection's frames unsent",
          %{topic: topic} do
-      ws = connect!("Lowat")
-      {_join_ref, _} = join!(ws, topic)
-      [pid] = connections(topic)
-      bytes = Application.fetch_env!(:neptunus, :socket_unsent_bytes)
-      assert bytes == 4_096
+      # the default, then another value for the connections opened after it is set
+      assert NeptunusWeb.Settings.get().unsent_bytes == 4_096
 
-      # TCP_NOTSENT_LOWAT (IPPROTO_TCP 6, option 25), read back from the kernel
-      assert {:ok, [{:raw, 6, 25, <<^bytes::native-32>>}]} =
-               :inet.getopts(server_socket(pid), [{:raw, 6, 25, 4}])
+      for bytes <- [4_096, 8_192] do
+        NeptunusWeb.Test.Wire.settings!(unsent_bytes: bytes)
+        ws = connect!("Lowat")
+        {_join_ref, _} = join!(ws, topic)
+        [pid] = connections(topic)
+
+        # TCP_NOTSENT_LOWAT (IPPROTO_TCP 6, option 25), read back from the kernel
+        assert {:ok, [{:raw, 6, 25, <<^bytes::native-32>>}]} =
+                 :inet.getopts(server_socket(pid), [{:raw, 6, 25, 4}])
+
+        ref = Process.monitor(pid)
+        WSClient.close(ws)
+        assert_receive {:DOWN, ^ref, :process, ^pid, _}, 5_000
+      end
     end
 
     test "a connection without telemetry finds its closed socket at the idle check" do

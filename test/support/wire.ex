@@ -193,9 +193,29 @@ defmodule NeptunusWeb.Test.Wire do
   end
 
   @doc """
-  Switches the running application to secure mode with `secret` and `users`
-  (`%{name => %{name, role, hash}}`); `overrides` change other settings. Restore the
-  previous `:auth` environment in the test's `on_exit`.
+  Changes the running endpoint's settings (`NeptunusWeb.Settings`, read by every new
+  connection and request) for the rest of the calling test: `changes` are fields of the
+  settings, and an `auth` map is completed with local mode's defaults
+  (`Neptunus.Config.Auth.local/0`). The previous settings come back when the test exits.
+  """
+  @spec settings!(keyword()) :: :ok
+  def settings!(changes) do
+    previous = NeptunusWeb.Settings.get()
+    ExUnit.Callbacks.on_exit(fn -> NeptunusWeb.Settings.put(previous) end)
+
+    changes =
+      case Keyword.fetch(changes, :auth) do
+        {:ok, auth} -> Keyword.put(changes, :auth, Map.merge(Neptunus.Config.Auth.local(), auth))
+        :error -> changes
+      end
+
+    NeptunusWeb.Settings.put(struct!(previous, changes))
+  end
+
+  @doc """
+  Switches the running endpoint to secure mode with `secret` and `users`
+  (`%{name => %{name, role, hash}}`) for the rest of the calling test (`settings!/1`);
+  `overrides` change other security settings.
   """
   @spec secure!(String.t(), map(), map()) :: :ok
   def secure!(secret, users, overrides \\ %{}) do
@@ -209,6 +229,6 @@ defmodule NeptunusWeb.Test.Wire do
       login_attempts_per_minute: 10
     }
 
-    Application.put_env(:neptunus, :auth, Map.merge(config, overrides))
+    settings!(auth: Map.merge(config, overrides))
   end
 end

@@ -76,6 +76,16 @@ defmodule Neptunus.Config.Auth do
     end
   end
 
+  @doc """
+  Local mode with every default: what `auth!/2` gives for an empty environment on a
+  loopback address (the settings `Neptunus.Config.Endpoint.web_settings!/1` starts from).
+
+      iex> Neptunus.Config.Auth.local().token_ttl_s
+      43200
+  """
+  @spec local() :: map()
+  def local, do: auth!(%{}, %{bind: {127, 0, 0, 1}})
+
   defp loopback?({127, _, _, _}), do: true
   defp loopback?({0, 0, 0, 0, 0, 0, 0, 1}), do: true
   defp loopback?(_), do: false

@@ -65,19 +65,21 @@ defmodule NeptunusWeb.Channels.LogChannelTest do
 
   describe "secure mode" do
     setup do
-      previous = Application.get_env(:neptunus, :auth)
-
-      Application.put_env(:neptunus, :auth, %{
-        mode: :secure,
-        secret: @secret,
-        users: %{
-          "olga" => %{name: "olga", role: :observer, hash: Password.hash("pw", iterations: 1000)}
-        },
-        anonymous_observers: true,
-        origins: []
-      })
-
-      on_exit(fn -> Application.put_env(:neptunus, :auth, previous) end)
+      NeptunusWeb.Test.Wire.settings!(
+        auth: %{
+          mode: :secure,
+          secret: @secret,
+          users: %{
+            "olga" => %{
+              name: "olga",
+              role: :observer,
+              hash: Password.hash("pw", iterations: 1000)
+            }
+          },
+          anonymous_observers: true,
+          origins: []
+        }
+      )
     end
 
     test "observers and anonymous observers may read the log", %{id: id} do
