@@ -1,6 +1,7 @@
 defmodule Neptunus.Periodic do
   @moduledoc """
-  A fixed-rate loop on absolute deadlines of the monotonic clock.
+  A fixed-rate loop on absolute deadlines of the monotonic clock, in native units (the one
+  place that uses them, see `Neptunus.Clock`: a period of 1 s / rate is exact in them).
 
   Re-arming a relative timer after each tick drifts (BEAM timers fire about 1 ms late at the
   median, so a 20 ms loop runs at ≈ 47.6 Hz); this schedules every tick against the ideal
@@ -10,7 +11,7 @@ defmodule Neptunus.Periodic do
       periodic = Periodic.new(100)       # 100 Hz
       Periodic.arm(periodic, :tick)      # :tick arrives at the first deadline
       # on :tick:
-      {due, periodic} = Periodic.advance(periodic, System.monotonic_time())
+      {due, periodic} = Periodic.advance(periodic, Neptunus.Clock.monotonic_native())
       Periodic.arm(periodic, :tick)
   """
 
@@ -22,7 +23,7 @@ defmodule Neptunus.Periodic do
 
   @doc "A loop at `hz` ticks per second whose first deadline is one period after `now`."
   @spec new(pos_integer(), integer()) :: t()
-  def new(hz, now \\ System.monotonic_time()) when is_integer(hz) and hz > 0 do
+  def new(hz, now \\ Neptunus.Clock.monotonic_native()) when is_integer(hz) and hz > 0 do
     period = div(System.convert_time_unit(1, :second, :native), hz)
     %__MODULE__{period: period, next: now + period}
   end

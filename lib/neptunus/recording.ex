@@ -90,7 +90,7 @@ defmodule Neptunus.Recording do
 
   @doc """
   The recordings of `list` (from `list/2`) to delete under a retention of `keep_ms`: those
-  last written more than `keep_ms` before `now_ms`, never `current` (the path being written;
+  last written more than `keep_ms` before `now_wall_ms`, never `current` (the path being written;
   `dir` is the recordings directory). Oldest first.
 
       iex> list = [%{vehicle: "rov", name: "b.log", modified_at: 9_000},
@@ -101,10 +101,11 @@ defmodule Neptunus.Recording do
       []
   """
   @spec expired([map()], Path.t(), integer(), pos_integer(), Path.t() | nil) :: [map()]
-  def expired(list, dir, now_ms, keep_ms, current) when is_integer(keep_ms) and keep_ms > 0 do
+  def expired(list, dir, now_wall_ms, keep_ms, current)
+      when is_integer(keep_ms) and keep_ms > 0 do
     list
     |> Enum.filter(
-      &(&1.modified_at < now_ms - keep_ms and path(dir, &1.vehicle, &1.name) != current)
+      &(&1.modified_at < now_wall_ms - keep_ms and path(dir, &1.vehicle, &1.name) != current)
     )
     |> Enum.sort_by(& &1.modified_at)
   end

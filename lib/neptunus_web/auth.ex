@@ -354,5 +354,6 @@ defmodule NeptunusWeb.Auth do
 
   defp conn_id, do: Base.url_encode64(:crypto.strong_rand_bytes(9), padding: false)
 
-  defp now_s, do: System.os_time(:second)
+  # login tokens carry Unix seconds (wall clock: they outlive the node)
+  defp now_s, do: div(Neptunus.Clock.wall_ms(), 1000)
 end

@@ -21,13 +21,13 @@ defmodule NeptunusWeb.ConnectionLog do
   @refused 1
   @slow 2
 
-  defstruct counters: nil, report_ms: 10_000, tick_ms: 1_000, last_report: nil
+  defstruct counters: nil, report_ms: 10_000, tick_ms: 1_000, last_report_ms: nil
 
   @type t :: %__MODULE__{
           counters: :counters.counters_ref() | nil,
           report_ms: pos_integer(),
           tick_ms: pos_integer(),
-          last_report: integer() | nil
+          last_report_ms: integer() | nil
         }
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -96,10 +96,10 @@ defmodule NeptunusWeb.ConnectionLog do
 
   @impl true
   def handle_info(:tick, state) do
-    now = System.monotonic_time(:millisecond)
+    now = Neptunus.Clock.monotonic_ms()
     Process.send_after(self(), :tick, state.tick_ms)
 
-    if state.last_report == nil or now - state.last_report >= state.report_ms do
+    if state.last_report_ms == nil or now - state.last_report_ms >= state.report_ms do
       refused = take(state.counters, @refused)
       slow = take(state.counters, @slow)
 
@@ -109,7 +109,7 @@ defmodule NeptunusWeb.ConnectionLog do
 
         line ->
           Logger.warning(line)
-          {:noreply, %{state | last_report: now}}
+          {:noreply, %{state | last_report_ms: now}}
       end
     else
       {:noreply, state}

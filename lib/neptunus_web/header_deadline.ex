@@ -71,7 +71,7 @@ defmodule NeptunusWeb.HeaderDeadline do
 
   @impl true
   def handle_info(:sweep, state) do
-    now = System.monotonic_time(:millisecond)
+    now = Neptunus.Clock.monotonic_ms()
     {seen, expired} = sweep(state.seen, reading_heads(), now, state.timeout_ms)
 
     Enum.each(expired, &Process.exit(&1, :kill))

@@ -73,14 +73,14 @@ defmodule NeptunusWeb.Socket do
     @type t :: %__MODULE__{
             router: NeptunusWeb.Socket.Router.t(),
             flow: NeptunusWeb.Socket.FlowControl.t(),
-            last_seen: integer(),
-            idle_timeout: pos_integer(),
+            last_seen_ms: integer(),
+            idle_timeout_ms: pos_integer(),
             sock: port() | {:ssl, :ssl.sslsocket()} | nil,
             pubsub: reference() | nil,
             presence: reference() | nil
           }
-    @enforce_keys [:router, :flow, :last_seen, :idle_timeout]
-    defstruct [:router, :flow, :last_seen, :idle_timeout, :sock, :pubsub, :presence]
+    @enforce_keys [:router, :flow, :last_seen_ms, :idle_timeout_ms]
+    defstruct [:router, :flow, :last_seen_ms, :idle_timeout_ms, :sock, :pubsub, :presence]
   end
 
   # yaws appmod: upgrade /socket/websocket
@@ -138,7 +138,7 @@ defmodule NeptunusWeb.Socket do
   @doc false
   def init([_arg, %{user: user}]) do
     settings = NeptunusWeb.Settings.get()
-    idle_timeout = settings.idle_timeout_ms
+    idle_timeout_ms = settings.idle_timeout_ms
 
     flow =
       FlowControl.new(
@@ -148,14 +148,14 @@ defmodule NeptunusWeb.Socket do
 
     # an observer until the helm grants this connection control (FlowControl)
     Process.flag(:priority, FlowControl.priority(flow))
-    :timer.send_interval(max(div(idle_timeout, 4), 10), :check_idle)
+    :timer.send_interval(max(div(idle_timeout_ms, 4), 10), :check_idle)
 
     {:ok,
      %State{
        router: Router.new(user, self(), @routes),
        flow: flow,
-       last_seen: now_ms(),
-       idle_timeout: idle_timeout
+       last_seen_ms: now_ms(),
+       idle_timeout_ms: idle_timeout_ms
      }}
   end
 
@@ -171,7 +171,7 @@ defmodule NeptunusWeb.Socket do
   @doc false
   def handle_message({:text, data}, state) do
     now = now_ms()
-    state = %{state | last_seen: now} |> count_frame(now)
+    state = %{state | last_seen_ms: now} |> count_frame(now)
     guarded(state, fn -> route(state, {:text, data}) end)
   end
 
@@ -309,7 +309,7 @@ defmodule NeptunusWeb.Socket do
       not connected?(state) ->
         gone(state)
 
-      now_ms() - state.last_seen > state.idle_timeout ->
+      now_ms() - state.last_seen_ms > state.idle_timeout_ms ->
         {:close, {1000, "heartbeat timeout"}, state}
 
       true ->
@@ -459,5 +459,5 @@ defmodule NeptunusWeb.Socket do
     %{state | flow: flow}
   end
 
-  defp now_ms, do: System.monotonic_time(:millisecond)
+  defp now_ms, do: Neptunus.Clock.monotonic_ms()
 end

@@ -24,7 +24,7 @@ defmodule Mix.Tasks.Neptunus.Dialyzer do
 
     unless File.exists?(plt) do
       Mix.shell().info("Building the dialyzer PLT #{plt} (once per machine)…")
-      started = System.monotonic_time(:second)
+      started_ms = Neptunus.Clock.monotonic_ms()
 
       _ =
         :dialyzer.run(
@@ -33,7 +33,7 @@ defmodule Mix.Tasks.Neptunus.Dialyzer do
           files_rec: plt_dirs()
         )
 
-      Mix.shell().info("PLT built in #{System.monotonic_time(:second) - started} s")
+      Mix.shell().info("PLT built in #{div(Neptunus.Clock.monotonic_ms() - started_ms, 1000)} s")
     end
 
     ebin = Path.join(Mix.Project.app_path(), "ebin")

@@ -68,7 +68,7 @@ defmodule Mix.Tasks.Neptunus.Simulate do
         ".#{Path.basename(out)}.#{System.unique_integer([:positive])}.tmp"
       )
 
-    started = System.monotonic_time(:millisecond)
+    started = Neptunus.Clock.monotonic_ms()
 
     try do
       rows =
@@ -83,7 +83,7 @@ defmodule Mix.Tasks.Neptunus.Simulate do
         end)
 
       File.rename!(tmp, out)
-      ms = System.monotonic_time(:millisecond) - started
+      ms = Neptunus.Clock.monotonic_ms() - started
 
       Mix.shell().info(
         "#{out}: #{rows} rows, #{scenario.vehicle}, #{scenario.duration} s at dt #{scenario.dt} s " <>

@@ -36,7 +36,7 @@ defmodule Neptunus.Helm.Policy do
   ## Deadman
 
   Each message of the pilot (`heartbeat`, commands, answers, requests) refreshes
-  `last_seen`. On `{:tick, deadman_ms}` a pilot silent for longer than `deadman_ms` trips the
+  `last_seen_ms`. On `{:tick, deadman_ms}` a pilot silent for longer than `deadman_ms` trips the
   deadman once: stop with reason `deadman`, a new epoch (so commands made before the client
   heard of the trip are stale and thrust stays neutral until a fresh command). The pilot
   keeps the helm; its next command that runs (a fresh thrust, a stop) re-arms the deadman —
@@ -106,16 +106,16 @@ defmodule Neptunus.Helm.Policy do
   @typedoc """
   * `helm` — the state above
   * `epoch` — incremented on every grant and deadman trip; commands must carry the current one
-  * `last_seen` — `now` of the pilot's last message (or of the grant)
+  * `last_seen_ms` — `now` of the pilot's last message (or of the grant)
   * `tripped` — the deadman has fired and the pilot has been silent since
   """
   @type t :: %__MODULE__{
           helm: helm(),
           epoch: non_neg_integer(),
-          last_seen: integer() | nil,
+          last_seen_ms: integer() | nil,
           tripped: boolean()
         }
-  defstruct helm: :free, epoch: 0, last_seen: nil, tripped: false
+  defstruct helm: :free, epoch: 0, last_seen_ms: nil, tripped: false
 
   @doc """
   A free helm whose epoch starts at `epoch` (default 0; the first grant gives `epoch + 1`).
@@ -145,7 +145,7 @@ defmodule Neptunus.Helm.Policy do
   @doc "Applies `event` at time `now` (ms). See the moduledoc for replies and actions."
   @spec handle(t(), event(), integer()) :: {reply(), t(), [action()]}
   def handle(%__MODULE__{} = s, event, now) do
-    s = if from_pilot?(s, event), do: %{s | last_seen: now}, else: s
+    s = if from_pilot?(s, event), do: %{s | last_seen_ms: now}, else: s
     {reply, s, actions} = step(s, event, now)
     # only a command that runs re-arms a tripped deadman: a pilot whose page only heartbeats
     # (a throttled background tab) is not stopped again and again
@@ -304,7 +304,7 @@ defmodule Neptunus.Helm.Policy do
   defp step(%{helm: :free} = s, {:tick, _deadman_ms}, _now), do: {:ok, s, []}
 
   defp step(s, {:tick, deadman_ms}, now) do
-    if not s.tripped and now - s.last_seen > deadman_ms do
+    if not s.tripped and now - s.last_seen_ms > deadman_ms do
       {:ok, %{s | tripped: true, epoch: s.epoch + 1}, [{:stop, "deadman"}, :changed]}
     else
       {:ok, s, []}
@@ -314,7 +314,7 @@ defmodule Neptunus.Helm.Policy do
   # -- transitions ---------------------------------------------------------------------------
 
   defp grant(s, p, now, before) do
-    s = %{s | helm: {:piloted, p}, epoch: s.epoch + 1, last_seen: now, tripped: false}
+    s = %{s | helm: {:piloted, p}, epoch: s.epoch + 1, last_seen_ms: now, tripped: false}
     {{:ok, :granted}, s, before ++ [{:grant, p}, :changed]}
   end
 
@@ -324,7 +324,7 @@ defmodule Neptunus.Helm.Policy do
   end
 
   defp free(s, pilot, reason) do
-    s = %{s | helm: :free, last_seen: nil, tripped: false}
+    s = %{s | helm: :free, last_seen_ms: nil, tripped: false}
     {:ok, s, [{:stop, reason}, {:revoke, pilot, reason}, :changed]}
   end
 

@@ -65,7 +65,7 @@ defmodule Neptunus.Protocol.BoardLink do
     mismatch_reported: false,
     outstanding: [],
     rtt_ms: nil,
-    pong_at: nil,
+    pong_at_ms: nil,
     board_ms: nil,
     board_ms_at: nil,
     clocks: %{},
@@ -81,7 +81,7 @@ defmodule Neptunus.Protocol.BoardLink do
   @typedoc """
   * `profile` — the configured firmware line; `detected` — what the board's output says
   * `outstanding` — `{n, sent_at}` of the pings not answered yet, oldest first
-  * `rtt_ms` — the last round trip; `pong_at` — when the last pong arrived (our clock)
+  * `rtt_ms` — the last round trip; `pong_at_ms` — when the last pong arrived (our clock)
   * `board_ms`, `board_ms_at` — the board's latest millis and when we saw them
   * `clocks` — the board's last millis from each source (`:pong`, `:time`) in its current life
   * `pong_ms` — the board's millis in its last pong
@@ -94,7 +94,7 @@ defmodule Neptunus.Protocol.BoardLink do
           mismatch_reported: boolean(),
           outstanding: [{non_neg_integer(), integer()}],
           rtt_ms: integer() | nil,
-          pong_at: integer() | nil,
+          pong_at_ms: integer() | nil,
           board_ms: non_neg_integer() | nil,
           board_ms_at: integer() | nil,
           clocks: %{optional(:pong | :time) => non_neg_integer()},
@@ -126,7 +126,7 @@ defmodule Neptunus.Protocol.BoardLink do
       l
       | outstanding: [],
         rtt_ms: nil,
-        pong_at: nil,
+        pong_at_ms: nil,
         board_ms: nil,
         board_ms_at: nil,
         clocks: %{},
@@ -179,7 +179,7 @@ defmodule Neptunus.Protocol.BoardLink do
         [] -> l
       end
 
-    l = %{l | pong_at: now}
+    l = %{l | pong_at_ms: now}
 
     {l, reset_actions} =
       case pong.millis do
@@ -278,7 +278,7 @@ defmodule Neptunus.Protocol.BoardLink do
       detected_firmware: l.detected && profile_name(l.detected),
       firmware_mismatch: l.detected != nil and l.detected != l.profile,
       rtt_ms: l.rtt_ms,
-      pong_age_ms: l.pong_at && now - l.pong_at,
+      pong_age_ms: l.pong_at_ms && now - l.pong_at_ms,
       board_uptime_ms: board_uptime_ms(l, now),
       board_deadman_armed: board_deadman_armed?(l, now),
       board_deadman_tripped: l.tripped != nil,

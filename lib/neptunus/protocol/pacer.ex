@@ -27,7 +27,7 @@ defmodule Neptunus.Protocol.Pacer do
   """
 
   @enforce_keys [:window_ms, :window_bytes, :spacing_ms]
-  defstruct [:window_ms, :window_bytes, :spacing_ms, queue: [], sent: [], last_at: nil]
+  defstruct [:window_ms, :window_bytes, :spacing_ms, queue: [], sent: [], last_at_ms: nil]
 
   @typedoc "What a command is coalesced by: `:go`, `{:device, :lights}`, `:ping`, …"
   @type key :: term()
@@ -35,7 +35,7 @@ defmodule Neptunus.Protocol.Pacer do
   @typedoc """
   * `queue` — `{key, bytes, sticky}` in sending order
   * `sent` — `{at, size}` of the writes inside the current window, newest first
-  * `last_at` — when the last command was written
+  * `last_at_ms` — when the last command was written
   """
   @type t :: %__MODULE__{
           window_ms: pos_integer(),
@@ -43,7 +43,7 @@ defmodule Neptunus.Protocol.Pacer do
           spacing_ms: non_neg_integer(),
           queue: [{key(), binary(), boolean()}],
           sent: [{integer(), pos_integer()}],
-          last_at: integer() | nil
+          last_at_ms: integer() | nil
         }
 
   @doc """
@@ -117,7 +117,7 @@ defmodule Neptunus.Protocol.Pacer do
 
   defp take(%__MODULE__{queue: [{key, bytes, _sticky} | rest]} = p, now, acc) do
     if ready?(p, now, byte_size(bytes)) do
-      p = %{p | queue: rest, sent: [{now, byte_size(bytes)} | p.sent], last_at: now}
+      p = %{p | queue: rest, sent: [{now, byte_size(bytes)} | p.sent], last_at_ms: now}
       acc = [{key, bytes} | acc]
       if p.spacing_ms == 0, do: take(p, now, acc), else: {Enum.reverse(acc), p}
     else
@@ -135,7 +135,7 @@ defmodule Neptunus.Protocol.Pacer do
 
   def next_at(%__MODULE__{queue: [{_key, bytes, _sticky} | _]} = p, now) do
     p = expire(p, now)
-    spaced = if p.last_at, do: p.last_at + p.spacing_ms, else: now
+    spaced = if p.last_at_ms, do: p.last_at_ms + p.spacing_ms, else: now
     max(now, max(spaced, window_free_at(p, byte_size(bytes), now)))
   end
 
@@ -148,7 +148,7 @@ defmodule Neptunus.Protocol.Pacer do
   def clear(%__MODULE__{} = p), do: %{p | queue: []}
 
   defp ready?(p, now, size) do
-    spaced? = p.last_at == nil or now - p.last_at >= p.spacing_ms
+    spaced? = p.last_at_ms == nil or now - p.last_at_ms >= p.spacing_ms
     spaced? and in_window(p) + size <= p.window_bytes
   end
 

@@ -133,7 +133,7 @@ defmodule Neptunus.Vehicle.Camera do
   @impl true
   def handle_info({port, {:data, data}}, %State{port: port} = state) do
     {frames, rest, skipped} = MJPEG.split(state.buffer <> data)
-    now = System.monotonic_time(:millisecond)
+    now = Neptunus.Clock.monotonic_ms()
 
     Enum.each(frames, fn frame ->
       PubSub.broadcast(topic(state.id), "frame", %{jpeg: frame})
@@ -217,7 +217,7 @@ defmodule Neptunus.Vehicle.Camera do
   def terminate(_reason, _state), do: :ok
 
   defp fps(state) do
-    now = System.monotonic_time(:millisecond)
+    now = Neptunus.Clock.monotonic_ms()
     Enum.count(state.window, &(&1 > now - 1_000))
   end
 
@@ -258,7 +258,7 @@ defmodule Neptunus.Vehicle.Camera do
         category: "errors",
         level: "warning",
         message: "camera: #{reason}",
-        at: System.os_time(:millisecond)
+        at: Neptunus.Clock.wall_ms()
       })
     end
 

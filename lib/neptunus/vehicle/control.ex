@@ -193,7 +193,7 @@ defmodule Neptunus.Vehicle.Control do
   @impl true
   def handle_call({:command, event, payload}, _from, state) do
     with {:ok, command} <- Command.validate(event, payload),
-         {:ok, core, actions} <- Core.command(state.core, command, now()) do
+         {:ok, core, actions} <- Core.command(state.core, command, now_s()) do
       state = state |> Map.put(:core, core) |> perform(actions) |> publish()
       {:reply, {:ok, reply(event, state)}, state}
     else
@@ -212,7 +212,7 @@ defmodule Neptunus.Vehicle.Control do
 
   @impl true
   def handle_cast({:estimate, estimate}, state),
-    do: {:noreply, %{state | core: Core.estimate(state.core, estimate, now())}}
+    do: {:noreply, %{state | core: Core.estimate(state.core, estimate, now_s())}}
 
   # The board feeds its deadman (ping) only while this keeps coming: if control dies or hangs,
   # the board's own deadman stops the motors (Board.keepalive/1). It goes on in run mode
@@ -225,7 +225,7 @@ defmodule Neptunus.Vehicle.Control do
   end
 
   def handle_info(:tick, state) do
-    {due, periodic} = Periodic.advance(state.periodic, System.monotonic_time())
+    {due, periodic} = Periodic.advance(state.periodic, Neptunus.Clock.monotonic_native())
     Periodic.arm(periodic, :tick)
     state = %{state | periodic: periodic}
 
@@ -234,7 +234,7 @@ defmodule Neptunus.Vehicle.Control do
       # the integrators do not take one huge step
       periods = min(due, @max_catch_up)
       dt = periods * System.convert_time_unit(periodic.period, :native, :microsecond) / 1.0e6
-      {core, actions} = Core.tick(state.core, dt, now())
+      {core, actions} = Core.tick(state.core, dt, now_s())
       {:noreply, %{state | core: core} |> perform(actions) |> publish()}
     else
       {:noreply, state}
@@ -265,7 +265,7 @@ defmodule Neptunus.Vehicle.Control do
       level: "warning",
       message: "stopped: #{reason}",
       reason: reason,
-      at: System.os_time(:millisecond)
+      at: Neptunus.Clock.wall_ms()
     })
 
     Logger.info("vehicle #{state.id} stopped: #{Neptunus.Log.safe(reason)}")
@@ -277,7 +277,7 @@ defmodule Neptunus.Vehicle.Control do
       category: "autopilot",
       level: "warning",
       message: text,
-      at: System.os_time(:millisecond)
+      at: Neptunus.Clock.wall_ms()
     })
 
     Logger.info("vehicle #{state.id}: #{text}")
@@ -360,5 +360,6 @@ defmodule Neptunus.Vehicle.Control do
 
   defp reply(_event, %State{core: core}), do: %{control: Core.status(core)}
 
-  defp now, do: System.monotonic_time(:microsecond) / 1.0e6
+  # Control.Core runs on seconds (it also runs on a scenario's simulated time)
+  defp now_s, do: Neptunus.Clock.monotonic_ms() / 1000
 end

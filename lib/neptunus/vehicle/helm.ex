@@ -14,7 +14,7 @@ defmodule Neptunus.Vehicle.Helm do
     * `:state_timeout` — the pending request (`request_timeout_ms`, default 10 s) and the
       takeover countdown (`takeover_ms`, default 3 s); leaving the state cancels it;
     * a deadman check every `tick_ms` (default `deadman_ms / 5`), which compares the pilot's
-      last message with the injected `clock` (default `System.monotonic_time(:millisecond)`).
+      last message with the injected `clock` (default `Neptunus.Clock.monotonic_ms/0`).
       Tests inject a clock they move by hand and call `check_deadman/1`.
 
   It starts after Control in the vehicle's `:rest_for_one` tree and drives the thrusters
@@ -97,12 +97,12 @@ defmodule Neptunus.Vehicle.Helm do
             takeover_ms: non_neg_integer(),
             heartbeat_ms: pos_integer(),
             tick_ms: pos_integer(),
-            since: integer() | nil,
-            deadline: integer() | nil
+            since_wall_ms: integer() | nil,
+            deadline_ms: integer() | nil
           }
     @enforce_keys [:id, :topic, :policy, :clock, :deadman_ms, :request_timeout_ms] ++
                     [:takeover_ms, :heartbeat_ms, :tick_ms]
-    defstruct @enforce_keys ++ [monitors: %{}, since: nil, deadline: nil]
+    defstruct @enforce_keys ++ [monitors: %{}, since_wall_ms: nil, deadline_ms: nil]
   end
 
   @spec child_spec(keyword()) :: Supervisor.child_spec()
@@ -240,7 +240,7 @@ defmodule Neptunus.Vehicle.Helm do
       id: id,
       topic: Telemetry.topic(id),
       policy: Policy.new(first_epoch()),
-      clock: Keyword.get(config, :clock, fn -> System.monotonic_time(:millisecond) end),
+      clock: Keyword.get(config, :clock, &Neptunus.Clock.monotonic_ms/0),
       deadman_ms: deadman_ms,
       request_timeout_ms: Keyword.fetch!(config, :request_timeout_ms),
       takeover_ms: Keyword.fetch!(config, :takeover_ms),
@@ -320,7 +320,7 @@ defmodule Neptunus.Vehicle.Helm do
   end
 
   defp act({:grant, party}, data) do
-    data = %{data | since: System.os_time(:millisecond)}
+    data = %{data | since_wall_ms: Neptunus.Clock.wall_ms()}
     notify(party, "control_granted", grant(data))
     data
   end
@@ -339,9 +339,9 @@ defmodule Neptunus.Vehicle.Helm do
     # countdowns of a state just entered are measured from now (the state_timeout starts now)
     data =
       case Policy.name(data.policy) do
-        :requested -> %{data | deadline: now_ms() + data.request_timeout_ms}
-        :takeover -> %{data | deadline: now_ms() + data.takeover_ms}
-        _ -> %{data | deadline: nil}
+        :requested -> %{data | deadline_ms: now_ms() + data.request_timeout_ms}
+        :takeover -> %{data | deadline_ms: now_ms() + data.takeover_ms}
+        _ -> %{data | deadline_ms: nil}
       end
 
     broadcast(data)
@@ -489,12 +489,12 @@ defmodule Neptunus.Vehicle.Helm do
 
   defp public_party(other), do: other
 
-  defp public_party(party, data), do: Map.put(public_party(party), :since, data.since)
+  defp public_party(party, data), do: Map.put(public_party(party), :since, data.since_wall_ms)
 
-  defp remaining(%Data{deadline: nil}), do: 0
-  defp remaining(data), do: max(data.deadline - now_ms(), 0)
+  defp remaining(%Data{deadline_ms: nil}), do: 0
+  defp remaining(data), do: max(data.deadline_ms - now_ms(), 0)
 
-  defp now_ms, do: System.monotonic_time(:millisecond)
+  defp now_ms, do: Neptunus.Clock.monotonic_ms()
 
   @doc """
   Where a helm starting now starts its epochs: the microseconds since the node (the VM)
@@ -502,10 +502,6 @@ defmodule Neptunus.Vehicle.Helm do
   """
   @spec first_epoch() :: non_neg_integer()
   def first_epoch do
-    System.convert_time_unit(
-      System.monotonic_time() - :erlang.system_info(:start_time),
-      :native,
-      :microsecond
-    )
+    Neptunus.Clock.uptime_us()
   end
 end

@@ -50,7 +50,7 @@ defmodule Neptunus.Vehicle.Recorder do
   node's vehicles get `config :neptunus, :recording` here, from `Neptunus.Application`),
   `max_bytes` and `min_free_bytes` (`defaults/0`), `keep_ms`, `sync_ms` and, for tests, `free_bytes` (a function of the
   directory), `sync` (syncs a log, like `disk_log:sync/1`),
-  `now_ms` (the wall clock in ms, a function) and `rm` (deletes a file, like `File.rm/1`).
+  `wall_ms` (the wall clock in ms, a function) and `rm` (deletes a file, like `File.rm/1`).
   """
   use GenServer
 
@@ -83,7 +83,7 @@ defmodule Neptunus.Vehicle.Recorder do
             min_free_bytes: non_neg_integer(),
             free_bytes: (Path.t() -> non_neg_integer() | nil),
             keep_ms: pos_integer() | nil,
-            now_ms: (() -> integer()),
+            wall_ms: (() -> integer()),
             rm: (Path.t() -> :ok | {:error, File.posix()}),
             low_disk: boolean(),
             sync_ms: pos_integer(),
@@ -91,9 +91,9 @@ defmodule Neptunus.Vehicle.Recorder do
             tick: reference() | nil,
             sync: (term() -> :ok | {:error, term()}),
             pubsub: reference() | nil,
-            unsubscribed_at: integer() | nil
+            unsubscribed_at_ms: integer() | nil
           }
-    @enforce_keys [:id, :dir, :max_bytes, :min_free_bytes, :free_bytes, :now_ms, :rm]
+    @enforce_keys [:id, :dir, :max_bytes, :min_free_bytes, :free_bytes, :wall_ms, :rm]
     defstruct [
       :id,
       :dir,
@@ -104,13 +104,13 @@ defmodule Neptunus.Vehicle.Recorder do
       :min_free_bytes,
       :free_bytes,
       :keep_ms,
-      :now_ms,
+      :wall_ms,
       :rm,
       :sync_ms,
       :sync,
       :tick,
       :pubsub,
-      :unsubscribed_at,
+      :unsubscribed_at_ms,
       files: [],
       entries: 0,
       bytes: 0,
@@ -159,7 +159,7 @@ defmodule Neptunus.Vehicle.Recorder do
       min_free_bytes: Map.get(config, :min_free_bytes, @default_min_free_bytes),
       free_bytes: Map.get(config, :free_bytes, &Recording.free_bytes/1),
       keep_ms: Map.get(config, :keep_ms),
-      now_ms: Map.get(config, :now_ms, fn -> System.os_time(:millisecond) end),
+      wall_ms: Map.get(config, :wall_ms, &Neptunus.Clock.wall_ms/0),
       rm: Map.get(config, :rm, &File.rm/1),
       sync_ms: Map.get(config, :sync_ms, @default_sync_ms),
       sync: Map.get(config, :sync, &:disk_log.sync/1)
@@ -186,7 +186,7 @@ defmodule Neptunus.Vehicle.Recorder do
     do: {:noreply, state}
 
   def handle_info({:pubsub, _topic, event, payload}, state) when is_map(payload) do
-    entry = {System.os_time(:millisecond), event, payload}
+    entry = {Neptunus.Clock.wall_ms(), event, payload}
     _ = :disk_log.alog(state.log, entry)
     bytes = state.bytes + :erlang.external_size(entry)
     state = %{state | entries: state.entries + 1, bytes: bytes, unsynced: true}
@@ -209,7 +209,7 @@ defmodule Neptunus.Vehicle.Recorder do
   # The PubSub scope stopped: the subscription is gone (see "PubSub restarts").
   def handle_info({:DOWN, ref, :process, _pid, _reason}, %State{pubsub: ref} = state) do
     Logger.warning("vehicle #{state.id}: recording paused: #{@not_subscribed}")
-    state = %{state | pubsub: nil, unsubscribed_at: System.monotonic_time(:millisecond)}
+    state = %{state | pubsub: nil, unsubscribed_at_ms: Neptunus.Clock.monotonic_ms()}
     report(state)
     {:noreply, subscribe(state)}
   end
@@ -262,11 +262,11 @@ defmodule Neptunus.Vehicle.Recorder do
     with {:ok, ref} <- PubSub.monitor(),
          :ok <- subscribe_or_demonitor(state.id, ref) do
       state = %{state | pubsub: ref}
-      if state.unsubscribed_at, do: resubscribed(state), else: state
+      if state.unsubscribed_at_ms, do: resubscribed(state), else: state
     else
       {:error, :not_running} ->
         Process.send_after(self(), :subscribe, @resubscribe_ms)
-        %{state | unsubscribed_at: state.unsubscribed_at || System.monotonic_time(:millisecond)}
+        %{state | unsubscribed_at_ms: state.unsubscribed_at_ms || Neptunus.Clock.monotonic_ms()}
     end
   end
 
@@ -278,13 +278,13 @@ defmodule Neptunus.Vehicle.Recorder do
   end
 
   defp resubscribed(state) do
-    ms = System.monotonic_time(:millisecond) - state.unsubscribed_at
+    ms = Neptunus.Clock.monotonic_ms() - state.unsubscribed_at_ms
 
     message = "the PubSub restarted: what the vehicle published during #{ms} ms was not recorded"
 
     Logger.error("vehicle #{state.id}: #{message}")
     log(state, "error", message, %{gap_ms: ms})
-    state = %{state | unsubscribed_at: nil}
+    state = %{state | unsubscribed_at_ms: nil}
     report(state)
     state
   end
@@ -328,7 +328,7 @@ defmodule Neptunus.Vehicle.Recorder do
   defp expire(%State{dir: dir, id: id} = state) do
     dir
     |> Recording.list(id)
-    |> Recording.expired(dir, state.now_ms.(), state.keep_ms, state.file)
+    |> Recording.expired(dir, state.wall_ms.(), state.keep_ms, state.file)
     |> Enum.each(fn %{name: name, modified_at: at} ->
       days = div(state.keep_ms, 86_400_000)
 
@@ -358,7 +358,7 @@ defmodule Neptunus.Vehicle.Recorder do
         category: if(level == "error", do: "errors", else: "recording"),
         level: level,
         message: message,
-        at: System.os_time(:millisecond)
+        at: Neptunus.Clock.wall_ms()
       })
     )
   end

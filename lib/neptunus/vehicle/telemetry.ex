@@ -236,7 +236,7 @@ defmodule Neptunus.Vehicle.Telemetry do
     end
 
     # one broadcast per tick; ticks missed during a stall are skipped, not replayed
-    {_due, periodic} = Periodic.advance(state.periodic, System.monotonic_time())
+    {_due, periodic} = Periodic.advance(state.periodic, Neptunus.Clock.monotonic_native())
     Periodic.arm(periodic, :tick)
     {:noreply, %{state | periodic: periodic}}
   end
@@ -246,7 +246,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   defp payload(%State{sample: sample} = state) do
     %{
       t: sample.t,
-      sent_at: System.os_time(:microsecond) / 1000,
+      sent_at: Neptunus.Clock.wall_us() / 1000,
       measurement: sample.measurement,
       measurement_state: Map.get(sample, :measurement_state, @initialising),
       estimate: Map.get(sample, :estimate, @no_estimate),

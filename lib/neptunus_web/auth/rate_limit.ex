@@ -58,7 +58,7 @@ defmodule NeptunusWeb.Auth.RateLimit do
 
   @impl true
   def handle_call({:check, address, capacity}, _from, buckets) do
-    case take(Map.get(buckets, address), now(), capacity) do
+    case take(Map.get(buckets, address), now_ms(), capacity) do
       {:ok, bucket} -> {:reply, :ok, Map.put(buckets, address, bucket)}
       {:error, retry_ms} -> {:reply, {:error, retry_ms}, buckets}
     end
@@ -69,10 +69,10 @@ defmodule NeptunusWeb.Auth.RateLimit do
   @impl true
   def handle_info(:sweep, buckets) do
     # a bucket untouched for a minute is full again: forget it
-    cutoff = now() - @minute_ms
+    cutoff = now_ms() - @minute_ms
     Process.send_after(self(), :sweep, @sweep_ms)
     {:noreply, Map.reject(buckets, fn {_address, {_tokens, at}} -> at < cutoff end)}
   end
 
-  defp now, do: System.monotonic_time(:millisecond)
+  defp now_ms, do: Neptunus.Clock.monotonic_ms()
 end

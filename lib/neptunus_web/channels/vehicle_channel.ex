@@ -34,7 +34,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   @impl true
   def join("vehicle:" <> id, _payload, socket) do
     if Fleet.exists?(id) do
-      socket = Channel.assign(socket, vehicle_id: id, since: System.os_time(:millisecond))
+      socket = Channel.assign(socket, vehicle_id: id, since_wall_ms: Neptunus.Clock.wall_ms())
       socket = track(socket, false)
       Channel.send_self(socket, :after_join)
       {:ok, snapshot(id, socket), socket}
@@ -65,7 +65,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   # The server's wall clock, the one of telemetry's sent_at, for anyone joined: a page
   # estimates its offset from the round trip and so tells how old the telemetry it gets is.
   def handle_in("clock", _payload, socket) do
-    {:reply, {:ok, %{now: System.os_time(:microsecond) / 1000}}, socket}
+    {:reply, {:ok, %{now: Neptunus.Clock.wall_us() / 1000}}, socket}
   end
 
   def handle_in("request_control", _payload, socket) do
@@ -190,8 +190,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
       Presence.track(socket.transport_pid, socket.topic, socket.user.name, %{
         name: socket.user.name,
         role: Atom.to_string(socket.user.role),
-        since: socket.assigns.since,
-        online_at: socket.assigns.since,
+        since: socket.assigns.since_wall_ms,
+        online_at: socket.assigns.since_wall_ms,
         pilot: pilot?,
         conn: socket.user.id,
         node: Atom.to_string(node())

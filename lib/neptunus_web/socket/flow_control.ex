@@ -54,28 +54,28 @@ defmodule NeptunusWeb.Socket.FlowControl do
   * `frame_limit` — frames per second a pilot may send and keep `:high`
   * `backlog` — waiting messages from which on telemetry is dropped
   * `piloting` — the topics this connection pilots
-  * `window_start`, `frames` — the current one-second window of the frame budget (ms on a
+  * `window_start_ms`, `frames` — the current one-second window of the frame budget (ms on a
     monotonic clock) and the frames counted in it
   * `over_budget` — the pilot has sent more than `frame_limit` frames in this window
   * `dropped` — telemetry frames dropped since the last report
-  * `reported_at` — when drops were last reported (ms), `nil` before the first drop
+  * `reported_at_ms` — when drops were last reported (ms), `nil` before the first drop
   """
   @type t :: %__MODULE__{
           frame_limit: pos_integer(),
           backlog: pos_integer(),
           piloting: MapSet.t(String.t()),
-          window_start: integer() | nil,
+          window_start_ms: integer() | nil,
           frames: non_neg_integer(),
           over_budget: boolean(),
           dropped: non_neg_integer(),
-          reported_at: integer() | nil
+          reported_at_ms: integer() | nil
         }
   @enforce_keys [:frame_limit, :backlog]
   defstruct [
     :frame_limit,
     :backlog,
-    :window_start,
-    :reported_at,
+    :window_start_ms,
+    :reported_at_ms,
     piloting: MapSet.new(),
     frames: 0,
     over_budget: false,
@@ -147,11 +147,11 @@ defmodule NeptunusWeb.Socket.FlowControl do
     if MapSet.size(flow.piloting) == 0 do
       {flow, :within}
     else
-      start = flow.window_start
+      start = flow.window_start_ms
 
       flow =
         if start == nil or now_ms - start >= @window_ms or now_ms < start,
-          do: %{flow | window_start: now_ms, frames: 1},
+          do: %{flow | window_start_ms: now_ms, frames: 1},
           else: %{flow | frames: flow.frames + 1}
 
       over? = flow.frames > flow.frame_limit
@@ -182,14 +182,14 @@ defmodule NeptunusWeb.Socket.FlowControl do
   since the last report, `nil` at the first), `nil` otherwise.
   """
   @spec dropped(t(), integer()) :: {t(), report() | nil}
-  def dropped(%__MODULE__{dropped: dropped, reported_at: reported} = flow, now_ms)
+  def dropped(%__MODULE__{dropped: dropped, reported_at_ms: reported} = flow, now_ms)
       when is_integer(now_ms) do
     cond do
       reported == nil ->
-        {%{flow | dropped: 0, reported_at: now_ms}, {:report, dropped + 1, nil}}
+        {%{flow | dropped: 0, reported_at_ms: now_ms}, {:report, dropped + 1, nil}}
 
       now_ms - reported >= @report_every_ms ->
-        {%{flow | dropped: 0, reported_at: now_ms}, {:report, dropped + 1, now_ms - reported}}
+        {%{flow | dropped: 0, reported_at_ms: now_ms}, {:report, dropped + 1, now_ms - reported}}
 
       true ->
         {%{flow | dropped: dropped + 1}, nil}

@@ -32,7 +32,8 @@ defmodule Neptunus.Helm.PolicyTest do
 
   defp policy(:free), do: %Policy{helm: :free, epoch: 7}
 
-  defp policy(state), do: %Policy{helm: resolve(state), epoch: 7, last_seen: @t0, tripped: false}
+  defp policy(state),
+    do: %Policy{helm: resolve(state), epoch: 7, last_seen_ms: @t0, tripped: false}
 
   @events [
     :request,
@@ -350,7 +351,7 @@ defmodule Neptunus.Helm.PolicyTest do
 
       if still_piloting? do
         expected = if from_pilot?, do: o.now, else: @t0
-        assert o.after.last_seen == expected, inspect(o)
+        assert o.after.last_seen_ms == expected, inspect(o)
       end
     end
   end

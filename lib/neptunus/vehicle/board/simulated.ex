@@ -175,9 +175,9 @@ defmodule Neptunus.Vehicle.Board.Simulated do
 
   @impl true
   def handle_info(:tick, state) do
-    now = System.monotonic_time()
-    deadline = state.periodic.next
-    {due, periodic} = Periodic.advance(state.periodic, now)
+    now_native = Neptunus.Clock.monotonic_native()
+    deadline_native = state.periodic.next
+    {due, periodic} = Periodic.advance(state.periodic, now_native)
     steps = min(due, @max_catch_up)
     sim = if state.paused, do: state.sim, else: Sim.step(state.sim, steps)
     report(state, sim)
@@ -190,18 +190,24 @@ defmodule Neptunus.Vehicle.Board.Simulated do
         skipped_steps: state.skipped_steps + due - steps
     }
 
-    {:noreply, record(state, now, deadline)}
+    {:noreply, record(state, now_native, deadline_native)}
   end
 
   defp report(state, sim),
     do: Board.sample(state.id, Map.put(Sim.sample(sim), :board, state.devices), state.source)
 
-  defp record(%State{stats: nil} = state, _now, _deadline), do: state
+  defp record(%State{stats: nil} = state, _now_native, _deadline_native), do: state
 
-  defp record(%State{stats: %{count: count} = stats} = state, now, deadline)
+  defp record(%State{stats: %{count: count} = stats} = state, now_native, deadline_native)
        when count < @max_stats do
-    late = System.convert_time_unit(now - deadline, :native, :microsecond)
-    work = System.convert_time_unit(System.monotonic_time() - now, :native, :microsecond)
+    late = System.convert_time_unit(now_native - deadline_native, :native, :microsecond)
+
+    work =
+      System.convert_time_unit(
+        Neptunus.Clock.monotonic_native() - now_native,
+        :native,
+        :microsecond
+      )
 
     %{
       state

@@ -92,8 +92,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     link = Keyword.fetch!(opts, :link)
     hz = Keyword.get(opts, :hz, Sim.default_hz())
     # a bad firmware option stops the device here with a clear error, before any pty exists
-    firmware =
-      Firmware.new(System.monotonic_time(:millisecond), Keyword.take(opts, @firmware_opts))
+    firmware = Firmware.new(Neptunus.Clock.monotonic_ms(), Keyword.take(opts, @firmware_opts))
 
     File.mkdir_p!(Path.dirname(link))
 
@@ -117,7 +116,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
            port: port,
            pty: pty,
            sim: Sim.new(sim_opts(opts, hz)),
-           firmware: Firmware.reset(firmware, System.monotonic_time(:millisecond)),
+           firmware: Firmware.reset(firmware, Neptunus.Clock.monotonic_ms()),
            periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick))
          }}
 
@@ -144,7 +143,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   def handle_call(:state, _from, state), do: {:reply, state, state}
 
   def handle_call(:reset, _from, state) do
-    now = System.monotonic_time(:millisecond)
+    now = Neptunus.Clock.monotonic_ms()
     # what the old firmware wrote up to now goes out first, then the new one boots
     {firmware, out} = Firmware.tick(state.firmware, now)
     state = send_bytes(state, out)
@@ -161,7 +160,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
 
   @impl true
   def handle_info({port, {:data, "r" <> bytes}}, %State{port: port} = state) do
-    now = System.monotonic_time(:millisecond)
+    now = Neptunus.Clock.monotonic_ms()
     {firmware, reply} = Firmware.receive(state.firmware, bytes, now)
     {:noreply, send_bytes(apply_firmware(state, firmware), reply)}
   end
@@ -173,8 +172,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   end
 
   def handle_info(:tick, state) do
-    now = System.monotonic_time()
-    {due, periodic} = Periodic.advance(state.periodic, now)
+    now_native = Neptunus.Clock.monotonic_native()
+    {due, periodic} = Periodic.advance(state.periodic, now_native)
     steps = min(due, @max_catch_up)
 
     # the firmware reads the sensors as they are now, runs its loop up to now, and its ESC
@@ -182,7 +181,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     firmware = Firmware.sense(state.firmware, Sim.sample(state.sim))
 
     {firmware, out} =
-      Firmware.tick(firmware, System.convert_time_unit(now, :native, :millisecond))
+      Firmware.tick(firmware, System.convert_time_unit(now_native, :native, :millisecond))
 
     sim = state.sim |> Sim.command(firmware.thrusters) |> Sim.step(steps)
     Periodic.arm(periodic, :tick)

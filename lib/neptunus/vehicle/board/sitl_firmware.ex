@@ -125,11 +125,11 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
           current: float()
         }
 
-  @enforce_keys [:profile, :wiring, :boot_at, :options]
+  @enforce_keys [:profile, :wiring, :boot_at_ms, :options]
   defstruct [
     :profile,
     :wiring,
-    :boot_at,
+    :boot_at_ms,
     :options,
     :reading,
     at: 0,
@@ -171,7 +171,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   ]
 
   @typedoc """
-  * `profile`, `wiring`, `boot_at` (clock ms of the last boot), `options` (kept over resets)
+  * `profile`, `wiring`, `boot_at_ms` (clock ms of the last boot), `options` (kept over resets)
   * `deadman_ms`, `arm_ms`, `loop_ms`, `stall_ms` — see the moduledoc
   * `reading` — the simulator's latest measurement (`sense/2`), nil before the first
   * `at` — millis of the last loop iteration
@@ -193,7 +193,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   @type t :: %__MODULE__{
           profile: profile(),
           wiring: Wiring.t(),
-          boot_at: integer(),
+          boot_at_ms: integer(),
           options: keyword(),
           reading: reading() | nil,
           at: integer(),
@@ -264,7 +264,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
     fw = %__MODULE__{
       profile: profile,
       wiring: wiring,
-      boot_at: now,
+      boot_at_ms: now,
       options: opts,
       deadman_ms: positive!(opts, :deadman_ms, 2_000),
       arm_ms: non_negative!(opts, :arm_ms, 180_000),
@@ -310,7 +310,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
 
   @doc "The board's `millis()` at clock time `now`."
   @spec millis(t(), integer()) :: integer()
-  def millis(%__MODULE__{boot_at: boot_at}, now), do: now - boot_at
+  def millis(%__MODULE__{boot_at_ms: boot_at_ms}, now), do: now - boot_at_ms
 
   @doc """
   The simulator's current measurement (a `Neptunus.Vehicle.Board.sample/0`'s or its

@@ -86,14 +86,14 @@ defmodule Neptunus.Vehicle.Board.UART do
             link: :down | :opening | :up,
             reason: String.t(),
             announced: {boolean(), String.t()} | nil,
-            since: integer(),
+            since_ms: integer(),
             program_error: String.t() | nil,
             backoff: Neptunus.Vehicle.Board.Backoff.t(),
             readings: Neptunus.Vehicle.Board.Readings.t(),
-            started_at: integer(),
-            heard_at: integer() | nil,
-            ping_interval: pos_integer(),
-            keepalive_timeout: pos_integer(),
+            started_at_ms: integer(),
+            heard_at_ms: integer() | nil,
+            ping_interval_ms: pos_integer(),
+            keepalive_timeout_ms: pos_integer(),
             ping_n: non_neg_integer(),
             devices: %{optional(:lights | :laser | :tilt) => number()},
             counters: %{atom() => non_neg_integer()}
@@ -127,14 +127,14 @@ defmodule Neptunus.Vehicle.Board.UART do
       :port,
       :announced,
       :program_error,
-      :heard_at,
+      :heard_at_ms,
       port_env: [],
       link: :down,
       reason: "not opened yet",
-      since: 0,
-      started_at: 0,
-      ping_interval: 1_000,
-      keepalive_timeout: 2_000,
+      since_ms: 0,
+      started_at_ms: 0,
+      ping_interval_ms: 1_000,
+      keepalive_timeout_ms: 2_000,
       ping_n: 0,
       devices: %{},
       counters: %{
@@ -236,13 +236,13 @@ defmodule Neptunus.Vehicle.Board.UART do
       backoff:
         Backoff.new(Keyword.get(opts, :reopen_min, 100), Keyword.get(opts, :reopen_max, 5_000)),
       readings: Readings.new(Keyword.get(opts, :max_line, 512)),
-      ping_interval: Keyword.get(opts, :ping_interval, 1_000),
-      keepalive_timeout: Keyword.get(opts, :keepalive_timeout, 2_000),
-      started_at: now,
-      since: now
+      ping_interval_ms: Keyword.get(opts, :ping_interval, 1_000),
+      keepalive_timeout_ms: Keyword.get(opts, :keepalive_timeout, 2_000),
+      started_at_ms: now,
+      since_ms: now
     }
 
-    Process.send_after(self(), :ping, state.ping_interval)
+    Process.send_after(self(), :ping, state.ping_interval_ms)
     {:ok, state, {:continue, :open}}
   end
 
@@ -251,7 +251,7 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   @impl true
   def handle_cast({:go, thrusters}, state) do
-    state = %{state | heard_at: now_ms()}
+    state = %{state | heard_at_ms: now_ms()}
 
     case state.link do
       :up ->
@@ -263,7 +263,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     end
   end
 
-  def handle_cast(:keepalive, state), do: {:noreply, %{state | heard_at: now_ms()}}
+  def handle_cast(:keepalive, state), do: {:noreply, %{state | heard_at_ms: now_ms()}}
 
   # Lights, laser and tilt are sent at once, independent of thrust (thesis §13.1), and kept
   # so a reopened link gets them back; while the link is down they are only kept.
@@ -290,7 +290,7 @@ defmodule Neptunus.Vehicle.Board.UART do
         reason: state.reason,
         device: state.device,
         baud: state.baud,
-        since_ms: now - state.since,
+        since_ms: now - state.since_ms,
         queued: Pacer.queued(state.pacer),
         counters: Map.merge(state.counters, state.readings.counters)
       }
@@ -313,7 +313,7 @@ defmodule Neptunus.Vehicle.Board.UART do
   def handle_info(:reopen, state), do: {:noreply, state}
 
   def handle_info(:ping, state) do
-    Process.send_after(self(), :ping, state.ping_interval)
+    Process.send_after(self(), :ping, state.ping_interval_ms)
     state = ping(state)
     report_link(state)
     {:noreply, state}
@@ -373,7 +373,7 @@ defmodule Neptunus.Vehicle.Board.UART do
       %{
         state
         | link: :up,
-          since: now_ms(),
+          since_ms: now_ms(),
           readings: Readings.reset(state.readings),
           pacer: Pacer.clear(state.pacer),
           board_link: BoardLink.opened(state.board_link)
@@ -387,7 +387,7 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   defp program_message(?r, bytes, state) do
     now = now_ms()
-    t = (now - state.started_at) / 1000
+    t = (now - state.started_at_ms) / 1000
     {readings, samples} = Readings.feed(state.readings, bytes, t)
     {events, readings} = Readings.take_events(readings)
     Enum.each(samples, &Board.sample(state.id, &1))
@@ -408,14 +408,16 @@ defmodule Neptunus.Vehicle.Board.UART do
   defp down(state, reason) do
     now = now_ms()
     was_up = state.link == :up
-    backoff = if was_up, do: Backoff.up_for(state.backoff, now - state.since), else: state.backoff
+
+    backoff =
+      if was_up, do: Backoff.up_for(state.backoff, now - state.since_ms), else: state.backoff
 
     # A link that was up for a while is tried again at once: the board keeps the last go()
     # until a new link writes neutral (its own deadman is seconds away, and not armed for
     # minutes after boot). Failures after that back off; a link that was up for less than
     # 100 ms (one that flaps) backs off at once.
     {delay, backoff} =
-      if was_up and now - state.since >= @reopen_at_once_after_ms,
+      if was_up and now - state.since_ms >= @reopen_at_once_after_ms,
         do: {0, backoff},
         else: Backoff.next(backoff)
 
@@ -426,7 +428,7 @@ defmodule Neptunus.Vehicle.Board.UART do
       | link: :down,
         pacer: Pacer.clear(state.pacer),
         backoff: backoff,
-        since: if(was_up, do: now, else: state.since)
+        since_ms: if(was_up, do: now, else: state.since_ms)
     }
 
     state = if was_up, do: bump(state, :downs), else: state
@@ -455,7 +457,7 @@ defmodule Neptunus.Vehicle.Board.UART do
   # Deadman ---------------------------------------------------------------------------------
 
   defp ping(%State{link: :up} = state) do
-    if state.heard_at != nil and now_ms() - state.heard_at <= state.keepalive_timeout do
+    if state.heard_at_ms != nil and now_ms() - state.heard_at_ms <= state.keepalive_timeout_ms do
       n = state.ping_n
       state = %{state | ping_n: rem(n + 1, 2_147_483_647)}
       state |> bump(:pings) |> command({:ping, n}, OpenROV.ping(n))
@@ -594,5 +596,5 @@ defmodule Neptunus.Vehicle.Board.UART do
   defp bump(state, key, n \\ 1),
     do: %{state | counters: Map.update!(state.counters, key, &(&1 + n))}
 
-  defp now_ms, do: System.monotonic_time(:millisecond)
+  defp now_ms, do: Neptunus.Clock.monotonic_ms()
 end
