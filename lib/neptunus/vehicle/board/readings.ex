@@ -11,7 +11,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
   once all six have been received since the last `reset/1` (a reopened link starts afresh, so
   a sample never mixes values from before a hangup). Other known fields go to the sample's
   `board` map (e.g. `yaw`, `temperature`, `pressure`, `board_time`, `forward_thrust`);
-  unknown keys are kept in `raw` (at most #{64} keys, the latest value of each), not in samples.
+  unknown keys are parsed (so a line with them is not malformed) and left out.
 
   What the fields mean differs between boards, so:
 
@@ -44,7 +44,6 @@ defmodule Neptunus.Vehicle.Board.Readings do
 
   @measurements [:depth, :heading, :roll, :pitch, :voltage, :current]
   @direct_measurements @measurements -- [:current]
-  @max_raw_keys 64
   @max_events 256
 
   @enforce_keys [:lines]
@@ -52,7 +51,6 @@ defmodule Neptunus.Vehicle.Board.Readings do
     :lines,
     measurement: %{},
     board: %{},
-    raw: %{},
     events: [],
     depth_live: false,
     counters: %{
@@ -83,7 +81,6 @@ defmodule Neptunus.Vehicle.Board.Readings do
   * `lines` — the framer (partial line in progress)
   * `measurement` — latest accepted value of each of the six measurements
   * `board` — latest accepted value of the other known fields
-  * `raw` — latest raw value of unknown keys
   * `events` — what the link needs to know, newest first (`take_events/1`)
   * `depth_live` — the board has measured a depth since it booted (see the moduledoc)
   * `counters` — see the moduledoc
@@ -92,7 +89,6 @@ defmodule Neptunus.Vehicle.Board.Readings do
           lines: Lines.t(),
           measurement: map(),
           board: map(),
-          raw: %{String.t() => String.t()},
           events: [event()],
           depth_live: boolean(),
           counters: %{atom() => non_neg_integer()}
@@ -154,35 +150,36 @@ defmodule Neptunus.Vehicle.Board.Readings do
     r = if Map.has_key?(fields, "log"), do: bump(r, :debug, 1), else: r
     {fields, r} = fields |> live_depth(r) |> placeholder()
 
-    {measurement, board, raw, measured?} =
-      Enum.reduce(fields, {r.measurement, r.board, r.raw, false}, fn
-        {key, value}, {m, b, raw, _} when key in @direct_measurements ->
-          {Map.put(m, key, value), b, raw, true}
+    {measurement, board, measured?} =
+      Enum.reduce(fields, {r.measurement, r.board, false}, fn
+        {key, value}, {m, b, _} when key in @direct_measurements ->
+          {Map.put(m, key, value), b, true}
 
-        {:current, value}, {m, b, raw, measured?} ->
+        {:current, value}, {m, b, measured?} ->
           # the cape's iout is the vehicle's current; the 2.5 controller board's is its own
           # supply current, and its battery currents BT1I/BT2I are the vehicle's
           if Map.has_key?(b, :battery1_current),
-            do: {m, Map.put(b, :board_current, value), raw, measured?},
-            else: {Map.put(m, :current, value), b, raw, true}
+            do: {m, Map.put(b, :board_current, value), measured?},
+            else: {Map.put(m, :current, value), b, true}
 
-        {key, value}, {m, b, raw, measured?}
+        {key, value}, {m, b, measured?}
         when key in [:battery1_current, :battery2_current] ->
           b = Map.put(b, key, value)
 
           case battery_current(b) do
-            {:ok, current} -> {Map.put(m, :current, current), b, raw, true}
-            :out_of_range -> {m, b, raw, measured?}
+            {:ok, current} -> {Map.put(m, :current, current), b, true}
+            :out_of_range -> {m, b, measured?}
           end
 
-        {key, value}, {m, b, raw, measured?} when is_atom(key) ->
-          {m, Map.put(b, key, value), raw, measured?}
+        {key, value}, {m, b, measured?} when is_atom(key) ->
+          {m, Map.put(b, key, value), measured?}
 
-        {key, value}, {m, b, raw, measured?} ->
-          {m, b, keep_raw(raw, key, value), measured?}
+        # an unknown key
+        {_key, _value}, acc ->
+          acc
       end)
 
-    r = %{r | measurement: measurement, board: board, raw: raw}
+    r = %{r | measurement: measurement, board: board}
 
     r =
       if (Map.has_key?(fields, :battery1_current) or Map.has_key?(fields, :battery2_current)) and
@@ -277,11 +274,6 @@ defmodule Neptunus.Vehicle.Board.Readings do
   @doc "The events seen since the last call, oldest first, and the readings without them."
   @spec take_events(t()) :: {[event()], t()}
   def take_events(%__MODULE__{events: events} = r), do: {Enum.reverse(events), %{r | events: []}}
-
-  defp keep_raw(raw, key, value) when map_size(raw) < @max_raw_keys or is_map_key(raw, key),
-    do: Map.put(raw, key, value)
-
-  defp keep_raw(raw, _key, _value), do: raw
 
   defp bump(r, _key, 0), do: r
   defp bump(r, key, n), do: %{r | counters: Map.update!(r.counters, key, &(&1 + n))}

@@ -44,16 +44,18 @@ defmodule Neptunus.Vehicle.Board.ReadingsTest do
     assert Readings.wild_points(r) == 3
   end
 
-  test "overlong lines are counted; unknown keys kept raw, bounded" do
+  test "overlong lines are counted; unknown keys are parsed and left out" do
     {r, []} =
       Readings.feed(Readings.new(16), String.duplicate("x", 40) <> "\nfmem:12;pong:3\n", 0.0)
 
     assert r.counters.overlong == 1
-    assert r.raw == %{"fmem" => "12", "pong" => "3"}
+    assert r.counters.malformed == 0
+    assert r.measurement == %{} and r.board == %{}
 
     noise = Enum.map_join(1..100, fn i -> "k#{i}:v;\n" end)
     {r, []} = Readings.feed(Readings.new(), noise, 0.0)
-    assert map_size(r.raw) == 64
+    assert r.counters.lines == 100 and r.counters.malformed == 0
+    assert r.measurement == %{} and r.board == %{}
   end
 
   test "reset starts a new session: partial line and values forgotten, counters kept" do
@@ -101,16 +103,16 @@ defmodule Neptunus.Vehicle.Board.ReadingsFirmwareTest do
     assert r.counters.malformed == 0 and Readings.wild_points(r) == 0
   end
 
-  test "cmpd's newline before its ';' makes the next line start ';time:'; claser glued; dotted keys kept" do
+  test "cmpd's newline before its ';' makes the next line start ';time:'; claser glued; dotted keys parsed" do
     bytes =
       "cmpd:12.00,3.00,4.00\r\n;time:181000;claser:255;BNO055.status:1;Depth.C0:4000;\r\n" <>
         @nav <> @status
 
     {r, [_], events} = feed(bytes)
     assert {:board_time, 181_000} in events
-    assert r.raw["BNO055.status"] == "1" and r.raw["Depth.C0"] == "4000"
-    assert r.raw["claser"] == "255"
+    # the unknown keys, dotted or glued, are parsed and left out
     assert r.counters.malformed == 0
+    refute Enum.any?(Map.keys(r.board), &is_binary/1)
   end
 
   test "a 2.5 board's echo of a CRC-prefixed command: the CRC byte before the name" do
