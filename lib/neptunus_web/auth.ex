@@ -282,8 +282,10 @@ defmodule NeptunusWeb.Auth do
 
     loopback? =
       name == "localhost" or String.ends_with?(name, ".localhost") or
-        match?({:ok, {127, _, _, _}}, :inet.parse_address(String.to_charlist(name))) or
-        match?({:ok, {0, 0, 0, 0, 0, 0, 0, 1}}, :inet.parse_address(String.to_charlist(name)))
+        case :inet.parse_address(String.to_charlist(name)) do
+          {:ok, address} -> Neptunus.Config.Auth.loopback?(address)
+          {:error, _} -> false
+        end
 
     if loopback?,
       do: :ok,

@@ -125,8 +125,7 @@ defmodule NeptunusWeb.Endpoint do
       ]
     ]
 
-    if settings.tls == nil and not match?({127, _, _, _}, bind) and
-         bind != {0, 0, 0, 0, 0, 0, 0, 1} do
+    if settings.tls == nil and not Neptunus.Config.Auth.loopback?(bind) do
       Logger.warning(
         "serving #{:inet.ntoa(bind)}:#{port} without TLS: passwords and login tokens cross " <>
           "the network in clear text (set NEPTUNUS_TLS_CERT and NEPTUNUS_TLS_KEY)"

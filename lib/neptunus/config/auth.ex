@@ -86,9 +86,22 @@ defmodule Neptunus.Config.Auth do
   @spec local() :: map()
   def local, do: auth!(%{}, %{bind: {127, 0, 0, 1}})
 
-  defp loopback?({127, _, _, _}), do: true
-  defp loopback?({0, 0, 0, 0, 0, 0, 0, 1}), do: true
-  defp loopback?(_), do: false
+  @doc """
+  Whether `address` is a loopback address (127.0.0.0/8 or ::1): reachable from this computer
+  only. The one loopback test of the node (local mode, the endpoint's TLS warning, the
+  `Host` check of local mode).
+
+      iex> Neptunus.Config.Auth.loopback?({127, 0, 1, 1})
+      true
+      iex> Neptunus.Config.Auth.loopback?({0, 0, 0, 0, 0, 0, 0, 1})
+      true
+      iex> Neptunus.Config.Auth.loopback?({0, 0, 0, 0})
+      false
+  """
+  @spec loopback?(:inet.ip_address()) :: boolean()
+  def loopback?({127, _, _, _}), do: true
+  def loopback?({0, 0, 0, 0, 0, 0, 0, 1}), do: true
+  def loopback?(_), do: false
 
   defp secret!(nil), do: nil
   defp secret!(""), do: nil
