@@ -17,7 +17,7 @@ defmodule Neptunus.Settings do
   from her tablet she finds on the main station's laptop. Anonymous observers have no
   settings (their name is made up per connection). In local mode there are no logins and
   every connection's name is only a label, so the whole node has one user, `"local"`
-  (`NeptunusWeb.API` maps the request to the scope).
+  (`local_user/0`; `NeptunusWeb.API.user_scope/1` maps a request to its scope).
 
   ## Durability
 
@@ -39,6 +39,10 @@ defmodule Neptunus.Settings do
   alias Neptunus.Settings.Rules
 
   @type scope :: Rules.scope()
+
+  @doc "The one user of a node in local mode (no logins): `\"local\"`."
+  @spec local_user() :: String.t()
+  def local_user, do: "local"
 
   defmodule State do
     @moduledoc false

@@ -88,7 +88,7 @@ defmodule Neptunus.Settings.RulesTest do
       fits = String.duplicate("x", Rules.max_value_bytes() - 2)
       assert Rules.value(fits) == :ok
       assert {:error, reason} = Rules.value(fits <> "x")
-      assert reason == "a value must be at most 16384 bytes of JSON, got 16385"
+      assert reason == "a value must be at most 8192 bytes of JSON, got 8193"
     end
   end
 

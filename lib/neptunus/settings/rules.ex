@@ -27,7 +27,8 @@ defmodule Neptunus.Settings.Rules do
   @type settings :: %{optional(String.t()) => term()}
 
   @max_name_bytes 64
-  @max_value_bytes 16_384
+  # a value and the HTTP body around it fit in what the web server hands over whole
+  @max_value_bytes 8_192
   @max_keys 64
 
   @doc "The most bytes a value's JSON text may take."
