@@ -319,6 +319,127 @@ test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard i
   }
 });
 
+/** A stubbed standard pad: `window.__pad` holds its axes and buttons (the page reads copies). */
+const stubPad = () => {
+  const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
+  window.__pad = { axes: [0, 0, 0, 0], buttons: buttons() };
+  Object.defineProperty(Navigator.prototype, "getGamepads", {
+    configurable: true,
+    value: () => [
+      {
+        id: "Stub pad (STANDARD GAMEPAD)",
+        index: 0,
+        connected: true,
+        mapping: "standard",
+        timestamp: performance.now(),
+        axes: window.__pad.axes.slice(),
+        buttons: window.__pad.buttons.map((b) => ({ ...b })),
+      },
+    ],
+  });
+};
+
+const setButton = (page, index, pressed) =>
+  page.evaluate(([i, p]) => (window.__pad.buttons[i] = { value: p ? 1 : 0, pressed: p, touched: p }), [index, pressed]);
+
+/** Presses `index` for `ms` (a few animation frames at least), then lets go. */
+async function pressButton(page, index, ms = 120) {
+  await setButton(page, index, true);
+  try {
+    await page.waitForTimeout(ms);
+  } finally {
+    await setButton(page, index, false);
+  }
+  await page.waitForTimeout(60);
+}
+
+const storedMapping = (page) =>
+  page.evaluate(async () => {
+    // all of them: a missing key's 404 would be reported in the console
+    const r = await fetch("/api/settings", { cache: "no-store" });
+    return (await r.json()).settings["gamepad.mapping"] ?? "none";
+  });
+
+test("gamepad buttons: one command per press, the mapping editor assigns by pressing, kept on the server per user", { timeout: TEST_MS }, async () => {
+  const { context, page } = await operator({ ...DESKTOP, name: "e2e-buttons", init: stubPad });
+  try {
+    // a known start: this server's local user has the default mapping
+    await page.evaluate(() => fetch("/api/settings/gamepad.mapping", { method: "DELETE" }));
+    await page.reload();
+    await page.locator('#status[data-state="connected"]').waitFor();
+
+    // Home: the gamepad becomes the input (a safe switch); Start: request control
+    await page.locator("#input-keyboard").click();
+    await until(() => helmState(page), (h) => h.state === "free", WAIT_MS, "a free helm");
+    await pressButton(page, 16);
+    await page.locator('#input-gamepad[aria-checked="true"]').waitFor();
+    await page.locator('[data-testid="mapping-status"][data-state="default"]').waitFor({ state: "attached" });
+    await pressButton(page, 9);
+    await page.locator('#helm-state[data-me="pilot"]').waitFor();
+
+    // D-pad right: lights up one step, once per press
+    const lights = () => page.locator('[data-testid="lights-current"]').textContent();
+    await until(lights, (t) => t === "0", WAIT_MS, "lights off at the start");
+    await pressButton(page, 15);
+    await until(lights, (t) => t === "32", WAIT_MS, "lights one step up");
+    // Y held for a second: lights on/off acts once (an edge, not a level)
+    await pressButton(page, 3, 1000);
+    await until(lights, (t) => t === "0", WAIT_MS, "lights toggled off");
+    await page.waitForTimeout(300);
+    assert.equal(await lights(), "0", "a held toggle acted more than once");
+    await pressButton(page, 3);
+    await until(lights, (t) => t === "32", WAIT_MS, "lights back on at their last brightness");
+    await pressButton(page, 14);
+    await until(lights, (t) => t === "0", WAIT_MS, "lights one step down");
+
+    // the editor: Assign "Stop", press A → A stops; the mapping goes to the server
+    await page.locator("#button-map > summary").click();
+    assert.equal(await page.locator("#map-stop").textContent(), "B");
+    const banners = () => page.locator('[data-testid="stop-banner"]').count();
+    await until(banners, (n) => n === 0, 8000, "no recent stop shown");
+    await page.locator("#assign-stop").click();
+    await page.locator("#map-stop", { hasText: "press a button" }).waitFor();
+    await pressButton(page, 0);
+    await page.locator("#map-stop", { hasText: "A" }).waitFor();
+    assert.equal(await page.locator("#map-depth_hold").textContent(), "—", "A kept its old action");
+    await page.locator('[data-testid="mapping-status"][data-state="saved"]').waitFor({ state: "attached" });
+    const stored = await storedMapping(page);
+    assert.equal(stored.actions.stop, 0);
+    assert.equal(stored.actions.depth_hold, undefined);
+    assert.equal(stored.version, 1);
+
+    // assigning did not run the action; pressing A now stops the vehicle
+    assert.equal(await banners(), 0, "assigning a button ran its action");
+    await pressButton(page, 0);
+    await page.locator('[data-testid="stop-banner"]').waitFor();
+    await page.locator('[data-testid="gamepad-last"]', { hasText: "A → Stop" }).waitFor();
+
+    // the mapping follows the user to another device (a fresh browser context)
+    const other = await operator({ ...TABLET, name: "e2e-buttons-2", init: stubPad, touch: true });
+    try {
+      await other.page.locator("#input-gamepad").click();
+      await other.page.locator('[data-testid="mapping-status"][data-state="stored"]').waitFor({ state: "attached" });
+      await other.page.locator("#button-map > summary").click();
+      assert.equal(await other.page.locator("#map-stop").textContent(), "A");
+    } finally {
+      await other.context.close();
+    }
+
+    // reset to default: B stops again, the server keeps nothing
+    await page.locator("#mapping-reset").click();
+    await page.locator('[data-testid="mapping-status"][data-state="default"]').waitFor({ state: "attached" });
+    assert.equal(await page.locator("#map-stop").textContent(), "B");
+    assert.equal(await storedMapping(page), "none");
+
+    // Back: release control
+    await pressButton(page, 8);
+    await page.locator('#helm-state[data-me="watching"]').waitFor();
+    assertNoPageProblems();
+  } finally {
+    await context.close();
+  }
+});
+
 test("settings: values go to the server and its reason is shown in the form; camera rotation is kept per vehicle", { timeout: TEST_MS }, async () => {
   const { context, page } = await operator({ ...DESKTOP, name: "e2e-settings" });
   try {
