@@ -34,7 +34,8 @@ import { KeyboardInput, keyboardDemand } from "../input/keyboard";
 import { TouchTracker, touchDemand } from "../input/touch";
 import type { TouchControl, TouchState } from "../input/touch";
 import { beep } from "../lib/beep";
-import { ClockOffset, ageOnArrival, telemetryAge } from "../lib/clock";
+import { ClockOffset, STALE_AFTER_MS, ageOnArrival, freshness, telemetryAge } from "../lib/clock";
+import type { TelemetryState } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
 import { formDegrees, formValue } from "../lib/forms";
 import { heartbeatMsOf, isPilot, seenView, stampOf } from "../lib/helm";
@@ -72,7 +73,7 @@ import type { HeadsetState } from "./headset";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
 
-export type TelemetryState = "none" | "live" | "stale";
+export type { TelemetryState };
 export type FieldName =
   | "control_mode"
   | "run_mode"
@@ -131,19 +132,11 @@ export interface OperatorState {
   readonly lastStop: { readonly reason: string; readonly at: number } | null;
 }
 
-const STALE_AFTER_MS = 1000;
 const RETRY_MS = 2000;
 const PING_MS = 1000;
 /** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
 const CLOCK_MS = 10_000;
 const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
-
-/** The telemetry state for data `ageMs` old: stale past STALE_AFTER_MS (its age to 0.1 s), else live. */
-function freshness(ageMs: number): Pick<OperatorState, "telemetryState" | "telemetryAgeMs"> {
-  return ageMs > STALE_AFTER_MS
-    ? { telemetryState: "stale", telemetryAgeMs: Math.round(ageMs / 100) * 100 }
-    : { telemetryState: "live", telemetryAgeMs: 0 };
-}
 
 function sleep(ms: number): Promise<void> {
   return new Promise((resolve) => setTimeout(resolve, ms));
