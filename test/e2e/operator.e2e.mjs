@@ -270,6 +270,67 @@ test("touch: two on-screen sticks at once on a 1024×768 tablet, no scrolling", 
   }
 });
 
+test("tablet 1024×768 touch: the sticks and their labels clear the HUD's boxes; the compass labels are whole; the grant message goes once driving", { timeout: TEST_MS }, async () => {
+  const { context, page } = await operator({ ...TABLET, name: "e2e-tablet-hud", touch: true });
+  try {
+    await page.locator("#input-touch").click();
+    await page.locator("#stick-right").waitFor();
+    const layout = await page.evaluate(() => {
+      const box = (el) => {
+        const b = el.getBoundingClientRect();
+        return { x: b.left, y: b.top, r: b.right, b: b.bottom, text: (el.textContent ?? "").trim().slice(0, 24) };
+      };
+      return {
+        pad: ["#stick-left", "#stick-right", "#stick-left .stick-label", "#stick-right .stick-label"].map((sel) => ({ sel, ...box(document.querySelector(sel)) })),
+        hud: [...document.querySelectorAll(".hud-left > *, .hud-right > *")].map(box),
+      };
+    });
+    const overlap = (a, b) => a.x < b.r && b.x < a.r && a.y < b.b && b.y < a.b;
+    for (const p of layout.pad) {
+      for (const h of layout.hud) assert.ok(!overlap(p, h), `${p.sel} ${JSON.stringify(p)} overlaps the HUD's "${h.text}" ${JSON.stringify(h)}`);
+    }
+
+    // every heading the tape can show: its labels are whole, inside the tape
+    const labels = () =>
+      page.evaluate(() => {
+        const tape = document.querySelector(".compass").getBoundingClientRect();
+        return [...document.querySelectorAll(".compass .tick-label")].map((el) => {
+          const b = el.getBoundingClientRect();
+          return { text: el.textContent, inside: b.left >= tape.left && b.right <= tape.right };
+        });
+      });
+    const whole = /^(N|NE|E|SE|S|SW|W|NW|\d{2,3})$/;
+    await takeHelm(page);
+    assert.match((await page.locator("#message").textContent()) ?? "", /thrusters are neutral/);
+    // heading 300 (the thesis' complaint: "00" for 300 at the left edge) and around the dial
+    const cdp = await context.newCDPSession(page);
+    const right = await page.locator("#stick-right").boundingBox();
+    const cx = right.x + right.width / 2;
+    const cy = right.y + right.height / 2;
+    await cdp.send("Input.dispatchTouchEvent", { type: "touchStart", touchPoints: [{ x: cx, y: cy, id: 1 }] });
+    await cdp.send("Input.dispatchTouchEvent", { type: "touchMove", touchPoints: [{ x: cx + right.width * 0.45, y: cy, id: 1 }] });
+    // driving: the grant's "thrusters are neutral" message goes
+    await until(() => page.locator("#message").textContent(), (t) => !/thrusters are neutral/.test(t ?? ""), WAIT_MS, "the grant message gone while driving");
+    const seen = new Set();
+    const deadline = Date.now() + 20000;
+    while (seen.size < 24 && Date.now() < deadline) {
+      for (const l of await labels()) {
+        assert.ok(l.inside, `compass label "${l.text}" sticks out of the tape`);
+        assert.match(l.text, whole, `compass label "${l.text}" is cut`);
+        seen.add(l.text);
+      }
+      await page.waitForTimeout(50);
+    }
+    await cdp.send("Input.dispatchTouchEvent", { type: "touchEnd", touchPoints: [] });
+    assert.ok(seen.size >= 8, `the vehicle turned too little to check the tape: ${[...seen]}`);
+    await screenshot(page, "operator-tablet-hud-1024x768.png", { fullPage: false });
+    await page.locator("#release-control").click();
+    assertNoPageProblems();
+  } finally {
+    await context.close();
+  }
+});
+
 test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard is ignored in gamepad mode", { timeout: TEST_MS }, async () => {
   const init = () => {
     const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
