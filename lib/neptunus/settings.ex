@@ -27,7 +27,8 @@ defmodule Neptunus.Settings do
   and on disk, and `put/3` or `delete/2` says why. A file that cannot be read (not JSON, or
   not the settings of its scope) does not stop the node: it is reported (server log, error
   level, naming the file and the reason), moved aside as `<file>.corrupt-<UTC time>` for a
-  person to look at, and the scope starts empty.
+  person to look at, and the scope starts empty. A file that cannot be read at all (permissions, I/O)
+  is left alone: its scope's requests fail, saying so, until it can be read.
 
   The directory is `NEPTUNUS_SETTINGS` (`Neptunus.Config.Settings`), read once at boot and
   handed to this process as its `:dir` option; it is created when first written.
@@ -105,8 +106,8 @@ defmodule Neptunus.Settings do
   @impl true
   def handle_call({:get, scope, key}, _from, state) do
     with :ok <- Rules.scope(scope),
-         :ok <- Rules.key(key) do
-      {settings, state} = load(state, scope)
+         :ok <- Rules.key(key),
+         {:ok, settings, state} <- load(state, scope) do
       {:reply, Map.fetch(settings, key), state}
     else
       {:error, _} -> {:reply, :error, state}
@@ -114,19 +115,17 @@ defmodule Neptunus.Settings do
   end
 
   def handle_call({:all, scope}, _from, state) do
-    case Rules.scope(scope) do
-      :ok ->
-        {settings, state} = load(state, scope)
-        {:reply, settings, state}
-
-      {:error, _} ->
-        {:reply, %{}, state}
+    with :ok <- Rules.scope(scope),
+         {:ok, settings, state} <- load(state, scope) do
+      {:reply, settings, state}
+    else
+      {:error, _} -> {:reply, %{}, state}
     end
   end
 
   def handle_call({:put, scope, key, value}, _from, state) do
     with :ok <- Rules.scope(scope),
-         {settings, state} = load(state, scope),
+         {:ok, settings, state} <- load(state, scope),
          {:ok, new} <- Rules.put(settings, key, value) do
       store(state, scope, new)
     else
@@ -136,9 +135,8 @@ defmodule Neptunus.Settings do
 
   def handle_call({:delete, scope, key}, _from, state) do
     with :ok <- Rules.scope(scope),
-         :ok <- Rules.key(key) do
-      {settings, state} = load(state, scope)
-
+         :ok <- Rules.key(key),
+         {:ok, settings, state} <- load(state, scope) do
       if Map.has_key?(settings, key),
         do: store(state, scope, Map.delete(settings, key)),
         else: {:reply, :ok, state}
@@ -160,15 +158,25 @@ defmodule Neptunus.Settings do
     end
   end
 
-  # the scope's settings, read from its file the first time
+  # The scope's settings, read from its file the first time. A file that cannot be read now
+  # (permissions, I/O) is not taken for an empty one: writing the scope would replace what
+  # it holds. The scope is refused (and read again next time) until it can be read.
   defp load(state, scope) do
     case Map.fetch(state.scopes, scope) do
       {:ok, settings} ->
-        {settings, state}
+        {:ok, settings, state}
 
       :error ->
-        settings = read(Rules.path(state.dir, scope), scope)
-        {settings, put_in(state.scopes[scope], settings)}
+        path = Rules.path(state.dir, scope)
+
+        case read(path, scope) do
+          {:ok, settings} ->
+            {:ok, settings, put_in(state.scopes[scope], settings)}
+
+          {:error, reason} ->
+            Logger.error("settings: cannot read #{path}: #{reason}")
+            {:error, "cannot read the settings: #{reason}"}
+        end
     end
   end
 
@@ -176,17 +184,16 @@ defmodule Neptunus.Settings do
     case File.read(path) do
       {:ok, text} ->
         case Rules.decode_file(text, scope) do
-          {:ok, settings} -> settings
-          {:error, reason} -> set_aside(path, reason)
+          {:ok, settings} -> {:ok, settings}
+          {:error, reason} -> {:ok, set_aside(path, reason)}
         end
 
-      {:error, :enoent} ->
-        %{}
+      # no file (or a file where a directory of the path should be: no file either)
+      {:error, posix} when posix in [:enoent, :enotdir] ->
+        {:ok, %{}}
 
       {:error, posix} ->
-        # unreadable now (permissions, I/O): report, keep the file, start empty in memory
-        Logger.error("settings: cannot read #{path}: #{:file.format_error(posix)}")
-        %{}
+        {:error, to_string(:file.format_error(posix))}
     end
   end
 

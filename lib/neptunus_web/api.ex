@@ -92,7 +92,7 @@ defmodule NeptunusWeb.API do
   defp route(_method, "/api/recordings" <> _, _arg),
     do: {405, %{error: "method not allowed: use GET (or DELETE for one recording)"}}
 
-  defp route(method, "/api/settings", arg) when method == :GET,
+  defp route(:GET, "/api/settings", arg),
     do: with_user(arg, &{200, %{user: elem(&1, 1), settings: Neptunus.Settings.all(&1)}})
 
   defp route(_method, "/api/settings", _arg),
@@ -161,7 +161,7 @@ defmodule NeptunusWeb.API do
     with {:ok, value} <- setting_body(arg) do
       case Neptunus.Settings.put(scope, key, value) do
         :ok -> {200, %{key: key, value: value}}
-        {:error, "cannot store" <> _ = reason} -> {500, %{error: reason}}
+        {:error, "cannot " <> _ = reason} -> {500, %{error: reason}}
         {:error, reason} -> {400, %{error: reason}}
       end
     end
@@ -170,7 +170,7 @@ defmodule NeptunusWeb.API do
   defp setting(:DELETE, scope, key, _arg) do
     case Neptunus.Settings.delete(scope, key) do
       :ok -> {200, %{deleted: key}}
-      {:error, "cannot store" <> _ = reason} -> {500, %{error: reason}}
+      {:error, "cannot " <> _ = reason} -> {500, %{error: reason}}
       {:error, reason} -> {400, %{error: reason}}
     end
   end

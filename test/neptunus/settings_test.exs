@@ -136,6 +136,34 @@ defmodule Neptunus.SettingsTest do
     assert Settings.get(start(dir), {:user, "a"}, "k") == {:ok, 2}
   end
 
+  test "a file that cannot be read is left alone, and its scope refused until it can be",
+       %{tmp_dir: dir} do
+    path = Rules.path(dir, {:user, "a"})
+    # a directory where the file should be: reading it fails (as a disk error would)
+    File.mkdir_p!(path)
+    s = start(dir)
+
+    log =
+      capture_log(fn ->
+        assert Settings.get(s, {:user, "a"}, "k") == :error
+        assert Settings.all(s, {:user, "a"}) == %{}
+
+        assert {:error, "cannot read the settings: " <> _} = Settings.put(s, {:user, "a"}, "k", 1)
+
+        assert {:error, "cannot read the settings: " <> _} = Settings.delete(s, {:user, "a"}, "k")
+      end)
+
+    assert log =~ "cannot read #{path}"
+    assert File.dir?(path)
+    # other scopes work
+    assert Settings.put(s, {:user, "b"}, "k", 1) == :ok
+
+    # once readable, it is read
+    File.rmdir!(path)
+    File.write!(path, Rules.encode_file({:user, "a"}, %{"k" => "kept"}))
+    assert Settings.get(s, {:user, "a"}, "k") == {:ok, "kept"}
+  end
+
   test "a file of another scope is not used", %{tmp_dir: dir} do
     path = Rules.path(dir, {:user, "a"})
     File.mkdir_p!(Path.dirname(path))
