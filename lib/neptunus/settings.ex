@@ -23,7 +23,9 @@ defmodule Neptunus.Settings do
 
   A write goes to a temporary file beside the scope's file, is `fsync`ed, and renamed over
   the file (atomic on POSIX): a crash or a full disk leaves either the old file or the new
-  one, never half of one. When a write fails the store keeps the previous value, in memory
+  one, never half of one (the rename itself reaches the disk with the file system's next
+  journal commit: a power cut just after `put/3` returned may bring back the previous
+  value, never a broken file). When a write fails the store keeps the previous value, in memory
   and on disk, and `put/3` or `delete/2` says why. A file that cannot be read (not JSON, or
   not the settings of its scope) does not stop the node: it is reported (server log, error
   level, naming the file and the reason), moved aside as `<file>.corrupt-<UTC time>` for a

@@ -657,6 +657,8 @@ export class OperatorController {
   private async loadMapping(): Promise<void> {
     try {
       const stored = await this.settings.get(GAMEPAD_MAPPING_KEY);
+      // the pilot changed the mapping while we asked: theirs wins (and is being saved)
+      if (this.state.mappingStatus.state !== "loading") return;
       if (stored === undefined) {
         this.store.update({ mappingStatus: { state: "default", text: "Default mapping." } });
         return;
