@@ -27,6 +27,18 @@ defmodule NeptunusWeb.API do
       mode, a pilot or the main station only (403 for observers), 409 for the file being
       recorded now, 404 for an unknown recording.
 
+  The user's own settings (`Neptunus.Settings`; the gamepad mapping, the developer page's
+  plots), for local mode (one user, `"local"`) or a token of any role (the token's user);
+  401 otherwise (anonymous observers keep nothing). A request with an `Origin` of another
+  site is refused (403), as for logins:
+
+    * `GET /api/settings` → `{"user": name, "settings": {key: value}}`
+    * `GET /api/settings/<key>` → `{"key", "value"}`; 404 when none is stored
+    * `PUT /api/settings/<key>` `{"value": v}` → `{"key", "value"}`; 400 for a bad key, value
+      or body, 413 for a body over `max_settings_body/0` bytes, 500 when it cannot be written
+      (the previous value stays)
+    * `DELETE /api/settings/<key>` → `{"deleted": key}` (also when none was stored)
+
   See `NeptunusWeb.Auth` and docs/API.md.
   """
   import NeptunusWeb.Yaws
@@ -80,7 +92,104 @@ defmodule NeptunusWeb.API do
   defp route(_method, "/api/recordings" <> _, _arg),
     do: {405, %{error: "method not allowed: use GET (or DELETE for one recording)"}}
 
+  defp route(:GET, "/api/settings", arg),
+    do: with_user(arg, &{200, %{user: elem(&1, 1), settings: Neptunus.Settings.all(&1)}})
+
+  defp route(_method, "/api/settings", _arg),
+    do: {405, %{error: "method not allowed: use GET (or GET, PUT, DELETE for one setting)"}}
+
+  defp route(method, "/api/settings/" <> key, arg) when method in [:GET, :PUT, :DELETE],
+    do: with_user(arg, &setting(method, &1, key, arg))
+
+  defp route(_method, "/api/settings/" <> _, _arg),
+    do: {405, %{error: "method not allowed: use GET, PUT or DELETE"}}
+
   defp route(_method, path, _arg), do: {404, %{error: "no such API endpoint: #{path}"}}
+
+  # the largest body yaws hands over whole (its partial_post_size): a value of
+  # Neptunus.Settings.Rules.max_value_bytes/0 and its {"value": …} wrapper fit
+  @max_settings_body 10_240
+
+  @doc "The largest `PUT /api/settings/<key>` body accepted, in bytes."
+  @spec max_settings_body() :: pos_integer()
+  def max_settings_body, do: @max_settings_body
+
+  @doc """
+  Whose settings a request reads and writes (`Neptunus.Settings`): in local mode the node's
+  one user `{:user, "local"}`; in secure mode the token's user (any role); otherwise the
+  HTTP status and reason to refuse with (401). A foreign `Origin` is refused (403).
+  """
+  @spec user_scope(tuple()) :: {:ok, Neptunus.Settings.scope()} | {401 | 403, map()}
+  def user_scope(arg) do
+    headers = arg(arg, :headers)
+    host = headers |> headers(:host) |> text()
+
+    with {:origin, :ok} <-
+           {:origin, Auth.check_origin(header(headers, "origin"), host, Auth.config().origins)} do
+      case Auth.session(token(arg)) do
+        {:ok, %{mode: "local"}} -> {:ok, {:user, Neptunus.Settings.local_user()}}
+        {:ok, %{user: %{name: name}}} -> {:ok, {:user, name}}
+        {:ok, _} -> {401, %{error: "log in to keep settings"}}
+        {:error, %{error: reason}} -> {401, %{error: reason}}
+      end
+    else
+      {:origin, {:error, status, reason}} -> {status, %{error: reason}}
+    end
+  end
+
+  defp with_user(arg, fun) do
+    case user_scope(arg) do
+      {:ok, scope} -> fun.(scope)
+      refused -> refused
+    end
+  end
+
+  defp setting(:GET, scope, key, _arg) do
+    case Neptunus.Settings.get(scope, key) do
+      {:ok, value} ->
+        {200, %{key: key, value: value}}
+
+      :error ->
+        case Neptunus.Settings.Rules.key(key) do
+          :ok -> {404, %{error: "no setting #{key}"}}
+          {:error, reason} -> {400, %{error: reason}}
+        end
+    end
+  end
+
+  defp setting(:PUT, scope, key, arg) do
+    with {:ok, value} <- setting_body(arg) do
+      case Neptunus.Settings.put(scope, key, value) do
+        :ok -> {200, %{key: key, value: value}}
+        {:error, "cannot " <> _ = reason} -> {500, %{error: reason}}
+        {:error, reason} -> {400, %{error: reason}}
+      end
+    end
+  end
+
+  defp setting(:DELETE, scope, key, _arg) do
+    case Neptunus.Settings.delete(scope, key) do
+      :ok -> {200, %{deleted: key}}
+      {:error, "cannot " <> _ = reason} -> {500, %{error: reason}}
+      {:error, reason} -> {400, %{error: reason}}
+    end
+  end
+
+  defp setting_body(arg) do
+    case arg(arg, :clidata) do
+      data when is_binary(data) and byte_size(data) <= @max_settings_body ->
+        case JSON.decode(data) do
+          {:ok, %{"value" => value} = body} when map_size(body) == 1 -> {:ok, value}
+          {:ok, _} -> {400, %{error: "body must be {\"value\": …}"}}
+          {:error, reason} -> {400, %{error: "body must be JSON {\"value\": …}: #{reason}"}}
+        end
+
+      _ ->
+        # the rest of the body is not read: the connection cannot carry another request
+        {413, %{error: "body must be at most #{@max_settings_body} bytes"},
+         [{"Connection", "close"}]}
+    end
+  end
 
   defp login(arg) do
     headers = arg(arg, :headers)

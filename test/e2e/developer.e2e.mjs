@@ -30,6 +30,76 @@ after(async () => {
 
 const plots = (page) => page.locator('[data-testid="plot"]');
 const samples = async (page) => Number(await page.locator("#buffer").getAttribute("data-samples"));
+const seriesOf = (page) => plots(page).evaluateAll((els) => els.map((e) => e.getAttribute("data-series")));
+const plotsStatus = (page) => page.locator("#plots-status").getAttribute("data-state");
+
+const DEFAULT_SERIES = [
+  "measurement.depth,autopilot.depth.setpoint,estimate.depth",
+  "measurement.heading,autopilot.heading.setpoint,estimate.heading",
+  "thrusters.port,thrusters.vertical,thrusters.starboard",
+  "measurement.voltage",
+  "measurement.current",
+];
+
+/** Back to the default plots (this server's local user keeps them), then none on the page. */
+async function noPlots(page) {
+  await page.locator("#reset-plots").click();
+  await until(() => plotsStatus(page), (s) => s === "default", WAIT_MS, "default plots");
+  await page.locator("#remove-plots").click();
+  await until(() => plots(page).count(), (n) => n === 0, WAIT_MS, "no plots");
+}
+
+test("developer page: opens with the default plots (depth, heading, thrusters, voltage, current), kept per user on the server; telemetry age", { timeout: TEST_MS }, async () => {
+  const dev = await open(browser, { ...DESKTOP, name: "e2e-dev-defaults", path: "/dev.html" });
+  try {
+    const { page } = dev;
+    await page.locator("#reset-plots").click();
+    await until(() => plotsStatus(page), (s) => s === "default", WAIT_MS, "default plots");
+    assert.deepEqual(await seriesOf(page), DEFAULT_SERIES);
+    await until(() => samples(page), (n) => n > 5, WAIT_MS, "recorded samples");
+    await page.locator('[data-testid="plot"] canvas').nth(4).waitFor();
+    // the estimate is drawn next to the measurement: the legend has a value for it on hover
+    await plots(page).first().locator(".u-over").hover();
+    await until(
+      async () => (await plots(page).first().locator(".u-legend .u-value").nth(3).textContent()) ?? "",
+      (t) => /\d/.test(t),
+      WAIT_MS,
+      "the depth estimate's value in the legend",
+    );
+    // telemetry age, as on the operator page
+    await page.locator('#telemetry-age[data-state="live"]').waitFor();
+    assert.equal(await page.locator("#telemetry-age").textContent(), "live");
+
+    // a change is saved for this user: another device opens with it
+    await plots(page).nth(3).locator('[data-testid="remove-plot"]').click();
+    await plots(page).first().locator("select.add-series").selectOption("measurement.roll");
+    await until(() => plotsStatus(page), (s) => s === "saved", WAIT_MS, "plots saved");
+    const changed = [DEFAULT_SERIES[0] + ",measurement.roll", DEFAULT_SERIES[1], DEFAULT_SERIES[2], DEFAULT_SERIES[4]];
+    assert.deepEqual(await seriesOf(page), changed);
+    const other = await open(browser, { ...TABLET, name: "e2e-dev-defaults-2", path: "/dev.html" });
+    try {
+      await until(() => plotsStatus(other.page), (s) => s === "stored", WAIT_MS, "the stored plots");
+      assert.deepEqual(await seriesOf(other.page), changed);
+    } finally {
+      await other.context.close();
+    }
+
+    // reset to defaults: here and on the next device
+    await page.locator("#reset-plots").click();
+    await until(() => plotsStatus(page), (s) => s === "default", WAIT_MS, "default plots again");
+    assert.deepEqual(await seriesOf(page), DEFAULT_SERIES);
+    const third = await open(browser, { ...DESKTOP, name: "e2e-dev-defaults-3", path: "/dev.html" });
+    try {
+      await until(() => plotsStatus(third.page), (s) => s === "default", WAIT_MS, "the default plots");
+      assert.deepEqual(await seriesOf(third.page), DEFAULT_SERIES);
+    } finally {
+      await third.context.close();
+    }
+    assertNoPageProblems();
+  } finally {
+    await dev.context.close();
+  }
+});
 
 test("developer page: add 3 plots, reset graphs, remove; CSV; logger categories (1920×1080 and 1024×768)", { timeout: TEST_MS }, async () => {
   const dev = await open(browser, { ...DESKTOP, name: "e2e-dev", path: "/dev.html" });
@@ -40,6 +110,7 @@ test("developer page: add 3 plots, reset graphs, remove; CSV; logger categories 
     await page.locator('[data-testid="log-topic"][data-state="joined"]').waitFor();
     await until(() => samples(page), (n) => n > 5, WAIT_MS, "recorded samples");
     assert.match((await page.locator("#buffer").textContent()) ?? "", /12,000 samples/);
+    await noPlots(page);
 
     // plots: add three, each with its own series and a uPlot canvas
     for (let i = 1; i <= 3; i++) {
@@ -123,6 +194,8 @@ test("developer page: add 3 plots, reset graphs, remove; CSV; logger categories 
     const overflow = await page.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
     assert.ok(overflow <= 0, `developer page is ${overflow}px wider than 1024px`);
     await screenshot(page, "developer-1024x768.png");
+    await page.locator("#reset-plots").click();
+    await until(() => plotsStatus(page), (s) => s === "default", WAIT_MS, "default plots after the test");
     assertNoPageProblems();
   } finally {
     await dev.context.close();
@@ -154,6 +227,7 @@ test("developer page: the server's recordings: list, CSV download, shown in the 
     assert.equal(await samples(page), 300);
     await page.waitForTimeout(500);
     assert.equal(await samples(page), 300, "live samples were mixed into the recording");
+    await noPlots(page);
     await page.locator("#add-plot").click();
     await plots(page).first().locator("canvas").waitFor();
     assert.equal(await plots(page).first().getAttribute("data-series"), "measurement.depth");
@@ -172,6 +246,8 @@ test("developer page: the server's recordings: list, CSV download, shown in the 
     await item.locator("button.delete-recording").click();
     await item.waitFor({ state: "detached" });
     await page.locator('[data-testid="log-list"] li[data-category="recording"]', { hasText: `deleted recording ${name}` }).waitFor();
+    await page.locator("#reset-plots").click();
+    await until(() => plotsStatus(page), (s) => s === "default", WAIT_MS, "default plots after the test");
     assertNoPageProblems();
   } finally {
     await dev.context.close();

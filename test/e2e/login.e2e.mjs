@@ -130,3 +130,63 @@ test("login, roles, and the main station's takeover with a warning", { timeout: 
     for (const side of [pilot, olga, main]) await side.context.close();
   }
 });
+
+test("developer page in secure mode: to the login page and back; each user's plots are their own", { timeout: TEST_MS }, async () => {
+  const openDev = async (name) => {
+    const side = await newPage(`${name}-dev`);
+    await side.page.goto(`${BASE}/dev.html`, { waitUntil: "load" });
+    await side.page.waitForURL(/\/login\.html\?next=%2Fdev\.html/, { timeout: WAIT_MS });
+    await side.page.locator("#login-name").fill(name);
+    await side.page.locator("#login-password").fill(LOGINS[name]);
+    await side.page.locator("#login-submit").click();
+    await side.page.waitForURL(`${BASE}/dev.html`, { timeout: WAIT_MS });
+    await side.page.locator('#status[data-state="connected"]').waitFor();
+    return side;
+  };
+  const status = (page) => page.locator("#plots-status").getAttribute("data-state");
+  const count = (page) => page.locator('[data-testid="plot"]').count();
+  const waitFor = async (read, pred, what) => {
+    const deadline = Date.now() + WAIT_MS;
+    for (;;) {
+      const v = await read();
+      if (pred(v)) return v;
+      assert.ok(Date.now() < deadline, `timed out waiting for ${what}; last: ${JSON.stringify(v)}`);
+      await new Promise((r) => setTimeout(r, 50));
+    }
+  };
+  const olga = await openDev("e2e-olga");
+  try {
+    await olga.page.locator("#reset-plots").click();
+    await waitFor(() => status(olga.page), (s) => s === "default", "olga's default plots");
+    const defaults = await count(olga.page);
+    assert.ok(defaults >= 4, `the default set has ${defaults} plots`);
+    await olga.page.locator("#remove-plots").click();
+    await waitFor(() => status(olga.page), (s) => s === "saved", "olga's plots saved");
+    // another user on another device: their own (default) plots, not olga's
+    const pilot = await openDev("e2e-pilot");
+    try {
+      await waitFor(() => status(pilot.page), (s) => s === "default" || s === "stored", "the pilot's plots");
+      if ((await status(pilot.page)) === "stored") {
+        await pilot.page.locator("#reset-plots").click();
+        await waitFor(() => status(pilot.page), (s) => s === "default", "the pilot's default plots");
+      }
+      assert.equal(await count(pilot.page), defaults);
+    } finally {
+      await pilot.context.close();
+    }
+    // olga's choice is kept for her: a new device of hers opens with no plots
+    const again = await openDev("e2e-olga");
+    try {
+      await waitFor(() => status(again.page), (s) => s === "stored", "olga's stored plots");
+      assert.equal(await count(again.page), 0);
+      await again.page.locator("#reset-plots").click();
+      await waitFor(() => status(again.page), (s) => s === "default", "olga's defaults again");
+    } finally {
+      await again.context.close();
+    }
+    const problems = pageProblems.splice(0);
+    assert.deepEqual(problems, [], `the pages reported errors:\n${problems.join("\n")}`);
+  } finally {
+    await olga.context.close();
+  }
+});

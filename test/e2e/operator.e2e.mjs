@@ -270,6 +270,67 @@ test("touch: two on-screen sticks at once on a 1024×768 tablet, no scrolling", 
   }
 });
 
+test("tablet 1024×768 touch: the sticks and their labels clear the HUD's boxes; the compass labels are whole; the grant message goes once driving", { timeout: TEST_MS }, async () => {
+  const { context, page } = await operator({ ...TABLET, name: "e2e-tablet-hud", touch: true });
+  try {
+    await page.locator("#input-touch").click();
+    await page.locator("#stick-right").waitFor();
+    const layout = await page.evaluate(() => {
+      const box = (el) => {
+        const b = el.getBoundingClientRect();
+        return { x: b.left, y: b.top, r: b.right, b: b.bottom, text: (el.textContent ?? "").trim().slice(0, 24) };
+      };
+      return {
+        pad: ["#stick-left", "#stick-right", "#stick-left .stick-label", "#stick-right .stick-label"].map((sel) => ({ sel, ...box(document.querySelector(sel)) })),
+        hud: [...document.querySelectorAll(".hud-left > *, .hud-right > *")].map(box),
+      };
+    });
+    const overlap = (a, b) => a.x < b.r && b.x < a.r && a.y < b.b && b.y < a.b;
+    for (const p of layout.pad) {
+      for (const h of layout.hud) assert.ok(!overlap(p, h), `${p.sel} ${JSON.stringify(p)} overlaps the HUD's "${h.text}" ${JSON.stringify(h)}`);
+    }
+
+    // every heading the tape can show: its labels are whole, inside the tape
+    const labels = () =>
+      page.evaluate(() => {
+        const tape = document.querySelector(".compass").getBoundingClientRect();
+        return [...document.querySelectorAll(".compass .tick-label")].map((el) => {
+          const b = el.getBoundingClientRect();
+          return { text: el.textContent, inside: b.left >= tape.left && b.right <= tape.right };
+        });
+      });
+    const whole = /^(N|NE|E|SE|S|SW|W|NW|\d{2,3})$/;
+    await takeHelm(page);
+    assert.match((await page.locator("#message").textContent()) ?? "", /thrusters are neutral/);
+    // heading 300 (the thesis' complaint: "00" for 300 at the left edge) and around the dial
+    const cdp = await context.newCDPSession(page);
+    const right = await page.locator("#stick-right").boundingBox();
+    const cx = right.x + right.width / 2;
+    const cy = right.y + right.height / 2;
+    await cdp.send("Input.dispatchTouchEvent", { type: "touchStart", touchPoints: [{ x: cx, y: cy, id: 1 }] });
+    await cdp.send("Input.dispatchTouchEvent", { type: "touchMove", touchPoints: [{ x: cx + right.width * 0.45, y: cy, id: 1 }] });
+    // driving: the grant's "thrusters are neutral" message goes
+    await until(() => page.locator("#message").textContent(), (t) => !/thrusters are neutral/.test(t ?? ""), WAIT_MS, "the grant message gone while driving");
+    const seen = new Set();
+    const deadline = Date.now() + 20000;
+    while (seen.size < 24 && Date.now() < deadline) {
+      for (const l of await labels()) {
+        assert.ok(l.inside, `compass label "${l.text}" sticks out of the tape`);
+        assert.match(l.text, whole, `compass label "${l.text}" is cut`);
+        seen.add(l.text);
+      }
+      await page.waitForTimeout(50);
+    }
+    await cdp.send("Input.dispatchTouchEvent", { type: "touchEnd", touchPoints: [] });
+    assert.ok(seen.size >= 8, `the vehicle turned too little to check the tape: ${[...seen]}`);
+    await screenshot(page, "operator-tablet-hud-1024x768.png", { fullPage: false });
+    await page.locator("#release-control").click();
+    assertNoPageProblems();
+  } finally {
+    await context.close();
+  }
+});
+
 test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard is ignored in gamepad mode", { timeout: TEST_MS }, async () => {
   const init = () => {
     const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
@@ -313,6 +374,127 @@ test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard i
     await setPad([0, 0.05, 0.08, -0.09]);
     await until(() => thrusterValues(page), allZero, WAIT_MS, "neutral inside the deadband");
     await page.locator("#release-control").click();
+    assertNoPageProblems();
+  } finally {
+    await context.close();
+  }
+});
+
+/** A stubbed standard pad: `window.__pad` holds its axes and buttons (the page reads copies). */
+const stubPad = () => {
+  const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
+  window.__pad = { axes: [0, 0, 0, 0], buttons: buttons() };
+  Object.defineProperty(Navigator.prototype, "getGamepads", {
+    configurable: true,
+    value: () => [
+      {
+        id: "Stub pad (STANDARD GAMEPAD)",
+        index: 0,
+        connected: true,
+        mapping: "standard",
+        timestamp: performance.now(),
+        axes: window.__pad.axes.slice(),
+        buttons: window.__pad.buttons.map((b) => ({ ...b })),
+      },
+    ],
+  });
+};
+
+const setButton = (page, index, pressed) =>
+  page.evaluate(([i, p]) => (window.__pad.buttons[i] = { value: p ? 1 : 0, pressed: p, touched: p }), [index, pressed]);
+
+/** Presses `index` for `ms` (a few animation frames at least), then lets go. */
+async function pressButton(page, index, ms = 120) {
+  await setButton(page, index, true);
+  try {
+    await page.waitForTimeout(ms);
+  } finally {
+    await setButton(page, index, false);
+  }
+  await page.waitForTimeout(60);
+}
+
+const storedMapping = (page) =>
+  page.evaluate(async () => {
+    // all of them: a missing key's 404 would be reported in the console
+    const r = await fetch("/api/settings", { cache: "no-store" });
+    return (await r.json()).settings["gamepad.mapping"] ?? "none";
+  });
+
+test("gamepad buttons: one command per press, the mapping editor assigns by pressing, kept on the server per user", { timeout: TEST_MS }, async () => {
+  const { context, page } = await operator({ ...DESKTOP, name: "e2e-buttons", init: stubPad });
+  try {
+    // a known start: this server's local user has the default mapping
+    await page.evaluate(() => fetch("/api/settings/gamepad.mapping", { method: "DELETE" }));
+    await page.reload();
+    await page.locator('#status[data-state="connected"]').waitFor();
+
+    // Home: the gamepad becomes the input (a safe switch); Start: request control
+    await page.locator("#input-keyboard").click();
+    await until(() => helmState(page), (h) => h.state === "free", WAIT_MS, "a free helm");
+    await pressButton(page, 16);
+    await page.locator('#input-gamepad[aria-checked="true"]').waitFor();
+    await page.locator('[data-testid="mapping-status"][data-state="default"]').waitFor({ state: "attached" });
+    await pressButton(page, 9);
+    await page.locator('#helm-state[data-me="pilot"]').waitFor();
+
+    // D-pad right: lights up one step, once per press
+    const lights = () => page.locator('[data-testid="lights-current"]').textContent();
+    await until(lights, (t) => t === "0", WAIT_MS, "lights off at the start");
+    await pressButton(page, 15);
+    await until(lights, (t) => t === "32", WAIT_MS, "lights one step up");
+    // Y held for a second: lights on/off acts once (an edge, not a level)
+    await pressButton(page, 3, 1000);
+    await until(lights, (t) => t === "0", WAIT_MS, "lights toggled off");
+    await page.waitForTimeout(300);
+    assert.equal(await lights(), "0", "a held toggle acted more than once");
+    await pressButton(page, 3);
+    await until(lights, (t) => t === "32", WAIT_MS, "lights back on at their last brightness");
+    await pressButton(page, 14);
+    await until(lights, (t) => t === "0", WAIT_MS, "lights one step down");
+
+    // the editor: Assign "Stop", press A → A stops; the mapping goes to the server
+    await page.locator("#button-map > summary").click();
+    assert.equal(await page.locator("#map-stop").textContent(), "B");
+    const banners = () => page.locator('[data-testid="stop-banner"]').count();
+    await until(banners, (n) => n === 0, 8000, "no recent stop shown");
+    await page.locator("#assign-stop").click();
+    await page.locator("#map-stop", { hasText: "press a button" }).waitFor();
+    await pressButton(page, 0);
+    await page.locator("#map-stop", { hasText: "A" }).waitFor();
+    assert.equal(await page.locator("#map-depth_hold").textContent(), "—", "A kept its old action");
+    await page.locator('[data-testid="mapping-status"][data-state="saved"]').waitFor({ state: "attached" });
+    const stored = await storedMapping(page);
+    assert.equal(stored.actions.stop, 0);
+    assert.equal(stored.actions.depth_hold, undefined);
+    assert.equal(stored.version, 1);
+
+    // assigning did not run the action; pressing A now stops the vehicle
+    assert.equal(await banners(), 0, "assigning a button ran its action");
+    await pressButton(page, 0);
+    await page.locator('[data-testid="stop-banner"]').waitFor();
+    await page.locator('[data-testid="gamepad-last"]', { hasText: "A → Stop" }).waitFor();
+
+    // the mapping follows the user to another device (a fresh browser context)
+    const other = await operator({ ...TABLET, name: "e2e-buttons-2", init: stubPad, touch: true });
+    try {
+      await other.page.locator("#input-gamepad").click();
+      await other.page.locator('[data-testid="mapping-status"][data-state="stored"]').waitFor({ state: "attached" });
+      await other.page.locator("#button-map > summary").click();
+      assert.equal(await other.page.locator("#map-stop").textContent(), "A");
+    } finally {
+      await other.context.close();
+    }
+
+    // reset to default: B stops again, the server keeps nothing
+    await page.locator("#mapping-reset").click();
+    await page.locator('[data-testid="mapping-status"][data-state="default"]').waitFor({ state: "attached" });
+    assert.equal(await page.locator("#map-stop").textContent(), "B");
+    assert.equal(await storedMapping(page), "none");
+
+    // Back: release control
+    await pressButton(page, 8);
+    await page.locator('#helm-state[data-me="watching"]').waitFor();
     assertNoPageProblems();
   } finally {
     await context.close();

@@ -2,6 +2,7 @@
 
 import { useEffect, useRef, useState } from "preact/hooks";
 import { CATEGORIES, categoryLabel, clockTime, formatLog } from "../logger/model";
+import { ageText } from "../lib/clock";
 import { downloadText, fileStamp } from "../lib/download";
 import { formatBytes, recordingUrl } from "../lib/recordings";
 import { useStore } from "../lib/use_store";
@@ -26,6 +27,12 @@ function Header({ s }: { s: DevState }): preact.JSX.Element {
       </span>
       <span id="status" class="status" data-testid="status" data-state={s.status} role="status">
         {s.status === "disconnected" ? "disconnected — reconnecting" : s.status}
+      </span>
+      <span class="telemetry">
+        Telemetry{" "}
+        <strong id="telemetry-age" data-testid="telemetry-age" data-state={s.telemetryState}>
+          {ageText(s.telemetryState, s.telemetryAgeMs)}
+        </strong>
       </span>
       <a class="dev-link" href={back}>
         Operator page
@@ -123,6 +130,9 @@ function Plots({ s, c }: { s: DevState; c: DevController }): preact.JSX.Element 
         <button type="button" id="remove-plots" data-testid="remove-plots" disabled={s.plots.length === 0} onClick={() => c.removeAllPlots()}>
           Remove plots
         </button>
+        <button type="button" id="reset-plots" data-testid="reset-plots" onClick={() => c.resetPlots()}>
+          Reset to defaults
+        </button>
         <button type="button" id="download-csv" data-testid="download-csv" onClick={download}>
           Download CSV
         </button>
@@ -132,6 +142,9 @@ function Plots({ s, c }: { s: DevState; c: DevController }): preact.JSX.Element 
           {c.recorder.dropped > 0 ? ` · ${c.recorder.dropped.toLocaleString("en")} oldest dropped` : ""} · {all.length} series
         </span>
       </div>
+      <output class="field-status" id="plots-status" data-testid="plots-status" data-state={s.plotsStatus.state} aria-live="polite">
+        {s.plotsStatus.text}
+      </output>
       <ReplayBar s={s} c={c} />
       <Recordings s={s} c={c} />
       {s.plots.length === 0 && <p class="note">No plots: “Add plot” shows one (up to {MAX_PLOTS}); each overlays any series.</p>}

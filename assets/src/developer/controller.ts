@@ -1,7 +1,12 @@
 /**
  * The developer page's logic: connects like the operator page (watching only, it never asks
- * for control), records every telemetry sample from the moment it connects (plots), and feeds
- * the logger from the vehicle topic and the `log:<id>` topic.
+ * for control; the session is `PageSession`, lib/session.ts, as on the operator page),
+ * records every telemetry sample from the moment it connects (plots), shows how old the
+ * telemetry is (as the operator page does, lib/clock.ts), and feeds the logger from the
+ * vehicle topic and the `log:<id>` topic.
+ *
+ * The plots open with the user's set, kept on the server (`developer.plots`, plot_set.ts),
+ * or the default set; every change of the plots is saved, "reset to defaults" deletes it.
  */
 
 import { LogBook, entryFromRecordedEvent, entryFromServerLog, linkEntry, recorded, stopEntry, telemetryChanges, telemetryFacts } from "../logger/model";
@@ -12,12 +17,26 @@ import { deleteRecording, fetchRecording, fetchRecordings } from "../lib/recordi
 import type { ParsedRecording, RecordingInfo, RecordingList } from "../lib/recordings";
 import { decodeTelemetry } from "../lib/protocol";
 import type { Helm, Telemetry } from "../lib/protocol";
-import { AuthError, TOKEN_KEY, fetchSession, loadToken } from "../lib/session";
+import { ClockOffset, STALE_AFTER_MS, ageOnArrival, freshness, telemetryAge } from "../lib/clock";
+import type { TelemetryState } from "../lib/clock";
+import { PageSession, loginUrl } from "../lib/session";
+import { DEVELOPER_PLOTS_KEY, SettingsClient, notKept } from "../lib/settings";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
-import type { ConnectionStatus } from "../lib/vehicle_client";
+import type { ConnectionStatus, VehicleChannel } from "../lib/vehicle_client";
+import { DEFAULT_PLOT_SET, MAX_PLOTS, encodePlotSet, parsePlotSet } from "./plot_set";
+import type { PlotSet } from "./plot_set";
 
-export const MAX_PLOTS = 10;
+export { MAX_PLOTS };
+
+/** Where the user's plot set stands: read from the server, saved, or why not. */
+export interface PlotsStatus {
+  readonly state: "loading" | "default" | "stored" | "saving" | "saved" | "not_kept" | "error";
+  readonly text: string;
+}
+
+/** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
+const CLOCK_MS = 10_000;
 
 export interface PlotSpec {
   readonly id: number;
@@ -36,6 +55,9 @@ export interface DevState {
   /** series known so far, in arrival order */
   readonly series: readonly string[];
   readonly plots: readonly PlotSpec[];
+  readonly plotsStatus: PlotsStatus;
+  readonly telemetryState: TelemetryState;
+  readonly telemetryAgeMs: number;
   readonly message: string;
   /** the server's recordings of this vehicle (null until listed) */
   readonly recordings: RecordingList | null;
@@ -84,6 +106,13 @@ export class DevController {
   private nextPlotId = 1;
   private starter = 0;
   private token: string | null = null;
+  private readonly session: PageSession;
+  private readonly settings: SettingsClient;
+  private vehicle: VehicleChannel | null = null;
+  private lastTelemetryAt: number | null = null;
+  private lastTelemetryLate: number | null = null;
+  private readonly clock = new ClockOffset(60);
+  private clockPending = false;
 
   constructor(params: URLSearchParams, capacity?: number) {
     this.params = params;
@@ -97,11 +126,29 @@ export class DevController {
       dataVersion: 0,
       series: [],
       plots: [],
+      plotsStatus: { state: "loading", text: "" },
+      telemetryState: "none",
+      telemetryAgeMs: 0,
       message: "",
       recordings: null,
       recordingsError: null,
       replay: null,
     });
+    this.store.update({ plots: this.specs(DEFAULT_PLOT_SET) });
+    this.session = new PageSession({
+      tokens: {
+        getItem: (key) => window.localStorage.getItem(key),
+        setItem: (key, value) => window.localStorage.setItem(key, value),
+        removeItem: (key) => window.localStorage.removeItem(key),
+      },
+      fetch: (input, init) => fetch(input, init),
+      wallMs: () => Date.now(),
+      monotonicMs: () => performance.now(),
+      sleep: (ms) => new Promise((resolve) => setTimeout(resolve, ms)),
+      toLogin: (reason) => window.location.assign(loginUrl(window.location.pathname + window.location.search, reason)),
+      onUnreachable: (reason) => this.store.update({ message: reason === null ? "" : `Cannot reach the server: ${reason}` }),
+    });
+    this.settings = new SettingsClient(() => this.session.token);
   }
 
   async start(): Promise<void> {
@@ -113,35 +160,19 @@ export class DevController {
       }
     }, 250);
 
-    let token = loadToken(window.localStorage, Date.now());
-    for (;;) {
-      try {
-        let session;
-        try {
-          session = await fetchSession(token);
-        } catch (err) {
-          if (!(err instanceof AuthError) || err.status !== 401) throw err;
-          window.localStorage.removeItem(TOKEN_KEY);
-          token = null;
-          session = await fetchSession(null);
-        }
-        if (session.mode === "secure" && session.user === null && !session.anonymous_observers) {
-          const next = window.location.pathname + window.location.search;
-          window.location.assign(`/login.html?${new URLSearchParams({ next }).toString()}`);
-          return;
-        }
-        if (session.user === null) token = null;
-        break;
-      } catch (err) {
-        this.store.update({ message: `Cannot reach the server: ${reasonOf(err)}` });
-        await new Promise((r) => setTimeout(r, 2000));
-      }
-    }
+    window.setInterval(() => this.tick(), 250);
+    window.setInterval(() => this.readClock(), CLOCK_MS);
 
+    const session = await this.session.authenticate();
+    if (session === null) return; // leaving for the login page
+    const token = this.session.token;
     this.token = token;
+    void this.loadPlots();
     const name = (this.params.get("name") ?? "").trim().slice(0, 40) || "developer";
     const client = new NeptunusClient({ name, ...(token !== null ? { token } : {}) });
     client.socket.onOpen(() => this.store.update({ status: "connected" }));
+    // a refused upgrade (expired or revoked token) looks like a network error from here
+    client.socket.onError(() => void this.session.recheck());
     client.connect();
     const id = await this.chooseVehicle(client);
     if (id === null) return;
@@ -172,6 +203,7 @@ export class DevController {
       protocolError: (what, payload) =>
         this.add({ category: "error", level: "error", message: `unexpected ${what} payload: ${JSON.stringify(payload).slice(0, 200)}` }),
     });
+    this.vehicle = vehicle;
     vehicle.join().catch((err: unknown) => {
       this.add({ category: "error", level: "error", message: `cannot join vehicle ${id}: ${reasonOf(err)}` });
       this.store.update({ message: `Cannot join vehicle ${id}: ${reasonOf(err)}` });
@@ -213,11 +245,39 @@ export class DevController {
   }
 
   private onTelemetry(t: Telemetry): void {
+    this.lastTelemetryAt = performance.now();
+    // a slow link delivers frames that are already old: stale, though they keep coming
+    this.lastTelemetryLate = ageOnArrival(t.sent_at, Date.now(), this.clock.offsetMs);
+    this.store.update(freshness(this.lastTelemetryLate ?? 0));
     // while a recording is shown, live samples are not mixed into it
     if (this.store.get().replay === null) this.recorder.add(t.sent_at / 1000, flattenNumeric(t.raw));
     const facts = telemetryFacts(t);
     for (const e of telemetryChanges(this.facts, facts, t.sent_at)) this.add(e);
     this.facts = facts;
+  }
+
+  private tick(): void {
+    if (this.lastTelemetryAt !== null) {
+      const age = telemetryAge(performance.now(), this.lastTelemetryAt, this.lastTelemetryLate);
+      if (age > STALE_AFTER_MS) this.store.update(freshness(age));
+    }
+    // the first reading as soon as the vehicle is joined, then every CLOCK_MS
+    if (this.clock.offsetMs === null) this.readClock();
+  }
+
+  private readClock(): void {
+    const vehicle = this.vehicle;
+    if (this.clockPending || !vehicle || !vehicle.joined) return;
+    this.clockPending = true;
+    vehicle.clock().then(
+      (sample) => {
+        this.clockPending = false;
+        this.clock.add(sample);
+      },
+      () => {
+        this.clockPending = false;
+      },
+    );
   }
 
   private onHelm(h: Helm): void {
@@ -273,19 +333,68 @@ export class DevController {
       series = candidate.filter((k) => known.has(k));
       if (series.length > 0) this.starter = (this.starter + i + 1) % STARTERS.length;
     }
-    this.store.update({ plots: [...plots, { id: this.nextPlotId++, series }] });
+    this.savePlots([...plots, { id: this.nextPlotId++, series }]);
   }
 
   removePlot(id: number): void {
-    this.store.update((s) => ({ plots: s.plots.filter((p) => p.id !== id) }));
+    this.savePlots(this.store.get().plots.filter((p) => p.id !== id));
   }
 
   removeAllPlots(): void {
-    this.store.update({ plots: [] });
+    this.savePlots([]);
   }
 
   setPlotSeries(id: number, series: readonly string[]): void {
-    this.store.update((s) => ({ plots: s.plots.map((p) => (p.id === id ? { ...p, series } : p)) }));
+    this.savePlots(this.store.get().plots.map((p) => (p.id === id ? { ...p, series } : p)));
+  }
+
+  /** Back to the default plots (the user's stored set is deleted on the server). */
+  resetPlots(): void {
+    this.store.update({ plots: this.specs(DEFAULT_PLOT_SET), plotsStatus: { state: "saving", text: "Resetting…" } });
+    this.settings.delete(DEVELOPER_PLOTS_KEY).then(
+      () => this.store.update({ plotsStatus: { state: "default", text: "Default plots." } }),
+      (err: unknown) => this.plotsError(err),
+    );
+  }
+
+  private specs(set: PlotSet): PlotSpec[] {
+    return set.map((series) => ({ id: this.nextPlotId++, series: [...series] }));
+  }
+
+  private async loadPlots(): Promise<void> {
+    try {
+      const stored = await this.settings.get(DEVELOPER_PLOTS_KEY);
+      // the user changed the plots while we asked: theirs win (and are being saved)
+      if (this.store.get().plotsStatus.state !== "loading") return;
+      if (stored === undefined) {
+        this.store.update({ plotsStatus: { state: "default", text: "Default plots." } });
+        return;
+      }
+      const parsed = parsePlotSet(stored);
+      if (parsed.ok) this.store.update({ plots: this.specs(parsed.plots), plotsStatus: { state: "stored", text: "Your plots, from the server." } });
+      else this.store.update({ plotsStatus: { state: "error", text: `Your stored plots cannot be used (${parsed.reason}): the defaults apply.` } });
+    } catch (err) {
+      this.plotsError(err);
+    }
+  }
+
+  private savePlots(plots: readonly PlotSpec[]): void {
+    this.store.update({ plots, plotsStatus: { state: "saving", text: "Saving…" } });
+    this.settings.put(DEVELOPER_PLOTS_KEY, encodePlotSet(plots.map((p) => p.series))).then(
+      () => {
+        // a later change may have been saved meanwhile: only the newest says "saved"
+        if (this.store.get().plots === plots) this.store.update({ plotsStatus: { state: "saved", text: "Saved on the server." } });
+      },
+      (err: unknown) => this.plotsError(err),
+    );
+  }
+
+  private plotsError(err: unknown): void {
+    this.store.update({
+      plotsStatus: notKept(err)
+        ? { state: "not_kept", text: "Not kept: log in to keep your plots." }
+        : { state: "error", text: `Plots not saved: ${reasonOf(err)}` },
+    });
   }
 
   // Recordings on the server

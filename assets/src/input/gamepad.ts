@@ -17,8 +17,13 @@
  * edge of the band) and an expo curve (default 0: linear). After a reset (safety stop, loss
  * of control) the pad is disarmed until every input is back in its deadband, so a stick held
  * over from before the stop cannot move the vehicle.
+ *
+ * Buttons (buttons.ts): the poller hands each press to `onPress` — once per press, again
+ * every `repeatMs` while a button whose action repeats is held — and after a reset or a new
+ * pad, a button held from before does nothing until released.
  */
 
+import { ButtonRepeater, pressedButtons } from "./buttons";
 import { clampAxis, demandEqual, isNeutralDemand, manualDemand, motionDemand, neutralDemand } from "./demand";
 import type { StickMode, ThrustDemand } from "./demand";
 
@@ -152,6 +157,14 @@ export interface GamepadPollerOptions {
   readonly onDemand: (demand: ThrustDemand) => void;
   /** The pad that is read, or null (for the view). */
   readonly onPad: (pad: { readonly id: string; readonly armed: boolean } | null) => void;
+  /** A button press that acts now (its index), edge-triggered and repeat-limited. */
+  readonly onPress?: (button: number) => void;
+  /** Whether a held `button` repeats (default: none does). */
+  readonly repeats?: (button: number) => boolean;
+  /** The repeat interval of held buttons (ms; default 250). */
+  readonly repeatMs?: () => number;
+  /** Monotonic clock (ms; default `performance.now`). */
+  readonly nowMs?: () => number;
   readonly requestFrame?: (cb: () => void) => number;
   readonly cancelFrame?: (handle: number) => void;
 }
@@ -160,6 +173,7 @@ export interface GamepadPollerOptions {
 export class GamepadPoller {
   private readonly o: GamepadPollerOptions;
   private readonly arming = new GamepadArming();
+  private readonly buttons = new ButtonRepeater();
   private frame: number | null = null;
   private last: ThrustDemand | null = null;
   private lastPad: string | null = null;
@@ -188,6 +202,7 @@ export class GamepadPoller {
   /** Forget the last demand and require the pad to rest before it counts again. */
   reset(): void {
     this.arming.disarm();
+    this.buttons.reset();
     this.last = null;
   }
 
@@ -202,6 +217,7 @@ export class GamepadPoller {
     const pad = pickGamepad(Array.from(pads));
     const mode = this.o.mode();
     const id = pad ? pad.id : null;
+    if (id !== this.lastPad) this.buttons.reset();
     if (id !== this.lastPad || this.arming.isArmed !== this.lastArmed) {
       this.lastPad = id;
       this.lastArmed = this.arming.isArmed;
@@ -212,6 +228,7 @@ export class GamepadPoller {
       this.lastArmed = this.arming.isArmed;
       this.o.onPad(id === null ? null : { id, armed: this.arming.isArmed });
     }
+    this.pollButtons(pad);
     const prev = this.last;
     if (prev !== null && demandEqual(prev, demand)) return;
     if (prev === null && isNeutralDemand(demand)) {
@@ -221,5 +238,14 @@ export class GamepadPoller {
     }
     this.last = demand;
     this.o.onDemand(demand);
+  }
+
+  private pollButtons(pad: PadSnapshot | null): void {
+    const onPress = this.o.onPress;
+    if (!onPress) return;
+    const now = (this.o.nowMs ?? (() => performance.now()))();
+    const repeats = this.o.repeats ?? (() => false);
+    const repeatMs = this.o.repeatMs ? this.o.repeatMs() : 250;
+    for (const button of this.buttons.step(pad ? pressedButtons(pad.buttons) : [], now, repeats, repeatMs)) onPress(button);
   }
 }

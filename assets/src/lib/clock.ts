@@ -75,3 +75,23 @@ export function ageOnArrival(sentAt: number, receivedAt: number, offsetMs: numbe
 export function telemetryAge(now: number, receivedAt: number, ageOnArrivalMs: number | null): number {
   return Math.max(0, now - receivedAt) + (ageOnArrivalMs ?? 0);
 }
+
+/** Telemetry older than this is stale (ms). */
+export const STALE_AFTER_MS = 1000;
+
+export type TelemetryState = "none" | "live" | "stale";
+
+/**
+ * The telemetry state for data `ageMs` old: stale past STALE_AFTER_MS (its age rounded to
+ * 0.1 s), else live (age 0: within the second, the exact figure is noise).
+ */
+export function freshness(ageMs: number): { telemetryState: TelemetryState; telemetryAgeMs: number } {
+  return ageMs > STALE_AFTER_MS
+    ? { telemetryState: "stale", telemetryAgeMs: Math.round(ageMs / 100) * 100 }
+    : { telemetryState: "live", telemetryAgeMs: 0 };
+}
+
+/** What the pages show for the telemetry's age: "none yet", "live" or "stale (1.2 s)". */
+export function ageText(state: TelemetryState, ageMs: number): string {
+  return state === "none" ? "none yet" : state === "live" ? "live" : `stale (${(ageMs / 1000).toFixed(1)} s)`;
+}

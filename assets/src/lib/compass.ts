@@ -32,9 +32,11 @@ export function diff180(a: number, b: number): number {
 
 /**
  * Ticks every `step` degrees within ±span/2 of `heading`; majors every 15° (labelled: cardinal
- * points by name, the others by number). Empty for a non-finite heading.
+ * points by name, the others by number). A major within `labelMargin` degrees of either edge
+ * has no label: its text, centred on the tick, would be cut by the tape's edge ("00" for
+ * 300). Empty for a non-finite heading.
  */
-export function compassTicks(heading: number, span = 120, step = 5): CompassTick[] {
+export function compassTicks(heading: number, span = 120, step = 5, labelMargin = 0): CompassTick[] {
   if (!Number.isFinite(heading) || span <= 0 || step <= 0) return [];
   const half = span / 2;
   const first = Math.ceil((heading - half) / step) * step;
@@ -42,7 +44,8 @@ export function compassTicks(heading: number, span = 120, step = 5): CompassTick
   for (let raw = first; raw <= heading + half + 1e-9; raw += step) {
     const deg = wrap360(Math.round(raw * 1000) / 1000);
     const major = Math.round(deg) % 15 === 0 && Math.abs(deg - Math.round(deg)) < 1e-9;
-    const label = major ? (CARDINALS[Math.round(deg)] ?? String(Math.round(deg))) : null;
+    const fits = Math.abs(raw - heading) <= half - labelMargin;
+    const label = major && fits ? (CARDINALS[Math.round(deg)] ?? String(Math.round(deg))) : null;
     ticks.push({ deg, offset: raw - heading, major, label });
   }
   return ticks;

@@ -2,6 +2,7 @@
 
 import { stickMode } from "../input/demand";
 import type { Thrusters } from "../lib/protocol";
+import { ageText } from "../lib/clock";
 import { PLACEHOLDER, formatFixed, formatHeading } from "../lib/units";
 import { useStore } from "../lib/use_store";
 import type { OperatorController, OperatorState } from "./controller";
@@ -88,8 +89,7 @@ function Readout(props: { label: string; id: string; value: string; unit?: strin
 function Navigation({ s }: { s: OperatorState }): preact.JSX.Element {
   const t = s.telemetry;
   const est = t?.estimate ?? null;
-  const age =
-    s.telemetryState === "none" ? "none yet" : s.telemetryState === "live" ? "live" : `stale (${(s.telemetryAgeMs / 1000).toFixed(1)} s)`;
+  const age = ageText(s.telemetryState, s.telemetryAgeMs);
   return (
     <Panel title="Navigation" id="nav">
       <dl class="readouts">

@@ -18,17 +18,24 @@
  *   `HeadsetInput` (headset.ts).
  * - Settings (control mode, run mode, autopilot, gain, lights, laser, tilt) go to the server as
  *   typed; its `error` reason is shown beside the field.
+ * - Gamepad buttons (input/buttons.ts): the pad is read in every input mode (its sticks drive
+ *   only in gamepad mode); each press runs its action once (steps repeat while held, at most
+ *   every `repeatMs`). The mapping is the user's, kept on the server (`gamepad.mapping`,
+ *   lib/settings.ts); the editor assigns an action to the next button pressed.
  */
 
 import { accepts, demandEqual, stickMode } from "../input/demand";
 import type { InputMode, ThrustDemand } from "../input/demand";
+import { ACTION_LABELS, DEFAULT_MAPPING, REPEATING, actionFor, assign, buttonCommand, encodeMapping, parseMapping, unassign, withRepeatMs } from "../input/buttons";
+import type { ButtonAction, ButtonMapping } from "../input/buttons";
 import { GamepadPoller } from "../input/gamepad";
 import type { GamepadOptions } from "../input/gamepad";
 import { KeyboardInput, keyboardDemand } from "../input/keyboard";
 import { TouchTracker, touchDemand } from "../input/touch";
 import type { TouchControl, TouchState } from "../input/touch";
 import { beep } from "../lib/beep";
-import { ClockOffset, ageOnArrival, telemetryAge } from "../lib/clock";
+import { ClockOffset, STALE_AFTER_MS, ageOnArrival, freshness, telemetryAge } from "../lib/clock";
+import type { TelemetryState } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
 import { formDegrees, formValue } from "../lib/forms";
 import { heartbeatMsOf, isPilot, seenView, stampOf } from "../lib/helm";
@@ -57,6 +64,7 @@ import type {
   Telemetry,
 } from "../lib/protocol";
 import { PageSession, loginUrl } from "../lib/session";
+import { GAMEPAD_MAPPING_KEY, SettingsClient, notKept } from "../lib/settings";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
 import type { ConnectionStatus, VehicleChannel } from "../lib/vehicle_client";
@@ -65,7 +73,7 @@ import type { HeadsetState } from "./headset";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
 
-export type TelemetryState = "none" | "live" | "stale";
+export type { TelemetryState };
 export type FieldName =
   | "control_mode"
   | "run_mode"
@@ -76,6 +84,12 @@ export type FieldName =
   | "laser"
   | "tilt"
   | "headset";
+
+/** Where the button mapping stands: read from the server, saved, or why not. */
+export interface MappingStatus {
+  readonly state: "loading" | "default" | "stored" | "saving" | "saved" | "not_kept" | "error";
+  readonly text: string;
+}
 
 export interface FieldStatus {
   readonly state: "busy" | "ok" | "error";
@@ -102,6 +116,12 @@ export interface OperatorState {
   readonly inputMode: InputMode;
   readonly gamepad: { readonly id: string; readonly armed: boolean } | null;
   readonly gamepadOptions: GamepadOptions;
+  readonly buttonMapping: ButtonMapping;
+  readonly mappingStatus: MappingStatus;
+  /** the action the editor assigns to the next button pressed (null: none) */
+  readonly learning: ButtonAction | null;
+  /** the last button pressed and what it did */
+  readonly lastPress: { readonly button: number; readonly action: ButtonAction | null } | null;
   readonly touch: TouchState;
   readonly headset: HeadsetState;
   /** the last demand this page sent */
@@ -112,19 +132,11 @@ export interface OperatorState {
   readonly lastStop: { readonly reason: string; readonly at: number } | null;
 }
 
-const STALE_AFTER_MS = 1000;
 const RETRY_MS = 2000;
 const PING_MS = 1000;
 /** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
 const CLOCK_MS = 10_000;
 const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
-
-/** The telemetry state for data `ageMs` old: stale past STALE_AFTER_MS (its age to 0.1 s), else live. */
-function freshness(ageMs: number): Pick<OperatorState, "telemetryState" | "telemetryAgeMs"> {
-  return ageMs > STALE_AFTER_MS
-    ? { telemetryState: "stale", telemetryAgeMs: Math.round(ageMs / 100) * 100 }
-    : { telemetryState: "live", telemetryAgeMs: 0 };
-}
 
 function sleep(ms: number): Promise<void> {
   return new Promise((resolve) => setTimeout(resolve, ms));
@@ -169,6 +181,9 @@ export class OperatorController {
   private clockPending = false;
   private heartbeat: number | null = null;
   private heldKeys: ReadonlySet<string> = new Set();
+  private readonly settings: SettingsClient;
+  /** the brightness the lights come back to when a button turns them on */
+  private lightsOn = 255;
 
   constructor(params: URLSearchParams) {
     this.params = params;
@@ -192,6 +207,10 @@ export class OperatorController {
       inputMode: loadInputMode(storage(), touchFirst),
       gamepad: null,
       gamepadOptions: loadGamepadOptions(storage()),
+      buttonMapping: DEFAULT_MAPPING,
+      mappingStatus: { state: "loading", text: "" },
+      learning: null,
+      lastPress: null,
       touch: this.touch.current,
       headset: HEADSET_OFF,
       sent: null,
@@ -215,6 +234,12 @@ export class OperatorController {
         if (stickMode(this.controlMode)) this.demand("gamepad", d);
       },
       onPad: (pad) => this.store.update({ gamepad: pad }),
+      onPress: (button) => this.onButton(button),
+      repeats: (button) => {
+        const action = actionFor(this.state.buttonMapping, button);
+        return action !== null && REPEATING.has(action);
+      },
+      repeatMs: () => this.state.buttonMapping.repeatMs,
     });
     this.headset = new HeadsetInput({
       get: () => this.state.headset,
@@ -243,6 +268,7 @@ export class OperatorController {
       onUnreachable: (reason) =>
         reason === null ? this.clearMessage("session") : this.showMessage(`Cannot reach the server: ${reason}`, "warn", "session"),
     });
+    this.settings = new SettingsClient(() => this.session.token);
   }
 
   private get state(): OperatorState {
@@ -267,11 +293,13 @@ export class OperatorController {
     window.setInterval(() => this.tick(), 250);
     window.setInterval(() => this.pingIfWatching(), PING_MS);
     window.setInterval(() => this.readClock(), CLOCK_MS);
-    if (this.state.inputMode === "gamepad") this.gamepad.start();
+    // buttons act in every input mode; the sticks only in gamepad mode (`accepts`)
+    this.gamepad.start();
 
     const session = await this.session.authenticate();
     if (session === null) return; // leaving for the login page
     this.store.update({ banner: { mode: session.mode, user: session.user } });
+    void this.loadMapping();
     const token = this.session.token;
     const name = displayName(this.params);
     const client = new NeptunusClient({
@@ -551,14 +579,115 @@ export class OperatorController {
     this.safetyStop("input mode changed");
     this.store.update({ inputMode: mode });
     saveInputMode(storage(), mode);
-    if (mode === "gamepad") this.gamepad.start();
-    else this.gamepad.stop();
     if (mode !== "headset") this.headset.stop();
   }
 
   setGamepadOptions(options: GamepadOptions): void {
     this.store.update({ gamepadOptions: options });
     saveGamepadOptions(storage(), options);
+  }
+
+  // ------------------------------------------------------------------------------------------
+  // Gamepad buttons
+
+  private onButton(button: number): void {
+    const learning = this.state.learning;
+    if (learning !== null) {
+      this.store.update({ learning: null, lastPress: { button, action: learning } });
+      this.saveMapping(assign(this.state.buttonMapping, learning, button));
+      return;
+    }
+    const action = actionFor(this.state.buttonMapping, button);
+    this.store.update({ lastPress: { button, action } });
+    if (action === null) return;
+    const control = this.state.control;
+    if (control?.lights != null && control.lights > 0) this.lightsOn = control.lights;
+    const command = buttonCommand(action, control, this.lightsOn);
+    switch (command.kind) {
+      case "stop":
+        this.stop();
+        return;
+      case "request_control":
+        this.requestControl();
+        return;
+      case "release_control":
+        this.releaseControl();
+        return;
+      case "input_gamepad":
+        this.setInputMode("gamepad");
+        return;
+      case "set": {
+        const { field, value } = command;
+        this.setting(field, (v) => v.setValue(`set_${field}`, value));
+        return;
+      }
+      case "autopilot": {
+        const { axis, action: hold } = command;
+        this.setAutopilot(axis, hold);
+        return;
+      }
+      case "none":
+        this.showMessage(`${ACTION_LABELS[action]}: ${command.why}.`, "info", "button");
+        return;
+    }
+  }
+
+  /** The editor: the next button pressed gets `action` (again: cancel). */
+  learnButton(action: ButtonAction | null): void {
+    this.store.update((s) => ({ learning: s.learning === action ? null : action }));
+  }
+
+  unassignButton(action: ButtonAction): void {
+    this.saveMapping(unassign(this.state.buttonMapping, action));
+  }
+
+  setRepeatMs(ms: number): void {
+    this.saveMapping(withRepeatMs(this.state.buttonMapping, ms));
+  }
+
+  /** Back to the default mapping (the stored one is deleted on the server). */
+  resetMapping(): void {
+    this.store.update({ buttonMapping: DEFAULT_MAPPING, learning: null, mappingStatus: { state: "saving", text: "Resetting…" } });
+    this.settings.delete(GAMEPAD_MAPPING_KEY).then(
+      () => this.store.update({ mappingStatus: { state: "default", text: "Default mapping." } }),
+      (err: unknown) => this.mappingError(err),
+    );
+  }
+
+  private async loadMapping(): Promise<void> {
+    try {
+      const stored = await this.settings.get(GAMEPAD_MAPPING_KEY);
+      // the pilot changed the mapping while we asked: theirs wins (and is being saved)
+      if (this.state.mappingStatus.state !== "loading") return;
+      if (stored === undefined) {
+        this.store.update({ mappingStatus: { state: "default", text: "Default mapping." } });
+        return;
+      }
+      const parsed = parseMapping(stored);
+      if (parsed.ok) this.store.update({ buttonMapping: parsed.mapping, mappingStatus: { state: "stored", text: "Your mapping, from the server." } });
+      else this.store.update({ mappingStatus: { state: "error", text: `Your stored mapping cannot be used (${parsed.reason}): the default applies.` } });
+    } catch (err) {
+      this.mappingError(err);
+    }
+  }
+
+  private saveMapping(mapping: ButtonMapping): void {
+    this.store.update({ buttonMapping: mapping, mappingStatus: { state: "saving", text: "Saving…" } });
+    this.settings.put(GAMEPAD_MAPPING_KEY, encodeMapping(mapping)).then(
+      () => {
+        // a later change may have been saved meanwhile: only the newest says "saved"
+        if (this.state.buttonMapping === mapping) this.store.update({ mappingStatus: { state: "saved", text: "Saved on the server." } });
+      },
+      (err: unknown) => this.mappingError(err),
+    );
+  }
+
+  private mappingError(err: unknown): void {
+    this.store.update({
+      mappingStatus: notKept(err)
+        ? { state: "not_kept", text: "Not kept: log in to keep your mapping (it applies on this page until you leave)." }
+        : { state: "error", text: `Not saved: ${reasonOf(err)}` },
+    });
   }
 
   touchDown(id: number, control: TouchControl, x: number, y: number, cx: number, cy: number, radius: number): void {

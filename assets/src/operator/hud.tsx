@@ -26,6 +26,12 @@ import {
 } from "./format";
 
 const TAPE_SPAN = 120;
+/**
+ * Degrees at each edge of the tape without labels: 8° of 120 is 6.7 % of the tape, at least
+ * 20 px on the narrowest tape (min(36rem, 70 %) of a tablet's camera), more than half the
+ * widest label ("345", "NW" at 0.7rem).
+ */
+const LABEL_MARGIN = 8;
 
 export function CompassTape(props: {
   heading: number | null;
@@ -34,7 +40,7 @@ export function CompassTape(props: {
 }): preact.JSX.Element {
   const heading = props.heading === null ? Number.NaN : headingDeg(props.heading);
   const setpoint = props.setpoint === null ? null : headingDeg(props.setpoint);
-  const ticks = compassTicks(heading, TAPE_SPAN, 5);
+  const ticks = compassTicks(heading, TAPE_SPAN, 5, LABEL_MARGIN);
   const bug = bugPosition(heading, setpoint, TAPE_SPAN);
   const pos = (offset: number): string => `${50 + (offset / TAPE_SPAN) * 100}%`;
   return (

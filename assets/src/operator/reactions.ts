@@ -23,8 +23,9 @@
  *   on a joined channel; the stop button always asks the server (which refuses a non-pilot).
  * - Beeps: a control request for us, a takeover that concerns us (once), a stop the pilot did
  *   not ask for (`isSafetyStop`), a link that goes down.
- * - Messages carry a source (`helm`, `command`, `join`) so that a later success clears only
- *   its own kind of message.
+ * - Messages carry a source (`helm`, `grant`, `command`, `join`) so that a later success
+ *   clears only its own kind of message. The grant's "the thrusters are neutral: move" is
+ *   gone once the pilot moves (the first thrust sent).
  */
 
 import { isSafetyStop } from "../lib/forms";
@@ -182,7 +183,7 @@ export function react(state: ReactionState, event: ReactionEvent): Reaction {
         effects: [
           RESET,
           ...on.effects,
-          message("You have control. The thrusters are neutral: move with the selected input.", "info", "helm"),
+          message("You have control. The thrusters are neutral: move with the selected input.", "info", "grant"),
         ],
       };
     }
@@ -245,7 +246,13 @@ export function react(state: ReactionState, event: ReactionEvent): Reaction {
     }
 
     case "thrust_sent":
-      return { state, effects: [{ type: "clear_message", source: "command" }] };
+      return {
+        state,
+        effects: [
+          { type: "clear_message", source: "command" },
+          { type: "clear_message", source: "grant" },
+        ],
+      };
 
     case "thrust_blocked": {
       if (event.why === "not_connected") return { state, effects: [message("Not connected: command not sent.", "warn", "command")] };

@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { ClockOffset, ageOnArrival, telemetryAge } from "../../src/lib/clock";
+import { ClockOffset, ageOnArrival, telemetryAge, STALE_AFTER_MS, ageText, freshness } from "../../src/lib/clock";
 
 describe("the server's clock against this one", () => {
   it("has no offset before the first reading", () => {
@@ -55,5 +55,20 @@ describe("how old telemetry is", () => {
     expect(telemetryAge(10_250, 10_000, 1_300)).toBe(1_550); // a slow link
     expect(telemetryAge(12_000, 10_000, null)).toBe(2_000); // silence, offset unknown
     expect(telemetryAge(9_990, 10_000, 0)).toBe(0);
+  });
+});
+
+describe("freshness and ageText (both pages)", () => {
+  it("live within STALE_AFTER_MS (age shown as 0), stale beyond it with the age to 0.1 s", () => {
+    expect(freshness(0)).toEqual({ telemetryState: "live", telemetryAgeMs: 0 });
+    expect(freshness(STALE_AFTER_MS)).toEqual({ telemetryState: "live", telemetryAgeMs: 0 });
+    expect(freshness(STALE_AFTER_MS + 1)).toEqual({ telemetryState: "stale", telemetryAgeMs: 1000 });
+    expect(freshness(2345)).toEqual({ telemetryState: "stale", telemetryAgeMs: 2300 });
+  });
+
+  it("says none yet, live, or stale with seconds", () => {
+    expect(ageText("none", 0)).toBe("none yet");
+    expect(ageText("live", 0)).toBe("live");
+    expect(ageText("stale", 2300)).toBe("stale (2.3 s)");
   });
 });

@@ -108,6 +108,21 @@ describe("compass tape", () => {
     expect(compassTicks(Number.NaN)).toEqual([]);
   });
 
+  it("labels no major tick within labelMargin of the tape's edges (a label there would be cut)", () => {
+    // heading 0, span 120: 300 sits on the left edge, 60 on the right
+    const edge = compassTicks(0, 120, 5);
+    expect(edge.find((t) => t.deg === 300)?.label).toBe("300");
+    const margin = compassTicks(0, 120, 5, 8);
+    expect(margin.find((t) => t.deg === 300)).toMatchObject({ major: true, label: null });
+    expect(margin.find((t) => t.deg === 60)).toMatchObject({ major: true, label: null });
+    expect(margin.find((t) => t.deg === 315)?.label).toBe("NW");
+    expect(margin.find((t) => t.deg === 45)?.label).toBe("NE");
+    // a heading between ticks: 307 is 53 from 0 and 52 from 359
+    for (let h = 0; h < 360; h += 0.7) {
+      for (const t of compassTicks(h, 120, 5, 8)) if (t.label !== null) expect(Math.abs(t.offset)).toBeLessThanOrEqual(52 + 1e-9);
+    }
+  });
+
   it("puts the heading bug on the tape, clamped at its edge", () => {
     expect(bugPosition(10, 30, 120)).toEqual({ offset: 20, clamped: false });
     expect(bugPosition(350, 10, 120)).toEqual({ offset: 20, clamped: false });

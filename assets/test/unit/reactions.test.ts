@@ -47,12 +47,20 @@ describe("joining", () => {
 });
 
 describe("grants", () => {
+  it("the grant's message goes once the pilot drives (the first thrust sent clears it)", () => {
+    const { effects } = run(INITIAL_REACTIONS, joined(free), { type: "granted", grant: grant(ada, 1) });
+    const said = effects.find((e) => e.type === "message");
+    expect(said?.type === "message" && /thrusters are neutral/.test(said.text)).toBe(true);
+    const cleared = react(run(INITIAL_REACTIONS, joined(free), { type: "granted", grant: grant(ada, 1) }).state, { type: "thrust_sent" }).effects;
+    expect(cleared).toContainEqual({ type: "clear_message", source: said?.type === "message" ? (said.source ?? "") : "" });
+  });
+
   it("a grant resets input, starts the heartbeat and says the thrusters are neutral", () => {
     const { state, effects } = run(INITIAL_REACTIONS, joined(free), { type: "granted", grant: grant(ada, 1) });
     expect(effects.slice(2)).toEqual([
       RESET,
       ON,
-      { type: "message", text: "You have control. The thrusters are neutral: move with the selected input.", kind: "info", source: "helm" },
+      { type: "message", text: "You have control. The thrusters are neutral: move with the selected input.", kind: "info", source: "grant" },
     ]);
     expect(state.heartbeat).toBe(true);
     expect(stampOf(state.helm)).toBe(1);
@@ -245,7 +253,10 @@ describe("commands and the link", () => {
     expect(run(joinedFree(), { type: "thrust_blocked", why: "not_in_control" }).effects).toEqual([
       { type: "message", text: "Not in control: request control first.", kind: "warn", source: "command" },
     ]);
-    expect(run(piloting(), { type: "thrust_sent" }).effects).toEqual([{ type: "clear_message", source: "command" }]);
+    expect(run(piloting(), { type: "thrust_sent" }).effects).toEqual([
+      { type: "clear_message", source: "command" },
+      { type: "clear_message", source: "grant" },
+    ]);
   });
 
   it("a link that goes down beeps; one that comes up does not", () => {
