@@ -17,6 +17,8 @@ import Config
 # NEPTUNUS_TAKEOVER_MS.
 # Recording (Neptunus.Config.Recording): NEPTUNUS_RECORDINGS (directory or off),
 # NEPTUNUS_RECORDING_MAX_MB, NEPTUNUS_RECORDING_MIN_FREE_MB, NEPTUNUS_RECORDING_KEEP_DAYS.
+# Settings (Neptunus.Config.Settings, Neptunus.Settings): NEPTUNUS_SETTINGS, the per-user and
+# per-vehicle settings' directory (default settings).
 # Scheduling (Neptunus.Config.OS, Neptunus.OS): NEPTUNUS_OS_SLICE_US.
 # Connections (Neptunus.Config.Endpoint, NeptunusWeb.Endpoint):
 # NEPTUNUS_MAX_CONNECTIONS, the most client connections at once (1..1048576); more are closed
@@ -40,4 +42,9 @@ config :neptunus,
     Neptunus.Config.Recording.recording!(
       env,
       Application.get_env(:neptunus, :default_recordings, "recordings")
+    ),
+  settings_dir:
+    Neptunus.Config.Settings.settings_dir!(
+      env,
+      Application.get_env(:neptunus, :default_settings, "settings")
     )

@@ -4,6 +4,7 @@ defmodule Neptunus.Application do
 
       Neptunus.Application        one_for_one
       ├── Neptunus.PubSub         :pg scope, topic fan-out
+      ├── Neptunus.Settings       per-user and per-vehicle settings, on disk
       ├── Neptunus.Fleet          registry + one supervisor per vehicle
       ├── NeptunusWeb.Presence    who watches which topic
       └── NeptunusWeb.Endpoint    yaws: static files, HTTP API, WebSocket (last up, first down)
@@ -32,6 +33,7 @@ defmodule Neptunus.Application do
     children = [
       # the fastlane subscribers are WebSocket connections: frames in the Channels format
       {Neptunus.PubSub, encoder: NeptunusWeb.Channels.Wire},
+      {Neptunus.Settings, dir: Application.fetch_env!(:neptunus, :settings_dir)},
       {Neptunus.Fleet, vehicles},
       NeptunusWeb.Presence,
       {NeptunusWeb.Endpoint, endpoint}

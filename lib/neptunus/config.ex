@@ -19,13 +19,14 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_RECORDING_MAX_MB` | one recording file's size (MiB)  | 256                    |
   | `NEPTUNUS_RECORDING_MIN_FREE_MB` | stop recording below this free disk (MiB) | 512 |
   | `NEPTUNUS_RECORDING_KEEP_DAYS` | delete recordings older than this (days), or `forever` | `forever` |
+  | `NEPTUNUS_SETTINGS` | per-user and per-vehicle settings directory | `settings`           |
   | `NEPTUNUS_OS_SLICE_US` | OS time slice the server's threads ask for (µs, 100..100000), or `default` | 100 |
   | `NEPTUNUS_MAX_CONNECTIONS` | concurrent client connections (1..1048576); more are closed at once | from the descriptor limit |
 
   The variables are parsed by one module per domain: `Neptunus.Config.Endpoint`,
   `Neptunus.Config.Vehicles` (boards, wiring, firmware, models, cameras),
   `Neptunus.Config.Auth`, `Neptunus.Config.TLS`, `Neptunus.Config.Helm`,
-  `Neptunus.Config.Recording` and `Neptunus.Config.OS`; security and helm variables are
+  `Neptunus.Config.Recording`, `Neptunus.Config.Settings` and `Neptunus.Config.OS`; security and helm variables are
   listed in `Neptunus.Config.Auth` and `Neptunus.Config.Helm`. This module holds the
   parsing helpers they share.
   """
