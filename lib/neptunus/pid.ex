@@ -110,14 +110,17 @@ defmodule Neptunus.PID do
   One step of `dt` seconds: returns the output in `[min, max]` and the PID advanced.
   `rate` is the measured rate of the measurement (unit/s) if known; otherwise the finite
   difference from the previous measurement is used (none on the first step, or with
-  `dt == 0`, which computes the output without integrating).
+  `dt == 0`, which computes the output without integrating). With `integrate` false the
+  integral is kept as it is (an autopilot's reference on the move: the integral learns the
+  steady trim, not the lag of tracking a moving reference).
   """
-  @spec update(t(), number(), number(), number(), number() | nil) :: {float(), t()}
-  def update(%__MODULE__{} = pid, setpoint, measurement, dt, rate \\ nil) when dt >= 0 do
+  @spec update(t(), number(), number(), number(), number() | nil, boolean()) :: {float(), t()}
+  def update(%__MODULE__{} = pid, setpoint, measurement, dt, rate \\ nil, integrate \\ true)
+      when dt >= 0 do
     e = error(pid, setpoint, measurement)
     d = derivative(pid, measurement, dt, rate)
     p_d = pid.kp * e - pid.kd * d
-    candidate = pid.integral + pid.ki * e * dt
+    candidate = if integrate, do: pid.integral + pid.ki * e * dt, else: pid.integral
     unsat = p_d + candidate
 
     integral =

@@ -98,6 +98,8 @@ export interface ControlSettings {
 /** One autopilot loop: its setpoint (m or rad) and output. */
 export interface AutopilotLoop {
   readonly setpoint: number;
+  /** what the loop tracks on its way to the setpoint (rate- and acceleration-limited; m or rad) */
+  readonly reference?: number;
   readonly output: number;
   /** why it gives no output now (its measurement initialising after a board reset, …); null: it acts */
   readonly waiting: string | null;
@@ -397,7 +399,13 @@ function decodeLoop(value: unknown): AutopilotLoop | null {
   const loop = numbers(value, ["setpoint", "output"] as const);
   if (!loop || !isRecord(value)) return null;
   const waiting = value["waiting"];
-  return { setpoint: loop.setpoint, output: loop.output, waiting: typeof waiting === "string" ? waiting : null };
+  const reference = value["reference"];
+  return {
+    setpoint: loop.setpoint,
+    output: loop.output,
+    waiting: typeof waiting === "string" ? waiting : null,
+    ...(typeof reference === "number" && Number.isFinite(reference) ? { reference } : {}),
+  };
 }
 
 export function decodeAutopilotStatus(value: unknown): AutopilotStatus | null {

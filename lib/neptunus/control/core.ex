@@ -147,7 +147,8 @@ defmodule Neptunus.Control.Core do
   (`%{depth: [kp:, ki:, kd:], heading: …, surge: …}` merged over the defaults), `stale_after`
   (s), `deadband` (the thrusters' deadband the autopilot outputs skip, default 0.05 — the
   vehicle files' and a typical ESC's; 0 turns compensation off), `dp` (`return_radius`,
-  `capture_radius`).
+  `capture_radius`), `reference` (`%{depth: [rate:, accel:], heading: …}`: the setpoint
+  reference limits, SI and rad, default `Neptunus.Control.Autopilot.default_limits/0`).
   """
   @spec new(keyword()) :: t()
   def new(opts \\ []) do
@@ -156,12 +157,14 @@ defmodule Neptunus.Control.Core do
         Keyword.merge(a, Enum.to_list(b))
       end)
 
+    references = Map.new(Keyword.get(opts, :reference, %{}))
+
     %__MODULE__{
       gain: Keyword.get(opts, :gain, 0.5) * 1.0,
       run_modes: Keyword.get(opts, :run_modes, [:normal]),
       gains: gains,
-      depth: Autopilot.new(:depth, gains.depth),
-      heading: Autopilot.new(:heading, gains.heading),
+      depth: Autopilot.new(:depth, gains.depth, references[:depth]),
+      heading: Autopilot.new(:heading, gains.heading, references[:heading]),
       stale_after: Keyword.get(opts, :stale_after, 1.0) * 1.0,
       deadband: Keyword.get(opts, :deadband, 0.05) * 1.0,
       dp_opts: Keyword.get(opts, :dp, [])

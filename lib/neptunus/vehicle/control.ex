@@ -66,7 +66,7 @@ defmodule Neptunus.Vehicle.Control do
   @doc """
   Options: `:id` (required), `:gain` (k in [0, 1], default #{@default_gain}), `:control` —
   keyword of `hz` (control loop rate, default #{@default_hz}),
-  `gains`, `stale_after`, `deadband`, `dp` (see `Neptunus.Control.Core.new/1`) and
+  `gains`, `stale_after`, `deadband`, `dp`, `reference` (see `Neptunus.Control.Core.new/1`) and
   `simulator` (options of the run-mode simulator, `Board.Simulated.start_link/1`).
   """
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -167,7 +167,7 @@ defmodule Neptunus.Vehicle.Control do
 
     core =
       control
-      |> Keyword.take([:gains, :stale_after, :deadband, :dp])
+      |> Keyword.take([:gains, :stale_after, :deadband, :dp, :reference])
       |> Keyword.merge(gain: Keyword.get(opts, :gain, @default_gain), run_modes: run_modes)
       |> Core.new()
 

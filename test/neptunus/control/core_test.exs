@@ -30,6 +30,15 @@ defmodule Neptunus.Control.CoreTest do
 
   defp gos(actions), do: for({:go, thr} <- actions, do: thr)
 
+  # reference limits so high that a setpoint step reaches the PID whole at the next tick:
+  # for tests of what the autopilot outputs do, not of how the reference moves
+  @instant [
+    reference: %{depth: [rate: 1.0e6, accel: 1.0e9], heading: [rate: 1.0e6, accel: 1.0e9]}
+  ]
+
+  # one control tick at 10.01 s (the reference reaches an instant setpoint)
+  defp tick(core), do: elem(Core.tick(core, 0.02, 10.01), 0)
+
   test "at rest: motion, gain 0.5, neutral, nothing engaged" do
     core = Core.new()
 
@@ -185,13 +194,14 @@ defmodule Neptunus.Control.CoreTest do
     end
 
     test "hold, setpoints, null; each key on its own" do
-      {core, actions} = ok!(core(), ap(:hold))
+      {core, actions} = ok!(core(@instant), ap(:hold))
       assert %{depth: 2.0, heading: nil} = Core.status(core).autopilot
       assert [_] = gos(actions)
       {core, _} = ok!(core, ap(:unchanged, 0.25))
       assert %{depth: 2.0, heading: 0.25} = Core.status(core).autopilot
       {core, _} = ok!(core, ap(nil))
       assert %{depth: nil, heading: 0.25} = Core.status(core).autopilot
+      core = tick(core)
 
       assert %{depth: nil, heading: %{setpoint: 0.25, overridden: false, output: out}} =
                Core.autopilot(core)
@@ -279,7 +289,7 @@ defmodule Neptunus.Control.CoreTest do
 
   describe "the control loop" do
     test "runs the autopilots on the estimate and commands the output" do
-      {core, _} = ok!(core(), ap(2.1))
+      {core, _} = ok!(core(@instant), ap(2.1))
       core = Core.estimate(core, est(depth: 2.0), 10.0)
       {core, actions} = Core.tick(core, 0.02, 10.01)
       assert [%{vertical: v}] = gos(actions)
@@ -413,15 +423,16 @@ defmodule Neptunus.Control.CoreTest do
 
   describe "mixing" do
     test "the gain scales the pilot, not the autopilots" do
-      {c1, _} = ok!(core(gain: 1.0), ap(3.0))
-      {c2, _} = ok!(core(gain: 0.2), ap(3.0))
+      {c1, _} = ok!(core([gain: 1.0] ++ @instant), ap(3.0))
+      {c2, _} = ok!(core([gain: 0.2] ++ @instant), ap(3.0))
+      {c1, c2} = {tick(c1), tick(c2)}
       assert c1.thrusters.vertical == c2.thrusters.vertical
       assert c1.thrusters.vertical == 1.0
     end
 
     test "heading first: surge gives way to the heading autopilot" do
-      {core, _} = ok!(core(gain: 1.0), ap(:unchanged, 1.0 + 0.2))
-      {core, _} = ok!(core, motion(1.0, 0.0, 0.0))
+      {core, _} = ok!(core([gain: 1.0] ++ @instant), ap(:unchanged, 1.0 + 0.2))
+      {core, _} = ok!(tick(core), motion(1.0, 0.0, 0.0))
       %{port: p, starboard: s} = core.thrusters
       yaw = (p - s) / 2
       assert yaw > 0
@@ -431,10 +442,12 @@ defmodule Neptunus.Control.CoreTest do
 
     test "autopilot outputs skip the thrusters' deadband" do
       # kp 3 · 0.01 m = 0.03 → past the 5 % deadband
-      {core, _} = ok!(core(), ap(2.01))
-      assert core.thrusters.vertical > 0.05
-      {core, _} = ok!(core(deadband: 0.0), ap(2.01))
-      assert_in_delta core.thrusters.vertical, 0.03, 1.0e-9
+      {core, _} = ok!(core(@instant), ap(2.01))
+      assert tick(core).thrusters.vertical > 0.05
+      {core, _} = ok!(core([deadband: 0.0] ++ @instant), ap(2.01))
+      core = tick(core)
+      # (plus one tick of the integral: ki · 0.01 m · 0.02 s)
+      assert_in_delta core.thrusters.vertical, 0.03, 1.0e-4
     end
   end
 
