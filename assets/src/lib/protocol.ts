@@ -93,6 +93,8 @@ export interface ControlSettings {
   readonly tilt: number | null;
   readonly run_mode: string | null;
   readonly autopilot: AutopilotSetpoints | null;
+  /** in control mode dp, what DP holds: `["depth", "heading", "position"]`, or without a position source `["depth", "heading"]` */
+  readonly dp_holds?: readonly string[];
 }
 
 /** One autopilot loop: its setpoint (m or rad) and output. */
@@ -384,6 +386,7 @@ export function decodeControlSettings(value: unknown): ControlSettings | null {
     ? { depth: numberOrNull(ap["depth"]), heading: numberOrNull(ap["heading"]) }
     : null;
   const runMode = value["run_mode"];
+  const dpHolds: unknown = value["dp_holds"];
   return {
     mode: value["mode"],
     gain: numberOrNull(value["gain"]),
@@ -392,6 +395,7 @@ export function decodeControlSettings(value: unknown): ControlSettings | null {
     tilt: numberOrNull(value["tilt"]),
     run_mode: typeof runMode === "string" ? runMode : null,
     autopilot,
+    ...(Array.isArray(dpHolds) ? { dp_holds: dpHolds.filter((x): x is string => typeof x === "string") } : {}),
   };
 }
 

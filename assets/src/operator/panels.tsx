@@ -10,6 +10,7 @@ import { CONTROL_MODES, RUN_MODES } from "../lib/protocol";
 import type { ControlMode, RunMode } from "../lib/protocol";
 import { formatHeading } from "../lib/units";
 import type { FieldName, OperatorController, OperatorState } from "./controller";
+import { dpNote } from "./dp";
 import { fmt, formatDeg } from "./format";
 
 interface Props {
@@ -322,6 +323,11 @@ export function SettingsPanel({ s, c }: Props): preact.JSX.Element {
           onSelect={(m) => c.setControlMode(m)}
         />
         <FieldStatusText s={s} field="control_mode" />
+        {dpNote(ctl) !== null && (
+          <p class="note" data-testid="dp-note">
+            {dpNote(ctl)}
+          </p>
+        )}
       </div>
       <div class="setting-row">
         <span class="setting-label">Run mode</span>

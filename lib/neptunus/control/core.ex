@@ -28,10 +28,13 @@ defmodule Neptunus.Control.Core do
       heading is held at full speed.
     * `:manual` — the pilot commands each thruster in [-1, 1], scaled by `k`. No autopilots:
       entering manual disengages them (thesis §7.1) and engaging one is refused.
-    * `:dp` — position hold (`Neptunus.Control.DP`) with depth and heading held. Needs a
-      position source (an estimate with a `position`); the pilot sends no thrust in DP.
-      Entering DP engages depth and heading hold at their current values unless they are
-      engaged already (then their setpoints are kept), and holds the current position.
+    * `:dp` — position hold (`Neptunus.Control.DP`) with depth and heading held; the pilot
+      sends no thrust in DP. Entering DP engages depth and heading hold at their current
+      values unless they are engaged already (then their setpoints are kept), and holds the
+      current position when there is a position source (an estimate with a `position`).
+      Without one DP holds depth and heading only, as the thesis' DP does (ch. 14): surge is
+      zero, and it says so (`dp_holds/1`: `["depth", "heading"]` in the control state, and a
+      `{:notice, …}`).
 
   ## Stops
 
@@ -187,18 +190,19 @@ defmodule Neptunus.Control.Core do
 
   def command(core, {:set_control_mode, :dp}, now) do
     case fresh_estimate(core, now) do
-      %{position: %{x: _, y: _}} = estimate ->
+      nil ->
+        {:error, "dp needs a current estimate of depth and heading (no board samples)"}
+
+      estimate ->
         case unavailable(estimate, :depth) || unavailable(estimate, :heading) do
           nil ->
             {core, actions} = pilot_stop(core, "control_mode_changed")
-            {:ok, enter_dp(core, estimate), actions}
+            core = enter_dp(core, estimate)
+            {:ok, core, actions ++ dp_notice(core)}
 
           reason ->
             {:error, "dp needs " <> reason}
         end
-
-      _ ->
-        {:error, "dp needs a position source: this vehicle has none"}
     end
   end
 
@@ -473,8 +477,8 @@ defmodule Neptunus.Control.Core do
 
   @doc """
   The control state as the wire shows it (command replies, grants, join snapshot):
-  `%{mode, gain, lights, laser, tilt, run_mode, autopilot: %{depth, heading, position},
-  command, thrusters}` — `autopilot.depth`/`heading` are the setpoints (nil: disengaged),
+  `%{mode, gain, lights, laser, tilt, run_mode, dp_holds, autopilot: %{depth, heading,
+  position}, command, thrusters}` — `dp_holds` what DP holds (`dp_holds/1`), `autopilot.depth`/`heading` are the setpoints (nil: disengaged),
   `position` DP's target `%{x, y}` (nil unless in dp); `command` is the pilot's, `thrusters`
   the output with pulse widths.
   """
@@ -495,6 +499,7 @@ defmodule Neptunus.Control.Core do
       laser: core.laser,
       tilt: core.tilt,
       run_mode: Atom.to_string(core.run_mode),
+      dp_holds: dp_holds(core),
       autopilot: %{
         depth: Autopilot.setpoint(core.depth),
         heading: if(core.dp, do: core.dp.heading, else: Autopilot.setpoint(core.heading)),
@@ -573,15 +578,32 @@ defmodule Neptunus.Control.Core do
         do: core.heading,
         else: Autopilot.engage(core.heading, :hold, estimate.heading, estimate[:yaw_rate], false)
 
+    # without a position source DP holds depth and heading only (thesis ch. 14)
     dp =
-      DP.new(
-        estimate.position,
-        Autopilot.setpoint(heading),
-        [gains: core.gains.surge] ++ core.dp_opts
-      )
+      case estimate[:position] do
+        %{x: _, y: _} = position ->
+          DP.new(position, Autopilot.setpoint(heading), [gains: core.gains.surge] ++ core.dp_opts)
+
+        _ ->
+          nil
+      end
 
     %{core | mode: :dp, pilot: zero(:dp), depth: depth, heading: heading, dp: dp}
   end
+
+  defp dp_notice(%__MODULE__{mode: :dp, dp: nil}),
+    do: [{:notice, "dp: no position source: holding depth and heading only"}]
+
+  defp dp_notice(_core), do: []
+
+  @doc """
+  What DP holds: nil outside control mode dp, else `["depth", "heading", "position"]`, or
+  `["depth", "heading"]` on a vehicle without a position source.
+  """
+  @spec dp_holds(t()) :: [String.t()] | nil
+  def dp_holds(%__MODULE__{mode: :dp, dp: nil}), do: ["depth", "heading"]
+  def dp_holds(%__MODULE__{mode: :dp}), do: ["depth", "heading", "position"]
+  def dp_holds(_core), do: nil
 
   # leaving DP: the heading autopilot goes back to DP's held heading
   defp leave_dp(%__MODULE__{dp: nil} = core), do: core
@@ -648,7 +670,11 @@ defmodule Neptunus.Control.Core do
 
   def mix(%__MODULE__{mode: mode, gain: k, pilot: p} = core) do
     {surge, pilot_k} =
-      if mode == :dp, do: {compensate(core.dp.output, core), 0.0}, else: {k * p.surge, k}
+      case {mode, core.dp} do
+        {:dp, %DP{output: output}} -> {compensate(output, core), 0.0}
+        {:dp, nil} -> {0.0, 0.0}
+        _ -> {k * p.surge, k}
+      end
 
     heave =
       case Autopilot.output(core.depth) do

@@ -49,6 +49,7 @@ defmodule Neptunus.Control.CoreTest do
              laser: 0,
              tilt: 0.0,
              run_mode: "normal",
+             dp_holds: nil,
              autopilot: %{depth: nil, heading: nil, position: nil},
              command: %{surge: 0.0, heave: 0.0, yaw: 0.0},
              thrusters: Allocation.with_us(@neutral)
@@ -131,12 +132,36 @@ defmodule Neptunus.Control.CoreTest do
                {:error, "autopilots are not available in manual mode: switch to motion or dp"}
     end
 
-    test "dp needs a position source" do
-      assert Core.command(core(), {:set_control_mode, :dp}, 10.0) ==
-               {:error, "dp needs a position source: this vehicle has none"}
+    test "dp without a position source holds depth and heading, and says so" do
+      # (it was refused: "dp needs a position source: this vehicle has none")
+      {core, actions} = ok!(core(@instant), {:set_control_mode, :dp})
 
-      # no estimate at all, or a stale one
-      assert {:error, "dp needs a position source" <> _} =
+      assert actions == [
+               {:go, @neutral},
+               {:stopped, "control_mode_changed"},
+               {:notice, "dp: no position source: holding depth and heading only"}
+             ]
+
+      assert %{mode: "dp", dp_holds: ["depth", "heading"]} = Core.status(core)
+      assert %{autopilot: %{depth: 2.0, heading: 1.0, position: nil}} = Core.status(core)
+      assert Core.active?(core)
+      # pushed off its depth and heading, it pushes back, with no surge
+      core = Core.estimate(core, est(depth: 2.2, heading: 1.1), 10.0)
+      {core, _} = Core.tick(core, 0.02, 10.01)
+      %{port: p, vertical: v, starboard: s} = core.thrusters
+      assert v < 0 and p - s < 0
+      assert_in_delta p + s, 0.0, 1.0e-12
+      # pilot thrust is refused as in DP with a position
+      assert {:error, "thrust mode motion does not match control mode dp"} =
+               Core.command(core, motion(1.0, 0.0, 0.0), 10.0)
+
+      # a safety stop ends it like DP
+      {core, _} = Core.stop(core, "deadman")
+      assert %{mode: "motion", dp_holds: nil, autopilot: %{depth: nil}} = Core.status(core)
+    end
+
+    test "dp needs a current estimate with valid depth and heading" do
+      assert {:error, "dp needs a current estimate of depth and heading (no board samples)"} =
                Core.command(Core.new(), {:set_control_mode, :dp}, 10.0)
 
       stale = core([], est(position: %{x: 1.0, y: 2.0}))

@@ -149,16 +149,28 @@ defmodule Neptunus.Vehicle.ControlTest do
     assert Control.status(id).autopilot.depth == 3.0
   end
 
-  test "dp: refused without a position source, holds with one", %{id: id} do
+  test "dp: depth and heading only without a position source, position too with one", %{id: id} do
     estimate(id)
+    PubSub.subscribe(Telemetry.log_topic(id))
 
-    assert {:error, "dp needs a position source: this vehicle has none"} =
+    assert {:ok, %{control: %{mode: "dp", dp_holds: ["depth", "heading"]}}} =
              command(id, "set_control_mode", %{"mode" => "dp"})
+
+    assert_receive {:pubsub, _, "log",
+                    %{category: "autopilot", message: "dp: no position source" <> _}}
+
+    {:ok, _} = command(id, "set_control_mode", %{"mode" => "motion"})
 
     estimate(id, position: %{x: 3.0, y: -1.0})
 
-    assert {:ok, %{control: %{mode: "dp", autopilot: %{position: %{x: 3.0, y: -1.0}}}}} =
-             command(id, "set_control_mode", %{"mode" => "dp"})
+    assert {:ok,
+            %{
+              control: %{
+                mode: "dp",
+                dp_holds: ["depth", "heading", "position"],
+                autopilot: %{position: %{x: 3.0, y: -1.0}}
+              }
+            }} = command(id, "set_control_mode", %{"mode" => "dp"})
 
     assert {:error, "thrust mode motion does not match control mode dp"} =
              Control.thrust(id, %{"mode" => "motion", "surge" => 1, "heave" => 0, "yaw" => 0})
