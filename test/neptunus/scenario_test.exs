@@ -239,7 +239,7 @@ defmodule Neptunus.ScenarioTest do
 
       assert Run.columns() ==
                ~w(t x y z phi theta psi u v w p q r depth_meas heading_meas roll_meas pitch_meas
-                  voltage_meas current_meas depth_est depth_rate_est heading_est yaw_rate_est
+                  voltage_meas current_meas depth_est depth_rate_est heading_est yaw_rate_est roll_est pitch_est
                   depth_setpoint heading_setpoint depth_reference heading_reference port
                   vertical starboard)
     end
@@ -335,9 +335,9 @@ defmodule Neptunus.ScenarioTest do
 
       for line <- lines do
         values = String.split(line, ",")
-        assert length(values) == 30
+        assert length(values) == 32
         # the autopilot setpoints and references are empty while disengaged
-        assert ["", "", "", ""] = Enum.slice(values, 23, 4)
+        assert ["", "", "", ""] = Enum.slice(values, 25, 4)
 
         Enum.each(
           values -- ["", "", "", ""],

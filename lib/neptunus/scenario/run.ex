@@ -11,7 +11,8 @@ defmodule Neptunus.Scenario.Run do
       t, x, y, z, phi, theta, psi, u, v, w, p, q, r          true state (SI, rad)
       depth_meas, heading_meas, roll_meas, pitch_meas,        what the sensors report
       voltage_meas, current_meas                              (true values unless noise)
-      depth_est, depth_rate_est, heading_est, yaw_rate_est    navigation's estimate
+      depth_est, depth_rate_est, heading_est, yaw_rate_est,   navigation's estimate
+      roll_est, pitch_est
       depth_setpoint, heading_setpoint                        autopilot setpoints (m, rad;
                                                               empty while disengaged)
       depth_reference, heading_reference                      what the autopilots track on
@@ -43,7 +44,7 @@ defmodule Neptunus.Scenario.Run do
 
   @state_columns ~w(x y z phi theta psi u v w p q r)a
   @meas_columns ~w(depth heading roll pitch voltage current)a
-  @est_columns ~w(depth depth_rate heading yaw_rate)a
+  @est_columns ~w(depth depth_rate heading yaw_rate roll pitch)a
   @setpoint_columns ~w(depth heading)a
   @reference_columns ~w(depth heading)a
   @thruster_columns ~w(port vertical starboard)a
