@@ -95,6 +95,28 @@ defmodule Neptunus.PID do
     do: %{pid | integral: clamp(output * 1.0, pid), last: measurement * 1.0}
 
   @doc """
+  New gains (`kp`, `ki`, `kd`, each ≥ 0; absent ones kept), **bumpless**: the integral is
+  set so that the output at error `e` and measured rate `d` (those of the last step) is
+  `output` as before, `kp'·e − kd'·d + I' = output` (clamped to the limits). Raises
+  `ArgumentError` on a bad gain.
+
+      iex> pid = Neptunus.PID.new(kp: 1.0, ki: 0.1, kd: 0.0)
+      iex> pid = Neptunus.PID.retune(pid, [kp: 3.0], 0.1, 0.0, 0.25)
+      iex> {u, _} = Neptunus.PID.update(pid, 0.1, 0.0, 0.0)
+      iex> Float.round(u, 12)
+      0.25
+  """
+  @spec retune(t(), keyword(), number(), number(), number()) :: t()
+  def retune(%__MODULE__{} = pid, gains, e, d, output) do
+    opts =
+      Keyword.merge([kp: pid.kp, ki: pid.ki, kd: pid.kd], Keyword.take(gains, [:kp, :ki, :kd]))
+
+    [kp, ki, kd] = for key <- [:kp, :ki, :kd], do: gain!(opts, key)
+    pid = %{pid | kp: kp, ki: ki, kd: kd}
+    %{pid | integral: clamp(output - (kp * e - kd * d), pid)}
+  end
+
+  @doc """
   Keeps the integral but follows the measurement without acting (while a pilot overrides the
   axis): the next `update/5` differentiates from here.
   """

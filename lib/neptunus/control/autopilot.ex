@@ -153,6 +153,27 @@ defmodule Neptunus.Control.Autopilot do
   def retarget(%__MODULE__{state: :off} = ap, _value), do: ap
   def retarget(%__MODULE__{} = ap, value), do: %{ap | setpoint: normalize(ap, value)}
 
+  @doc """
+  New PID gains (`kp`, `ki`, `kd`), bumpless: while holding, the integral is re-set so that
+  the output at the current `measured` value and `rate` stays what it is
+  (`Neptunus.PID.retune/5`); off or overridden, the gains simply apply from the next capture.
+  """
+  @spec retune(t(), keyword(), number() | nil, number() | nil) :: t()
+  def retune(%__MODULE__{state: :holding} = ap, gains, measured, rate) when is_number(measured) do
+    e = PID.error(ap.pid, ap.reference.value, measured)
+    d = relative(rate, ap.reference) || 0.0
+    %{ap | pid: PID.retune(ap.pid, gains, e, d, ap.output)}
+  end
+
+  def retune(%__MODULE__{} = ap, gains, _measured, _rate) do
+    pid = PID.retune(ap.pid, gains, 0.0, 0.0, ap.pid.integral)
+    %{ap | pid: pid}
+  end
+
+  @doc "The PID gains in force: `[kp:, ki:, kd:]`."
+  @spec gains(t()) :: keyword()
+  def gains(%__MODULE__{pid: pid}), do: [kp: pid.kp, ki: pid.ki, kd: pid.kd]
+
   @doc "Disengages the axis (the trim is forgotten)."
   @spec disengage(t()) :: t()
   def disengage(%__MODULE__{} = ap),

@@ -311,6 +311,28 @@ defmodule Neptunus.Control.Core do
     end
   end
 
+  @doc """
+  New PID gains for the depth and/or heading autopilot (`%{depth: [kp:, ki:, kd:], heading:
+  …}`, validated by `Neptunus.Control.Tuning`), applied at once and bumpless: an engaged
+  autopilot's output does not jump (its integral absorbs the change, see
+  `Neptunus.Control.Autopilot.retune/4`). No actions: the output is unchanged.
+  """
+  @spec retune(t(), %{optional(:depth) => keyword(), optional(:heading) => keyword()}) :: t()
+  def retune(core, gains) do
+    estimate = core.estimate || %{}
+
+    Enum.reduce(gains, core, fn
+      {axis, axis_gains}, core when axis in [:depth, :heading] ->
+        {key, rate_key} =
+          if axis == :depth, do: {:depth, :depth_rate}, else: {:heading, :yaw_rate}
+
+        ap = Map.fetch!(core, axis)
+        ap = Autopilot.retune(ap, axis_gains, estimate[key], estimate[rate_key])
+        gains = Map.put(core.gains, axis, Autopilot.gains(ap))
+        core |> Map.put(axis, ap) |> Map.put(:gains, gains)
+    end)
+  end
+
   # --- stops, estimates, ticks -------------------------------------------------------------
 
   @doc "A stop for `reason` (see the moduledoc: handovers keep the autopilots)."

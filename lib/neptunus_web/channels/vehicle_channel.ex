@@ -14,7 +14,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `stop`, `heartbeat`, `request_control`, `answer_request`,
   `take_control`, `release_control`, `sim_reset`, `sim_set`, and the control commands
   `set_control_mode`, `set_gain`, `set_lights`, `set_laser`, `set_tilt`, `autopilot`,
-  `set_run_mode` (`Neptunus.Vehicle.Control.command/3`). Server events: `telemetry`, `helm`, `stopped`,
+  `set_run_mode` (`Neptunus.Vehicle.Control.command/3`), the autopilot tuning `set_tuning`,
+  `step_response` (the pilot or the main station) and `get_tuning` (anyone). Server events: `telemetry`, `helm`, `stopped`,
   `presence_diff` (broadcast), and to one connection only `control_request`,
   `control_granted`, `control_lost`, `request_denied`.
 
@@ -96,6 +97,25 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     id
     |> Helm.command(party(socket), :none, fn -> Control.command(id, event, payload) end)
     |> reply(socket)
+  end
+
+  # Autopilot tuning (Neptunus.Vehicle.Control.tune/2, step_response/2): the pilot or the main
+  # station. The helm checks the pilot (a main station may tune without the helm); the work
+  # itself — a headless simulation, a settings write — runs here, not in the helm.
+  def handle_in(event, payload, socket) when event in ["set_tuning", "step_response"] do
+    id = id(socket)
+
+    with :ok <- may_tune(id, socket) do
+      case event do
+        "set_tuning" -> Control.tune(id, payload)
+        "step_response" -> Control.step_response(id, payload)
+      end
+    end
+    |> reply(socket)
+  end
+
+  def handle_in("get_tuning", _payload, socket) do
+    {:reply, {:ok, Control.tuning(id(socket))}, socket}
   end
 
   # Simulator controls `sim_reset`, `sim_set` (Neptunus.Sim.Live): pilot only, through the
@@ -201,6 +221,15 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   end
 
   defp id(socket), do: socket.assigns.vehicle_id
+
+  defp may_tune(_id, %{user: %{role: :main_station}}), do: :ok
+
+  defp may_tune(id, socket) do
+    case Helm.command(id, party(socket), :none, fn -> {:ok, %{}} end) do
+      {:ok, _} -> :ok
+      {:error, reason} -> {:error, "tuning is for the pilot or the main station: #{reason}"}
+    end
+  end
 
   defp reply({:ok, response}, socket), do: {:reply, {:ok, response}, socket}
   defp reply({:error, reason}, socket), do: {:reply, {:error, %{reason: reason}}, socket}

@@ -180,6 +180,66 @@ defmodule Neptunus.Vehicle.ControlTest do
     assert %{mode: "dp"} = Control.status(id)
   end
 
+  describe "tuning" do
+    test "gains apply at once, bumpless, are stored for the vehicle and applied at start", %{
+      id: id
+    } do
+      on_exit(fn -> Neptunus.Settings.delete({:vehicle, id}, "tuning") end)
+      estimate(id, depth: 2.0)
+      {:ok, _} = command(id, "autopilot", %{"depth" => 2.2})
+      Process.sleep(200)
+      estimate(id, depth: 2.0)
+
+      assert {:error, "depth.kp must be a number in [0, 20], got 25"} =
+               Control.tune(id, %{"depth" => %{"kp" => 25}})
+
+      assert {:ok, %{tuning: %{"depth" => %{"kp" => 6.0, "ki" => 0.1, "kd" => 1.5}}}} =
+               Control.tune(id, %{"depth" => %{"kp" => 6}})
+
+      assert %{gains: %{"depth" => %{"kp" => 6.0}, "heading" => %{"kp" => 4.0}}} =
+               Control.tuning(id)
+
+      assert {:ok, %{"depth" => %{"kp" => 6.0}}} = Neptunus.Settings.get({:vehicle, id}, "tuning")
+
+      # the vehicle restarts: its control comes back with the stored gains
+      pid = GenServer.whereis(Fleet.via(Control, id))
+      ref = Process.monitor(pid)
+      Process.exit(pid, :kill)
+      assert_receive {:DOWN, ^ref, _, _, _}
+
+      wait = fn wait ->
+        if GenServer.whereis(Fleet.via(Control, id)) in [nil, pid],
+          do:
+            (
+              Process.sleep(20)
+              wait.(wait)
+            ),
+          else: :ok
+      end
+
+      wait.(wait)
+      assert %{gains: %{"depth" => %{"kp" => 6.0}}} = Control.tuning(id)
+    end
+
+    test "a step response runs on the vehicle's model with the proposed gains", %{id: id} do
+      assert {:ok, %{axis: "depth", overshoot: o, settle: s, t: t, value: v}} =
+               Control.step_response(id, %{"axis" => "depth", "step" => 1})
+
+      assert o < 0.1 and s < 10 and length(t) == length(v)
+
+      assert {:ok, %{settle: weak}} =
+               Control.step_response(id, %{
+                 "axis" => "depth",
+                 "step" => 1,
+                 "gains" => %{"depth" => %{"kp" => 0.3, "ki" => 0, "kd" => 0}}
+               })
+
+      assert weak == nil or weak > s
+      # the vehicle's gains did not change
+      assert %{gains: %{"depth" => %{"kp" => 3.0}}} = Control.tuning(id)
+    end
+  end
+
   describe "run mode simulator" do
     test "commands and samples move to a simulator seeded from the estimate, and back", %{
       id: id

@@ -1,0 +1,56 @@
+defmodule NeptunusWeb.TuningWireTest do
+  # Autopilot tuning over the wire (docs/API.md "Tuning"): `get_tuning` for anyone,
+  # `set_tuning` and `step_response` for the pilot (or the main station).
+  use ExUnit.Case, async: false
+
+  import NeptunusWeb.Test.Wire
+
+  @moduletag :capture_log
+
+  setup do
+    vehicle = start_vehicle!("tunewire")
+    on_exit(fn -> Neptunus.Settings.delete({:vehicle, vehicle.id}, "tuning") end)
+    {:ok, vehicle}
+  end
+
+  defp client(topic, name), do: client!(topic, %{"name" => name})
+  defp push(c, event, payload \\ %{}), do: push_and_reply(c.ws, c.jr, c.topic, event, payload)
+
+  test "anyone reads the tuning; only the pilot tunes and previews", %{topic: topic} do
+    ada = client(topic, "Ada")
+    bob = client(topic, "Bob")
+
+    assert {"ok",
+            %{
+              "gains" => %{"depth" => %{"kp" => 3.0}, "heading" => %{"kd" => 2.0}},
+              "defaults" => %{"depth" => %{"kp" => 3.0}},
+              "ranges" => %{"kp" => [0, 20]},
+              "model" => "neptunus"
+            }} = push(bob, "get_tuning")
+
+    assert {"error", %{"reason" => "tuning is for the pilot or the main station: not_in_control"}} =
+             push(bob, "set_tuning", %{"depth" => %{"kp" => 5}})
+
+    assert {"error", %{"reason" => "tuning is for the pilot or the main station" <> _}} =
+             push(bob, "step_response", %{"axis" => "depth", "step" => 1})
+
+    assert {"ok", %{"status" => "granted"}} = push(ada, "request_control")
+
+    assert {"ok", %{"t" => [_ | _], "value" => [_ | _], "reference" => [_ | _], "settle" => s}} =
+             push(ada, "step_response", %{
+               "axis" => "depth",
+               "step" => 0.5,
+               "gains" => %{"depth" => %{"kp" => 5}}
+             })
+
+    assert is_number(s)
+
+    assert {"error", %{"reason" => "depth.kp must be a number in [0, 20], got -1"}} =
+             push(ada, "set_tuning", %{"depth" => %{"kp" => -1}})
+
+    assert {"ok", %{"tuning" => %{"depth" => %{"kp" => 5.0}}}} =
+             push(ada, "set_tuning", %{"depth" => %{"kp" => 5}})
+
+    assert {"ok", %{"gains" => %{"depth" => %{"kp" => 5.0}}}} = push(bob, "get_tuning")
+  end
+end
