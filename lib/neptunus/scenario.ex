@@ -80,7 +80,8 @@ defmodule Neptunus.Scenario do
     sensors: %{},
     initial: [z: 1.0],
     gain: 0.5,
-    events: []
+    events: [],
+    model: nil
   ]
 
   @typedoc "The thrust of a `thrust` event."
@@ -116,7 +117,8 @@ defmodule Neptunus.Scenario do
           sensors: map(),
           initial: keyword(),
           gain: float(),
-          events: [event()]
+          events: [event()],
+          model: Params.t() | nil
         }
 
   @top_required ~w(vehicle duration)

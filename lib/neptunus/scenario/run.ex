@@ -22,7 +22,8 @@ defmodule Neptunus.Scenario.Run do
 
   The estimate is `Neptunus.Estimator` — the same filter as a live vehicle's
   `Neptunus.Vehicle.Navigation` — run on every step's measurements (wild points and all) and
-  told every thruster command, with the scenario's vehicle as its model. The scenario starts
+  told every thruster command, with the scenario's vehicle as its model (or the scenario's
+  `model`, when set: a vehicle that differs from the model its navigation has). The scenario starts
   with the vehicle's sensors up (it has been running before; there is no board boot to wait
   out), so the first reading is valid at once (`settle: 0`, `agree: 1`); everything after
   that — wild points, re-acquisition — is the live filter's. An estimate that does not exist
@@ -73,7 +74,10 @@ defmodule Neptunus.Scenario.Run do
     sim = Sim.new(Scenario.sim_options(scenario) ++ [native: true])
 
     est =
-      [vehicle: scenario.params] |> Keyword.merge(@sensors_up) |> Estimator.new() |> observe(sim)
+      [vehicle: scenario.model || scenario.params]
+      |> Keyword.merge(@sensors_up)
+      |> Estimator.new()
+      |> observe(sim)
 
     core = control |> Keyword.put(:gain, scenario.gain) |> Core.new()
     control = %{core: core, next_tick: 0} |> estimate(est, sim)
