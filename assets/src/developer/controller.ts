@@ -16,6 +16,7 @@ import { AuthError, TOKEN_KEY, fetchSession, loadToken } from "../lib/session";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
 import type { ConnectionStatus } from "../lib/vehicle_client";
+import { TuningController } from "./tuning";
 
 export const MAX_PLOTS = 10;
 
@@ -78,6 +79,8 @@ export class DevController {
   readonly store: Store<DevState>;
   readonly recorder: SeriesRecorder;
   readonly log = new LogBook();
+  /** the autopilot tuning panel's logic */
+  readonly tuning = new TuningController();
   private readonly params: URLSearchParams;
   private facts: TelemetryFacts | null = null;
   private lastHelm: Helm | null = null;
@@ -172,6 +175,7 @@ export class DevController {
       protocolError: (what, payload) =>
         this.add({ category: "error", level: "error", message: `unexpected ${what} payload: ${JSON.stringify(payload).slice(0, 200)}` }),
     });
+    this.tuning.attach(vehicle);
     vehicle.join().catch((err: unknown) => {
       this.add({ category: "error", level: "error", message: `cannot join vehicle ${id}: ${reasonOf(err)}` });
       this.store.update({ message: `Cannot join vehicle ${id}: ${reasonOf(err)}` });

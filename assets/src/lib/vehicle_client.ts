@@ -468,6 +468,14 @@ export class VehicleChannel {
     });
   }
 
+  /**
+   * A request on the vehicle's topic whose reply `decode` reads (null: unexpected reply):
+   * the autopilot tuning events `get_tuning`, `step_response`, `set_tuning`.
+   */
+  request<T>(event: string, payload: object, decode: (response: unknown) => T | null, timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<T> {
+    return this.command(event, payload, decode, timeoutMs);
+  }
+
   private setting(event: string, payload: object): Promise<ControlSettings> {
     return this.command(event, payload, decodeControlUpdate, DEFAULT_COMMAND_TIMEOUT_MS);
   }
