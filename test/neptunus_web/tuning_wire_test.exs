@@ -16,9 +16,12 @@ defmodule NeptunusWeb.TuningWireTest do
   defp client(topic, name), do: client!(topic, %{"name" => name})
   defp push(c, event, payload \\ %{}), do: push_and_reply(c.ws, c.jr, c.topic, event, payload)
 
-  test "anyone reads the tuning; only the pilot tunes and previews", %{topic: topic} do
+  test "anyone reads the tuning; only the pilot (any of their connections) tunes and previews",
+       %{topic: topic} do
     ada = client(topic, "Ada")
     bob = client(topic, "Bob")
+    # Ada's developer page: another connection of the user who pilots
+    ada_dev = client(topic, "Ada")
 
     assert {"ok",
             %{
@@ -28,7 +31,8 @@ defmodule NeptunusWeb.TuningWireTest do
               "model" => "neptunus"
             }} = push(bob, "get_tuning")
 
-    assert {"error", %{"reason" => "tuning is for the pilot or the main station: not_in_control"}} =
+    assert {"error",
+            %{"reason" => "tuning is for the pilot or the main station: Bob does not pilot"}} =
              push(bob, "set_tuning", %{"depth" => %{"kp" => 5}})
 
     assert {"error", %{"reason" => "tuning is for the pilot or the main station" <> _}} =
@@ -37,7 +41,7 @@ defmodule NeptunusWeb.TuningWireTest do
     assert {"ok", %{"status" => "granted"}} = push(ada, "request_control")
 
     assert {"ok", %{"t" => [_ | _], "value" => [_ | _], "reference" => [_ | _], "settle" => s}} =
-             push(ada, "step_response", %{
+             push(ada_dev, "step_response", %{
                "axis" => "depth",
                "step" => 0.5,
                "gains" => %{"depth" => %{"kp" => 5}}
@@ -49,7 +53,7 @@ defmodule NeptunusWeb.TuningWireTest do
              push(ada, "set_tuning", %{"depth" => %{"kp" => -1}})
 
     assert {"ok", %{"tuning" => %{"depth" => %{"kp" => 5.0}}}} =
-             push(ada, "set_tuning", %{"depth" => %{"kp" => 5}})
+             push(ada_dev, "set_tuning", %{"depth" => %{"kp" => 5}})
 
     assert {"ok", %{"gains" => %{"depth" => %{"kp" => 5.0}}}} = push(bob, "get_tuning")
   end

@@ -15,7 +15,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `take_control`, `release_control`, `sim_reset`, `sim_set`, and the control commands
   `set_control_mode`, `set_gain`, `set_lights`, `set_laser`, `set_tilt`, `autopilot`,
   `set_run_mode` (`Neptunus.Vehicle.Control.command/3`), the autopilot tuning `set_tuning`,
-  `step_response` (the pilot or the main station) and `get_tuning` (anyone). Server events: `telemetry`, `helm`, `stopped`,
+  `step_response` (the user who pilots, from any connection, or the main station) and
+  `get_tuning` (anyone). Server events: `telemetry`, `helm`, `stopped`,
   `presence_diff` (broadcast), and to one connection only `control_request`,
   `control_granted`, `control_lost`, `request_denied`.
 
@@ -99,9 +100,9 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     |> reply(socket)
   end
 
-  # Autopilot tuning (Neptunus.Vehicle.Control.tune/2, step_response/2): the pilot or the main
-  # station. The helm checks the pilot (a main station may tune without the helm); the work
-  # itself — a headless simulation, a settings write — runs here, not in the helm.
+  # Autopilot tuning (Neptunus.Vehicle.Control.tune/2, step_response/2): the user who pilots
+  # or the main station. The work — a headless simulation, a settings write — runs here, not
+  # in the helm or control.
   def handle_in(event, payload, socket) when event in ["set_tuning", "step_response"] do
     id = id(socket)
 
@@ -222,12 +223,18 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
 
   defp id(socket), do: socket.assigns.vehicle_id
 
+  # the main station, or the user who pilots (from any of their connections: the developer
+  # page beside the operator page)
   defp may_tune(_id, %{user: %{role: :main_station}}), do: :ok
 
   defp may_tune(id, socket) do
-    case Helm.command(id, party(socket), :none, fn -> {:ok, %{}} end) do
-      {:ok, _} -> :ok
-      {:error, reason} -> {:error, "tuning is for the pilot or the main station: #{reason}"}
+    case Helm.status(id) do
+      %{pilot: %{name: name}} when name == socket.user.name ->
+        :ok
+
+      _ ->
+        {:error,
+         "tuning is for the pilot or the main station: #{socket.user.name} does not pilot"}
     end
   end
 
