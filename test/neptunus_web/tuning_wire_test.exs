@@ -9,7 +9,12 @@ defmodule NeptunusWeb.TuningWireTest do
 
   setup do
     vehicle = start_vehicle!("tunewire")
-    on_exit(fn -> Neptunus.Settings.delete({:vehicle, vehicle.id}, "tuning") end)
+
+    on_exit(fn ->
+      Neptunus.Settings.delete({:vehicle, vehicle.id}, "tuning")
+      Neptunus.Settings.delete({:vehicle, vehicle.id}, "camera.rotation")
+    end)
+
     {:ok, vehicle}
   end
 
@@ -56,5 +61,28 @@ defmodule NeptunusWeb.TuningWireTest do
              push(ada_dev, "set_tuning", %{"depth" => %{"kp" => 5}})
 
     assert {"ok", %{"gains" => %{"depth" => %{"kp" => 5.0}}}} = push(bob, "get_tuning")
+  end
+
+  test "the camera rotation is a vehicle setting: set by the pilot, in every snapshot, broadcast",
+       %{topic: topic} do
+    ada = client(topic, "Ada")
+    bob = client(topic, "Bob")
+    assert bob.snapshot["settings"] == %{"camera_rotation" => 0}
+
+    assert {"error",
+            %{"reason" => "the camera rotation is for the pilot or the main station: " <> _}} =
+             push(bob, "set_camera_rotation", %{"value" => 90})
+
+    assert {"ok", %{"status" => "granted"}} = push(ada, "request_control")
+
+    assert {"error", %{"reason" => "value must be one of 0, 90, 180, 270 (degrees), got 45"}} =
+             push(ada, "set_camera_rotation", %{"value" => 45})
+
+    assert {"ok", %{"camera_rotation" => 180}} =
+             push(ada, "set_camera_rotation", %{"value" => 180})
+
+    # every page is told, and a page that joins later gets it in its snapshot
+    assert %{"camera_rotation" => 180} = event!(bob.ws, "vehicle_settings", fn _ -> true end)
+    assert client(topic, "Cy").snapshot["settings"] == %{"camera_rotation" => 180}
   end
 end

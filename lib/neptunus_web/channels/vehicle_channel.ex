@@ -5,8 +5,9 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `Neptunus.Vehicle.Helm` (which checks that the sender is the pilot and carries the
   command out) and relays the answers. Payloads and error reasons: `docs/API.md`.
 
-  Join reply (state snapshot): `%{vehicle, telemetry, helm, pilot, control, camera, session}`
-  (`camera`: `%{url}` of the MJPEG stream, or nil),
+  Join reply (state snapshot): `%{vehicle, telemetry, helm, pilot, control, camera, settings,
+  session}` (`camera`: `%{url}` of the MJPEG stream, or nil; `settings`: the vehicle's view
+  settings, `Neptunus.Vehicle.ViewSettings`),
   followed by `presence_state`. Joining never depends on control: observers join like
   pilots, and being refused control is an event, never a closed channel.
 
@@ -16,7 +17,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `set_control_mode`, `set_gain`, `set_lights`, `set_laser`, `set_tilt`, `autopilot`,
   `set_run_mode` (`Neptunus.Vehicle.Control.command/3`), the autopilot tuning `set_tuning`,
   `step_response` (the user who pilots, from any connection, or the main station) and
-  `get_tuning` (anyone). Server events: `telemetry`, `helm`, `stopped`,
+  `get_tuning` (anyone), and `set_camera_rotation` (the user who pilots or the main
+  station; broadcast as `vehicle_settings`). Server events: `telemetry`, `helm`, `stopped`,
   `presence_diff` (broadcast), and to one connection only `control_request`,
   `control_granted`, `control_lost`, `request_denied`.
 
@@ -28,7 +30,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   @behaviour NeptunusWeb.Channel
 
   alias Neptunus.Fleet
-  alias Neptunus.Vehicle.{Control, Helm, Telemetry}
+  alias Neptunus.Vehicle.{Control, Helm, Telemetry, ViewSettings}
   alias NeptunusWeb.{Auth, Channel, Presence}
 
   @control_events ~w(set_control_mode set_gain set_lights set_laser set_tilt autopilot set_run_mode)
@@ -106,11 +108,22 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   def handle_in(event, payload, socket) when event in ["set_tuning", "step_response"] do
     id = id(socket)
 
-    with :ok <- may_tune(id, socket) do
+    with :ok <- may_tune(id, socket, "tuning") do
       case event do
         "set_tuning" -> Control.tune(id, payload)
         "step_response" -> Control.step_response(id, payload)
       end
+    end
+    |> reply(socket)
+  end
+
+  # The camera image rotation, a vehicle setting every page applies (Neptunus.Vehicle.ViewSettings):
+  # the user who pilots or the main station.
+  def handle_in("set_camera_rotation", payload, socket) do
+    id = id(socket)
+
+    with :ok <- may_tune(id, socket, "the camera rotation") do
+      ViewSettings.set_camera_rotation(id, payload)
     end
     |> reply(socket)
   end
@@ -178,6 +191,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
       pilot: helm.pilot && %{name: helm.pilot.name},
       control: Control.status(id),
       camera: camera(id),
+      settings: ViewSettings.get(id),
       session: %{
         id: socket.user.id,
         name: socket.user.name,
@@ -225,16 +239,16 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
 
   # the main station, or the user who pilots (from any of their connections: the developer
   # page beside the operator page)
-  defp may_tune(_id, %{user: %{role: :main_station}}), do: :ok
+  defp may_tune(_id, %{user: %{role: :main_station}}, _what), do: :ok
 
-  defp may_tune(id, socket) do
+  defp may_tune(id, socket, what) do
     case Helm.status(id) do
       %{pilot: %{name: name}} when name == socket.user.name ->
         :ok
 
       _ ->
         {:error,
-         "tuning is for the pilot or the main station: #{socket.user.name} does not pilot"}
+         "#{what} is for the pilot or the main station: #{socket.user.name} does not pilot"}
     end
   end
 
