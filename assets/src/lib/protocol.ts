@@ -284,6 +284,21 @@ export interface VehicleSnapshot {
   readonly control: ControlSettings | null;
   /** null: the vehicle has no camera (or the server does not say) */
   readonly camera: CameraInfo | null;
+  /** the vehicle's view settings (absent from an older server) */
+  readonly settings?: VehicleSettings;
+}
+
+/** A vehicle's settings every page applies (`settings` in the snapshot, `vehicle_settings`). */
+export interface VehicleSettings {
+  /** the camera image rotation, degrees clockwise: 0, 90, 180 or 270 */
+  readonly camera_rotation: number;
+}
+
+/** `vehicle_settings` (and the snapshot's `settings`), or null. */
+export function decodeVehicleSettings(value: unknown): VehicleSettings | null {
+  if (!isRecord(value)) return null;
+  const r = value["camera_rotation"];
+  return r === 0 || r === 90 || r === 180 || r === 270 ? { camera_rotation: r } : null;
 }
 
 /** Reply to a `thrust` or `stop` push (outputs only; the pulse widths come with telemetry). */
@@ -586,7 +601,8 @@ export function decodeVehicleSnapshot(value: unknown): VehicleSnapshot | null {
   const session = rawSession === undefined ? null : decodeSession(rawSession);
   if (session === null && rawSession !== undefined) return null;
   const control = decodeControlSettings(value["control"]);
-  return { vehicle, telemetry, pilot, helm, session, control, camera: decodeCamera(value) };
+  const settings = decodeVehicleSettings(value["settings"]);
+  return { vehicle, telemetry, pilot, helm, session, control, camera: decodeCamera(value), ...(settings ? { settings } : {}) };
 }
 
 const ROLES: readonly string[] = ["pilot", "observer", "main_station"];

@@ -356,6 +356,7 @@ export function SettingsPanel({ s, c }: Props): preact.JSX.Element {
         <select
           id="rotation"
           data-testid="rotation"
+          disabled={off}
           value={String(s.rotation)}
           onChange={(e) => c.setRotation(parseRotation((e.currentTarget as HTMLSelectElement).value))}
         >
@@ -365,7 +366,8 @@ export function SettingsPanel({ s, c }: Props): preact.JSX.Element {
             </option>
           ))}
         </select>
-        <small class="note">this browser, this vehicle</small>
+        <small class="note">this vehicle, every page</small>
+        <FieldStatusText s={s} field="rotation" />
       </div>
     </Panel>
   );

@@ -25,3 +25,15 @@ describe("the autopilot reference on the HUD", () => {
     expect(movingReference({ setpoint: 0.5, reference: near, output: 0, waiting: null }, HEADING_TOLERANCE, true)).toBe(near);
   });
 });
+
+describe("the vehicle's settings (camera rotation)", () => {
+  it("are decoded from vehicle_settings and the snapshot, refused when malformed", async () => {
+    const { decodeVehicleSettings, decodeVehicleSnapshot } = await import("../../src/lib/protocol");
+    expect(decodeVehicleSettings({ camera_rotation: 180 })).toEqual({ camera_rotation: 180 });
+    expect(decodeVehicleSettings({ camera_rotation: 45 })).toBeNull();
+    expect(decodeVehicleSettings(null)).toBeNull();
+    const snapshot = { vehicle: { id: "v", board: "simulated" }, telemetry: null, pilot: null };
+    expect(decodeVehicleSnapshot({ ...snapshot, settings: { camera_rotation: 90 } })?.settings).toEqual({ camera_rotation: 90 });
+    expect(decodeVehicleSnapshot(snapshot)?.settings).toBeUndefined();
+  });
+});
