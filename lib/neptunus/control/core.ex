@@ -36,6 +36,13 @@ defmodule Neptunus.Control.Core do
       zero, and it says so (`dp_holds/1`: `["depth", "heading"]` in the control state, and a
       `{:notice, …}`).
 
+  ## Setpoints and tuning
+
+  The autopilots track a rate- and acceleration-limited reference towards their setpoints
+  (`Neptunus.Control.Autopilot`, `Neptunus.Control.Reference`; limits per axis, option
+  `reference`), so a setpoint step never jerks the vehicle. `retune/2` changes the depth and
+  heading PID gains at run time, bumplessly (`Neptunus.Control.Tuning` validates them).
+
   ## Stops
 
   Every stop zeroes the pilot's command and tells everyone (`{:stopped, reason}`). What
