@@ -133,6 +133,19 @@ defmodule Neptunus.Control.Tuning do
   end
 
   @doc """
+  The gains of `to_json/1` in words, for the log.
+
+      iex> Neptunus.Control.Tuning.describe(%{"depth" => %{"kp" => 3.0, "ki" => 0.1, "kd" => 1.5}})
+      "depth kp 3.0 ki 0.1 kd 1.5"
+  """
+  @spec describe(map()) :: String.t()
+  def describe(json) do
+    json
+    |> Enum.sort()
+    |> Enum.map_join("; ", fn {axis, g} -> "#{axis} kp #{g["kp"]} ki #{g["ki"]} kd #{g["kd"]}" end)
+  end
+
+  @doc """
   Validates a step-response request `%{"axis" => "depth" | "heading", "step" => x,
   "gains"? => tuning}` (`step` in m, or rad for heading, non-zero, at most 10 m or 3 rad;
   no `gains`: those in force):

@@ -101,8 +101,9 @@ defmodule Neptunus.Vehicle.Control do
   at once and bumpless (`Neptunus.Control.Core.retune/2`), then stored for the vehicle
   (`Neptunus.Settings`, scope `{:vehicle, id}`, key `"tuning"`) so it applies at the next
   start too. Who may tune is the caller's business (the vehicle channel: the pilot or the
-  main station). Replies `{:ok, %{tuning: %{"depth" => …, "heading" => …}}}` (the gains in
-  force) or `{:error, reason}` (nothing changed; a failed store is reported after the gains
+  main station). The change is logged (a `log` entry of category `autopilot` on
+  `"log:<id>"`, so recordings keep it). Replies `{:ok, %{tuning: %{"depth" => …, "heading" =>
+  …}}}` (the gains in force) or `{:error, reason}` (nothing changed; a failed store is reported after the gains
   were applied: `{:error, "tuning applied but not stored: …"}`).
   """
   @spec tune(String.t(), term()) :: reply()
@@ -266,12 +267,18 @@ defmodule Neptunus.Vehicle.Control do
 
   def handle_call({:tune, gains}, _from, state) do
     state = %{state | core: Core.retune(state.core, gains)} |> publish()
+    json = Tuning.to_json(state.core.gains)
+    text = "autopilot tuning: " <> Tuning.describe(json)
 
-    Logger.info(
-      "vehicle #{state.id}: autopilot tuning #{inspect(Tuning.to_json(state.core.gains))}"
-    )
+    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
+      category: "autopilot",
+      level: "info",
+      message: text,
+      at: System.os_time(:millisecond)
+    })
 
-    {:reply, {:ok, Tuning.to_json(state.core.gains)}, state}
+    Logger.info("vehicle #{state.id}: #{text}")
+    {:reply, {:ok, json}, state}
   end
 
   def handle_call(:tuning, _from, %State{core: core} = state) do

@@ -6,6 +6,7 @@ defmodule Neptunus.Control.TuningTest do
   alias Neptunus.Test.Properties
 
   doctest PID, only: [retune: 5]
+  doctest Tuning
 
   describe "validate" do
     test "an axis, some gains: only those" do

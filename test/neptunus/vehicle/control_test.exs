@@ -193,8 +193,17 @@ defmodule Neptunus.Vehicle.ControlTest do
       assert {:error, "depth.kp must be a number in [0, 20], got 25"} =
                Control.tune(id, %{"depth" => %{"kp" => 25}})
 
+      PubSub.subscribe(Telemetry.log_topic(id))
+
       assert {:ok, %{tuning: %{"depth" => %{"kp" => 6.0, "ki" => 0.1, "kd" => 1.5}}}} =
                Control.tune(id, %{"depth" => %{"kp" => 6}})
+
+      assert_receive {:pubsub, _, "log",
+                      %{
+                        category: "autopilot",
+                        message:
+                          "autopilot tuning: depth kp 6.0 ki 0.1 kd 1.5; heading kp 4.0" <> _
+                      }}
 
       assert %{gains: %{"depth" => %{"kp" => 6.0}, "heading" => %{"kp" => 4.0}}} =
                Control.tuning(id)
