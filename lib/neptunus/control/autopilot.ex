@@ -156,7 +156,8 @@ defmodule Neptunus.Control.Autopilot do
   @doc """
   New PID gains (`kp`, `ki`, `kd`), bumpless: while holding, the integral is re-set so that
   the output at the current `measured` value and `rate` stays what it is
-  (`Neptunus.PID.retune/5`); off or overridden, the gains simply apply from the next capture.
+  (`Neptunus.PID.retune/5`); off, overridden or without an estimate (no output to keep), the
+  gains simply apply from the next step, the integral kept.
   """
   @spec retune(t(), keyword(), number() | nil, number() | nil) :: t()
   def retune(%__MODULE__{state: :holding} = ap, gains, measured, rate) when is_number(measured) do
