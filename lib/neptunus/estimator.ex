@@ -70,8 +70,11 @@ defmodule Neptunus.Estimator do
 
   Two-state filters (`Neptunus.Navigation.Kalman`, the model and its discretisation are
   documented there): depth `z` (m, down) with `ż` (m/s), and heading `ψ` (rad, [0, 2π)) with
-  `ψ̇` (rad/s), the heading innovation wrapped to `[-π, π)` — these are the estimate. Roll and
-  pitch have constant-velocity filters too, used only to gate their readings.
+  `ψ̇` (rad/s), the heading innovation wrapped to `[-π, π)`. Roll `φ` and pitch `θ` (rad) with
+  their rates have constant-velocity filters (no model: the vehicle does not command roll or
+  pitch, they are its metacentric restoring and the thrusters' coupling): they gate their
+  readings and are the attitude estimate (the thesis' table 7.3, third column). All four are
+  the estimate (`estimate/1`).
 
   With a vehicle model (`Neptunus.Navigation.Model`; by default the `neptunus` parameter set)
   the depth and heading predictions are driven by the **commanded thrust** (`command/2`): the
@@ -123,7 +126,7 @@ defmodule Neptunus.Estimator do
   # sample times beyond this (s, ~30 000 years) are not times: ignored
   @max_time 1.0e12
 
-  # roll and pitch are filtered only to gate their readings, alike
+  # roll and pitch: constant-velocity filters (gates and the attitude estimate), alike
   @attitude_gate %{
     q_free: 0.5,
     min_r: 0.1 * :math.pi() / 180,
@@ -248,7 +251,11 @@ defmodule Neptunus.Estimator do
           depth: float() | nil,
           depth_rate: float() | nil,
           heading: float() | nil,
-          yaw_rate: float() | nil
+          yaw_rate: float() | nil,
+          roll: float() | nil,
+          roll_rate: float() | nil,
+          pitch: float() | nil,
+          pitch_rate: float() | nil
         }
 
   @doc """
@@ -302,7 +309,7 @@ defmodule Neptunus.Estimator do
     sigma = if params, do: params.sensors.channels[name].noise, else: d.r
     base = %{max_rate: d.max_rate, min_gate: d.min_gate, gate: 5.0, angle: name == :heading}
 
-    # roll and pitch: constant-velocity filters, used to gate their readings only
+    # roll and pitch: constant-velocity filters (no model)
     dyn =
       case {name, model} do
         {:depth, %Model{heave: heave}} -> Map.put(heave, :q, d.q_model)
@@ -624,14 +631,28 @@ defmodule Neptunus.Estimator do
   defp verdict(est, name, verdict), do: %{est | verdicts: Map.put(est.verdicts, name, verdict)}
 
   @doc """
-  The estimate after the last sample: `%{t, depth, depth_rate, heading, yaw_rate}` (SI,
-  heading in [0, 2π)); a filter without an estimate gives nil for its two values.
+  The estimate after the last sample: `%{t, depth, depth_rate, heading, yaw_rate, roll,
+  roll_rate, pitch, pitch_rate}` (SI, heading in [0, 2π), roll and pitch in rad, positive
+  starboard down and bow up); a filter without an estimate gives nil for its two values.
   """
   @spec estimate(t()) :: estimate()
-  def estimate(%__MODULE__{t: t, filters: %{depth: depth, heading: heading}}) do
-    {z, w} = values(depth)
-    {psi, r} = values(heading)
-    %{t: t, depth: z, depth_rate: w, heading: psi, yaw_rate: r}
+  def estimate(%__MODULE__{t: t, filters: filters}) do
+    {z, w} = values(filters.depth)
+    {psi, r} = values(filters.heading)
+    {phi, p} = values(filters.roll)
+    {theta, q} = values(filters.pitch)
+
+    %{
+      t: t,
+      depth: z,
+      depth_rate: w,
+      heading: psi,
+      yaw_rate: r,
+      roll: phi,
+      roll_rate: p,
+      pitch: theta,
+      pitch_rate: q
+    }
   end
 
   defp values(%Kalman{x: nil}), do: {nil, nil}

@@ -95,6 +95,28 @@ defmodule Neptunus.PID do
     do: %{pid | integral: clamp(output * 1.0, pid), last: measurement * 1.0}
 
   @doc """
+  New gains (`kp`, `ki`, `kd`, each ≥ 0; absent ones kept), **bumpless**: the integral is
+  set so that the output at error `e` and measured rate `d` (those of the last step) is
+  `output` as before, `kp'·e − kd'·d + I' = output` (clamped to the limits). Raises
+  `ArgumentError` on a bad gain.
+
+      iex> pid = Neptunus.PID.new(kp: 1.0, ki: 0.1, kd: 0.0)
+      iex> pid = Neptunus.PID.retune(pid, [kp: 3.0], 0.1, 0.0, 0.25)
+      iex> {u, _} = Neptunus.PID.update(pid, 0.1, 0.0, 0.0)
+      iex> Float.round(u, 12)
+      0.25
+  """
+  @spec retune(t(), keyword(), number(), number(), number()) :: t()
+  def retune(%__MODULE__{} = pid, gains, e, d, output) do
+    opts =
+      Keyword.merge([kp: pid.kp, ki: pid.ki, kd: pid.kd], Keyword.take(gains, [:kp, :ki, :kd]))
+
+    [kp, ki, kd] = for key <- [:kp, :ki, :kd], do: gain!(opts, key)
+    pid = %{pid | kp: kp, ki: ki, kd: kd}
+    %{pid | integral: clamp(output - (kp * e - kd * d), pid)}
+  end
+
+  @doc """
   Keeps the integral but follows the measurement without acting (while a pilot overrides the
   axis): the next `update/5` differentiates from here.
   """
@@ -110,14 +132,17 @@ defmodule Neptunus.PID do
   One step of `dt` seconds: returns the output in `[min, max]` and the PID advanced.
   `rate` is the measured rate of the measurement (unit/s) if known; otherwise the finite
   difference from the previous measurement is used (none on the first step, or with
-  `dt == 0`, which computes the output without integrating).
+  `dt == 0`, which computes the output without integrating). With `integrate` false the
+  integral is kept as it is (an autopilot's reference on the move: the integral learns the
+  steady trim, not the lag of tracking a moving reference).
   """
-  @spec update(t(), number(), number(), number(), number() | nil) :: {float(), t()}
-  def update(%__MODULE__{} = pid, setpoint, measurement, dt, rate \\ nil) when dt >= 0 do
+  @spec update(t(), number(), number(), number(), number() | nil, boolean()) :: {float(), t()}
+  def update(%__MODULE__{} = pid, setpoint, measurement, dt, rate \\ nil, integrate \\ true)
+      when dt >= 0 do
     e = error(pid, setpoint, measurement)
     d = derivative(pid, measurement, dt, rate)
     p_d = pid.kp * e - pid.kd * d
-    candidate = pid.integral + pid.ki * e * dt
+    candidate = if integrate, do: pid.integral + pid.ki * e * dt, else: pid.integral
     unsat = p_d + candidate
 
     integral =

@@ -55,6 +55,10 @@ defmodule Neptunus.Scenario do
   `autopilot` event that disengages either in DP is refused). Within an event the actions
   apply in the order `control_mode`, `gain`, `thrust`, `autopilot`, `tau`, `current`.
 
+  A scenario's `model` (a struct field, not in the JSON) is the parameter set navigation's
+  estimator assumes, when the simulated vehicle (`params`) differs from it: robustness runs
+  scale the vehicle (`Neptunus.Dynamics.Params.scaled/2`) and keep the nominal model.
+
   `parse/1` and `validate/1` never raise; errors name the field
   (see `Neptunus.Validate`), e.g. `events[2].thrust.surge must be a number in [-1, 1], got 2`.
   """
@@ -80,7 +84,8 @@ defmodule Neptunus.Scenario do
     sensors: %{},
     initial: [z: 1.0],
     gain: 0.5,
-    events: []
+    events: [],
+    model: nil
   ]
 
   @typedoc "The thrust of a `thrust` event."
@@ -116,7 +121,8 @@ defmodule Neptunus.Scenario do
           sensors: map(),
           initial: keyword(),
           gain: float(),
-          events: [event()]
+          events: [event()],
+          model: Params.t() | nil
         }
 
   @top_required ~w(vehicle duration)

@@ -253,3 +253,48 @@ test("developer page: the server's recordings: list, CSV download, shown in the 
     await dev.context.close();
   }
 });
+
+test("developer page: autopilot tuning — only the pilot previews a step and applies gains", { timeout: TEST_MS }, async () => {
+  const user = "e2e-tuner";
+  const pilot = await open(browser, { ...TABLET, name: user });
+  const dev = await open(browser, { ...DESKTOP, name: user, path: `/dev.html?name=${user}` });
+  try {
+    const { page } = dev;
+    await page.locator("#tuning summary").click();
+    await page.locator('[data-testid="gain-depth-kp"]').waitFor();
+    assert.equal(await page.locator('[data-testid="gain-depth-kp"]').inputValue(), "3");
+
+    // not piloting: the server refuses, and the page says why
+    await page.locator("#tuning-preview").click();
+    await page.locator('[data-testid="tuning-message"][data-state="error"]', { hasText: "tuning is for the pilot or the main station" }).waitFor();
+
+    // the same user pilots on the operator page: the preview runs on the simulator model
+    await waitTelemetry(pilot.page);
+    await takeHelm(pilot.page);
+    await page.locator('[data-testid="gain-depth-kp"]').fill("6");
+    await page.locator("#tuning-preview").click();
+    await page.locator('[data-testid="step-preview"] polyline').first().waitFor();
+    assert.match((await page.locator('[data-testid="step-figures"]').textContent()) ?? "", /depth step on the simulator model: overshoot [\d.]+ cm, within ±5 cm after [\d.]+ s/);
+
+    // a bad gain is caught before the server
+    await page.locator('[data-testid="gain-heading-kd"]').fill("99");
+    await page.locator("#tuning-apply").click();
+    await page.locator('[data-testid="tuning-message"][data-state="error"]', { hasText: "heading.kd must be a number in [0, 20]" }).waitFor();
+    await page.locator('[data-testid="gain-heading-kd"]').fill("2");
+
+    await page.locator("#tuning-apply").click();
+    await page.locator('[data-testid="tuning-message"][data-state="ok"]', { hasText: "applied to the vehicle and stored" }).waitFor();
+    assert.equal(await page.locator('[data-testid="gain-depth-kp"]').inputValue(), "6");
+    await screenshot(page, "developer-tuning-1920x1080.png", { fullPage: false });
+
+    // back to the defaults (the vehicle's stored tuning is shared by the later tests)
+    await page.locator("#tuning-defaults").click();
+    await page.locator("#tuning-apply").click();
+    await page.locator('[data-testid="tuning-message"][data-state="ok"]', { hasText: "applied" }).waitFor();
+    assert.equal(await page.locator('[data-testid="gain-depth-kp"]').inputValue(), "3");
+    assertNoPageProblems();
+  } finally {
+    await dev.context.close();
+    await pilot.context.close();
+  }
+});

@@ -501,7 +501,7 @@ test("gamepad buttons: one command per press, the mapping editor assigns by pres
   }
 });
 
-test("settings: values go to the server and its reason is shown in the form; camera rotation is kept per vehicle", { timeout: TEST_MS }, async () => {
+test("settings: values go to the server and its reason is shown in the form; camera rotation is the vehicle's, on every page", { timeout: TEST_MS }, async () => {
   const { context, page } = await operator({ ...DESKTOP, name: "e2e-settings" });
   try {
     // observers' controls are disabled
@@ -554,13 +554,22 @@ test("settings: values go to the server and its reason is shown in the form; cam
     console.log(`# autopilot depth 1.5 → ${depth.state} ${depth.text}`);
     if (depth.state === "ok") await page.locator("#depth-off").click();
 
-    // image rotation: a per-vehicle setting of this browser
-    await page.locator("#rotation").selectOption("180");
-    await page.locator('[data-testid="camera"][data-rotation="180"]').waitFor();
-    await page.locator("#release-control").click();
-    await page.reload();
-    await page.locator('[data-testid="camera"][data-rotation="180"]').waitFor();
-    await page.locator("#rotation").selectOption("0");
+    // image rotation: a vehicle setting, stored on the server and applied on every page
+    const watcher = await operator({ ...TABLET, name: "e2e-settings-watch" });
+    try {
+      assert.equal(await watcher.page.locator("#rotation").isDisabled(), true, "observers do not turn the vehicle's camera");
+      await page.locator("#rotation").selectOption("180");
+      await page.locator('[data-testid="camera"][data-rotation="180"]').waitFor();
+      await watcher.page.locator('[data-testid="camera"][data-rotation="180"]').waitFor();
+      await page.locator("#release-control").click();
+      await page.reload();
+      await page.locator('[data-testid="camera"][data-rotation="180"]').waitFor();
+      await takeHelm(page);
+      await page.locator("#rotation").selectOption("0");
+      await watcher.page.locator('[data-testid="camera"][data-rotation="0"]').waitFor();
+    } finally {
+      await watcher.context.close();
+    }
     assertNoPageProblems();
   } finally {
     await context.close();

@@ -38,7 +38,11 @@ defmodule Neptunus.EstimatorTest do
                depth: nil,
                depth_rate: nil,
                heading: nil,
-               yaw_rate: nil
+               yaw_rate: nil,
+               roll: nil,
+               roll_rate: nil,
+               pitch: nil,
+               pitch_rate: nil
              }
 
       assert Estimator.measurement(est) |> Map.values() |> Enum.all?(&is_nil/1)
@@ -95,6 +99,35 @@ defmodule Neptunus.EstimatorTest do
 
       est = Estimator.update(est, 1.65, m(5.0, 0.5))
       assert Estimator.verdicts(est).depth == :accepted
+    end
+  end
+
+  describe "roll and pitch" do
+    test "are estimated from the IMU's readings: filtered, wild points left out" do
+      # a slow roll to 0.1 rad with ±0.5° of alternating noise, pitch steady at -0.05
+      noisy = fn t, i ->
+        n = if rem(i, 2) == 0, do: 0.009, else: -0.009
+        %{m(1.0 + 1.0e-5 * rem(i, 3), 0.5) | roll: min(t * 0.05, 0.1) + n, pitch: -0.05 + n}
+      end
+
+      est = series(cv(), 0.0, 4.0, noisy)
+      e = Estimator.estimate(est)
+      assert_in_delta e.roll, 0.1, 0.008
+      assert_in_delta e.pitch, -0.05, 0.008
+      assert is_float(e.roll_rate) and is_float(e.pitch_rate)
+      # closer to the truth than the last reading (the readings alternate by ±0.009)
+      assert abs(e.roll - 0.1) < abs(Estimator.measurement(est).roll - 0.1)
+
+      # a wild roll (×10) is rejected: the estimate does not follow it
+      est = Estimator.update(est, 4.0, %{m(1.0, 0.5) | roll: 1.0, pitch: -0.05})
+      assert {:rejected, _} = Estimator.verdicts(est).roll
+      # (the prediction over the step moves it by its rate, not towards the wild 1.0)
+      assert_in_delta Estimator.estimate(est).roll, 0.1, 0.03
+    end
+
+    test "are nil until the IMU is valid" do
+      est = Estimator.update(cv(), 0.0, m(1.0, 0.5))
+      assert %{roll: nil, roll_rate: nil, pitch: nil, pitch_rate: nil} = Estimator.estimate(est)
     end
   end
 

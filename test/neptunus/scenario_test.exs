@@ -239,8 +239,9 @@ defmodule Neptunus.ScenarioTest do
 
       assert Run.columns() ==
                ~w(t x y z phi theta psi u v w p q r depth_meas heading_meas roll_meas pitch_meas
-                  voltage_meas current_meas depth_est depth_rate_est heading_est yaw_rate_est
-                  depth_setpoint heading_setpoint port vertical starboard)
+                  voltage_meas current_meas depth_est depth_rate_est heading_est yaw_rate_est roll_est pitch_est
+                  depth_setpoint heading_setpoint depth_reference heading_reference port
+                  vertical starboard)
     end
 
     test "events take effect at their step; gain scales motion and manual thrust" do
@@ -334,12 +335,12 @@ defmodule Neptunus.ScenarioTest do
 
       for line <- lines do
         values = String.split(line, ",")
-        assert length(values) == 28
-        # the autopilot setpoints are empty while disengaged
-        assert ["", ""] = Enum.slice(values, 23, 2)
+        assert length(values) == 32
+        # the autopilot setpoints and references are empty while disengaged
+        assert ["", "", "", ""] = Enum.slice(values, 25, 4)
 
         Enum.each(
-          values -- ["", ""],
+          values -- ["", "", "", ""],
           &String.to_float(if String.contains?(&1, "."), do: &1, else: &1 <> ".0")
         )
       end

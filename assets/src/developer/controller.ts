@@ -26,6 +26,7 @@ import { CommandError, NeptunusClient } from "../lib/vehicle_client";
 import type { ConnectionStatus, VehicleChannel } from "../lib/vehicle_client";
 import { DEFAULT_PLOT_SET, MAX_PLOTS, encodePlotSet, parsePlotSet } from "./plot_set";
 import type { PlotSet } from "./plot_set";
+import { TuningController } from "./tuning";
 
 export { MAX_PLOTS };
 
@@ -100,6 +101,8 @@ export class DevController {
   readonly store: Store<DevState>;
   readonly recorder: SeriesRecorder;
   readonly log = new LogBook();
+  /** the autopilot tuning panel's logic */
+  readonly tuning = new TuningController();
   private readonly params: URLSearchParams;
   private facts: TelemetryFacts | null = null;
   private lastHelm: Helm | null = null;
@@ -204,6 +207,7 @@ export class DevController {
         this.add({ category: "error", level: "error", message: `unexpected ${what} payload: ${JSON.stringify(payload).slice(0, 200)}` }),
     });
     this.vehicle = vehicle;
+    this.tuning.attach(vehicle);
     vehicle.join().catch((err: unknown) => {
       this.add({ category: "error", level: "error", message: `cannot join vehicle ${id}: ${reasonOf(err)}` });
       this.store.update({ message: `Cannot join vehicle ${id}: ${reasonOf(err)}` });

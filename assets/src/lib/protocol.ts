@@ -93,11 +93,15 @@ export interface ControlSettings {
   readonly tilt: number | null;
   readonly run_mode: string | null;
   readonly autopilot: AutopilotSetpoints | null;
+  /** in control mode dp, what DP holds: `["depth", "heading", "position"]`, or without a position source `["depth", "heading"]` */
+  readonly dp_holds?: readonly string[];
 }
 
 /** One autopilot loop: its setpoint (m or rad) and output. */
 export interface AutopilotLoop {
   readonly setpoint: number;
+  /** what the loop tracks on its way to the setpoint (rate- and acceleration-limited; m or rad) */
+  readonly reference?: number;
   readonly output: number;
   /** why it gives no output now (its measurement initialising after a board reset, …); null: it acts */
   readonly waiting: string | null;
@@ -280,6 +284,21 @@ export interface VehicleSnapshot {
   readonly control: ControlSettings | null;
   /** null: the vehicle has no camera (or the server does not say) */
   readonly camera: CameraInfo | null;
+  /** the vehicle's view settings (absent from an older server) */
+  readonly settings?: VehicleSettings;
+}
+
+/** A vehicle's settings every page applies (`settings` in the snapshot, `vehicle_settings`). */
+export interface VehicleSettings {
+  /** the camera image rotation, degrees clockwise: 0, 90, 180 or 270 */
+  readonly camera_rotation: number;
+}
+
+/** `vehicle_settings` (and the snapshot's `settings`), or null. */
+export function decodeVehicleSettings(value: unknown): VehicleSettings | null {
+  if (!isRecord(value)) return null;
+  const r = value["camera_rotation"];
+  return r === 0 || r === 90 || r === 180 || r === 270 ? { camera_rotation: r } : null;
 }
 
 /** Reply to a `thrust` or `stop` push (outputs only; the pulse widths come with telemetry). */
@@ -382,6 +401,7 @@ export function decodeControlSettings(value: unknown): ControlSettings | null {
     ? { depth: numberOrNull(ap["depth"]), heading: numberOrNull(ap["heading"]) }
     : null;
   const runMode = value["run_mode"];
+  const dpHolds: unknown = value["dp_holds"];
   return {
     mode: value["mode"],
     gain: numberOrNull(value["gain"]),
@@ -390,6 +410,7 @@ export function decodeControlSettings(value: unknown): ControlSettings | null {
     tilt: numberOrNull(value["tilt"]),
     run_mode: typeof runMode === "string" ? runMode : null,
     autopilot,
+    ...(Array.isArray(dpHolds) ? { dp_holds: dpHolds.filter((x): x is string => typeof x === "string") } : {}),
   };
 }
 
@@ -397,7 +418,13 @@ function decodeLoop(value: unknown): AutopilotLoop | null {
   const loop = numbers(value, ["setpoint", "output"] as const);
   if (!loop || !isRecord(value)) return null;
   const waiting = value["waiting"];
-  return { setpoint: loop.setpoint, output: loop.output, waiting: typeof waiting === "string" ? waiting : null };
+  const reference = value["reference"];
+  return {
+    setpoint: loop.setpoint,
+    output: loop.output,
+    waiting: typeof waiting === "string" ? waiting : null,
+    ...(typeof reference === "number" && Number.isFinite(reference) ? { reference } : {}),
+  };
 }
 
 export function decodeAutopilotStatus(value: unknown): AutopilotStatus | null {
@@ -574,7 +601,8 @@ export function decodeVehicleSnapshot(value: unknown): VehicleSnapshot | null {
   const session = rawSession === undefined ? null : decodeSession(rawSession);
   if (session === null && rawSession !== undefined) return null;
   const control = decodeControlSettings(value["control"]);
-  return { vehicle, telemetry, pilot, helm, session, control, camera: decodeCamera(value) };
+  const settings = decodeVehicleSettings(value["settings"]);
+  return { vehicle, telemetry, pilot, helm, session, control, camera: decodeCamera(value), ...(settings ? { settings } : {}) };
 }
 
 const ROLES: readonly string[] = ["pilot", "observer", "main_station"];

@@ -22,6 +22,7 @@ import {
   decodeControlReply,
   decodeControlUpdate,
   decodeLinkStatus,
+  decodeVehicleSettings,
   decodeFleetReply,
   decodeGrant,
   decodeHelm,
@@ -48,6 +49,7 @@ import type {
   PresenceEntry,
   Telemetry,
   ThrustReply,
+  VehicleSettings,
   VehicleSnapshot,
 } from "./protocol";
 
@@ -218,6 +220,8 @@ export interface VehicleHandlers {
   /** Who is connected to this vehicle (after every presence sync). */
   readonly presence?: (entries: readonly PresenceEntry[]) => void;
   readonly status?: (status: ConnectionStatus) => void;
+  /** The vehicle's settings changed (camera rotation): every page applies them. */
+  readonly vehicleSettings?: (settings: VehicleSettings) => void;
   /** A payload that does not have the documented shape (ignored otherwise). */
   readonly protocolError?: (what: string, payload: unknown) => void;
 }
@@ -269,6 +273,11 @@ export class VehicleChannel {
     });
     this.channel.on("stopped", (payload: unknown) => {
       handlers.stopped?.(errorReason(payload));
+    });
+    this.channel.on("vehicle_settings", (payload: unknown) => {
+      const settings = decodeVehicleSettings(payload);
+      if (settings) handlers.vehicleSettings?.(settings);
+      else handlers.protocolError?.("vehicle_settings", payload);
     });
     this.channel.on("link", (payload: unknown) => {
       const link = decodeLinkStatus(payload);
@@ -466,6 +475,19 @@ export class VehicleChannel {
         .receive("ok", () => resolve())
         .receive("timeout", () => resolve());
     });
+  }
+
+  /** The camera rotation of this vehicle, for every page (the pilot or the main station). */
+  setCameraRotation(degrees: number): Promise<VehicleSettings> {
+    return this.command("set_camera_rotation", { value: degrees }, decodeVehicleSettings, DEFAULT_COMMAND_TIMEOUT_MS);
+  }
+
+  /**
+   * A request on the vehicle's topic whose reply `decode` reads (null: unexpected reply):
+   * the autopilot tuning events `get_tuning`, `step_response`, `set_tuning`.
+   */
+  request<T>(event: string, payload: object, decode: (response: unknown) => T | null, timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<T> {
+    return this.command(event, payload, decode, timeoutMs);
   }
 
   private setting(event: string, payload: object): Promise<ControlSettings> {

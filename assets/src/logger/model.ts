@@ -116,7 +116,7 @@ export const recorded = (entry: NewEntry): NewEntry => ({ ...entry, message: `[r
 
 /**
  * The logger's entry for an event of a server recording (`stopped`, `link`, `helm`,
- * `recording`), marked "[recorded]"; null for events the logger does not show (presence,
+ * `recording`, and the vehicle's `log` entries), marked "[recorded]"; null for events the logger does not show (presence,
  * control updates) or malformed ones.
  */
 export function entryFromRecordedEvent(event: string, payload: unknown, at: number): NewEntry | null {
@@ -136,6 +136,13 @@ export function entryFromRecordedEvent(event: string, payload: unknown, at: numb
     }
     case "recording":
       return { at, category: "recording", level: "error", message: `[recorded] recording stopped: ${text(payload["error"]) || "?"}` };
+    case "log": {
+      // a server log entry (safety, link, errors, autopilot, …); a safety entry with the
+      // stop's reason mirrors a recorded `stopped` event, which is shown already
+      if (payload["category"] === "safety" && typeof payload["reason"] === "string") return null;
+      const entry = entryFromServerLog(payload, at);
+      return entry === null ? null : recorded(entry);
+    }
     default:
       return null;
   }

@@ -48,7 +48,7 @@ import {
   loadRotation,
   saveGamepadOptions,
   saveInputMode,
-  saveRotation,
+  parseRotation,
 } from "../lib/prefs";
 import type { Rotation } from "../lib/prefs";
 import { cameraWithToken } from "../lib/protocol";
@@ -83,6 +83,7 @@ export type FieldName =
   | "lights"
   | "laser"
   | "tilt"
+  | "rotation"
   | "headset";
 
 /** Where the button mapping stands: read from the server, saved, or why not. */
@@ -353,9 +354,12 @@ export class OperatorController {
 
   private openVehicle(client: NeptunusClient, id: string): void {
     document.title = `Neptunus — ${id}`;
+    // the camera rotation is the vehicle's (the server's settings); the browser's earlier
+    // per-vehicle choice shows only until the server's comes (an older server sends none)
     this.store.update({ vehicleId: id, rotation: loadRotation(storage(), id) });
     const vehicle = client.vehicle(id, {
       snapshot: (snapshot) => {
+        if (snapshot.settings) this.store.update({ rotation: parseRotation(snapshot.settings.camera_rotation) });
         this.dispatch({ type: "joined", helm: snapshot.helm, session: snapshot.session, atMs: performance.now() });
         this.store.update({
           pilotName: snapshot.pilot?.name ?? null,
@@ -366,6 +370,7 @@ export class OperatorController {
         if (snapshot.telemetry) this.onTelemetry(snapshot.telemetry);
       },
       telemetry: (t) => this.onTelemetry(t),
+      vehicleSettings: (settings) => this.store.update({ rotation: parseRotation(settings.camera_rotation) }),
       helm: (h) => {
         this.store.update({ pilotName: h.pilot?.name ?? null });
         this.dispatch({ type: "helm", helm: h, atMs: performance.now() });
@@ -764,10 +769,21 @@ export class OperatorController {
   // ------------------------------------------------------------------------------------------
   // Settings
 
+  /**
+   * The vehicle's camera rotation, for every page: stored on the server (the pilot or the main
+   * station may change it); every page turns its image when the server says so.
+   */
   setRotation(rotation: Rotation): void {
-    const id = this.state.vehicleId;
-    this.store.update({ rotation });
-    if (id !== null) saveRotation(storage(), id, rotation);
+    const vehicle = this.vehicle;
+    if (vehicle === null) return;
+    this.setField("rotation", "busy", "…");
+    vehicle.setCameraRotation(rotation).then(
+      (settings) => {
+        this.store.update({ rotation: parseRotation(settings.camera_rotation) });
+        this.setField("rotation", "ok", "✓");
+      },
+      (err: unknown) => this.setField("rotation", "error", reasonOf(err)),
+    );
   }
 
   setControlMode(mode: ControlMode): void {

@@ -11,6 +11,7 @@ import type { Rotation } from "../lib/prefs";
 import type { BoardLinkDetails, CameraInfo, CameraStatus, RecordingStatus } from "../lib/protocol";
 import { formatHeading, headingDeg, radToDeg } from "../lib/units";
 import type { OperatorState } from "./controller";
+import { DEPTH_TOLERANCE, HEADING_TOLERANCE, movingReference } from "./reference";
 import type { MeasurementState } from "../lib/protocol";
 import {
   CAMERA_RETRY_MS,
@@ -216,6 +217,9 @@ export function Hud(props: { s: OperatorState }): preact.JSX.Element {
   const apStatus = t?.autopilot ?? null;
   const headingSp = ap?.heading ?? apStatus?.heading?.setpoint ?? null;
   const depthSp = ap?.depth ?? apStatus?.depth?.setpoint ?? null;
+  // the reference the autopilot tracks, shown while it is on its way to the setpoint
+  const depthRef = movingReference(apStatus?.depth ?? null, DEPTH_TOLERANCE, false);
+  const headingRef = movingReference(apStatus?.heading ?? null, HEADING_TOLERANCE, true);
   const link = s.link;
   return (
     <div class="hud" data-stale={s.telemetryState !== "live"}>
@@ -245,6 +249,11 @@ export function Hud(props: { s: OperatorState }): preact.JSX.Element {
           <span class="setpoint" data-testid="hud-depth-setpoint">
             {depthSp === null ? "autopilot off" : `set ${fmt(depthSp, 2)} m`}
           </span>
+          {depthRef !== null ? (
+            <span class="setpoint" data-testid="hud-depth-reference">
+              → now {fmt(depthRef, 2)} m
+            </span>
+          ) : null}
           {apStatus?.depth?.waiting ? (
             <span class="setpoint warn" data-testid="hud-depth-waiting">
               {apStatus.depth.waiting}
@@ -255,6 +264,11 @@ export function Hud(props: { s: OperatorState }): preact.JSX.Element {
           <span class="setpoint" data-testid="hud-heading-setpoint">
             {headingSp === null ? "off" : `set ${formatHeading(headingSp)}°`}
           </span>
+          {headingRef !== null ? (
+            <span class="setpoint" data-testid="hud-heading-reference">
+              → now {formatHeading(headingRef)}°
+            </span>
+          ) : null}
           {apStatus?.heading?.waiting ? (
             <span class="setpoint warn" data-testid="hud-heading-waiting">
               {apStatus.heading.waiting}

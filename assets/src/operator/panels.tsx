@@ -11,6 +11,7 @@ import { CONTROL_MODES, RUN_MODES } from "../lib/protocol";
 import type { ControlMode, RunMode } from "../lib/protocol";
 import { formatHeading } from "../lib/units";
 import type { FieldName, OperatorController, OperatorState } from "./controller";
+import { dpNote } from "./dp";
 import { fmt, formatDeg } from "./format";
 
 interface Props {
@@ -382,6 +383,11 @@ export function SettingsPanel({ s, c }: Props): preact.JSX.Element {
           onSelect={(m) => c.setControlMode(m)}
         />
         <FieldStatusText s={s} field="control_mode" />
+        {dpNote(ctl) !== null && (
+          <p class="note" data-testid="dp-note">
+            {dpNote(ctl)}
+          </p>
+        )}
       </div>
       <div class="setting-row">
         <span class="setting-label">Run mode</span>
@@ -410,6 +416,7 @@ export function SettingsPanel({ s, c }: Props): preact.JSX.Element {
         <select
           id="rotation"
           data-testid="rotation"
+          disabled={off}
           value={String(s.rotation)}
           onChange={(e) => c.setRotation(parseRotation((e.currentTarget as HTMLSelectElement).value))}
         >
@@ -419,7 +426,8 @@ export function SettingsPanel({ s, c }: Props): preact.JSX.Element {
             </option>
           ))}
         </select>
-        <small class="note">this browser, this vehicle</small>
+        <small class="note">this vehicle, every page</small>
+        <FieldStatusText s={s} field="rotation" />
       </div>
     </Panel>
   );

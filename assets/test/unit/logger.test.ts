@@ -184,6 +184,18 @@ describe("a server recording's events in the logger", () => {
     expect(entryFromRecordedEvent("recording", { recording: false, error: "disk nearly full" }, 8)?.category).toBe("recording");
   });
 
+  it("shows the vehicle's recorded log entries, not the safety ones a stop already shows", () => {
+    expect(entryFromRecordedEvent("log", { category: "errors", level: "error", message: "camera failed", at: 3 }, 9)).toEqual({
+      at: 3,
+      category: categoryOf("errors"),
+      level: "error",
+      message: "[recorded] camera failed",
+    });
+    expect(entryFromRecordedEvent("log", { category: "autopilot", level: "warning", message: "depth hold: waiting" }, 9)?.at).toBe(9);
+    expect(entryFromRecordedEvent("log", { category: "safety", level: "warning", message: "stopped: deadman", reason: "deadman" }, 9)).toBeNull();
+    expect(entryFromRecordedEvent("log", { message: "no category" }, 9)).toBeNull();
+  });
+
   it("leaves out what the logger does not show, and malformed events", () => {
     expect(entryFromRecordedEvent("presence_diff", { joins: {}, leaves: {} }, 1)).toBeNull();
     expect(entryFromRecordedEvent("control", { gain: 0.5 }, 1)).toBeNull();

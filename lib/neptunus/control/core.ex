@@ -28,10 +28,20 @@ defmodule Neptunus.Control.Core do
       heading is held at full speed.
     * `:manual` — the pilot commands each thruster in [-1, 1], scaled by `k`. No autopilots:
       entering manual disengages them (thesis §7.1) and engaging one is refused.
-    * `:dp` — position hold (`Neptunus.Control.DP`) with depth and heading held. Needs a
-      position source (an estimate with a `position`); the pilot sends no thrust in DP.
-      Entering DP engages depth and heading hold at their current values unless they are
-      engaged already (then their setpoints are kept), and holds the current position.
+    * `:dp` — position hold (`Neptunus.Control.DP`) with depth and heading held; the pilot
+      sends no thrust in DP. Entering DP engages depth and heading hold at their current
+      values unless they are engaged already (then their setpoints are kept), and holds the
+      current position when there is a position source (an estimate with a `position`).
+      Without one DP holds depth and heading only, as the thesis' DP does (ch. 14): surge is
+      zero, and it says so (`dp_holds/1`: `["depth", "heading"]` in the control state, and a
+      `{:notice, …}`).
+
+  ## Setpoints and tuning
+
+  The autopilots track a rate- and acceleration-limited reference towards their setpoints
+  (`Neptunus.Control.Autopilot`, `Neptunus.Control.Reference`; limits per axis, option
+  `reference`), so a setpoint step never jerks the vehicle. `retune/2` changes the depth and
+  heading PID gains at run time, bumplessly (`Neptunus.Control.Tuning` validates them).
 
   ## Stops
 
@@ -147,7 +157,8 @@ defmodule Neptunus.Control.Core do
   (`%{depth: [kp:, ki:, kd:], heading: …, surge: …}` merged over the defaults), `stale_after`
   (s), `deadband` (the thrusters' deadband the autopilot outputs skip, default 0.05 — the
   vehicle files' and a typical ESC's; 0 turns compensation off), `dp` (`return_radius`,
-  `capture_radius`).
+  `capture_radius`), `reference` (`%{depth: [rate:, accel:], heading: …}`: the setpoint
+  reference limits, SI and rad, default `Neptunus.Control.Autopilot.default_limits/0`).
   """
   @spec new(keyword()) :: t()
   def new(opts \\ []) do
@@ -156,12 +167,14 @@ defmodule Neptunus.Control.Core do
         Keyword.merge(a, Enum.to_list(b))
       end)
 
+    references = Map.new(Keyword.get(opts, :reference, %{}))
+
     %__MODULE__{
       gain: Keyword.get(opts, :gain, 0.5) * 1.0,
       run_modes: Keyword.get(opts, :run_modes, [:normal]),
       gains: gains,
-      depth: Autopilot.new(:depth, gains.depth),
-      heading: Autopilot.new(:heading, gains.heading),
+      depth: Autopilot.new(:depth, gains.depth, references[:depth]),
+      heading: Autopilot.new(:heading, gains.heading, references[:heading]),
       stale_after: Keyword.get(opts, :stale_after, 1.0) * 1.0,
       deadband: Keyword.get(opts, :deadband, 0.05) * 1.0,
       dp_opts: Keyword.get(opts, :dp, [])
@@ -184,18 +197,19 @@ defmodule Neptunus.Control.Core do
 
   def command(core, {:set_control_mode, :dp}, now) do
     case fresh_estimate(core, now) do
-      %{position: %{x: _, y: _}} = estimate ->
+      nil ->
+        {:error, "dp needs a current estimate of depth and heading (no board samples)"}
+
+      estimate ->
         case unavailable(estimate, :depth) || unavailable(estimate, :heading) do
           nil ->
             {core, actions} = pilot_stop(core, "control_mode_changed")
-            {:ok, enter_dp(core, estimate), actions}
+            core = enter_dp(core, estimate)
+            {:ok, core, actions ++ dp_notice(core)}
 
           reason ->
             {:error, "dp needs " <> reason}
         end
-
-      _ ->
-        {:error, "dp needs a position source: this vehicle has none"}
     end
   end
 
@@ -302,6 +316,28 @@ defmodule Neptunus.Control.Core do
        "run mode #{mode} needs a vehicle with a real board: this one is simulated " <>
          "(its normal run mode is the simulator)"}
     end
+  end
+
+  @doc """
+  New PID gains for the depth and/or heading autopilot (`%{depth: [kp:, ki:, kd:], heading:
+  …}`, validated by `Neptunus.Control.Tuning`), applied at once and bumpless: an engaged
+  autopilot's output does not jump (its integral absorbs the change, see
+  `Neptunus.Control.Autopilot.retune/4`). No actions: the output is unchanged.
+  """
+  @spec retune(t(), %{optional(:depth) => keyword(), optional(:heading) => keyword()}) :: t()
+  def retune(core, gains) do
+    estimate = core.estimate || %{}
+
+    Enum.reduce(gains, core, fn
+      {axis, axis_gains}, core when axis in [:depth, :heading] ->
+        {key, rate_key} =
+          if axis == :depth, do: {:depth, :depth_rate}, else: {:heading, :yaw_rate}
+
+        ap = Map.fetch!(core, axis)
+        ap = Autopilot.retune(ap, axis_gains, estimate[key], estimate[rate_key])
+        gains = Map.put(core.gains, axis, Autopilot.gains(ap))
+        core |> Map.put(axis, ap) |> Map.put(:gains, gains)
+    end)
   end
 
   # --- stops, estimates, ticks -------------------------------------------------------------
@@ -470,8 +506,8 @@ defmodule Neptunus.Control.Core do
 
   @doc """
   The control state as the wire shows it (command replies, grants, join snapshot):
-  `%{mode, gain, lights, laser, tilt, run_mode, autopilot: %{depth, heading, position},
-  command, thrusters}` — `autopilot.depth`/`heading` are the setpoints (nil: disengaged),
+  `%{mode, gain, lights, laser, tilt, run_mode, dp_holds, autopilot: %{depth, heading,
+  position}, command, thrusters}` — `dp_holds` what DP holds (`dp_holds/1`), `autopilot.depth`/`heading` are the setpoints (nil: disengaged),
   `position` DP's target `%{x, y}` (nil unless in dp); `command` is the pilot's, `thrusters`
   the output with pulse widths.
   """
@@ -492,6 +528,7 @@ defmodule Neptunus.Control.Core do
       laser: core.laser,
       tilt: core.tilt,
       run_mode: Atom.to_string(core.run_mode),
+      dp_holds: dp_holds(core),
       autopilot: %{
         depth: Autopilot.setpoint(core.depth),
         heading: if(core.dp, do: core.dp.heading, else: Autopilot.setpoint(core.heading)),
@@ -570,15 +607,32 @@ defmodule Neptunus.Control.Core do
         do: core.heading,
         else: Autopilot.engage(core.heading, :hold, estimate.heading, estimate[:yaw_rate], false)
 
+    # without a position source DP holds depth and heading only (thesis ch. 14)
     dp =
-      DP.new(
-        estimate.position,
-        Autopilot.setpoint(heading),
-        [gains: core.gains.surge] ++ core.dp_opts
-      )
+      case estimate[:position] do
+        %{x: _, y: _} = position ->
+          DP.new(position, Autopilot.setpoint(heading), [gains: core.gains.surge] ++ core.dp_opts)
+
+        _ ->
+          nil
+      end
 
     %{core | mode: :dp, pilot: zero(:dp), depth: depth, heading: heading, dp: dp}
   end
+
+  defp dp_notice(%__MODULE__{mode: :dp, dp: nil}),
+    do: [{:notice, "dp: no position source: holding depth and heading only"}]
+
+  defp dp_notice(_core), do: []
+
+  @doc """
+  What DP holds: nil outside control mode dp, else `["depth", "heading", "position"]`, or
+  `["depth", "heading"]` on a vehicle without a position source.
+  """
+  @spec dp_holds(t()) :: [String.t()] | nil
+  def dp_holds(%__MODULE__{mode: :dp, dp: nil}), do: ["depth", "heading"]
+  def dp_holds(%__MODULE__{mode: :dp}), do: ["depth", "heading", "position"]
+  def dp_holds(_core), do: nil
 
   # leaving DP: the heading autopilot goes back to DP's held heading
   defp leave_dp(%__MODULE__{dp: nil} = core), do: core
@@ -645,7 +699,11 @@ defmodule Neptunus.Control.Core do
 
   def mix(%__MODULE__{mode: mode, gain: k, pilot: p} = core) do
     {surge, pilot_k} =
-      if mode == :dp, do: {compensate(core.dp.output, core), 0.0}, else: {k * p.surge, k}
+      case {mode, core.dp} do
+        {:dp, %DP{output: output}} -> {compensate(output, core), 0.0}
+        {:dp, nil} -> {0.0, 0.0}
+        _ -> {k * p.surge, k}
+      end
 
     heave =
       case Autopilot.output(core.depth) do

@@ -256,6 +256,71 @@ defmodule Neptunus.Dynamics.Params do
     end
   end
 
+  @doc """
+  Parameter set `name` with the vehicle differing from it by the given factors — the model
+  is never exact, and the control must hold anyway (`test/neptunus/robust_test.exs`):
+
+    * `mass` — the rigid-body mass and the translational block of the added mass;
+    * `inertia` — the rigid-body inertia and the rotational block of the added mass (the
+      coupling terms by `√(mass · inertia)`, so the mass matrix stays positive definite);
+    * `damping` — the linear and quadratic damping;
+    * `thrust` — every thruster's forward and reverse thrust.
+
+  Factors default to 1 and must be > 0. The net buoyancy is kept (it is measured as such).
+  """
+  @spec scaled(String.t(), %{optional(atom()) => number()}) :: {:ok, t()} | {:error, String.t()}
+  def scaled(name, factors) do
+    f = fn key -> Map.get(factors, key, 1.0) * 1.0 end
+
+    with :ok <- positive_factors(factors),
+         {:ok, json} <- V.read_file(path(name)),
+         {:ok, map} <- Neptunus.JSON.decode(json) do
+      {m, i, d, t} = {f.(:mass), f.(:inertia), f.(:damping), f.(:thrust)}
+      cross = :math.sqrt(m * i)
+
+      block = fn r, c ->
+        if r < 3 and c < 3, do: m, else: if(r >= 3 and c >= 3, do: i, else: cross)
+      end
+
+      map
+      |> update_in(["rigid_body", "mass"], &(&1 * m))
+      |> update_in(["rigid_body", "inertia"], &scale_matrix(&1, fn _, _ -> i end))
+      |> update_in(["added_mass"], &scale_matrix(&1, block))
+      |> update_in(["damping", "linear"], &Enum.map(&1, fn x -> x * d end))
+      |> update_in(["damping", "quadratic"], &Enum.map(&1, fn x -> x * d end))
+      |> update_in(["thrusters"], fn thrusters ->
+        Enum.map(
+          thrusters,
+          &(&1
+            |> Map.update!("forward", fn x -> x * t end)
+            |> Map.update!("reverse", fn x -> x * t end))
+        )
+      end)
+      |> from_map()
+    end
+  end
+
+  defp positive_factors(factors) do
+    case Enum.find(factors, fn {key, x} ->
+           key not in [:mass, :inertia, :damping, :thrust] or not (is_number(x) and x > 0)
+         end) do
+      nil ->
+        :ok
+
+      {key, x} ->
+        {:error,
+         "scale factor #{key} must be one of mass, inertia, damping, thrust and > 0, got #{inspect(x)}"}
+    end
+  end
+
+  defp scale_matrix(rows, factor) do
+    rows
+    |> Enum.with_index()
+    |> Enum.map(fn {row, r} ->
+      row |> Enum.with_index() |> Enum.map(fn {x, c} -> x * factor.(r, c) end)
+    end)
+  end
+
   @doc "The same parameters with another deployed tether length (m, ≥ 0)."
   @spec with_tether_length(t(), number()) :: t()
   def with_tether_length(%__MODULE__{} = params, length) when is_number(length) and length >= 0,

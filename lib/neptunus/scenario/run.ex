@@ -11,14 +11,19 @@ defmodule Neptunus.Scenario.Run do
       t, x, y, z, phi, theta, psi, u, v, w, p, q, r          true state (SI, rad)
       depth_meas, heading_meas, roll_meas, pitch_meas,        what the sensors report
       voltage_meas, current_meas                              (true values unless noise)
-      depth_est, depth_rate_est, heading_est, yaw_rate_est    navigation's estimate
+      depth_est, depth_rate_est, heading_est, yaw_rate_est,   navigation's estimate
+      roll_est, pitch_est
       depth_setpoint, heading_setpoint                        autopilot setpoints (m, rad;
                                                               empty while disengaged)
+      depth_reference, heading_reference                      what the autopilots track on
+                                                              the way (m, rad; the
+                                                              setpoint reference model)
       port, vertical, starboard                               thruster commands in [-1, 1]
 
   The estimate is `Neptunus.Estimator` — the same filter as a live vehicle's
   `Neptunus.Vehicle.Navigation` — run on every step's measurements (wild points and all) and
-  told every thruster command, with the scenario's vehicle as its model. The scenario starts
+  told every thruster command, with the scenario's vehicle as its model (or the scenario's
+  `model`, when set: a vehicle that differs from the model its navigation has). The scenario starts
   with the vehicle's sensors up (it has been running before; there is no board boot to wait
   out), so the first reading is valid at once (`settle: 0`, `agree: 1`); everything after
   that — wild points, re-acquisition — is the live filter's. An estimate that does not exist
@@ -40,8 +45,9 @@ defmodule Neptunus.Scenario.Run do
 
   @state_columns ~w(x y z phi theta psi u v w p q r)a
   @meas_columns ~w(depth heading roll pitch voltage current)a
-  @est_columns ~w(depth depth_rate heading yaw_rate)a
+  @est_columns ~w(depth depth_rate heading yaw_rate roll pitch)a
   @setpoint_columns ~w(depth heading)a
+  @reference_columns ~w(depth heading)a
   @thruster_columns ~w(port vertical starboard)a
 
   @doc "The CSV columns, in order."
@@ -52,19 +58,29 @@ defmodule Neptunus.Scenario.Run do
       Enum.map(@meas_columns, &"#{&1}_meas") ++
       Enum.map(@est_columns, &"#{&1}_est") ++
       Enum.map(@setpoint_columns, &"#{&1}_setpoint") ++
+      Enum.map(@reference_columns, &"#{&1}_reference") ++
       Enum.map(@thruster_columns, &Atom.to_string/1)
   end
 
-  @doc "The rows as lists of floats (nil for a missing estimate) in the order of `columns/0` (every `every`-th step)."
-  @spec rows(Scenario.t(), pos_integer()) :: Enumerable.t()
-  def rows(%Scenario{} = scenario, every \\ 1) when is_integer(every) and every >= 1 do
+  @doc """
+  The rows as lists of floats (nil for a missing estimate) in the order of `columns/0` (every
+  `every`-th step). `control` are options of the control (`Neptunus.Control.Core.new/1`:
+  `gains`, `reference`, … — a tuning's step response runs on them); the scenario's gain wins.
+  """
+  @spec rows(Scenario.t(), pos_integer(), keyword()) :: Enumerable.t()
+  def rows(%Scenario{} = scenario, every \\ 1, control \\ [])
+      when is_integer(every) and every >= 1 do
     last = Scenario.steps(scenario)
     sim = Sim.new(Scenario.sim_options(scenario) ++ [native: true])
 
     est =
-      [vehicle: scenario.params] |> Keyword.merge(@sensors_up) |> Estimator.new() |> observe(sim)
+      [vehicle: scenario.model || scenario.params]
+      |> Keyword.merge(@sensors_up)
+      |> Estimator.new()
+      |> observe(sim)
 
-    control = %{core: Core.new(gain: scenario.gain), next_tick: 0} |> estimate(est, sim)
+    core = control |> Keyword.put(:gain, scenario.gain) |> Core.new()
+    control = %{core: core, next_tick: 0} |> estimate(est, sim)
 
     Stream.unfold({0, sim, scenario.events, control, est}, fn
       {k, _sim, _events, _control, _est} when k > last ->
@@ -140,13 +156,22 @@ defmodule Neptunus.Scenario.Run do
     thr = sim.thrusters
     e = Estimator.estimate(est)
     setpoints = Core.control(control.core).autopilot
+    autopilots = Core.autopilot(control.core)
 
     [k * sim.dt] ++
       Enum.map(@state_columns, &Map.fetch!(truth, &1)) ++
       Enum.map(@meas_columns, &Map.fetch!(m, &1)) ++
       Enum.map(@est_columns, &Map.fetch!(e, &1)) ++
       Enum.map(@setpoint_columns, &Map.fetch!(setpoints, &1)) ++
+      Enum.map(@reference_columns, &reference(autopilots, &1)) ++
       Enum.map(@thruster_columns, &(Map.get(thr, &1, 0.0) * 1.0))
+  end
+
+  defp reference(autopilots, axis) do
+    case Map.fetch!(autopilots, axis) do
+      %{reference: r} -> r
+      nil -> nil
+    end
   end
 
   # events with t_event ≤ k·dt, within half a step, then the control ticks due by then

@@ -37,8 +37,8 @@ defmodule Neptunus.Vehicle.Control do
 
   require Logger
 
-  alias Neptunus.{Allocation, Fleet, Periodic, PID, PubSub}
-  alias Neptunus.Control.{Command, Core}
+  alias Neptunus.{Allocation, Fleet, Periodic, PID, PubSub, Settings}
+  alias Neptunus.Control.{Autopilot, Command, Core, Tuning}
   alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
 
   @default_gain 0.5
@@ -46,6 +46,8 @@ defmodule Neptunus.Vehicle.Control do
   @max_catch_up 5
   # how often control tells the board it is alive (Board.keepalive/1: deadman pings)
   @board_keepalive_ms 1_000
+  # the vehicle setting that keeps its autopilot tuning (Neptunus.Settings)
+  @tuning_key "tuning"
 
   @type reply :: {:ok, map()} | {:error, String.t()}
 
@@ -66,7 +68,7 @@ defmodule Neptunus.Vehicle.Control do
   @doc """
   Options: `:id` (required), `:gain` (k in [0, 1], default #{@default_gain}), `:control` —
   keyword of `hz` (control loop rate, default #{@default_hz}),
-  `gains`, `stale_after`, `deadband`, `dp` (see `Neptunus.Control.Core.new/1`) and
+  `gains`, `stale_after`, `deadband`, `dp`, `reference` (see `Neptunus.Control.Core.new/1`) and
   `simulator` (options of the run-mode simulator, `Board.Simulated.start_link/1`).
   """
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -92,6 +94,61 @@ defmodule Neptunus.Vehicle.Control do
   """
   @spec command(String.t(), String.t(), term()) :: reply()
   def command(id, event, payload), do: GenServer.call(via(id), {:command, event, payload})
+
+  @doc """
+  New PID gains for the depth and/or heading autopilot: `payload` is the untrusted tuning
+  (`Neptunus.Control.Tuning`: `%{"depth" => %{"kp", "ki", "kd"}, "heading" => …}`), applied
+  at once and bumpless (`Neptunus.Control.Core.retune/2`), then stored for the vehicle
+  (`Neptunus.Settings`, scope `{:vehicle, id}`, key `"tuning"`) so it applies at the next
+  start too. Who may tune is the caller's business (the vehicle channel: the pilot or the
+  main station). The change is logged (a `log` entry of category `autopilot` on
+  `"log:<id>"`, so recordings keep it). Replies `{:ok, %{tuning: %{"depth" => …, "heading" =>
+  …}}}` (the gains in force) or `{:error, reason}` (nothing changed; a failed store is reported after the gains
+  were applied: `{:error, "tuning applied but not stored: …"}`).
+  """
+  @spec tune(String.t(), term()) :: reply()
+  def tune(id, payload) do
+    with {:ok, gains} <- Tuning.validate(payload),
+         {:ok, json} <- GenServer.call(via(id), {:tune, gains}) do
+      case Settings.put({:vehicle, id}, @tuning_key, json) do
+        :ok -> {:ok, %{tuning: json}}
+        {:error, reason} -> {:error, "tuning applied but not stored: #{reason}"}
+      end
+    end
+  end
+
+  @doc """
+  The tuning in force: `%{gains, defaults, ranges, model}` — `gains` and `defaults` as
+  `Neptunus.Control.Tuning.to_json/1`, `ranges` `%{"kp" => [min, max], …}`, `model` the
+  vehicle's simulator parameter set (the step response runs on it).
+  """
+  @spec tuning(String.t()) :: map()
+  def tuning(id) do
+    %{gains: gains, model: model} = GenServer.call(via(id), :tuning)
+
+    %{
+      gains: Tuning.to_json(gains),
+      defaults: Tuning.to_json(Core.default_gains()),
+      ranges: Map.new(Tuning.ranges(), fn {k, {lo, hi}} -> {k, [lo, hi]} end),
+      model: model
+    }
+  end
+
+  @doc """
+  The step response of the untrusted request `payload` (`Neptunus.Control.Tuning.validate_step/1`:
+  `%{"axis", "step", "gains"?}`) on the vehicle's simulator model with the gains in force
+  and the proposed ones over them — run headless in the caller's process, the vehicle's
+  control untouched. Replies `{:ok, curve}` (`Neptunus.Control.Tuning.step_response/4`) or
+  `{:error, reason}`.
+  """
+  @spec step_response(String.t(), term()) :: reply()
+  def step_response(id, payload) do
+    with {:ok, axis, step, gains} <- Tuning.validate_step(payload) do
+      %{gains: current, model: model, reference: reference} = GenServer.call(via(id), :tuning)
+      control = [gains: Tuning.merge(current, gains), reference: reference]
+      Tuning.step_response(model, axis, step, control)
+    end
+  end
 
   @doc "The events `command/3` takes."
   @spec events() :: [String.t()]
@@ -167,7 +224,8 @@ defmodule Neptunus.Vehicle.Control do
 
     core =
       control
-      |> Keyword.take([:gains, :stale_after, :deadband, :dp])
+      |> Keyword.take([:gains, :stale_after, :deadband, :dp, :reference])
+      |> Keyword.update(:gains, stored_gains(id), &Tuning.merge(Map.new(&1), stored_gains(id)))
       |> Keyword.merge(gain: Keyword.get(opts, :gain, @default_gain), run_modes: run_modes)
       |> Core.new()
 
@@ -205,6 +263,33 @@ defmodule Neptunus.Vehicle.Control do
     {core, actions} = Core.stop(state.core, reason)
     state = %{state | core: core} |> perform(actions) |> publish()
     {:reply, {:ok, reply("thrust", state)}, state}
+  end
+
+  def handle_call({:tune, gains}, _from, state) do
+    state = %{state | core: Core.retune(state.core, gains)} |> publish()
+    json = Tuning.to_json(state.core.gains)
+    text = "autopilot tuning: " <> Tuning.describe(json)
+
+    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
+      category: "autopilot",
+      level: "info",
+      message: text,
+      at: System.os_time(:millisecond)
+    })
+
+    Logger.info("vehicle #{state.id}: #{text}")
+    {:reply, {:ok, json}, state}
+  end
+
+  def handle_call(:tuning, _from, %State{core: core} = state) do
+    model = state.simulator_opts |> Keyword.get(:sim, []) |> Keyword.get(:vehicle, "neptunus")
+
+    reference = %{
+      depth: reference_limits(core.depth),
+      heading: reference_limits(core.heading)
+    }
+
+    {:reply, %{gains: core.gains, model: to_string(model), reference: reference}, state}
   end
 
   def handle_call(:status, _from, state), do: {:reply, Core.status(state.core), state}
@@ -330,6 +415,21 @@ defmodule Neptunus.Vehicle.Control do
   end
 
   defp act({:run_mode, _mode, _seed}, state), do: state
+
+  defp reference_limits(%Autopilot{reference: r}), do: [rate: r.max_rate, accel: r.max_accel]
+
+  # the tuning stored for this vehicle (Control.tune/2), validated again: a bad or missing one
+  # is no tuning (the defaults, or the configured gains, apply)
+  defp stored_gains(id) do
+    with {:ok, json} <- Settings.get({:vehicle, id}, @tuning_key),
+         {:ok, gains} <- Tuning.validate(json) do
+      gains
+    else
+      _ -> %{}
+    end
+  catch
+    :exit, _ -> %{}
+  end
 
   # the sample source is the value of this process' registration (Board.sample/3 reads it)
   defp set_source(id, source) do

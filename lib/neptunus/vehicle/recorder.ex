@@ -1,7 +1,8 @@
 defmodule Neptunus.Vehicle.Recorder do
   @moduledoc """
   Records everything a vehicle publishes on `"vehicle:<id>"` — telemetry at its full rate,
-  stops, helm and control events — to disk (`Neptunus.Recording` for the format, the
+  stops, helm and control events — and its developer log entries on `"log:<id>"` (event
+  `log`: safety, link, errors, autopilot notices, so a recording's logger is complete) to disk (`Neptunus.Recording` for the format, the
   listing and the exports).
 
   One file per run of this process (`<dir>/<id>/<UTC start>-<n>.log`, a `disk_log` of
@@ -270,10 +271,16 @@ defmodule Neptunus.Vehicle.Recorder do
     end
   end
 
+  # the vehicle's topic and its log topic (safety, link, errors, autopilot notices: the
+  # recording's logger is complete)
   defp subscribe_or_demonitor(id, ref) do
-    with {:error, :not_running} = error <- PubSub.subscribe(Telemetry.topic(id)) do
-      Process.demonitor(ref, [:flush])
-      error
+    with :ok <- PubSub.subscribe(Telemetry.topic(id)),
+         :ok <- PubSub.subscribe(Telemetry.log_topic(id)) do
+      :ok
+    else
+      {:error, :not_running} = error ->
+        Process.demonitor(ref, [:flush])
+        error
     end
   end
 

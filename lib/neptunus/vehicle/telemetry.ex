@@ -9,13 +9,14 @@ defmodule Neptunus.Vehicle.Telemetry do
       %{t: s, sent_at: epoch ms,
         measurement: %{depth, heading, roll, pitch, voltage, current},
         measurement_state: %{depth, heading, roll, pitch, voltage, current},
-        estimate: %{depth, depth_rate, heading, yaw_rate},
+        estimate: %{depth, depth_rate, heading, yaw_rate, roll, roll_rate, pitch, pitch_rate},
         wild_points: %{total, by_field, by_reason, reacquired},
         sim: %{x, y, z, phi, theta, psi, u, v, w, p, q, r} | nil,
         command: %{surge, heave, yaw} | %{port, vertical, starboard},
         thrusters: %{port, vertical, starboard, port_us, vertical_us, starboard_us},
         control: %{mode, gain, lights, laser, tilt, run_mode, autopilot: %{depth, heading, position}},
-        autopilot: %{depth: %{setpoint, output, overridden} | nil, heading: … | nil,
+        autopilot: %{depth: %{setpoint, reference, reference_rate, output, overridden,
+                              waiting} | nil, heading: … | nil,
                      position: %{x, y, heading, phase, distance, output} | nil},
         link: %{up, reason, rtt_ms, pong_age_ms, board_uptime_ms, board_deadman_armed,
                 firmware, detected_firmware, firmware_mismatch,
@@ -47,7 +48,16 @@ defmodule Neptunus.Vehicle.Telemetry do
 
   @link_keys [:up, :reason | Board.link_details()]
 
-  @no_estimate %{depth: nil, depth_rate: nil, heading: nil, yaw_rate: nil}
+  @no_estimate %{
+    depth: nil,
+    depth_rate: nil,
+    heading: nil,
+    yaw_rate: nil,
+    roll: nil,
+    roll_rate: nil,
+    pitch: nil,
+    pitch_rate: nil
+  }
   @initialising Map.new(Neptunus.Navigation.WildPoints.fields(), &{&1, "initialising"})
   @no_autopilot %{depth: nil, heading: nil, position: nil}
 

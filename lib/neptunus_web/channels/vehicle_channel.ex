@@ -5,8 +5,9 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `Neptunus.Vehicle.Helm` (which checks that the sender is the pilot and carries the
   command out) and relays the answers. Payloads and error reasons: `docs/API.md`.
 
-  Join reply (state snapshot): `%{vehicle, telemetry, helm, pilot, control, camera, session}`
-  (`camera`: `%{url}` of the MJPEG stream, or nil),
+  Join reply (state snapshot): `%{vehicle, telemetry, helm, pilot, control, camera, settings,
+  session}` (`camera`: `%{url}` of the MJPEG stream, or nil; `settings`: the vehicle's view
+  settings, `Neptunus.Vehicle.ViewSettings`),
   followed by `presence_state`. Joining never depends on control: observers join like
   pilots, and being refused control is an event, never a closed channel.
 
@@ -14,7 +15,10 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `stop`, `heartbeat`, `request_control`, `answer_request`,
   `take_control`, `release_control`, `sim_reset`, `sim_set`, and the control commands
   `set_control_mode`, `set_gain`, `set_lights`, `set_laser`, `set_tilt`, `autopilot`,
-  `set_run_mode` (`Neptunus.Vehicle.Control.command/3`). Server events: `telemetry`, `helm`, `stopped`,
+  `set_run_mode` (`Neptunus.Vehicle.Control.command/3`), the autopilot tuning `set_tuning`,
+  `step_response` (the user who pilots, from any connection, or the main station) and
+  `get_tuning` (anyone), and `set_camera_rotation` (the user who pilots or the main
+  station; broadcast as `vehicle_settings`). Server events: `telemetry`, `helm`, `stopped`,
   `presence_diff` (broadcast), and to one connection only `control_request`,
   `control_granted`, `control_lost`, `request_denied`.
 
@@ -26,7 +30,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   @behaviour NeptunusWeb.Channel
 
   alias Neptunus.Fleet
-  alias Neptunus.Vehicle.{Control, Helm, Telemetry}
+  alias Neptunus.Vehicle.{Control, Helm, Telemetry, ViewSettings}
   alias NeptunusWeb.{Auth, Channel, Presence}
 
   @control_events ~w(set_control_mode set_gain set_lights set_laser set_tilt autopilot set_run_mode)
@@ -98,6 +102,36 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     |> reply(socket)
   end
 
+  # Autopilot tuning (Neptunus.Vehicle.Control.tune/2, step_response/2): the user who pilots
+  # or the main station. The work — a headless simulation, a settings write — runs here, not
+  # in the helm or control.
+  def handle_in(event, payload, socket) when event in ["set_tuning", "step_response"] do
+    id = id(socket)
+
+    with :ok <- may_tune(id, socket, "tuning") do
+      case event do
+        "set_tuning" -> Control.tune(id, payload)
+        "step_response" -> Control.step_response(id, payload)
+      end
+    end
+    |> reply(socket)
+  end
+
+  # The camera image rotation, a vehicle setting every page applies (Neptunus.Vehicle.ViewSettings):
+  # the user who pilots or the main station.
+  def handle_in("set_camera_rotation", payload, socket) do
+    id = id(socket)
+
+    with :ok <- may_tune(id, socket, "the camera rotation") do
+      ViewSettings.set_camera_rotation(id, payload)
+    end
+    |> reply(socket)
+  end
+
+  def handle_in("get_tuning", _payload, socket) do
+    {:reply, {:ok, Control.tuning(id(socket))}, socket}
+  end
+
   # Simulator controls `sim_reset`, `sim_set` (Neptunus.Sim.Live): pilot only, through the
   # helm like every command; refused on a board that is not the built-in simulator.
   def handle_in(event, payload, socket) when event in ["sim_reset", "sim_set"] do
@@ -157,6 +191,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
       pilot: helm.pilot && %{name: helm.pilot.name},
       control: Control.status(id),
       camera: camera(id),
+      settings: ViewSettings.get(id),
       session: %{
         id: socket.user.id,
         name: socket.user.name,
@@ -201,6 +236,21 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   end
 
   defp id(socket), do: socket.assigns.vehicle_id
+
+  # the main station, or the user who pilots (from any of their connections: the developer
+  # page beside the operator page)
+  defp may_tune(_id, %{user: %{role: :main_station}}, _what), do: :ok
+
+  defp may_tune(id, socket, what) do
+    case Helm.status(id) do
+      %{pilot: %{name: name}} when name == socket.user.name ->
+        :ok
+
+      _ ->
+        {:error,
+         "#{what} is for the pilot or the main station: #{socket.user.name} does not pilot"}
+    end
+  end
 
   defp reply({:ok, response}, socket), do: {:reply, {:ok, response}, socket}
   defp reply({:error, reason}, socket), do: {:reply, {:error, %{reason: reason}}, socket}

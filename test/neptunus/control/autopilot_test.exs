@@ -34,11 +34,17 @@ defmodule Neptunus.Control.AutopilotTest do
       assert ap.pid.integral == 0.0
     end
 
-    test "a setpoint engages at that value" do
+    test "a setpoint engages at that value, from where the vehicle is: no output jump" do
       ap = AP.engage(depth(), 5.0, 2.0, 0.0, false)
       assert AP.setpoint(ap) == 5.0
-      # kp · 3 m saturates
-      assert AP.output(ap) == 1.0
+      # the reference starts at the vehicle (kp · 3 m would saturate at once)
+      assert AP.output(ap) == 0.0
+      assert %{reference: 2.0, reference_rate: +0.0} = AP.public(ap)
+      # and moves towards the setpoint within its limits: the output grows with it
+      ap = Enum.reduce(1..10, ap, fn _, ap -> AP.step(ap, 2.0, 0.0, 0.02) end)
+      %{reference: r, reference_rate: v} = AP.public(ap)
+      assert r > 2.0 and v > 0.0 and v <= 0.2 * 0.2 + 1.0e-12
+      assert AP.output(ap) > 0.0 and AP.output(ap) < 1.0
     end
 
     test "changing the setpoint of an engaged axis keeps the learnt trim" do
@@ -135,8 +141,8 @@ defmodule Neptunus.Control.AutopilotTest do
   test "heading hold turns the short way across north" do
     # held at 350°, the vehicle at 10°: turn to port (negative yaw)
     ap = AP.engage(heading(), 350 * @pi / 180, 10 * @pi / 180, 0.0, false)
-    assert AP.output(ap) < 0
+    assert ap |> AP.step(10 * @pi / 180, 0.0, 0.02) |> AP.output() < 0
     ap = AP.engage(heading(), 10 * @pi / 180, 350 * @pi / 180, 0.0, false)
-    assert AP.output(ap) > 0
+    assert ap |> AP.step(350 * @pi / 180, 0.0, 0.02) |> AP.output() > 0
   end
 end

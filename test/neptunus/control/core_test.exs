@@ -30,6 +30,15 @@ defmodule Neptunus.Control.CoreTest do
 
   defp gos(actions), do: for({:go, thr} <- actions, do: thr)
 
+  # reference limits so high that a setpoint step reaches the PID whole at the next tick:
+  # for tests of what the autopilot outputs do, not of how the reference moves
+  @instant [
+    reference: %{depth: [rate: 1.0e6, accel: 1.0e9], heading: [rate: 1.0e6, accel: 1.0e9]}
+  ]
+
+  # one control tick at 10.01 s (the reference reaches an instant setpoint)
+  defp tick(core), do: elem(Core.tick(core, 0.02, 10.01), 0)
+
   test "at rest: motion, gain 0.5, neutral, nothing engaged" do
     core = Core.new()
 
@@ -40,6 +49,7 @@ defmodule Neptunus.Control.CoreTest do
              laser: 0,
              tilt: 0.0,
              run_mode: "normal",
+             dp_holds: nil,
              autopilot: %{depth: nil, heading: nil, position: nil},
              command: %{surge: 0.0, heave: 0.0, yaw: 0.0},
              thrusters: Allocation.with_us(@neutral)
@@ -122,12 +132,36 @@ defmodule Neptunus.Control.CoreTest do
                {:error, "autopilots are not available in manual mode: switch to motion or dp"}
     end
 
-    test "dp needs a position source" do
-      assert Core.command(core(), {:set_control_mode, :dp}, 10.0) ==
-               {:error, "dp needs a position source: this vehicle has none"}
+    test "dp without a position source holds depth and heading, and says so" do
+      # (it was refused: "dp needs a position source: this vehicle has none")
+      {core, actions} = ok!(core(@instant), {:set_control_mode, :dp})
 
-      # no estimate at all, or a stale one
-      assert {:error, "dp needs a position source" <> _} =
+      assert actions == [
+               {:go, @neutral},
+               {:stopped, "control_mode_changed"},
+               {:notice, "dp: no position source: holding depth and heading only"}
+             ]
+
+      assert %{mode: "dp", dp_holds: ["depth", "heading"]} = Core.status(core)
+      assert %{autopilot: %{depth: 2.0, heading: 1.0, position: nil}} = Core.status(core)
+      assert Core.active?(core)
+      # pushed off its depth and heading, it pushes back, with no surge
+      core = Core.estimate(core, est(depth: 2.2, heading: 1.1), 10.0)
+      {core, _} = Core.tick(core, 0.02, 10.01)
+      %{port: p, vertical: v, starboard: s} = core.thrusters
+      assert v < 0 and p - s < 0
+      assert_in_delta p + s, 0.0, 1.0e-12
+      # pilot thrust is refused as in DP with a position
+      assert {:error, "thrust mode motion does not match control mode dp"} =
+               Core.command(core, motion(1.0, 0.0, 0.0), 10.0)
+
+      # a safety stop ends it like DP
+      {core, _} = Core.stop(core, "deadman")
+      assert %{mode: "motion", dp_holds: nil, autopilot: %{depth: nil}} = Core.status(core)
+    end
+
+    test "dp needs a current estimate with valid depth and heading" do
+      assert {:error, "dp needs a current estimate of depth and heading (no board samples)"} =
                Core.command(Core.new(), {:set_control_mode, :dp}, 10.0)
 
       stale = core([], est(position: %{x: 1.0, y: 2.0}))
@@ -185,13 +219,14 @@ defmodule Neptunus.Control.CoreTest do
     end
 
     test "hold, setpoints, null; each key on its own" do
-      {core, actions} = ok!(core(), ap(:hold))
+      {core, actions} = ok!(core(@instant), ap(:hold))
       assert %{depth: 2.0, heading: nil} = Core.status(core).autopilot
       assert [_] = gos(actions)
       {core, _} = ok!(core, ap(:unchanged, 0.25))
       assert %{depth: 2.0, heading: 0.25} = Core.status(core).autopilot
       {core, _} = ok!(core, ap(nil))
       assert %{depth: nil, heading: 0.25} = Core.status(core).autopilot
+      core = tick(core)
 
       assert %{depth: nil, heading: %{setpoint: 0.25, overridden: false, output: out}} =
                Core.autopilot(core)
@@ -279,7 +314,7 @@ defmodule Neptunus.Control.CoreTest do
 
   describe "the control loop" do
     test "runs the autopilots on the estimate and commands the output" do
-      {core, _} = ok!(core(), ap(2.1))
+      {core, _} = ok!(core(@instant), ap(2.1))
       core = Core.estimate(core, est(depth: 2.0), 10.0)
       {core, actions} = Core.tick(core, 0.02, 10.01)
       assert [%{vertical: v}] = gos(actions)
@@ -413,15 +448,16 @@ defmodule Neptunus.Control.CoreTest do
 
   describe "mixing" do
     test "the gain scales the pilot, not the autopilots" do
-      {c1, _} = ok!(core(gain: 1.0), ap(3.0))
-      {c2, _} = ok!(core(gain: 0.2), ap(3.0))
+      {c1, _} = ok!(core([gain: 1.0] ++ @instant), ap(3.0))
+      {c2, _} = ok!(core([gain: 0.2] ++ @instant), ap(3.0))
+      {c1, c2} = {tick(c1), tick(c2)}
       assert c1.thrusters.vertical == c2.thrusters.vertical
       assert c1.thrusters.vertical == 1.0
     end
 
     test "heading first: surge gives way to the heading autopilot" do
-      {core, _} = ok!(core(gain: 1.0), ap(:unchanged, 1.0 + 0.2))
-      {core, _} = ok!(core, motion(1.0, 0.0, 0.0))
+      {core, _} = ok!(core([gain: 1.0] ++ @instant), ap(:unchanged, 1.0 + 0.2))
+      {core, _} = ok!(tick(core), motion(1.0, 0.0, 0.0))
       %{port: p, starboard: s} = core.thrusters
       yaw = (p - s) / 2
       assert yaw > 0
@@ -431,10 +467,12 @@ defmodule Neptunus.Control.CoreTest do
 
     test "autopilot outputs skip the thrusters' deadband" do
       # kp 3 · 0.01 m = 0.03 → past the 5 % deadband
-      {core, _} = ok!(core(), ap(2.01))
-      assert core.thrusters.vertical > 0.05
-      {core, _} = ok!(core(deadband: 0.0), ap(2.01))
-      assert_in_delta core.thrusters.vertical, 0.03, 1.0e-9
+      {core, _} = ok!(core(@instant), ap(2.01))
+      assert tick(core).thrusters.vertical > 0.05
+      {core, _} = ok!(core([deadband: 0.0] ++ @instant), ap(2.01))
+      core = tick(core)
+      # (plus one tick of the integral: ki · 0.01 m · 0.02 s)
+      assert_in_delta core.thrusters.vertical, 0.03, 1.0e-4
     end
   end
 

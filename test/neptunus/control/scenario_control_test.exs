@@ -5,6 +5,7 @@ defmodule Neptunus.Control.ScenarioControlTest do
   use ExUnit.Case, async: true
 
   alias Neptunus.{PID, Scenario}
+  alias Neptunus.Control.Autopilot
   alias Neptunus.Scenario.Run
 
   @minimal %{"vehicle" => "neptunus", "duration" => 1}
@@ -146,6 +147,13 @@ defmodule Neptunus.Control.ScenarioControlTest do
       assert overshoot < 0.10
       assert settle < 10.0
       report("depth step 0 → 1 m: overshoot #{cm(overshoot)}, within ±5 cm after #{s(settle)}")
+
+      # no jerk: the autopilot tracked a reference within the default limits, not the step
+      %{rate: rate, accel: accel} = Map.new(Autopilot.default_limits().depth)
+      {max_rate, max_accel} = profile(rows, :depth_reference, false)
+      assert max_rate <= rate + 1.0e-9 and max_accel <= accel + 1.0e-6
+      assert max_rate > rate / 2
+      report("depth reference: at most #{max_rate} m/s, #{Float.round(max_accel, 3)} m/s²")
     end
 
     test "heading step 0 → 90° in a 0.1 m/s cross current: within ±2° in < 8 s" do
@@ -158,6 +166,11 @@ defmodule Neptunus.Control.ScenarioControlTest do
 
       assert settle < 8.0
       report("heading step 0 → 90°: within ±2° after #{s(settle)}, overshoot #{deg(overshoot)}")
+
+      %{rate: rate, accel: accel} = Map.new(Autopilot.default_limits().heading)
+      {max_rate, max_accel} = profile(rows, :heading_reference, true)
+      assert max_rate <= rate + 1.0e-9 and max_accel <= accel + 1.0e-6
+      assert max_rate > rate / 2
     end
 
     test "depth hold engaged while descending at 0.3 m/s: depth change < 15 cm" do
@@ -191,6 +204,23 @@ defmodule Neptunus.Control.ScenarioControlTest do
           "in a cross current, depth within #{cm(depth)}"
       )
     end
+  end
+
+  # the largest rate and acceleration of a reference column, from its values at the control
+  # ticks (every other row: a tick every 0.02 s, rows every 0.01 s)
+  defp profile(rows, column, wrap?) do
+    values =
+      rows |> Enum.take_every(2) |> Enum.map(&Map.fetch!(&1, column)) |> Enum.reject(&is_nil/1)
+
+    diff = fn a, b -> if wrap?, do: PID.wrap_pi(b - a), else: b - a end
+
+    rates =
+      values |> Enum.chunk_every(2, 1, :discard) |> Enum.map(fn [a, b] -> diff.(a, b) / 0.02 end)
+
+    accels =
+      rates |> Enum.chunk_every(2, 1, :discard) |> Enum.map(fn [a, b] -> (b - a) / 0.02 end)
+
+    {rates |> Enum.map(&abs/1) |> Enum.max(), accels |> Enum.map(&abs/1) |> Enum.max()}
   end
 
   defp report(line), do: if(System.get_env("REPORT"), do: IO.puts("\n  " <> line))

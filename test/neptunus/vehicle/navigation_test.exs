@@ -29,7 +29,18 @@ defmodule Neptunus.Vehicle.NavigationTest do
       assert %{t: 1.0, sim: ^truth} = sample
       assert sample.measurement |> Map.values() |> Enum.all?(&is_nil/1)
       assert sample.measurement_state |> Map.values() |> Enum.all?(&(&1 == "initialising"))
-      assert sample.estimate == %{depth: nil, depth_rate: nil, heading: nil, yaw_rate: nil}
+
+      assert sample.estimate == %{
+               depth: nil,
+               depth_rate: nil,
+               heading: nil,
+               yaw_rate: nil,
+               roll: nil,
+               roll_rate: nil,
+               pitch: nil,
+               pitch_rate: nil
+             }
+
       assert_receive {:"$gen_cast", {:estimate, estimate}}
       assert %{depth: nil, heading: nil, position: %{x: 3.0, y: -2.0}} = estimate
       assert estimate.measurement_state == %{depth: :initialising, heading: :initialising}

@@ -44,6 +44,28 @@ defmodule Neptunus.Vehicle.RecorderTest do
     assert Path.basename(file) == name
   end
 
+  test "records the vehicle's log entries too (safety, link, errors), on disk at once", %{
+    tmp_dir: dir
+  } do
+    id = start!(dir, sync_ms: 3_600_000)
+    publish(id, "telemetry", %{t: 0.05})
+
+    PubSub.broadcast(Telemetry.log_topic(id), "log", %{
+      category: "link",
+      level: "warning",
+      message: "board link down: hangup",
+      at: 1
+    })
+
+    publish(id, "stopped", %{reason: "deadman"})
+
+    assert [
+             {_, "telemetry", %{t: 0.05}},
+             {_, "log", %{category: "link", message: "board link down: hangup"}},
+             {_, "stopped", %{reason: "deadman"}}
+           ] = on_disk(id)
+  end
+
   # What another reader finds in the file being written, without asking the recorder to sync.
   defp on_disk(id) do
     %{file: file} = Recorder.status(id)

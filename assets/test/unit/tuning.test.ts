@@ -1,0 +1,54 @@
+import { describe, expect, it } from "vitest";
+import { decodeSetTuning, decodeStepResponse, decodeTuningInfo, figures, formOf, parseForm, polylines } from "../../src/developer/tuning_model";
+
+const gains = { depth: { kp: 3, ki: 0.1, kd: 1.5 }, heading: { kp: 4, ki: 0.3, kd: 2 } };
+const info = { gains, defaults: gains, ranges: { kp: [0, 20], ki: [0, 5], kd: [0, 20] }, model: "neptunus" };
+
+describe("autopilot tuning on the developer page", () => {
+  it("decodes the server's replies and refuses malformed ones", () => {
+    expect(decodeTuningInfo(info)?.ranges.ki).toEqual([0, 5]);
+    expect(decodeTuningInfo({ ...info, gains: { depth: gains.depth } })).toBeNull();
+    expect(decodeTuningInfo({ ...info, ranges: { kp: [0] } })).toBeNull();
+    expect(decodeSetTuning({ tuning: gains })).toEqual(gains);
+    expect(decodeSetTuning({ tuning: { depth: { kp: "3" } } })).toBeNull();
+  });
+
+  it("validates the form like the server", () => {
+    const ranges = decodeTuningInfo(info)!.ranges;
+    const form = formOf(gains);
+    expect(parseForm(form, ranges)).toEqual({ ok: true, gains });
+    expect(parseForm({ ...form, depth: { ...form.depth, kp: "25" } }, ranges)).toEqual({ ok: false, error: "depth.kp must be a number in [0, 20]" });
+    expect(parseForm({ ...form, heading: { ...form.heading, kd: "" } }, ranges)).toEqual({ ok: false, error: "heading.kd must be a number in [0, 20]" });
+    expect(parseForm({ ...form, heading: { ...form.heading, ki: "x" } }, ranges).ok).toBe(false);
+  });
+
+  const response = {
+    axis: "depth",
+    step: 1,
+    target: 2,
+    band: 0.05,
+    t: [0, 1, 2, 3],
+    setpoint: [1, 2, 2, 2],
+    reference: [1, 1, 1.5, 2],
+    value: [1, 1, 1.4, 2.006],
+    output: [0, 0.2, 0.3, 0],
+    overshoot: 0.006,
+    settle: 1.9,
+  };
+
+  it("decodes a step response and draws it in the box", () => {
+    const r = decodeStepResponse(response)!;
+    expect(r.settle).toBe(1.9);
+    expect(decodeStepResponse({ ...response, settle: null })?.settle).toBeNull();
+    expect(decodeStepResponse({ ...response, value: [1, 2] })).toBeNull();
+    expect(decodeStepResponse({ ...response, axis: "roll" })).toBeNull();
+    const p = polylines(r, 300, 100);
+    expect(p.min).toBe(1);
+    expect(p.max).toBe(2.006);
+    expect(p.value.split(" ")).toHaveLength(4);
+    expect(p.value.startsWith("0.0,100.0")).toBe(true);
+    expect(p.setpoint.split(" ")[3]).toBe("300.0,0.6");
+    expect(figures(r)).toBe("overshoot 0.6 cm, within ±5 cm after 1.9 s");
+    expect(figures({ ...r, axis: "heading", overshoot: Math.PI / 180, band: (2 * Math.PI) / 180, settle: null })).toBe("overshoot 1.0°, never within ±2° in 3 s");
+  });
+});
