@@ -84,7 +84,14 @@ defmodule Neptunus.Vehicle.Board do
   @callback arm(id :: String.t(), boolean(), notify :: (:ok | {:error, String.t()} -> term())) ::
               :ok
 
-  @optional_callbacks keepalive: 1, link_status: 1, lights: 2, laser: 2, tilt: 2, arm: 3
+  @doc """
+  Whether the board's vehicle can fly a validated control command
+  (`Neptunus.Control.Command.t()`): `Neptunus.Vehicle.Control` refuses it with the reason
+  otherwise. Boards without `vet/1` fly every command.
+  """
+  @callback vet(command :: term()) :: :ok | {:error, String.t()}
+
+  @optional_callbacks keepalive: 1, link_status: 1, lights: 2, laser: 2, tilt: 2, arm: 3, vet: 1
 
   @boards %{
     simulated: Neptunus.Vehicle.Board.Simulated,
@@ -205,6 +212,17 @@ defmodule Neptunus.Vehicle.Board do
       module.arm(id, arm?, notify)
     else
       _ -> {:error, "this vehicle's board has no arming (only mavlink vehicles arm)"}
+    end
+  end
+
+  @doc "Whether vehicle `id`'s board can fly a validated control command (`vet/1` callback)."
+  @spec vet(String.t(), term()) :: :ok | {:error, String.t()}
+  def vet(id, command) do
+    with {:ok, module} <- board_module(id),
+         true <- function_exported?(module, :vet, 1) do
+      module.vet(command)
+    else
+      _ -> :ok
     end
   end
 

@@ -193,6 +193,7 @@ defmodule Neptunus.Vehicle.Control do
   @impl true
   def handle_call({:command, event, payload}, _from, state) do
     with {:ok, command} <- Command.validate(event, payload),
+         :ok <- Board.vet(state.id, command),
          {:ok, core, actions} <- Core.command(state.core, command, now()) do
       state = state |> Map.put(:core, core) |> perform(actions) |> publish()
       {:reply, {:ok, reply(event, state)}, state}

@@ -137,6 +137,24 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   def arm(id, arm?, notify) when is_boolean(arm?) and is_function(notify, 1),
     do: GenServer.call(Board.via(id), {:arm, arm?, notify})
 
+  @doc """
+  The autopilots as the vehicle's flight modes (`Core.autopilot/4`): `payload` is the
+  untrusted JSON of control's `autopilot` command; `notify` as for `arm/3`. `{:error, reason}`
+  for a bad payload.
+  """
+  @spec autopilot(String.t(), term(), (:ok | {:error, String.t()} -> term())) ::
+          :ok | {:error, String.t()}
+  def autopilot(id, payload, notify) when is_function(notify, 1) do
+    with {:ok, {:autopilot, setpoints}} <-
+           Neptunus.Control.Command.validate("autopilot", payload),
+         do: GenServer.call(Board.via(id), {:autopilot, setpoints, notify})
+  end
+
+  @doc "Refuses the control commands an ArduSub vehicle cannot fly (`Core.vet/1`)."
+  @impl Board
+  @spec vet(term()) :: :ok | {:error, String.t()}
+  def vet(command), do: Core.vet(command)
+
   @doc "Sets the vehicle's flight mode by name (`Core.modes/0`); `notify` as for `arm/3`."
   @spec set_mode(String.t(), String.t(), (:ok | {:error, String.t()} -> term())) :: :ok
   def set_mode(id, mode, notify) when is_binary(mode) and is_function(notify, 1),
@@ -185,6 +203,10 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   def handle_call({:arm, arm?, notify}, _from, state) do
     {:reply, :ok, run(state, &Core.arm(&1, notify, arm?, now()))}
+  end
+
+  def handle_call({:autopilot, setpoints, notify}, _from, state) do
+    {:reply, :ok, run(state, &Core.autopilot(&1, notify, setpoints, now()))}
   end
 
   def handle_call({:set_mode, mode, notify}, _from, state) do

@@ -456,3 +456,147 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
     end
   end
 end
+
+defmodule Neptunus.Vehicle.Board.MAVLink.CoreModesTest do
+  use ExUnit.Case, async: true
+
+  alias Neptunus.Protocol.MAVLink.Message
+  alias Neptunus.Vehicle.Board.MAVLink.Core
+
+  defp in_mode(mode) do
+    fields = %{type: 12, autopilot: 3, base_mode: 209, custom_mode: mode, system_status: 4}
+
+    m = %Message{
+      id: 0,
+      name: :heartbeat,
+      system: 1,
+      component: 1,
+      seq: 0,
+      version: 2,
+      fields: fields
+    }
+
+    elem(Core.receive(Core.new(0.0), m, 0.1), 0)
+  end
+
+  defp mode_sent({_core, actions}) do
+    case actions do
+      [{:send, :command_long, %{command: 176, param1: 1.0, param2: mode}}] -> {:mode, round(mode)}
+      [{:reply, :me, reply}] -> reply
+    end
+  end
+
+  @manual 19
+  @stabilize 0
+  @alt_hold 2
+
+  test "depth hold → ALT_HOLD, heading hold → STABILIZE, neither → MANUAL" do
+    for {from, setpoints, expected} <- [
+          {@manual, %{depth: :hold, heading: :hold}, {:mode, @alt_hold}},
+          {@manual, %{depth: :hold, heading: :unchanged},
+           {:error, "ArduSub's depth hold (ALT_HOLD) holds the heading too"}},
+          {@stabilize, %{depth: :hold, heading: :unchanged}, {:mode, @alt_hold}},
+          {@manual, %{depth: :unchanged, heading: :hold}, {:mode, @stabilize}},
+          {@manual, %{depth: nil, heading: :hold}, {:mode, @stabilize}},
+          {@alt_hold, %{depth: nil, heading: :unchanged}, {:mode, @stabilize}},
+          {@alt_hold, %{depth: :unchanged, heading: nil},
+           {:error, "ArduSub's depth hold (ALT_HOLD) holds the heading too"}},
+          {@alt_hold, %{depth: nil, heading: nil}, {:mode, @manual}},
+          {@stabilize, %{depth: :unchanged, heading: nil}, {:mode, @manual}},
+          {@manual, %{depth: 3.0, heading: :unchanged},
+           {:error, "ArduSub holds the depth it has when ALT_HOLD engages: use \"hold\""}},
+          {@manual, %{depth: :unchanged, heading: 1.0},
+           {:error, "ArduSub holds the heading it has when STABILIZE engages: use \"hold\""}}
+        ] do
+      assert mode_sent(Core.autopilot(in_mode(from), :me, setpoints, 1.0)) == expected,
+             "from #{from} with #{inspect(setpoints)}"
+    end
+  end
+
+  test "the mode's ACK answers" do
+    {core, _} = Core.autopilot(in_mode(@manual), :me, %{depth: :hold, heading: :hold}, 1.0)
+
+    ack = %Message{
+      id: 77,
+      name: :command_ack,
+      system: 1,
+      component: 1,
+      seq: 1,
+      version: 2,
+      fields: %{command: 176, result: 0}
+    }
+
+    assert {_, [{:reply, :me, :ok}]} = Core.receive(core, ack, 1.1)
+  end
+
+  test "vet refuses what ArduSub cannot fly, with a reason" do
+    assert {:error, "manual per-thruster mode is not available" <> _} =
+             Core.vet({:set_control_mode, :manual})
+
+    assert {:error, "manual per-thruster" <> _} =
+             Core.vet({:thrust, :manual, %{port: 0.0, vertical: 0.0, starboard: 0.0}})
+
+    assert {:error, "dp is not available" <> _} = Core.vet({:set_control_mode, :dp})
+    assert {:error, _} = Core.vet({:set_laser, 3})
+    assert {:error, _} = Core.vet({:autopilot, %{depth: :hold, heading: :hold}})
+
+    for ok <- [
+          {:set_control_mode, :motion},
+          {:thrust, :motion, %{surge: 0.1, heave: 0.0, yaw: 0.0}},
+          {:set_gain, 0.5},
+          {:set_lights, 10},
+          {:set_tilt, 0.1},
+          {:set_run_mode, :simulator}
+        ] do
+      assert Core.vet(ok) == :ok
+    end
+  end
+end
+
+defmodule Neptunus.Vehicle.Board.MAVLink.CoreTextTest do
+  use ExUnit.Case, async: true
+
+  alias Neptunus.Protocol.MAVLink.Message
+  alias Neptunus.Vehicle.Board.MAVLink.Core
+
+  defp msg(name, fields),
+    do: %Message{id: 0, name: name, system: 1, component: 1, seq: 0, version: 2, fields: fields}
+
+  defp linked do
+    hb = %{type: 12, autopilot: 3, base_mode: 81, custom_mode: 19, system_status: 3}
+    elem(Core.receive(Core.new(0.0), msg(:heartbeat, hb), 0.1), 0)
+  end
+
+  test "a long STATUSTEXT in chunks is one text, and answers a waiting command" do
+    {core, _} = Core.arm(linked(), :me, true, 1.0)
+    first = String.duplicate("a", 50)
+
+    {core, []} =
+      Core.receive(core, msg(:statustext, %{severity: 2, text: first, id: 7, chunk_seq: 0}), 1.0)
+
+    {core, [{:log, :error, text, _}]} =
+      Core.receive(core, msg(:statustext, %{severity: 2, text: "bc", id: 7, chunk_seq: 1}), 1.0)
+
+    assert text == first <> "bc"
+    {_core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 4}), 1.1)
+    assert actions == [{:reply, :me, {:error, first <> "bc"}}]
+  end
+
+  test "a text of exactly 50 bytes ends with an empty chunk" do
+    first = String.duplicate("z", 50)
+
+    {core, []} =
+      Core.receive(
+        linked(),
+        msg(:statustext, %{severity: 6, text: first, id: 3, chunk_seq: 0}),
+        1.0
+      )
+
+    assert {_, [{:log, :info, ^first, _}]} =
+             Core.receive(
+               core,
+               msg(:statustext, %{severity: 6, text: "", id: 3, chunk_seq: 1}),
+               1.0
+             )
+  end
+end

@@ -140,6 +140,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
           disarm_at: float() | nil,
           started: float(),
           readings: map(),
+          texts: %{optional(pos_integer()) => binary()},
           rtt_ms: float() | nil,
           servo_us: [non_neg_integer()],
           manual_period: float(),
@@ -169,6 +170,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     next_manual: 0.0,
     next_timesync: 0.0,
     readings: %{},
+    texts: %{},
     servo_us: [],
     manual_period: 0.1,
     link_timeout: 3.0,
@@ -378,6 +380,81 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     end
   end
 
+  @doc """
+  The autopilots as ArduSub's flight modes: `setpoints` as `Neptunus.Control.Command` validates
+  them (`%{depth: v, heading: v}`, each `:hold`, nil or `:unchanged`). Depth hold → ALT_HOLD
+  (which holds the heading too), heading hold alone → STABILIZE, neither → MANUAL; what the
+  current mode holds is what `:unchanged` keeps. Refused with a reason: a numeric setpoint
+  (ArduSub holds the depth and heading it has when the mode engages) and depth hold without
+  heading hold (ALT_HOLD holds both). Answered like `arm/4`.
+  """
+  @spec autopilot(t(), term(), map(), float()) :: {t(), [action()]}
+  def autopilot(core, from, %{depth: depth, heading: heading}, now) do
+    held = %{
+      depth: core.vehicle.mode == "ALT_HOLD",
+      heading: core.vehicle.mode in ["ALT_HOLD", "STABILIZE"]
+    }
+
+    wanted =
+      Map.new([depth: depth, heading: heading], fn
+        {axis, :unchanged} -> {axis, Map.fetch!(held, axis)}
+        {axis, :hold} -> {axis, true}
+        {axis, nil} -> {axis, false}
+        {axis, number} when is_number(number) -> {axis, {:setpoint, number}}
+      end)
+
+    case wanted do
+      %{depth: {:setpoint, _}} ->
+        refuse(core, from, "ArduSub holds the depth it has when ALT_HOLD engages: use \"hold\"")
+
+      %{heading: {:setpoint, _}} ->
+        refuse(
+          core,
+          from,
+          "ArduSub holds the heading it has when STABILIZE engages: use \"hold\""
+        )
+
+      %{depth: true, heading: false} ->
+        refuse(core, from, "ArduSub's depth hold (ALT_HOLD) holds the heading too")
+
+      %{depth: true} ->
+        set_mode(core, from, "ALT_HOLD", now)
+
+      %{heading: true} ->
+        set_mode(core, from, "STABILIZE", now)
+
+      _ ->
+        set_mode(core, from, "MANUAL", now)
+    end
+  end
+
+  defp refuse(core, from, reason), do: {core, [{:reply, from, {:error, reason}}]}
+
+  @doc """
+  Whether a validated control command (`Neptunus.Control.Command`) can be flown on an ArduSub
+  vehicle: manual per-thruster mode and dp are refused (ArduSub takes no per-thruster input
+  in normal flight, and dp needs a position it does not give), the laser too (none), and
+  the autopilots are its flight modes (`autopilot/4`), not Neptunus' own.
+  """
+  @spec vet(term()) :: :ok | {:error, String.t()}
+  def vet({:set_control_mode, :manual}),
+    do:
+      {:error,
+       "manual per-thruster mode is not available on an ArduSub vehicle (it takes no " <>
+         "per-thruster input in normal flight): fly in motion mode"}
+
+  def vet({:thrust, :manual, _}), do: vet({:set_control_mode, :manual})
+
+  def vet({:set_control_mode, :dp}),
+    do: {:error, "dp is not available on an ArduSub vehicle: it needs a position estimate"}
+
+  def vet({:set_laser, _}), do: {:error, "an ArduSub vehicle has no laser"}
+
+  def vet({:autopilot, _}),
+    do: {:error, "an ArduSub vehicle's autopilots are its flight modes (ALT_HOLD, STABILIZE)"}
+
+  def vet(_command), do: :ok
+
   defp request(core, from, kind, command, params, now) do
     cond do
       not core.up ->
@@ -542,6 +619,33 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
 
       _ ->
         {core, []}
+    end
+  end
+
+  # a text longer than 50 bytes comes in chunks of one `id` (MAVLink 2), the last one shorter
+  defp from_vehicle(core, %Message{name: :statustext, fields: %{id: id} = f}, now)
+       when is_integer(id) and id != 0 do
+    text = Map.get(core.texts, id, "") <> f.text
+
+    if byte_size(f.text) < 50 or byte_size(text) >= 50 * 8 do
+      core = %{core | texts: Map.delete(core.texts, id)}
+
+      from_vehicle(
+        core,
+        %Message{
+          name: :statustext,
+          fields: %{f | id: 0, text: text},
+          id: 253,
+          system: 0,
+          component: 0,
+          seq: 0,
+          version: 2
+        },
+        now
+      )
+    else
+      # at most a few texts in flight: an unfinished one is dropped by the next id's start
+      {%{core | texts: %{id => text}}, []}
     end
   end
 
