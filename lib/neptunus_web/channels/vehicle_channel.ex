@@ -255,10 +255,13 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
 
     with {:ok, _} <- asked do
       receive do
-        {:channel_info, ^topic, {:vehicle_answer, ^ref, _event, :ok}} -> {:ok, %{status: "ok"}}
-        {:channel_info, ^topic, {:vehicle_answer, ^ref, _event, {:error, r}}} -> {:error, r}
+        {:channel_info, ^topic, {:vehicle_answer, ^ref, _event, :ok}} ->
+          {:ok, %{status: "ok", control: Control.status(id)}}
+
+        {:channel_info, ^topic, {:vehicle_answer, ^ref, _event, {:error, r}}} ->
+          {:error, r}
       after
-        @vehicle_answer_ms -> {:ok, %{status: "pending"}}
+        @vehicle_answer_ms -> {:ok, %{status: "pending", control: Control.status(id)}}
       end
     end
     |> reply(socket)
