@@ -474,7 +474,23 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   defp count(state, key), do: %{state | counters: Map.update!(state.counters, key, &(&1 + 1))}
 
-  defp report(state), do: Telemetry.link(state.id, Core.status(state.core))
+  # the link's state for telemetry, with the frames received and lost (from the vehicle's
+  # sequence numbers)
+  defp report(state) do
+    status = Core.status(state.core)
+    frames = frames(state)
+    received = state.counters.received
+    loss = if received + frames.lost > 0, do: frames.lost / (received + frames.lost), else: 0.0
+
+    mavlink =
+      Map.merge(status.mavlink, %{
+        frames_received: received,
+        frames_lost: frames.lost,
+        loss: Float.round(loss, 4)
+      })
+
+    Telemetry.link(state.id, %{status | mavlink: mavlink})
+  end
 
   # the scope's DOWN (or its absence) brings a retry
   defp subscribe(topic) do

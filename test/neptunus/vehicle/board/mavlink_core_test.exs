@@ -410,6 +410,16 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
       fields = Map.new(1..16, &{String.to_atom("servo#{&1}_raw"), 1400 + &1})
       {core, []} = Core.receive(linked(), msg(:servo_output_raw, fields), 1.0)
       assert Core.status(core).mavlink.servo_us == Enum.map(1..8, &(1400 + &1))
+      assert_in_delta Core.status(core).mavlink.thrusters |> hd(), -99 / 400, 0.001
+
+      {core, []} =
+        Core.receive(
+          core,
+          msg(:servo_output_raw, %{fields | servo1_raw: 1900, servo2_raw: 0, servo3_raw: 1100}),
+          1.0
+        )
+
+      assert [1.0, nil, -1.0 | _] = Core.status(core).mavlink.thrusters
     end
 
     test "STATUSTEXT is logged with its severity" do

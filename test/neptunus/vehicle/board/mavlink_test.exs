@@ -151,6 +151,18 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
     wait_until(fn -> Board.MAVLink.link_status(ctx.id).frames.lost == 4 end)
   end
 
+  test "telemetry's link carries the vehicle's state and the frame loss", ctx do
+    # the test process stands in for the vehicle's telemetry: it gets the board's link reports
+    {:ok, _} = Registry.register(Neptunus.Fleet.Registry, {Telemetry, ctx.id}, nil)
+    start_board(ctx)
+    from = up(ctx)
+    vehicle_says(ctx, from, heartbeat(true, 3))
+    link_report!(&match?(%{mavlink: %{armed: true, frames_lost: 2, frames_received: 2}}, &1))
+
+    assert %{up: true, reason: "heartbeat", mavlink: %{loss: 0.5, mode: "MANUAL"}} =
+             link_report!(&(&1.mavlink.loss > 0))
+  end
+
   test "udp: listens and answers whoever sent last", ctx do
     {:ok, probe} = :gen_udp.open(0, [:binary, ip: {127, 0, 0, 1}])
     {:ok, free} = :inet.port(probe)
@@ -172,6 +184,14 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
     {:ok, conn2} = :gen_tcp.accept(listen, 2_000)
     :ok = :gen_tcp.send(conn2, heartbeat())
     wait_until(fn -> Board.MAVLink.link_status(ctx.id).up end)
+  end
+
+  defp link_report!(pred) do
+    receive do
+      {:"$gen_cast", {:link, link}} -> if pred.(link), do: link, else: link_report!(pred)
+    after
+      3_000 -> flunk("no such link report")
+    end
   end
 
   defp wait_until(fun, left \\ 200) do

@@ -731,6 +731,11 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   defp severity(4), do: :warning
   defp severity(_), do: :info
 
+  # a servo output as a thruster value: ArduSub's motors run 1100..1900 µs, 1500 neutral
+  # (0 µs: an output not driven)
+  defp thruster(0), do: nil
+  defp thruster(us), do: ((us - 1500) / 400) |> max(-1.0) |> min(1.0) |> Float.round(3)
+
   # ── status ───────────────────────────────────────────────────────────────────────────
 
   @doc "The link's state and the vehicle's as the board reports them (`link_status`)."
@@ -746,6 +751,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
         system_status: core.vehicle.system_status,
         target: core.target && Tuple.to_list(core.target),
         servo_us: core.servo_us,
+        thrusters: Enum.map(core.servo_us, &thruster/1),
         control: core.control,
         disarm_pending: core.disarm_at != nil
       }
