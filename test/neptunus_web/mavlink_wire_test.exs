@@ -139,6 +139,18 @@ defmodule NeptunusWeb.MAVLinkWireTest do
     refute_armed_change(fake)
   end
 
+  test "when Neptunus falls silent, ArduSub's own pilot-input failsafe disarms", ctx do
+    %{fake: fake, topic: topic, id: id} = ctx
+    ada = pilot(topic)
+    arm!(ada, fake)
+    Neptunus.Fleet.stop_vehicle(id)
+    # the board's last word is neutral; then nothing comes, and 3 s later the vehicle disarms
+    manual_control!(fake, &(&1["x"] == 0 and &1["z"] == 500))
+
+    assert %{"why" => "pilot_input_failsafe"} =
+             FakeArduSub.expect!(fake, &(&1["event"] == "armed"), 6_000)
+  end
+
   test "manual per-thruster mode is refused with a reason", %{topic: topic} do
     ada = pilot(topic)
 

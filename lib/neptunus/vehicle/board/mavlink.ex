@@ -299,7 +299,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   @impl true
   def terminate(_reason, state) do
     # an orderly shutdown leaves the vehicle neutral
-    _ = run(state, &Core.go(&1, Neptunus.Allocation.neutral(), now()))
+    _ = run(state, &Core.neutral(&1, now()))
     :ok
   end
 

@@ -139,6 +139,16 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
       assert [%{x: 500}] = sends(actions, :manual_control)
     end
 
+    test "neutral/2 sends neutral even when unchanged; nothing before a vehicle is known" do
+      core = linked()
+      {core, actions} = Core.neutral(core, 0.6)
+      assert [%{x: 0, z: 500, r: 0}] = sends(actions, :manual_control)
+      {core, _} = Core.go(core, %{port: 0.5, vertical: 0.0, starboard: 0.5}, 0.7)
+      {_core, actions} = Core.neutral(core, 0.71)
+      assert [%{x: 0, z: 500}] = sends(actions, :manual_control)
+      assert {_, []} = Core.neutral(Core.new(0.0), 0.1)
+    end
+
     test "out-of-range values are clamped" do
       assert %{x: 1000, z: 0} = Core.manual_control(%{port: 3.0, vertical: 2.0, starboard: 3.0})
     end

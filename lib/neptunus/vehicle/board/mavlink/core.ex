@@ -352,6 +352,13 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     end
   end
 
+  @doc "Neutral MANUAL_CONTROL now, changed or not (the board's last word when it stops)."
+  @spec neutral(t(), float()) :: {t(), [action()]}
+  def neutral(core, now) do
+    core = %{core | control: manual_control(Neptunus.Allocation.neutral())}
+    if core.target == nil, do: {core, []}, else: send_manual(core, now)
+  end
+
   @doc """
   Arms (`true`) or disarms (`false`) the vehicle; `from` gets the answer as an action
   `{:reply, from, :ok | {:error, reason}}` (see the moduledoc).
