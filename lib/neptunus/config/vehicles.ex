@@ -18,6 +18,9 @@ defmodule Neptunus.Config.Vehicles do
   MAVLink ids (`mavlink` vehicles): `NEPTUNUS_MAVLINK_IDS=id=SYSTEM/COMPONENT` pairs, our own
   system and component ids on that vehicle's link, each in 1..255; default `255/190` (ArduSub
   takes pilot input only from the ground station system id `MAV_GCS_SYSID`, 255 by default).
+  `NEPTUNUS_MAVLINK_DISARM_DELAY=id=SECONDS` (0.1..60, default 2): how long after losing its
+  pilot (disconnect, deadman, release) a mavlink vehicle is disarmed unless a new pilot takes
+  the helm.
 
   Wiring (`sitl` and `uart` vehicles, see `Neptunus.Wiring`): the motors in `go()` order
   separated by `/`, `-` before a reversed one, optionally `:FORWARD:REVERSE` motor modifiers
@@ -66,6 +69,7 @@ defmodule Neptunus.Config.Vehicles do
               required(:link) => mavlink_link(),
               required(:system) => 1..255,
               required(:component) => 1..255,
+              optional(:disarm_delay) => float(),
               optional(:sim) => keyword(),
               optional(:camera) => Neptunus.Camera.Source.t()
             }
@@ -128,6 +132,7 @@ defmodule Neptunus.Config.Vehicles do
         |> models!(Map.get(env, "NEPTUNUS_MODELS", ""))
         |> cameras!(Map.get(env, "NEPTUNUS_CAMERAS", ""))
         |> mavlink_ids!(Map.get(env, "NEPTUNUS_MAVLINK_IDS", ""))
+        |> mavlink_disarm_delay!(Map.get(env, "NEPTUNUS_MAVLINK_DISARM_DELAY", ""))
 
       [dup | _] ->
         Config.bad!("NEPTUNUS_VEHICLES", spec, "unique vehicle ids (#{inspect(dup)} repeats)")
@@ -246,6 +251,24 @@ defmodule Neptunus.Config.Vehicles do
       vehicle ->
         vehicle
     end)
+  end
+
+  # The delay (s) after a pilot loss before a mavlink vehicle is disarmed: `id=SECONDS`.
+  defp mavlink_disarm_delay!(vehicles, spec) do
+    var = "NEPTUNUS_MAVLINK_DISARM_DELAY"
+
+    configured =
+      pairs!(var, spec, vehicles, "id=SECONDS pairs, e.g. sub=2")
+      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
+        if board != :mavlink, do: Config.bad!(var, spec, "mavlink vehicles (#{id} is #{board})")
+
+        case Float.parse(text) do
+          {s, ""} when s >= 0.1 and s <= 60 -> {id, s}
+          _ -> Config.bad!(var, spec, "a delay in seconds in 0.1..60 in #{inspect(pair)}")
+        end
+      end)
+
+    put_configured(vehicles, configured, :disarm_delay)
   end
 
   # each vehicle with a configured value (by id) gets it under `key`

@@ -68,6 +68,26 @@ defmodule Neptunus.Vehicle.Board.MAVLinkConfigTest do
     end
   end
 
+  test "the disarm delay after pilot loss is settable per vehicle" do
+    [a, b] =
+      Vehicles.vehicles!(%{
+        "NEPTUNUS_VEHICLES" => "a=mavlink:tcp:h:5760,b=mavlink:tcp:h:5761",
+        "NEPTUNUS_MAVLINK_DISARM_DELAY" => "b=0.5"
+      })
+
+    refute Map.has_key?(a, :disarm_delay)
+    assert b.disarm_delay == 0.5
+
+    for bad <- ["b=0", "b=61", "b=soon", "b"] do
+      assert_raise ArgumentError, ~r/NEPTUNUS_MAVLINK_DISARM_DELAY/, fn ->
+        Vehicles.vehicles!(%{
+          "NEPTUNUS_VEHICLES" => "b=mavlink:tcp:h:5761",
+          "NEPTUNUS_MAVLINK_DISARM_DELAY" => bad
+        })
+      end
+    end
+  end
+
   test "a wiring for a mavlink vehicle is refused" do
     assert_raise ArgumentError, ~r/NEPTUNUS_WIRING.*sitl or uart vehicles \(s is mavlink\)/, fn ->
       Vehicles.vehicles!(%{

@@ -202,3 +202,65 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
     end
   end
 end
+
+defmodule Neptunus.Vehicle.Board.MAVLinkSerialTest do
+  # The serial link through our port program, on a socat pty pair: the test is the vehicle on
+  # one end (`Pty.open!/1`), the board opens the other.
+  use ExUnit.Case, async: true
+
+  alias Neptunus.Protocol.MAVLink, as: Codec
+  alias Neptunus.Test.Pty
+  alias Neptunus.Vehicle.Board
+
+  defp next(port, name, decoder \\ Codec.new()) do
+    receive do
+      {^port, {:data, "r" <> data}} ->
+        {decoder, messages, _} = Codec.decode(decoder, data)
+
+        case Enum.find(messages, &(&1.name == name)) do
+          nil -> next(port, name, decoder)
+          m -> m
+        end
+
+      {^port, {:data, _}} ->
+        next(port, name, decoder)
+    after
+      3_000 -> flunk("no #{name} on the serial line")
+    end
+  end
+
+  test "serial: heartbeat and MANUAL_CONTROL over the line; the vehicle's heartbeat brings the link up" do
+    pair = Pty.socat_pair!()
+    vehicle = Pty.open!(pair.a)
+    id = "mav-serial-#{System.unique_integer([:positive])}"
+    start_supervised!({Board.MAVLink, id: id, link: {:serial, pair.b, 115_200}})
+    assert %{system: 255, fields: %{type: 6}} = next(vehicle, :heartbeat)
+
+    {:ok, hb} =
+      Codec.encode(
+        :heartbeat,
+        %{type: 12, autopilot: 3, base_mode: 81, custom_mode: 19, system_status: 3},
+        %{system: 1, component: 1, seq: 0}
+      )
+
+    Pty.write(vehicle, hb)
+    assert %{fields: %{x: 0, z: 500, target: 1}} = next(vehicle, :manual_control)
+    Pty.wait_until(fn -> Board.MAVLink.link_status(id).up end, "the link up")
+    assert Board.MAVLink.link_status(id).transport == "serial open"
+  end
+
+  test "serial: a device that cannot be opened is retried, and said why" do
+    id = "mav-serial-#{System.unique_integer([:positive])}"
+
+    start_supervised!(
+      {Board.MAVLink, id: id, link: {:serial, "/nonexistent/tty", 115_200}, reconnect_ms: 50}
+    )
+
+    Pty.wait_until(
+      fn -> Board.MAVLink.link_status(id).counters.opens >= 2 end,
+      "a second open"
+    )
+
+    refute Board.MAVLink.link_status(id).up
+  end
+end
