@@ -620,3 +620,142 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTextTest do
              )
   end
 end
+
+defmodule Neptunus.Vehicle.Board.MAVLink.CorePropertiesTest do
+  use ExUnit.Case, async: true
+
+  alias Neptunus.Protocol.MAVLink, as: Codec
+  alias Neptunus.Protocol.MAVLink.Message
+  alias Neptunus.Test.Properties
+  alias Neptunus.Vehicle.Board.MAVLink.Core
+
+  defp unit, do: :proper_types.float(-1.0, 1.0)
+
+  test "MANUAL_CONTROL from any thruster values: in range, encodable, neutral only from neutral" do
+    gen = :proper_types.tuple([unit(), unit(), unit()])
+
+    Properties.check(gen, fn {p, v, s} ->
+      c = Core.manual_control(%{port: p, vertical: v, starboard: s})
+      fields = Map.put(c, :target, 1)
+
+      c.x in -1000..1000 and c.r in -1000..1000 and c.z in 0..1000 and c.y == 0 and
+        c.buttons == 0 and
+        match?(
+          {:ok, _},
+          Codec.encode(:manual_control, fields, %{system: 255, component: 190, seq: 0})
+        ) and
+        c == Core.manual_control(%{port: 0.0, vertical: 0.0, starboard: 0.0}) ==
+          (round(500 * (p + s)) == 0 and round(500 * (p - s)) == 0 and round(500 * v) == 0)
+    end)
+  end
+
+  # whatever a vehicle sends, in any order, the core never crashes and its actions are of the
+  # documented shapes
+  test "any sequence of vehicle messages and ticks: no crash, documented actions" do
+    fields = %{
+      heartbeat: fn ->
+        %{
+          type: Enum.random([6, 12, 2]),
+          autopilot: 3,
+          base_mode: Enum.random(0..255),
+          custom_mode: Enum.random(0..30),
+          system_status: Enum.random(0..10)
+        }
+      end,
+      attitude: fn ->
+        %{
+          time_boot_ms: Enum.random(0..100_000),
+          roll: :rand.uniform(),
+          pitch: :rand.uniform(),
+          yaw: :rand.uniform() * 8 - 4
+        }
+      end,
+      vfr_hud: fn -> %{alt: Enum.random([-3.0, 0.0, 1.5, :nan])} end,
+      sys_status: fn ->
+        %{
+          voltage_battery: Enum.random([0, 15_000, 0xFFFF]),
+          current_battery: Enum.random([-1, 0, 250])
+        }
+      end,
+      statustext: fn ->
+        %{severity: Enum.random(0..7), text: "t", id: Enum.random([0, 1, 2]), chunk_seq: 0}
+      end,
+      command_ack: fn -> %{command: Enum.random([400, 176, 183]), result: Enum.random(0..6)} end,
+      timesync: fn -> %{tc1: Enum.random([0, 5]), ts1: Enum.random([0, 1_000_000_000, -1])} end,
+      global_position_int: fn -> %{relative_alt: Enum.random([-2000, 0, 100])} end,
+      servo_output_raw: fn ->
+        Map.new(1..16, &{String.to_atom("servo#{&1}_raw"), Enum.random([0, 1100, 1500, 1900])})
+      end
+    }
+
+    step =
+      :proper_types.oneof([
+        :proper_types.exactly(:tick),
+        :proper_types.exactly(:arm) | Enum.map(Map.keys(fields), &:proper_types.exactly/1)
+      ])
+
+    Properties.check(
+      :proper_types.list(step),
+      fn steps ->
+        {_core, _t, ok?} =
+          Enum.reduce(steps, {Core.new(0.0), 0.0, true}, fn s, {core, t, ok?} ->
+            t = t + 0.05
+
+            {core, actions} =
+              case s do
+                :tick ->
+                  Core.tick(core, t)
+
+                :arm ->
+                  Core.arm(core, :me, true, t)
+
+                name ->
+                  Core.receive(
+                    core,
+                    %Message{
+                      id: 0,
+                      name: name,
+                      system: Enum.random([1, 2]),
+                      component: 1,
+                      seq: 0,
+                      version: 2,
+                      fields: fields[name].()
+                    },
+                    t
+                  )
+              end
+
+            shapes? =
+              Enum.all?(actions, fn
+                {:send, name, f} when is_atom(name) and is_map(f) ->
+                  match?({:ok, _}, Codec.encode(name, f, %{system: 255, component: 190, seq: 0}))
+
+                {:reply, :me, :ok} ->
+                  true
+
+                {:reply, :me, {:error, r}} when is_binary(r) ->
+                  true
+
+                {:link, %{up: up, reason: r}} when is_boolean(up) and is_binary(r) ->
+                  true
+
+                {:log, level, text, %{}}
+                when level in [:info, :warning, :error] and is_binary(text) ->
+                  true
+
+                {:sample, %{t: t, measurement: m, sim: nil}} when is_float(t) and is_map(m) ->
+                  true
+
+                _ ->
+                  false
+              end)
+
+            {core, t, ok? and shapes?}
+          end)
+
+        ok?
+      end,
+      200
+    )
+  end
+end
