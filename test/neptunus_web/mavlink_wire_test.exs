@@ -151,6 +151,24 @@ defmodule NeptunusWeb.MAVLinkWireTest do
              FakeArduSub.expect!(fake, &(&1["event"] == "armed"), 6_000)
   end
 
+  test "lights and camera tilt through the vehicle's own commands", %{fake: fake, topic: topic} do
+    ada = pilot(topic)
+    assert {"ok", %{"control" => %{"lights" => 255}}} = push(ada, "set_lights", %{"value" => 255})
+
+    assert %{"params" => [9.0, 1900.0 | _], "result" => 0} =
+             FakeArduSub.expect!(fake, &(&1["event"] == "command" and &1["command"] == 183))
+
+    assert {"ok", _} = push(ada, "set_tilt", %{"value" => -0.5})
+
+    assert %{"params" => [pitch | _]} =
+             FakeArduSub.expect!(fake, &(&1["event"] == "command" and &1["command"] == 205))
+
+    assert_in_delta pitch, -0.5 * 180 / :math.pi(), 1.0e-3
+
+    assert {"error", %{"reason" => "an ArduSub vehicle has no laser"}} =
+             push(ada, "set_laser", %{"value" => 3})
+  end
+
   test "manual per-thruster mode is refused with a reason", %{topic: topic} do
     ada = pilot(topic)
 
