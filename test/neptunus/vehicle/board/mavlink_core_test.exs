@@ -182,6 +182,16 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
       assert core.target == nil
     end
 
+    test "a companion computer's or gimbal's heartbeat (autopilot invalid) is not the vehicle" do
+      for {type, component} <- [{18, 191}, {26, 154}, {30, 100}] do
+        hb = heartbeat(type: type, component: component)
+        hb = %{hb | fields: %{hb.fields | autopilot: 8}}
+        {core, actions} = Core.receive(Core.new(0.0), hb, 1.0)
+        assert actions == []
+        assert core.target == nil
+      end
+    end
+
     test "the first vehicle heard is the target; another system's heartbeat is ignored" do
       core = linked()
       {core2, actions} = Core.receive(core, heartbeat(system: 2, armed: true), 0.7)

@@ -29,8 +29,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
 
   ## The link
 
-  Up from the first HEARTBEAT of a vehicle (any type but a ground station; the first one
-  heard is the target of our commands) until none came for `link_timeout` (3 s); every change
+  Up from the first HEARTBEAT of a vehicle (an autopilot: any type but a ground station, and
+  an autopilot other than `MAV_AUTOPILOT_INVALID`, so the companion computer's, camera's or
+  gimbal's heartbeats are not taken for it; the first one heard is the target of our commands) until none came for `link_timeout` (3 s); every change
   is an action `{:link, %{up, reason}}`.
 
   ## Arming
@@ -555,8 +556,12 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
 
   @doc "A message from the link."
   @spec receive(t(), Message.t(), float()) :: {t(), [action()]}
-  def receive(core, %Message{name: :heartbeat, fields: %{type: type}} = m, now)
-      when type != @mav_type_gcs do
+  def receive(
+        core,
+        %Message{name: :heartbeat, fields: %{type: type, autopilot: autopilot}} = m,
+        now
+      )
+      when type != @mav_type_gcs and autopilot != @mav_autopilot_invalid do
     if core.target == nil or core.target == {m.system, m.component},
       do: heartbeat(core, m, now),
       else: {core, []}
