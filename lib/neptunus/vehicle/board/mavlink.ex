@@ -275,8 +275,11 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   def handle_info({:pubsub, _topic, "stopped", %{reason: reason}}, state),
     do: {:noreply, %{state | core: Core.stopped(state.core, reason, now())} |> arm_timer()}
 
-  def handle_info({:pubsub, _topic, "helm", %{pilot: pilot}}, state),
-    do: {:noreply, %{state | core: Core.pilot(state.core, pilot)}}
+  # the pilot is known by their connection's id (the rest of the helm's party may change)
+  def handle_info({:pubsub, _topic, "helm", %{pilot: pilot}}, state) do
+    pilot = if is_map(pilot), do: Map.get(pilot, :id, pilot), else: pilot
+    {:noreply, %{state | core: Core.pilot(state.core, pilot)}}
+  end
 
   def handle_info({:pubsub, _topic, _event, _payload}, state), do: {:noreply, state}
 

@@ -40,17 +40,21 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
   end
 
   # the next message `name` from the board (other messages skipped), with its source
-  defp next(name, timeout \\ 2_000) do
+  defp next(name, timeout \\ 2_000),
+    do: next_until(name, System.monotonic_time(:millisecond) + timeout)
+
+  defp next_until(name, deadline) do
     receive do
       {:udp, _socket, ip, port, data} ->
         {_, messages, _} = Codec.decode(Codec.new(), data)
 
         case Enum.find(messages, &(&1.name == name)) do
-          nil -> next(name, timeout)
+          nil -> next_until(name, deadline)
           m -> {m, {ip, port}}
         end
     after
-      timeout -> flunk("no #{name} from the board within #{timeout} ms")
+      max(0, deadline - System.monotonic_time(:millisecond)) ->
+        flunk("no #{name} from the board in time")
     end
   end
 
@@ -133,6 +137,25 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
     PubSub.broadcast(Telemetry.topic(ctx.id), "stopped", %{reason: "pilot_disconnected"})
     {cmd, _} = next(:command_long)
     assert %{command: 400, param1: +0.0} = cmd.fields
+  end
+
+  test "the same pilot in a changed helm party does not cancel the disarm; a new one does", ctx do
+    start_board(ctx, disarm_delay: 0.3)
+    from = up(ctx)
+    vehicle_says(ctx, from, heartbeat(true, 1))
+    wait_until(fn -> Board.MAVLink.link_status(ctx.id).mavlink.armed end)
+    topic = Telemetry.topic(ctx.id)
+    ada = %{id: "c1", name: "Ada", role: "pilot", since: 1}
+    PubSub.broadcast(topic, "helm", %{pilot: ada})
+    PubSub.broadcast(topic, "stopped", %{reason: "deadman"})
+    PubSub.broadcast(topic, "helm", %{pilot: %{ada | since: 2}})
+    {cmd, _} = next(:command_long)
+    assert %{command: 400, param1: +0.0} = cmd.fields
+
+    PubSub.broadcast(topic, "stopped", %{reason: "pilot_disconnected"})
+    PubSub.broadcast(topic, "helm", %{pilot: nil})
+    PubSub.broadcast(topic, "helm", %{pilot: %{id: "c2", name: "Bob", role: "pilot", since: 3}})
+    wait_until(fn -> not Board.MAVLink.link_status(ctx.id).mavlink.disarm_pending end)
   end
 
   test "STATUSTEXT goes to the vehicle's log with its severity", ctx do
