@@ -237,20 +237,24 @@ defmodule Neptunus.Vehicle.Board.MAVLinkSerialTest do
   alias Neptunus.Test.Pty
   alias Neptunus.Vehicle.Board
 
-  defp next(port, name, decoder \\ Codec.new()) do
+  defp next(port, name),
+    do: next(port, name, Codec.new(), System.monotonic_time(:millisecond) + 3_000)
+
+  defp next(port, name, decoder, deadline) do
     receive do
       {^port, {:data, "r" <> data}} ->
         {decoder, messages, _} = Codec.decode(decoder, data)
 
         case Enum.find(messages, &(&1.name == name)) do
-          nil -> next(port, name, decoder)
+          nil -> next(port, name, decoder, deadline)
           m -> m
         end
 
       {^port, {:data, _}} ->
-        next(port, name, decoder)
+        next(port, name, decoder, deadline)
     after
-      3_000 -> flunk("no #{name} on the serial line")
+      max(0, deadline - System.monotonic_time(:millisecond)) ->
+        flunk("no #{name} on the serial line")
     end
   end
 
