@@ -24,26 +24,28 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     * **TIMESYNC** every second (`tc1 = 0`, `ts1` our clock in ns): the vehicle's answer gives
       the round-trip time (`rtt_ms`).
     * **COMMAND_LONG** `MAV_CMD_COMPONENT_ARM_DISARM` (400) for `arm/4`, `MAV_CMD_DO_SET_MODE`
-      (176) for `set_mode/3`, `MAV_CMD_DO_SET_SERVO` (183) for the lights and
+      (176) for `set_mode/4` and `autopilot/4`, `MAV_CMD_DO_SET_SERVO` (183) for the lights and
       `MAV_CMD_DO_MOUNT_CONTROL` (205) for the camera tilt.
 
   ## The link
 
   Up from the first HEARTBEAT of a vehicle (an autopilot: any type but a ground station, and
   an autopilot other than `MAV_AUTOPILOT_INVALID`, so the companion computer's, camera's or
-  gimbal's heartbeats are not taken for it; the first one heard is the target of our commands) until none came for `link_timeout` (3 s); every change
-  is an action `{:link, %{up, reason}}`.
+  gimbal's heartbeats are not taken for it; the first one heard is the target of our
+  commands) until none came for `link_timeout` (3 s); every change is an action
+  `{:link, %{up, reason}}`. Messages of other systems are ignored.
 
   ## Arming
 
   One arm/disarm (or mode) command waits for its COMMAND_ACK at a time; a second is refused.
   The answer is `:ok` for `MAV_RESULT_ACCEPTED`, otherwise the reason: the text of the last
   STATUSTEXT the vehicle sent while the command waited (ArduSub explains a refusal there,
-  e.g. "Arm: Throttle too high" / "PreArm: …"), or the result's name. No ACK within
+  e.g. "PreArm: Must assign a disarm or arm_toggle button or disarm aux function"; texts
+  over 50 bytes come in chunks and are joined), or the result's name. No ACK within
   `command_timeout` (3 s) → `{:error, "no answer from the vehicle within 3.0 s"}`. Refused at
   once while the link is down.
 
-  **Pilot loss** (`pilot/3` with the helm's pilot, `stopped/3` with a stop's reason): a stop for
+  **Pilot loss** (`pilot/2` with the helm's pilot, `stopped/3` with a stop's reason): a stop for
   one of the `pilot_loss_reasons/0` schedules a disarm `disarm_delay` later (2 s), which a new
   pilot taking the helm before then cancels; a handover never schedules one.
   """
