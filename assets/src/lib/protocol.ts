@@ -140,6 +140,16 @@ export interface LinkStatus {
   readonly reason: string | null;
   /** what the board's replies say, from a board on a serial link (absent otherwise) */
   readonly board?: BoardLinkDetails;
+  /** the vehicle's own state, from a mavlink (ArduSub) vehicle (absent otherwise) */
+  readonly mavlink?: MavlinkStatus;
+}
+
+/** A mavlink vehicle's state in telemetry `link.mavlink` (docs/API.md, docs/MAVLINK.md). */
+export interface MavlinkStatus {
+  readonly armed: boolean;
+  /** ArduSub's flight mode (`MANUAL`, `ALT_HOLD`, …); null before its first heartbeat */
+  readonly mode: string | null;
+  readonly system_status: string | null;
 }
 
 /** The board link's liveness fields in telemetry `link` (docs/API.md). */
@@ -436,7 +446,24 @@ export function decodeLinkStatus(value: unknown): LinkStatus | null {
   if (!isRecord(value) || typeof value["up"] !== "boolean") return null;
   const reason = value["reason"];
   const board = decodeBoardLinkDetails(value);
-  return { up: value["up"], reason: typeof reason === "string" ? reason : null, ...(board ? { board } : {}) };
+  const mavlink = decodeMavlinkStatus(value["mavlink"]);
+  return {
+    up: value["up"],
+    reason: typeof reason === "string" ? reason : null,
+    ...(board ? { board } : {}),
+    ...(mavlink ? { mavlink } : {}),
+  };
+}
+
+export function decodeMavlinkStatus(value: unknown): MavlinkStatus | null {
+  if (!isRecord(value) || typeof value["armed"] !== "boolean") return null;
+  const mode = value["mode"];
+  const status = value["system_status"];
+  return {
+    armed: value["armed"],
+    mode: typeof mode === "string" ? mode : null,
+    system_status: typeof status === "string" ? status : null,
+  };
 }
 
 function decodeBoardLinkDetails(value: Record<string, unknown>): BoardLinkDetails | null {

@@ -199,6 +199,16 @@ export class LogTopic {
   }
 }
 
+/** A mavlink vehicle's answer to `arm`, `disarm` or `autopilot`. */
+export interface VehicleAnswer {
+  readonly command: string;
+  readonly ok: boolean;
+  readonly reason: string | null;
+}
+
+/** `arm`/`disarm` reply: the vehicle answered (`ok`) or its answer follows (`pending`). */
+export type ArmReply = "ok" | "pending";
+
 export interface VehicleHandlers {
   /** Every successful (re)join, with the server's snapshot. */
   readonly snapshot?: (snapshot: VehicleSnapshot) => void;
@@ -217,6 +227,8 @@ export interface VehicleHandlers {
   readonly stopped?: (reason: string) => void;
   /** The board link came up or went down (serial boards). */
   readonly link?: (link: LinkStatus) => void;
+  /** A mavlink vehicle's late answer to `arm`/`disarm`/`autopilot` (the reply said pending). */
+  readonly vehicleAnswer?: (answer: VehicleAnswer) => void;
   /** Who is connected to this vehicle (after every presence sync). */
   readonly presence?: (entries: readonly PresenceEntry[]) => void;
   readonly status?: (status: ConnectionStatus) => void;
@@ -278,6 +290,12 @@ export class VehicleChannel {
       const settings = decodeVehicleSettings(payload);
       if (settings) handlers.vehicleSettings?.(settings);
       else handlers.protocolError?.("vehicle_settings", payload);
+    });
+    this.channel.on("vehicle_answer", (payload: unknown) => {
+      if (isRecord(payload) && typeof payload["command"] === "string" && typeof payload["ok"] === "boolean") {
+        const reason = payload["reason"];
+        handlers.vehicleAnswer?.({ command: payload["command"], ok: payload["ok"], reason: typeof reason === "string" ? reason : null });
+      } else handlers.protocolError?.("vehicle_answer", payload);
     });
     this.channel.on("link", (payload: unknown) => {
       const link = decodeLinkStatus(payload);
@@ -464,6 +482,16 @@ export class VehicleChannel {
   stop(reason?: string, timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<void> {
     const payload = reason === undefined ? {} : { reason };
     return this.command("stop", payload, () => true, timeoutMs).then(() => undefined);
+  }
+
+  /**
+   * Arms (`true`) or disarms a mavlink vehicle (pilot only). Resolves `ok` when the vehicle
+   * accepted, `pending` when its answer follows as `vehicleAnswer`; rejects with its reason.
+   */
+  arm(arm: boolean, timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<ArmReply> {
+    const decode = (r: unknown): ArmReply | null =>
+      isRecord(r) && (r["status"] === "ok" || r["status"] === "pending") ? r["status"] : null;
+    return this.command(arm ? "arm" : "disarm", {}, decode, timeoutMs);
   }
 
   /** Leaves the channel and forgets the socket callbacks. */

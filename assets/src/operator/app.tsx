@@ -176,6 +176,37 @@ function Crew({ s }: { s: OperatorState }): preact.JSX.Element {
   );
 }
 
+/** A mavlink (ArduSub) vehicle's own state — link, armed, flight mode — and, for the pilot, Arm / Disarm. */
+function VehiclePanel({ s, c }: { s: OperatorState; c: OperatorController }): preact.JSX.Element | null {
+  const m = s.link?.mavlink;
+  if (!s.link || !m) return null;
+  const pilot = s.helm.me === "pilot";
+  return (
+    <Panel title="ArduSub" id="ardusub">
+      <dl class="readouts">
+        <Readout label="Link" id="vehicle-link" value={s.link.up ? "up" : `down${s.link.reason ? ` (${s.link.reason})` : ""}`} />
+        <div>
+          <dt>State</dt>
+          <dd>
+            <strong id="armed" data-testid="armed" data-armed={String(m.armed)}>
+              {m.armed ? "ARMED" : "disarmed"}
+            </strong>
+          </dd>
+        </div>
+        <Readout label="Mode" id="vehicle-mode" value={m.mode ?? PLACEHOLDER} />
+      </dl>
+      <div class="helm-actions" hidden={!pilot}>
+        <button type="button" id="arm" data-testid="arm" disabled={m.armed || !s.link.up} onClick={() => c.arm(true)}>
+          Arm
+        </button>
+        <button type="button" id="disarm" data-testid="disarm" disabled={!m.armed} onClick={() => c.arm(false)}>
+          Disarm
+        </button>
+      </div>
+    </Panel>
+  );
+}
+
 function StopBanner({ s }: { s: OperatorState }): preact.JSX.Element | null {
   if (s.lastStop === null) return null;
   const age = Date.now() - s.lastStop.at;
@@ -210,6 +241,7 @@ export function App({ controller }: { controller: OperatorController }): preact.
         </div>
         <aside class="side-column">
           <HelmPanel s={s} c={controller} />
+          <VehiclePanel s={s} c={controller} />
           <InputPanel s={s} c={controller} />
           <SettingsPanel s={s} c={controller} />
         </aside>

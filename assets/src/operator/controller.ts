@@ -390,6 +390,7 @@ export class OperatorController {
         this.store.update({ link });
         this.dispatch({ type: "link", up: link.up });
       },
+      vehicleAnswer: (answer) => this.vehicleAnswer(answer.command, answer.ok ? null : (answer.reason ?? "refused")),
       presence: (entries) => this.store.update({ presence: entries }),
       status: (status) => {
         this.setStatus(status);
@@ -760,6 +761,27 @@ export class OperatorController {
       ?.answerRequest(accept)
       .then(() => this.dispatch({ type: "answered" }))
       .catch((err: unknown) => this.refused("Answer", err));
+  }
+
+  /** Arms (`true`) or disarms a mavlink vehicle; the vehicle's answer is shown as a message. */
+  arm(arm: boolean): void {
+    const command = arm ? "arm" : "disarm";
+    this.vehicle
+      ?.arm(arm)
+      .then((reply) => {
+        if (reply === "ok") this.vehicleAnswer(command, null);
+        else this.showMessage(`${arm ? "Arming" : "Disarming"}: waiting for the vehicle…`, "info", "arm");
+      })
+      .catch((err: unknown) => this.vehicleAnswer(command, reasonOf(err)));
+  }
+
+  private vehicleAnswer(command: string, refusal: string | null): void {
+    if (command !== "arm" && command !== "disarm") {
+      if (refusal !== null) this.showMessage(`The vehicle refused ${command}: ${refusal}`, "error", "arm");
+      return;
+    }
+    if (refusal === null) this.showMessage(command === "arm" ? "Vehicle armed" : "Vehicle disarmed", "info", "arm");
+    else this.showMessage(`${command === "arm" ? "Arm" : "Disarm"} refused: ${refusal}`, "error", "arm");
   }
 
   signOut(): void {

@@ -7,8 +7,20 @@ defmodule Neptunus.Config.Vehicles do
 
   Boards: `simulated` (the built-in simulator), `sitl` (the simulator behind a pseudo-terminal
   speaking the OpenROV protocol, through the real board link), `uart:DEVICE[@BAUD]` (a real
-  board, e.g. `uart:/dev/ttyO1@115200`; baud 1200 … 921600, default 115200). Vehicle ids are
-  1..32 characters of `a-z A-Z 0-9 _ -`.
+  board, e.g. `uart:/dev/ttyO1@115200`; baud 1200 … 921600, default 115200) and `mavlink:LINK`
+  (an ArduSub vehicle over MAVLink, `Neptunus.Vehicle.Board.MAVLink`, docs/MAVLINK.md) where
+  LINK is `udp:ADDRESS:PORT` (listen on a local address for the vehicle's stream and answer
+  whoever sent the last datagram, e.g. `udp:0.0.0.0:14550`), `udpout:HOST:PORT` (send to the
+  vehicle), `tcp:HOST:PORT` (connect; ArduPilot SITL listens on 5760) or
+  `serial:DEVICE[@BAUD]` (through the `neptunus_uart` port program, as `uart`). Vehicle ids
+  are 1..32 characters of `a-z A-Z 0-9 _ -`.
+
+  MAVLink ids (`mavlink` vehicles): `NEPTUNUS_MAVLINK_IDS=id=SYSTEM/COMPONENT` pairs, our own
+  system and component ids on that vehicle's link, each in 1..255; default `255/190` (ArduSub
+  takes pilot input only from the ground station system id `MAV_GCS_SYSID`, 255 by default).
+  `NEPTUNUS_MAVLINK_DISARM_DELAY=id=SECONDS` (0.1..60, default 2): how long after losing its
+  pilot (disconnect, deadman, release) a mavlink vehicle is disarmed unless a new pilot takes
+  the helm.
 
   Wiring (`sitl` and `uart` vehicles, see `Neptunus.Wiring`): the motors in `go()` order
   separated by `/`, `-` before a reversed one, optionally `:FORWARD:REVERSE` motor modifiers
@@ -53,6 +65,16 @@ defmodule Neptunus.Config.Vehicles do
             }
           | %{
               required(:id) => String.t(),
+              required(:board) => :mavlink,
+              required(:link) => mavlink_link(),
+              required(:system) => 1..255,
+              required(:component) => 1..255,
+              optional(:disarm_delay) => float(),
+              optional(:sim) => keyword(),
+              optional(:camera) => Neptunus.Camera.Source.t()
+            }
+          | %{
+              required(:id) => String.t(),
               required(:board) => :uart,
               required(:device) => String.t(),
               required(:baud) => pos_integer(),
@@ -62,9 +84,15 @@ defmodule Neptunus.Config.Vehicles do
               optional(:camera) => Neptunus.Camera.Source.t()
             }
 
-  @default_vehicles "neptunus-1=simulated"
-  @boards %{"simulated" => :simulated, "sitl" => :sitl}
-  @bauds [1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 921_600]
+  @typedoc """
+  Where a `mavlink` vehicle is: `{:udp, address, port}` (listen on a local address),
+  `{:udpout, host, port}` (send to the vehicle), `{:tcp, host, port}` (connect to it) or
+  `{:serial, device, baud}` (through the `neptunus_uart` port program).
+  """
+  @type mavlink_link ::
+          {:udp, :inet.ip_address(), :inet.port_number()}
+          | {:udpout | :tcp, String.t(), 1..65_535}
+          | {:serial, String.t(), pos_integer()}
 
   @default_vehicles "neptunus-1=simulated"
   @boards %{"simulated" => :simulated, "sitl" => :sitl}
@@ -103,6 +131,8 @@ defmodule Neptunus.Config.Vehicles do
         |> firmware!(Map.get(env, "NEPTUNUS_FIRMWARE", ""))
         |> models!(Map.get(env, "NEPTUNUS_MODELS", ""))
         |> cameras!(Map.get(env, "NEPTUNUS_CAMERAS", ""))
+        |> mavlink_ids!(Map.get(env, "NEPTUNUS_MAVLINK_IDS", ""))
+        |> mavlink_disarm_delay!(Map.get(env, "NEPTUNUS_MAVLINK_DISARM_DELAY", ""))
 
       [dup | _] ->
         Config.bad!("NEPTUNUS_VEHICLES", spec, "unique vehicle ids (#{inspect(dup)} repeats)")
@@ -193,6 +223,54 @@ defmodule Neptunus.Config.Vehicles do
     put_configured(vehicles, configured, :camera)
   end
 
+  # Our own MAVLink system and component ids per mavlink vehicle: `id=SYSTEM/COMPONENT`,
+  # default 255/190 (a ground station: ArduSub takes pilot input only from its MAV_GCS_SYSID,
+  # 255 by default).
+  defp mavlink_ids!(vehicles, spec) do
+    var = "NEPTUNUS_MAVLINK_IDS"
+
+    configured =
+      pairs!(var, spec, vehicles, "id=SYSTEM/COMPONENT pairs, e.g. sub=255/190")
+      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
+        if board != :mavlink, do: Config.bad!(var, spec, "mavlink vehicles (#{id} is #{board})")
+
+        with [system, component] <- String.split(text, "/"),
+             {system, ""} when system in 1..255 <- Integer.parse(system),
+             {component, ""} when component in 1..255 <- Integer.parse(component) do
+          {id, {system, component}}
+        else
+          _ -> Config.bad!(var, spec, "SYSTEM/COMPONENT ids in 1..255 in #{inspect(pair)}")
+        end
+      end)
+
+    Enum.map(vehicles, fn
+      %{board: :mavlink, id: id} = vehicle ->
+        {system, component} = Map.get(configured, id, {255, 190})
+        Map.merge(vehicle, %{system: system, component: component})
+
+      vehicle ->
+        vehicle
+    end)
+  end
+
+  # The delay (s) after a pilot loss before a mavlink vehicle is disarmed: `id=SECONDS`.
+  defp mavlink_disarm_delay!(vehicles, spec) do
+    var = "NEPTUNUS_MAVLINK_DISARM_DELAY"
+
+    configured =
+      pairs!(var, spec, vehicles, "id=SECONDS pairs, e.g. sub=2")
+      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
+        if board != :mavlink, do: Config.bad!(var, spec, "mavlink vehicles (#{id} is #{board})")
+
+        case Float.parse(text) do
+          {s, ""} when s >= 0.1 and s <= 60 -> {id, s}
+          _ -> Config.bad!(var, spec, "a delay in seconds in 0.1..60 in #{inspect(pair)}")
+        end
+      end)
+
+    put_configured(vehicles, configured, :disarm_delay)
+  end
+
   # each vehicle with a configured value (by id) gets it under `key`
   defp put_configured(vehicles, configured, key) do
     Enum.map(vehicles, fn %{id: id} = vehicle ->
@@ -246,6 +324,14 @@ defmodule Neptunus.Config.Vehicles do
           {:ok, board} ->
             Map.put(board, :id, id)
 
+          {:bad_mavlink, why} ->
+            Config.bad!(
+              "NEPTUNUS_VEHICLES",
+              spec,
+              "mavlink:udp:ADDRESS:PORT, mavlink:udpout:HOST:PORT, mavlink:tcp:HOST:PORT or " <>
+                "mavlink:serial:DEVICE[@BAUD] in #{inspect(pair)}: #{why}"
+            )
+
           {:bad_uart, why} ->
             Config.bad!(
               "NEPTUNUS_VEHICLES",
@@ -258,7 +344,7 @@ defmodule Neptunus.Config.Vehicles do
               "NEPTUNUS_VEHICLES",
               spec,
               "a known board in #{inspect(pair)}: one of " <>
-                "#{Enum.join(Map.keys(@boards), ", ")}, uart:DEVICE[@BAUD]"
+                "#{Enum.join(Map.keys(@boards), ", ")}, uart:DEVICE[@BAUD], mavlink:…"
             )
         end
 
@@ -272,6 +358,24 @@ defmodule Neptunus.Config.Vehicles do
   end
 
   defp board("uart:" <> device_baud) do
+    case serial(device_baud) do
+      {:ok, device, baud} -> {:ok, %{board: :uart, device: device, baud: baud}}
+      {:error, why} -> {:bad_uart, why}
+    end
+  end
+
+  defp board("mavlink:" <> link) do
+    case mavlink_link(link) do
+      {:ok, link} -> {:ok, %{board: :mavlink, link: link}}
+      {:error, why} -> {:bad_mavlink, why}
+    end
+  end
+
+  defp board(name) do
+    with {:ok, board} <- Map.fetch(@boards, name), do: {:ok, %{board: board}}
+  end
+
+  defp serial(device_baud) do
     {device, baud} =
       case String.split(device_baud, "@") do
         [device] -> {device, "115200"}
@@ -281,17 +385,50 @@ defmodule Neptunus.Config.Vehicles do
 
     cond do
       not String.starts_with?(device, "/") ->
-        {:bad_uart, "the device must be an absolute path such as /dev/ttyO1"}
+        {:error, "the device must be an absolute path such as /dev/ttyO1"}
 
       not match?({_, ""}, Integer.parse(baud)) or elem(Integer.parse(baud), 0) not in @bauds ->
-        {:bad_uart, "the baud rate must be one of #{Enum.join(@bauds, ", ")}"}
+        {:error, "the baud rate must be one of #{Enum.join(@bauds, ", ")}"}
 
       true ->
-        {:ok, %{board: :uart, device: device, baud: String.to_integer(baud)}}
+        {:ok, device, String.to_integer(baud)}
     end
   end
 
-  defp board(name) do
-    with {:ok, board} <- Map.fetch(@boards, name), do: {:ok, %{board: board}}
+  defp mavlink_link("serial:" <> device_baud) do
+    with {:ok, device, baud} <- serial(device_baud), do: {:ok, {:serial, device, baud}}
+  end
+
+  defp mavlink_link("udp:" <> address_port) do
+    with {:ok, host, port} <- host_port(address_port) do
+      case :inet.parse_address(String.to_charlist(host)) do
+        {:ok, address} -> {:ok, {:udp, address, port}}
+        {:error, _} -> {:error, "udp listens on a local IP address such as 0.0.0.0"}
+      end
+    end
+  end
+
+  defp mavlink_link("udpout:" <> host_port) do
+    with {:ok, host, port} <- host_port(host_port), do: {:ok, {:udpout, host, port}}
+  end
+
+  defp mavlink_link("tcp:" <> host_port) do
+    with {:ok, host, port} <- host_port(host_port), do: {:ok, {:tcp, host, port}}
+  end
+
+  defp mavlink_link(_), do: {:error, "the link must be udp, udpout, tcp or serial"}
+
+  # HOST:PORT; the host's last colon separates the port (an IPv6 address in brackets)
+  defp host_port(text) do
+    case Regex.run(~r/^\[?([^\[\]\s]+?)\]?:([0-9]+)$/, text) do
+      [_, host, port] ->
+        case Integer.parse(port) do
+          {port, ""} when port in 1..65_535 -> {:ok, host, port}
+          _ -> {:error, "the port must be in 1..65535"}
+        end
+
+      nil ->
+        {:error, "expected HOST:PORT (got #{inspect(text)})"}
+    end
   end
 end

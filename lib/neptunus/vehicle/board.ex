@@ -20,13 +20,14 @@ defmodule Neptunus.Vehicle.Board do
       protocol through the `neptunus_uart` port program);
     * `:sitl` — `Neptunus.Vehicle.Board.SITL`, the simulator behind a pseudo-terminal speaking
       the OpenROV protocol, driven through `Board.UART`;
+    * `:mavlink` — `Neptunus.Vehicle.Board.MAVLink`, an ArduSub vehicle over MAVLink;
     * any module implementing this behaviour (`Neptunus.Vehicle.Board.Test` in tests).
 
   Optional callbacks: `keepalive/1` (boards that feed a deadman: `Vehicle.Control` calls
   `keepalive/1` once a second while it is healthy), `link_status/1` (boards with a link that
   can go down), and `lights/2`, `laser/2` (0..255) and `tilt/2` (camera tilt, rad in
   [−π/4, π/4]; `tilt_us/1` gives the servo pulse width) — boards without them ignore those
-  commands.
+  commands; `arm/3` (vehicles with their own arming; `arm/3` here refuses for the others).
 
   **Samples** go to navigation through `sample/3`, which passes on only the samples of the
   vehicle's current source: the board's, or — while `Vehicle.Control` runs in run mode
@@ -75,12 +76,28 @@ defmodule Neptunus.Vehicle.Board do
   @doc "Tilts the camera to `rad` in [−π/4, π/4] (asynchronous)."
   @callback tilt(id :: String.t(), float()) :: :ok
 
-  @optional_callbacks keepalive: 1, link_status: 1, lights: 2, laser: 2, tilt: 2
+  @doc """
+  Arms (`true`) or disarms (`false`) the vehicle (boards whose vehicle has its own arming:
+  `Neptunus.Vehicle.Board.MAVLink`). Returns at once; `notify` is called with `:ok` or
+  `{:error, reason}` when the outcome is known.
+  """
+  @callback arm(id :: String.t(), boolean(), notify :: (:ok | {:error, String.t()} -> term())) ::
+              :ok
+
+  @doc """
+  Whether the board's vehicle can fly a validated control command
+  (`Neptunus.Control.Command.t()`): `Neptunus.Vehicle.Control` refuses it with the reason
+  otherwise. Boards without `vet/1` fly every command.
+  """
+  @callback vet(command :: term()) :: :ok | {:error, String.t()}
+
+  @optional_callbacks keepalive: 1, link_status: 1, lights: 2, laser: 2, tilt: 2, arm: 3, vet: 1
 
   @boards %{
     simulated: Neptunus.Vehicle.Board.Simulated,
     uart: Neptunus.Vehicle.Board.UART,
-    sitl: Neptunus.Vehicle.Board.SITL
+    sitl: Neptunus.Vehicle.Board.SITL,
+    mavlink: Neptunus.Vehicle.Board.MAVLink
   }
 
   @doc """
@@ -99,7 +116,8 @@ defmodule Neptunus.Vehicle.Board do
       :detected_firmware,
       :firmware_mismatch,
       :commands_sent,
-      :commands_confirmed
+      :commands_confirmed,
+      :mavlink
     ]
   end
 
@@ -179,6 +197,32 @@ defmodule Neptunus.Vehicle.Board do
     case Registry.lookup(Neptunus.Fleet.Registry, {Neptunus.Vehicle.Supervisor, id}) do
       [{_pid, board}] -> board
       [] -> nil
+    end
+  end
+
+  @doc """
+  Arms or disarms vehicle `id` (see the `arm/3` callback): `:ok` once asked (`notify` gets the
+  outcome), or `{:error, reason}` at once for a board without arming.
+  """
+  @spec arm(String.t(), boolean(), (:ok | {:error, String.t()} -> term())) ::
+          :ok | {:error, String.t()}
+  def arm(id, arm?, notify) when is_boolean(arm?) and is_function(notify, 1) do
+    with {:ok, module} <- board_module(id),
+         true <- function_exported?(module, :arm, 3) do
+      module.arm(id, arm?, notify)
+    else
+      _ -> {:error, "this vehicle's board has no arming (only mavlink vehicles arm)"}
+    end
+  end
+
+  @doc "Whether vehicle `id`'s board can fly a validated control command (`vet/1` callback)."
+  @spec vet(String.t(), term()) :: :ok | {:error, String.t()}
+  def vet(id, command) do
+    with {:ok, module} <- board_module(id),
+         true <- function_exported?(module, :vet, 1) do
+      module.vet(command)
+    else
+      _ -> :ok
     end
   end
 

@@ -6,6 +6,9 @@ defmodule Neptunus.Vehicle.Control do
   headless in `mix neptunus.simulate`); this process validates commands
   (`Neptunus.Control.Command`), carries out the core's actions, and runs the control loop.
 
+  A validated command the board's vehicle cannot fly (`Neptunus.Vehicle.Board.vet/2`, e.g.
+  manual per-thruster mode on an ArduSub vehicle) is refused with the board's reason.
+
   It decides nothing about *who* may command: `Neptunus.Vehicle.Helm` authorises every
   command and is the only caller of `thrust/2`, `command/3` and `stop/2` (tests aside).
 
@@ -251,6 +254,7 @@ defmodule Neptunus.Vehicle.Control do
   @impl true
   def handle_call({:command, event, payload}, _from, state) do
     with {:ok, command} <- Command.validate(event, payload),
+         :ok <- Board.vet(state.id, command),
          {:ok, core, actions} <- Core.command(state.core, command, now_s()) do
       state = state |> Map.put(:core, core) |> perform(actions) |> publish()
       {:reply, {:ok, reply(event, state)}, state}

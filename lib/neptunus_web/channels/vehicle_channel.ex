@@ -17,10 +17,13 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `set_control_mode`, `set_gain`, `set_lights`, `set_laser`, `set_tilt`, `autopilot`,
   `set_run_mode` (`Neptunus.Vehicle.Control.command/3`), the autopilot tuning `set_tuning`,
   `step_response` (the user who pilots, from any connection, or the main station) and
-  `get_tuning` (anyone), and `set_camera_rotation` (the user who pilots or the main
-  station; broadcast as `vehicle_settings`). Server events: `telemetry`, `helm`, `stopped`,
+  `get_tuning` (anyone), `set_camera_rotation` (the user who pilots or the main
+  station; broadcast as `vehicle_settings`), `arm` and `disarm` (a mavlink vehicle,
+  `Neptunus.Vehicle.Board.arm/3`; on a mavlink vehicle `autopilot` sets its flight mode,
+  `Neptunus.Vehicle.Board.MAVLink.autopilot/3`). Server events: `telemetry`, `helm`, `stopped`,
   `presence_diff` (broadcast), and to one connection only `control_request`,
-  `control_granted`, `control_lost`, `request_denied`.
+  `control_granted`, `control_lost`, `request_denied`, `vehicle_answer` (the late answer to an
+  `arm`/`disarm`/`autopilot` whose reply was `%{status: "pending"}`).
 
   Presence: keyed by user name, one meta per connection:
   `%{name, role, since, pilot, conn, node, online_at}`; `pilot` is updated on every grant and
@@ -30,15 +33,24 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   @behaviour NeptunusWeb.Channel
 
   alias Neptunus.Fleet
-  alias Neptunus.Vehicle.{Control, Helm, Telemetry, ViewSettings}
+  alias Neptunus.Vehicle.{Board, Control, Helm, Telemetry, ViewSettings}
   alias NeptunusWeb.{Auth, Channel, Presence}
 
   @control_events ~w(set_control_mode set_gain set_lights set_laser set_tilt autopilot set_run_mode)
+  # how long an arm/disarm/autopilot reply waits for a mavlink vehicle's answer (a pilot's
+  # heartbeats wait behind it: well under the deadman)
+  @vehicle_answer_ms 200
 
   @impl true
   def join("vehicle:" <> id, _payload, socket) do
     if Fleet.exists?(id) do
-      socket = Channel.assign(socket, vehicle_id: id, since_wall_ms: Neptunus.Clock.wall_ms())
+      socket =
+        Channel.assign(socket,
+          vehicle_id: id,
+          board: Board.type(id),
+          since_wall_ms: Neptunus.Clock.wall_ms()
+        )
+
       socket = track(socket, false)
       Channel.send_self(socket, :after_join)
       {:ok, snapshot(id, socket), socket}
@@ -90,6 +102,19 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
 
   def handle_in("release_control", _payload, socket) do
     socket |> id() |> Helm.release_control(party(socket)) |> reply(socket)
+  end
+
+  # Arming and, on a mavlink vehicle, the autopilots as the vehicle's flight modes
+  # (Neptunus.Vehicle.Board.MAVLink): pilot only, through the helm. The vehicle's answer is
+  # awaited at most @vehicle_answer_ms (the connection's heartbeats wait meanwhile): the reply
+  # carries it, or says `pending` and the answer follows as event `vehicle_answer`.
+  def handle_in(event, _payload, socket) when event in ["arm", "disarm"] do
+    board_request(socket, event, &Board.arm(&1, event == "arm", &2))
+  end
+
+  def handle_in("autopilot", payload, socket)
+      when socket.assigns.board == :mavlink and is_map(payload) do
+    board_request(socket, "autopilot", &Board.MAVLink.autopilot(&1, payload, &2))
   end
 
   # Control commands (Neptunus.Vehicle.Control.command/3): pilot only, through the helm like
@@ -167,6 +192,17 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   end
 
   def handle_info({:helm, event, payload}, socket), do: {:push, event, payload, socket}
+
+  # the vehicle's answer to an arm/disarm/autopilot whose reply said `pending`
+  def handle_info({:vehicle_answer, _ref, event, result}, socket) do
+    payload =
+      case result do
+        :ok -> %{command: event, ok: true}
+        {:error, reason} -> %{command: event, ok: false, reason: reason}
+      end
+
+    {:push, "vehicle_answer", payload, socket}
+  end
 
   @impl true
   def terminate(reason, socket) do
@@ -250,6 +286,35 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
         {:error,
          "#{what} is for the pilot or the main station: #{socket.user.name} does not pilot"}
     end
+  end
+
+  # A request to the board answered asynchronously (`notify`), after the helm's pilot check.
+  defp board_request(socket, event, request) do
+    id = id(socket)
+    ref = make_ref()
+    notify = fn result -> Channel.send_self(socket, {:vehicle_answer, ref, event, result}) end
+    topic = socket.topic
+
+    asked =
+      Helm.command(id, party(socket), :none, fn ->
+        case request.(id, notify) do
+          :ok -> {:ok, %{}}
+          {:error, reason} -> {:error, reason}
+        end
+      end)
+
+    with {:ok, _} <- asked do
+      receive do
+        {:channel_info, ^topic, {:vehicle_answer, ^ref, _event, :ok}} ->
+          {:ok, %{status: "ok", control: Control.status(id)}}
+
+        {:channel_info, ^topic, {:vehicle_answer, ^ref, _event, {:error, r}}} ->
+          {:error, r}
+      after
+        @vehicle_answer_ms -> {:ok, %{status: "pending", control: Control.status(id)}}
+      end
+    end
+    |> reply(socket)
   end
 
   defp reply({:ok, response}, socket), do: {:reply, {:ok, response}, socket}

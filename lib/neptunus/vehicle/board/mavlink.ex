@@ -1,0 +1,510 @@
+defmodule Neptunus.Vehicle.Board.MAVLink do
+  @moduledoc """
+  The `mavlink` board: an ArduSub vehicle (BlueROV2 and the like) over MAVLink 2
+  (`Neptunus.Protocol.MAVLink`), `NEPTUNUS_VEHICLES=sub=mavlink:udp:0.0.0.0:14550` (see
+  `Neptunus.Config.Vehicles` and docs/MAVLINK.md).
+
+  A process shell over `Neptunus.Vehicle.Board.MAVLink.Core`, which makes every decision
+  (link state, arming, what to send when, samples); this process owns the link, decodes and
+  encodes frames, keeps one timer for the core's next deadline and carries out its actions.
+
+  ## Links
+
+    * `{:udp, address, port}` — listens on `address:port`; sends to whoever sent the last
+      datagram (a companion computer's router sends the vehicle's stream there);
+    * `{:udpout, host, port}` — sends to `host:port` from an ephemeral local port and reads
+      the answers there;
+    * `{:tcp, host, port}` — connects (ArduPilot SITL listens on TCP 5760); reconnects
+      `reconnect_ms` (1 s) after a failure or a close;
+    * `{:serial, device, baud}` — the `neptunus_uart` port program (`c_src/neptunus_uart.c`,
+      as `Neptunus.Vehicle.Board.UART` uses it); reopened `reconnect_ms` after it exits.
+
+  Bytes from the link go through one decoder; frames lost, garbage and unknown messages are
+  counted in `link_status/1`.
+
+  ## Around the board
+
+    * `go/2` casts (thruster values from `Neptunus.Vehicle.Control`) become MANUAL_CONTROL;
+      control drives neutral on every stop, so every stop sends a neutral MANUAL_CONTROL at
+      once.
+    * The process subscribes to the vehicle's topic: `stopped` with a pilot-loss reason and
+      `helm` (who pilots) drive the disarm after pilot loss (`Core.stopped/3`,
+      `Core.pilot/2`).
+    * Samples (attitude, depth, battery) go to navigation (`Board.sample/3`) on every
+      ATTITUDE; the link's state and the vehicle's (`mavlink`: armed, mode, system status,
+      servo outputs, …) go to `Telemetry.link/2` on every change and once a second; each
+      change of the link is broadcast as event `link` on `"vehicle:<id>"`; STATUSTEXT and the
+      vehicle's arming and mode changes are `log` entries (category `vehicle`) on
+      `"log:<id>"` with their severity.
+    * `arm/3` arms or disarms; lights (`MAV_CMD_DO_SET_SERVO` on servo 9) and camera tilt
+      (`MAV_CMD_DO_MOUNT_CONTROL`); no laser.
+  """
+  use GenServer
+
+  require Logger
+
+  alias Neptunus.PubSub
+  alias Neptunus.Protocol.MAVLink, as: Codec
+  alias Neptunus.Vehicle.{Board, Telemetry}
+  alias Neptunus.Vehicle.Board.MAVLink.Core
+
+  @behaviour Board
+
+  @core_opts [
+    :system,
+    :component,
+    :manual_period,
+    :link_timeout,
+    :command_timeout,
+    :disarm_delay,
+    :lights_servo
+  ]
+
+  defmodule State do
+    @moduledoc false
+    @type t :: %__MODULE__{
+            id: String.t(),
+            topic: String.t(),
+            link: Neptunus.Config.Vehicles.mavlink_link(),
+            core: Neptunus.Vehicle.Board.MAVLink.Core.t(),
+            decoder: Neptunus.Protocol.MAVLink.Decoder.t(),
+            seq: byte(),
+            socket: port() | :gen_udp.socket() | :gen_tcp.socket() | nil,
+            peer: {:inet.ip_address(), :inet.port_number()} | nil,
+            timer: reference() | nil,
+            reconnect_ms: pos_integer(),
+            program: String.t(),
+            transport: String.t(),
+            counters: %{atom() => non_neg_integer()}
+          }
+    @enforce_keys [:id, :topic, :link, :core, :decoder, :program]
+    defstruct [
+      :id,
+      :topic,
+      :link,
+      :core,
+      :decoder,
+      :socket,
+      :peer,
+      :timer,
+      :program,
+      seq: 0,
+      reconnect_ms: 1_000,
+      transport: "not opened yet",
+      counters: %{sent: 0, send_errors: 0, received: 0, opens: 0}
+    ]
+  end
+
+  @doc """
+  Starts the board of vehicle `opts[:id]`, registered as `Board.via(id)`. Options: `:link`
+  (required, see the moduledoc), `:system`, `:component` (ours, default 255/190),
+  `:manual_period`, `:link_timeout`, `:command_timeout`, `:disarm_delay` (s),
+  `:lights_servo`, `:reconnect_ms`, `:program` (the port program for serial links).
+  """
+  @impl Board
+  @spec start_link(keyword()) :: GenServer.on_start()
+  def start_link(opts) do
+    GenServer.start_link(__MODULE__, opts, name: Board.via(Keyword.fetch!(opts, :id)))
+  end
+
+  @doc """
+  The link's state: `%{up, reason, rtt_ms, mavlink: %{armed, mode, system_status, target,
+  servo_us, control, disarm_pending}, transport, counters, frames}` (`frames`: the decoder's
+  counters, with `lost` frames from the vehicle's sequence numbers).
+  """
+  @impl Board
+  @spec link_status(String.t()) :: map()
+  def link_status(id), do: GenServer.call(Board.via(id), :link_status)
+
+  @doc "Lights 0..255 (`MAV_CMD_DO_SET_SERVO` on the lights' output, 1100..1900 µs)."
+  @impl Board
+  @spec lights(String.t(), 0..255) :: :ok
+  def lights(id, n), do: GenServer.cast(Board.via(id), {:lights, n})
+
+  @doc "Camera tilt, rad (`MAV_CMD_DO_MOUNT_CONTROL`, pitch in degrees)."
+  @impl Board
+  @spec tilt(String.t(), number()) :: :ok
+  def tilt(id, rad), do: GenServer.cast(Board.via(id), {:tilt, rad})
+
+  @doc """
+  Arms (`true`) or disarms (`false`) the vehicle. `notify` is called (in the board's
+  process) with `:ok` or `{:error, reason}` once the vehicle answered, refused or did not
+  answer in time; for a refusal at once (link down, a command already waiting) it is called
+  before this returns.
+  """
+  @impl Board
+  @spec arm(String.t(), boolean(), (:ok | {:error, String.t()} -> term())) :: :ok
+  def arm(id, arm?, notify) when is_boolean(arm?) and is_function(notify, 1),
+    do: GenServer.call(Board.via(id), {:arm, arm?, notify})
+
+  @doc """
+  The autopilots as the vehicle's flight modes (`Core.autopilot/4`): `payload` is the
+  untrusted JSON of control's `autopilot` command; `notify` as for `arm/3`. `{:error, reason}`
+  for a bad payload.
+  """
+  @spec autopilot(String.t(), term(), (:ok | {:error, String.t()} -> term())) ::
+          :ok | {:error, String.t()}
+  def autopilot(id, payload, notify) when is_function(notify, 1) do
+    with {:ok, {:autopilot, setpoints}} <-
+           Neptunus.Control.Command.validate("autopilot", payload),
+         do: GenServer.call(Board.via(id), {:autopilot, setpoints, notify})
+  end
+
+  @doc "Refuses the control commands an ArduSub vehicle cannot fly (`Core.vet/1`)."
+  @impl Board
+  @spec vet(term()) :: :ok | {:error, String.t()}
+  def vet(command), do: Core.vet(command)
+
+  @doc "Sets the vehicle's flight mode by name (`Core.modes/0`); `notify` as for `arm/3`."
+  @spec set_mode(String.t(), String.t(), (:ok | {:error, String.t()} -> term())) :: :ok
+  def set_mode(id, mode, notify) when is_binary(mode) and is_function(notify, 1),
+    do: GenServer.call(Board.via(id), {:set_mode, mode, notify})
+
+  # Callbacks
+
+  @impl true
+  def init(opts) do
+    # the control path runs before the web fan-out (see Neptunus.Vehicle.Helm)
+    Process.flag(:priority, :high)
+    Process.flag(:trap_exit, true)
+    id = Keyword.fetch!(opts, :id)
+
+    state = %State{
+      id: id,
+      topic: Telemetry.topic(id),
+      link: Keyword.fetch!(opts, :link),
+      core: Core.new(now(), Keyword.take(opts, @core_opts)),
+      decoder: Codec.new(),
+      reconnect_ms: Keyword.get(opts, :reconnect_ms, 1_000),
+      program: Keyword.get(opts, :program) || Board.UART.program()
+    }
+
+    subscribe(state.topic)
+    send(self(), :report)
+    {:ok, state, {:continue, :open}}
+  end
+
+  @impl true
+  def handle_continue(:open, state), do: {:noreply, state |> open() |> run(&Core.tick(&1, now()))}
+
+  @impl true
+  def handle_call(:link_status, _from, state) do
+    status =
+      state.core
+      |> Core.status()
+      |> Map.merge(%{
+        transport: state.transport,
+        counters: state.counters,
+        frames: frames(state)
+      })
+
+    {:reply, status, state}
+  end
+
+  def handle_call({:arm, arm?, notify}, _from, state) do
+    {:reply, :ok, run(state, &Core.arm(&1, notify, arm?, now()))}
+  end
+
+  def handle_call({:autopilot, setpoints, notify}, _from, state) do
+    {:reply, :ok, run(state, &Core.autopilot(&1, notify, setpoints, now()))}
+  end
+
+  def handle_call({:set_mode, mode, notify}, _from, state) do
+    {:reply, :ok, run(state, &Core.set_mode(&1, notify, mode, now()))}
+  end
+
+  @impl true
+  def handle_cast({:go, thrusters}, state),
+    do: {:noreply, run(state, &Core.go(&1, thrusters, now()))}
+
+  def handle_cast({:lights, n}, state), do: {:noreply, run(state, &Core.lights(&1, n))}
+  def handle_cast({:tilt, rad}, state), do: {:noreply, run(state, &Core.tilt(&1, rad))}
+
+  @impl true
+  def handle_info(:tick, state) do
+    {:noreply, run(%{state | timer: nil}, &Core.tick(&1, now()))}
+  end
+
+  def handle_info(:report, state) do
+    Process.send_after(self(), :report, 1_000)
+    report(state)
+    {:noreply, state}
+  end
+
+  # UDP
+  def handle_info({:udp, socket, ip, port, data}, %State{socket: socket} = state) do
+    peer = if match?({:udp, _, _}, state.link), do: {ip, port}, else: state.peer
+    {:noreply, received(%{state | peer: peer}, data)}
+  end
+
+  # TCP
+  def handle_info({:tcp, socket, data}, %State{socket: socket} = state),
+    do: {:noreply, received(state, data)}
+
+  def handle_info({:tcp_closed, socket}, %State{socket: socket} = state),
+    do: {:noreply, closed(state, "the vehicle closed the connection")}
+
+  def handle_info({:tcp_error, socket, why}, %State{socket: socket} = state),
+    do: {:noreply, closed(state, "TCP error: #{inspect(why)}")}
+
+  # serial: the port program's frames
+  def handle_info({port, {:data, <<?r, data::binary>>}}, %State{socket: port} = state)
+      when is_port(port),
+      do: {:noreply, received(state, data)}
+
+  def handle_info({port, {:data, <<?o, _path::binary>>}}, %State{socket: port} = state)
+      when is_port(port),
+      do: {:noreply, %{state | transport: "serial open"}}
+
+  def handle_info({port, {:data, <<?e, text::binary>>}}, %State{socket: port} = state)
+      when is_port(port),
+      do: {:noreply, %{state | transport: "serial: #{text}"}}
+
+  def handle_info({port, {:data, _other}}, %State{socket: port} = state) when is_port(port),
+    do: {:noreply, state}
+
+  def handle_info({port, {:exit_status, n}}, %State{socket: port} = state) when is_port(port),
+    do: {:noreply, closed(state, "the serial port program exited (#{n}): #{state.transport}")}
+
+  def handle_info({:EXIT, _port, _reason}, state), do: {:noreply, state}
+
+  def handle_info(:reopen, %State{socket: nil} = state), do: {:noreply, open(state)}
+  def handle_info(:reopen, state), do: {:noreply, state}
+
+  # the vehicle's topic: stops and the helm (disarm after pilot loss)
+  def handle_info({:pubsub, _topic, "stopped", %{reason: reason}}, state),
+    do: {:noreply, %{state | core: Core.stopped(state.core, reason, now())} |> arm_timer()}
+
+  # the pilot is known by their connection's id (the rest of the helm's party may change)
+  def handle_info({:pubsub, _topic, "helm", %{pilot: pilot}}, state) do
+    pilot = if is_map(pilot), do: Map.get(pilot, :id, pilot), else: pilot
+    {:noreply, %{state | core: Core.pilot(state.core, pilot)}}
+  end
+
+  def handle_info({:pubsub, _topic, _event, _payload}, state), do: {:noreply, state}
+
+  # the PubSub scope restarted: subscribe again
+  def handle_info({:DOWN, _ref, :process, _pid, _reason}, state) do
+    Process.send_after(self(), :subscribe, 100)
+    {:noreply, state}
+  end
+
+  def handle_info(:subscribe, state) do
+    subscribe(state.topic)
+    {:noreply, state}
+  end
+
+  def handle_info(msg, state) do
+    Logger.debug("mavlink board #{state.id} ignored #{inspect(msg)}")
+    {:noreply, state}
+  end
+
+  @impl true
+  def terminate(_reason, state) do
+    # an orderly shutdown leaves the vehicle neutral
+    _ = run(state, &Core.neutral(&1, now()))
+    :ok
+  end
+
+  # --- the link ------------------------------------------------------------------------
+
+  defp open(%State{link: {:udp, address, port}} = state) do
+    case :gen_udp.open(port, [:binary, active: true, ip: address, reuseaddr: true]) do
+      {:ok, socket} -> opened(state, socket, "listening on UDP #{port}")
+      {:error, why} -> failed(state, "cannot listen on UDP #{port}: #{inspect(why)}")
+    end
+  end
+
+  defp open(%State{link: {:udpout, host, port}} = state) do
+    with {:ok, ip} <- :inet.getaddr(String.to_charlist(host), :inet),
+         {:ok, socket} <- :gen_udp.open(0, [:binary, active: true]) do
+      %{opened(state, socket, "sending to UDP #{host}:#{port}") | peer: {ip, port}}
+    else
+      {:error, why} -> failed(state, "cannot send to UDP #{host}:#{port}: #{inspect(why)}")
+    end
+  end
+
+  defp open(%State{link: {:tcp, host, port}} = state) do
+    opts = [:binary, active: true, nodelay: true, send_timeout: 100, send_timeout_close: true]
+
+    case :gen_tcp.connect(String.to_charlist(host), port, opts, 2_000) do
+      {:ok, socket} -> opened(state, socket, "connected to TCP #{host}:#{port}")
+      {:error, why} -> failed(state, "cannot connect to TCP #{host}:#{port}: #{inspect(why)}")
+    end
+  end
+
+  defp open(%State{link: {:serial, device, baud}} = state) do
+    port =
+      Port.open({:spawn_executable, state.program}, [
+        :binary,
+        {:packet, 2},
+        :exit_status,
+        args: ["tty", device, Integer.to_string(baud)]
+      ])
+
+    opened(state, port, "opening #{device}")
+  rescue
+    e -> failed(state, "cannot start the serial port program: #{Exception.message(e)}")
+  end
+
+  defp opened(state, socket, transport) do
+    counters = Map.update!(state.counters, :opens, &(&1 + 1))
+    %{state | socket: socket, transport: transport, counters: counters}
+  end
+
+  defp failed(state, why) do
+    Logger.warning("mavlink board #{state.id}: #{why}")
+    Process.send_after(self(), :reopen, state.reconnect_ms)
+    %{state | socket: nil, transport: why}
+  end
+
+  defp closed(state, why) do
+    if is_port(state.socket), do: safe_close(state.socket)
+    failed(%{state | socket: nil, decoder: Codec.new()}, why)
+  end
+
+  defp safe_close(port) do
+    Port.close(port)
+  catch
+    :error, _ -> :ok
+  end
+
+  defp received(state, data) do
+    {decoder, messages, _events} = Codec.decode(state.decoder, data)
+    counters = Map.update!(state.counters, :received, &(&1 + length(messages)))
+    state = %{state | decoder: decoder, counters: counters}
+    t = now()
+    Enum.reduce(messages, state, fn m, state -> run(state, &Core.receive(&1, m, t)) end)
+  end
+
+  defp frames(state) do
+    stats = Codec.stats(state.decoder)
+    lost = state.decoder |> Codec.sources() |> Map.values() |> Enum.map(& &1.lost) |> Enum.sum()
+    Map.put(stats, :lost, lost)
+  end
+
+  # --- running the core ----------------------------------------------------------------
+
+  defp run(state, step) do
+    {core, actions} = step.(state.core)
+    state = Enum.reduce(actions, %{state | core: core}, &act/2)
+    arm_timer(state)
+  end
+
+  defp arm_timer(state) do
+    if state.timer, do: Process.cancel_timer(state.timer)
+    ms = max(0, ceil((Core.due(state.core) - now()) * 1000))
+    %{state | timer: Process.send_after(self(), :tick, ms)}
+  end
+
+  defp act({:send, name, fields}, state) do
+    header = %{system: state.core.system, component: state.core.component, seq: state.seq}
+
+    case Codec.encode(name, fields, header) do
+      {:ok, frame} ->
+        state = %{state | seq: Codec.next_seq(state.seq)}
+        write(state, frame)
+
+      {:error, why} ->
+        Logger.error("mavlink board #{state.id}: cannot encode #{name}: #{inspect(why)}")
+        state
+    end
+  end
+
+  defp act({:reply, notify, result}, state) when is_function(notify, 1) do
+    notify.(result)
+    state
+  end
+
+  defp act({:link, link}, state) do
+    PubSub.broadcast(state.topic, "link", link)
+
+    Logger.info(
+      "vehicle #{state.id}: mavlink link #{if link.up, do: "up", else: "down"} (#{link.reason})"
+    )
+
+    report(state)
+    state
+  end
+
+  defp act({:log, level, text, extra}, state) do
+    PubSub.broadcast(
+      Telemetry.log_topic(state.id),
+      "log",
+      Map.merge(extra, %{
+        category: "vehicle",
+        level: Atom.to_string(level),
+        message: text,
+        at: System.os_time(:millisecond)
+      })
+    )
+
+    Logger.log(level, "vehicle #{state.id}: #{Neptunus.Log.safe(text)}")
+    state
+  end
+
+  defp act({:sample, sample}, state) do
+    Board.sample(state.id, sample)
+    state
+  end
+
+  defp write(%State{socket: nil} = state, _frame), do: count(state, :send_errors)
+
+  defp write(%State{link: {kind, _, _}, peer: nil} = state, _frame) when kind in [:udp, :udpout],
+    do: count(state, :send_errors)
+
+  defp write(%State{link: {kind, _, _}, socket: socket, peer: {ip, port}} = state, frame)
+       when kind in [:udp, :udpout] do
+    case :gen_udp.send(socket, ip, port, frame) do
+      :ok -> count(state, :sent)
+      {:error, _} -> count(state, :send_errors)
+    end
+  end
+
+  defp write(%State{link: {:tcp, _, _}, socket: socket} = state, frame) do
+    case :gen_tcp.send(socket, frame) do
+      :ok -> count(state, :sent)
+      {:error, _} -> count(state, :send_errors)
+    end
+  end
+
+  defp write(%State{link: {:serial, _, _}, socket: port} = state, frame) do
+    Port.command(port, [?w, frame], [:nosuspend])
+    |> then(&if(&1, do: count(state, :sent), else: count(state, :send_errors)))
+  catch
+    :error, _ -> count(state, :send_errors)
+  end
+
+  defp count(state, key), do: %{state | counters: Map.update!(state.counters, key, &(&1 + 1))}
+
+  # the link's state for telemetry, with the frames received and lost (from the vehicle's
+  # sequence numbers)
+  defp report(state) do
+    status = Core.status(state.core)
+    frames = frames(state)
+    received = state.counters.received
+    loss = if received + frames.lost > 0, do: frames.lost / (received + frames.lost), else: 0.0
+
+    mavlink =
+      Map.merge(status.mavlink, %{
+        frames_received: received,
+        frames_lost: frames.lost,
+        loss: Float.round(loss, 4)
+      })
+
+    Telemetry.link(state.id, %{status | mavlink: mavlink})
+  end
+
+  # the scope's DOWN (or its absence) brings a retry
+  defp subscribe(topic) do
+    with :ok <- PubSub.subscribe(topic), {:ok, _ref} <- PubSub.monitor() do
+      :ok
+    else
+      {:error, :not_running} -> Process.send_after(self(), :subscribe, 100)
+    end
+
+    :ok
+  end
+
+  defp now, do: System.monotonic_time(:microsecond) / 1.0e6
+end

@@ -1,0 +1,774 @@
+defmodule Neptunus.Vehicle.Board.MAVLink.Core do
+  @moduledoc """
+  Every decision of the `mavlink` board (`Neptunus.Vehicle.Board.MAVLink`), pure: the link's
+  state, the vehicle's state as its heartbeat tells it, the arming state machine, what to send
+  and when, and the samples made of the vehicle's telemetry. The process only carries out the
+  actions returned here. Times are seconds of one monotonic clock, given by the caller.
+
+  ## What it sends (our system/component ids, 255/190 by default)
+
+    * **HEARTBEAT** every second as a ground station (`MAV_TYPE_GCS`, `MAV_AUTOPILOT_INVALID`):
+      ArduSub's ground-station failsafe counts it.
+    * **MANUAL_CONTROL** to the vehicle's system every `manual_period` (0.1 s, the 10 Hz ground
+      stations send; ArduSub's pilot-input failsafe fires after 3 s without it), and at once
+      whenever the command changes (so a pilot's command or a stop never waits for the next
+      period). The command comes from the thruster values `go/3` gets, undoing the
+      three-thruster allocation (`Neptunus.Allocation.motion/2`, gain included): surge
+      `(port + starboard) / 2`, yaw `(port − starboard) / 2`, heave `vertical`; `x` = 1000·surge,
+      `r` = 1000·yaw, `z` = 500 − 500·heave (ArduSub: 0..1000, 500 neutral, above 500 up; our
+      heave is positive down), `y` and `buttons` 0. Neutral (`x 0, z 500, r 0`) is sent
+      whenever the vehicle is not commanded: control drives neutral on every stop and while
+      nobody pilots.
+    * **Stream requests** each time the link comes up: REQUEST_DATA_STREAM for the streams
+      carrying what we show (`@streams`); ArduSub streams them by default too.
+    * **TIMESYNC** every second (`tc1 = 0`, `ts1` our clock in ns): the vehicle's answer gives
+      the round-trip time (`rtt_ms`).
+    * **COMMAND_LONG** `MAV_CMD_COMPONENT_ARM_DISARM` (400) for `arm/4`, `MAV_CMD_DO_SET_MODE`
+      (176) for `set_mode/4` and `autopilot/4`, `MAV_CMD_DO_SET_SERVO` (183) for the lights and
+      `MAV_CMD_DO_MOUNT_CONTROL` (205) for the camera tilt.
+
+  ## The link
+
+  Up from the first HEARTBEAT of a vehicle (an autopilot: any type but a ground station, and
+  an autopilot other than `MAV_AUTOPILOT_INVALID`, so the companion computer's, camera's or
+  gimbal's heartbeats are not taken for it; the first one heard is the target of our
+  commands) until none came for `link_timeout` (3 s); every change is an action
+  `{:link, %{up, reason}}`. Messages of other systems are ignored.
+
+  ## Arming
+
+  One arm/disarm (or mode) command waits for its COMMAND_ACK at a time; a second is refused.
+  The answer is `:ok` for `MAV_RESULT_ACCEPTED`, otherwise the reason: the text of the last
+  STATUSTEXT the vehicle sent while the command waited (ArduSub explains a refusal there,
+  e.g. "PreArm: Must assign a disarm or arm_toggle button or disarm aux function"; texts
+  over 50 bytes come in chunks and are joined), or the result's name. No ACK within
+  `command_timeout` (3 s) → `{:error, "no answer from the vehicle within 3.0 s"}`. Refused at
+  once while the link is down.
+
+  **Pilot loss** (`pilot/2` with the helm's pilot, `stopped/3` with a stop's reason): a stop for
+  one of the `pilot_loss_reasons/0` schedules a disarm `disarm_delay` later (2 s), which a new
+  pilot taking the helm before then cancels; a handover never schedules one.
+  """
+
+  import Bitwise
+
+  alias Neptunus.Protocol.MAVLink.Message
+
+  # MAVLink constants
+  @mav_type_gcs 6
+  @mav_type_submarine 12
+  @mav_autopilot_invalid 8
+  @mav_mode_flag_safety_armed 128
+  @mav_cmd_component_arm_disarm 400
+  @mav_cmd_do_set_mode 176
+  @mav_cmd_do_set_servo 183
+  @mav_cmd_do_mount_control 205
+  @mav_mode_flag_custom_mode_enabled 1
+  @results %{
+    0 => "accepted",
+    1 => "temporarily rejected",
+    2 => "denied",
+    3 => "unsupported",
+    4 => "failed",
+    5 => "in progress",
+    6 => "cancelled"
+  }
+  @system_status ~w(uninit boot calibrating standby active critical emergency poweroff
+                    flight_termination)
+
+  @doc "ArduSub's flight modes by custom mode number."
+  @spec modes() :: %{non_neg_integer() => String.t()}
+  def modes do
+    %{
+      0 => "STABILIZE",
+      1 => "ACRO",
+      2 => "ALT_HOLD",
+      3 => "AUTO",
+      4 => "GUIDED",
+      7 => "CIRCLE",
+      9 => "SURFACE",
+      16 => "POSHOLD",
+      19 => "MANUAL",
+      20 => "MOTOR_DETECT",
+      21 => "SURFTRAK"
+    }
+  end
+
+  # MAV_DATA_STREAM id => rate (Hz): RAW_SENSORS (SCALED_PRESSURE), EXTENDED_STATUS
+  # (SYS_STATUS), RC_CHANNELS (SERVO_OUTPUT_RAW), POSITION (GLOBAL_POSITION_INT), EXTRA1
+  # (ATTITUDE), EXTRA2 (VFR_HUD)
+  @streams [{1, 5}, {2, 2}, {3, 5}, {6, 3}, {10, 10}, {11, 10}]
+
+  @pilot_loss_reasons ~w(pilot_left pilot_disconnected deadman released helm_started)
+
+  @typedoc "What the process carries out."
+  @type action ::
+          {:send, atom(), map()}
+          | {:reply, term(), :ok | {:error, String.t()}}
+          | {:link, %{up: boolean(), reason: String.t()}}
+          | {:log, :info | :warning | :error, String.t(), map()}
+          | {:sample, Neptunus.Vehicle.Board.sample()}
+
+  @type control :: %{x: integer(), y: 0, z: integer(), r: integer(), buttons: 0}
+
+  @type pending :: %{
+          kind: :arm | :disarm | :mode,
+          command: non_neg_integer(),
+          from: term(),
+          deadline: float(),
+          text: String.t() | nil
+        }
+
+  @type t :: %__MODULE__{
+          system: 1..255,
+          component: 1..255,
+          target: {byte(), byte()} | nil,
+          seq: byte(),
+          up: boolean(),
+          reason: String.t(),
+          heard_at: float() | nil,
+          vehicle: %{
+            armed: boolean(),
+            mode: String.t() | nil,
+            custom_mode: non_neg_integer() | nil,
+            system_status: String.t() | nil,
+            type: non_neg_integer() | nil
+          },
+          control: control(),
+          next_heartbeat: float(),
+          next_manual: float(),
+          next_timesync: float(),
+          pending: pending() | nil,
+          pilot: term(),
+          disarm_at: float() | nil,
+          started: float(),
+          readings: map(),
+          texts: %{optional(pos_integer()) => binary()},
+          rtt_ms: float() | nil,
+          servo_us: [non_neg_integer()],
+          manual_period: float(),
+          link_timeout: float(),
+          command_timeout: float(),
+          disarm_delay: float(),
+          lights_servo: pos_integer()
+        }
+
+  @enforce_keys [:started]
+  defstruct [
+    :target,
+    :heard_at,
+    :pending,
+    :pilot,
+    :disarm_at,
+    :started,
+    :rtt_ms,
+    system: 255,
+    component: 190,
+    seq: 0,
+    up: false,
+    reason: "no heartbeat from the vehicle yet",
+    vehicle: %{armed: false, mode: nil, custom_mode: nil, system_status: nil, type: nil},
+    control: %{x: 0, y: 0, z: 500, r: 0, buttons: 0},
+    next_heartbeat: 0.0,
+    next_manual: 0.0,
+    next_timesync: 0.0,
+    readings: %{},
+    texts: %{},
+    servo_us: [],
+    manual_period: 0.1,
+    link_timeout: 3.0,
+    command_timeout: 3.0,
+    disarm_delay: 2.0,
+    lights_servo: 9
+  ]
+
+  @doc """
+  A board core at time `now`. Options: `:system`, `:component` (ours, 255/190),
+  `:manual_period`, `:link_timeout`, `:command_timeout`, `:disarm_delay` (s), `:lights_servo`
+  (the servo output of the lights, default 9).
+  """
+  @spec new(float(), keyword()) :: t()
+  def new(now, opts \\ []) do
+    fields =
+      Keyword.take(opts, [
+        :system,
+        :component,
+        :manual_period,
+        :link_timeout,
+        :command_timeout,
+        :disarm_delay,
+        :lights_servo
+      ])
+
+    struct!(
+      %__MODULE__{started: now, next_heartbeat: now, next_manual: now, next_timesync: now},
+      fields
+    )
+  end
+
+  @doc "The stop reasons that lose the pilot (a disarm follows unless a new pilot comes)."
+  @spec pilot_loss_reasons() :: [String.t()]
+  def pilot_loss_reasons, do: @pilot_loss_reasons
+
+  @doc """
+  MANUAL_CONTROL's `x`, `z`, `r` for thruster values (see the moduledoc).
+
+      iex> Neptunus.Vehicle.Board.MAVLink.Core.manual_control(%{port: 0.0, vertical: 0.0, starboard: 0.0})
+      %{x: 0, y: 0, z: 500, r: 0, buttons: 0}
+      iex> Neptunus.Vehicle.Board.MAVLink.Core.manual_control(%{port: 0.75, vertical: -0.2, starboard: 0.25})
+      %{x: 500, y: 0, z: 600, r: 250, buttons: 0}
+  """
+  @spec manual_control(Neptunus.Allocation.thrusters()) :: control()
+  def manual_control(%{port: port, vertical: vertical, starboard: starboard}) do
+    surge = (port + starboard) / 2
+    yaw = (port - starboard) / 2
+
+    %{
+      x: scale(surge, 1000, -1000, 1000),
+      y: 0,
+      z: 500 + scale(-vertical, 500, -500, 500),
+      r: scale(yaw, 1000, -1000, 1000),
+      buttons: 0
+    }
+  end
+
+  defp scale(value, factor, low, high),
+    do: value |> Kernel.*(factor) |> round() |> max(low) |> min(high)
+
+  # ── time ─────────────────────────────────────────────────────────────────────────────
+
+  @doc "What is due at `now`: heartbeat, MANUAL_CONTROL, TIMESYNC, timeouts, a scheduled disarm."
+  @spec tick(t(), float()) :: {t(), [action()]}
+  def tick(%__MODULE__{} = core, now) do
+    {core, []}
+    |> heartbeat_due(now)
+    |> manual_due(now)
+    |> timesync_due(now)
+    |> link_timeout(now)
+    |> command_timeout(now)
+    |> disarm_due(now)
+    |> finish()
+  end
+
+  defp heartbeat_due({core, actions}, now) do
+    if now >= core.next_heartbeat do
+      fields = %{
+        type: @mav_type_gcs,
+        autopilot: @mav_autopilot_invalid,
+        base_mode: 0,
+        custom_mode: 0,
+        system_status: 4
+      }
+
+      {%{core | next_heartbeat: next(core.next_heartbeat, 1.0, now)},
+       [{:send, :heartbeat, fields} | actions]}
+    else
+      {core, actions}
+    end
+  end
+
+  defp manual_due({core, actions}, now) do
+    if now >= core.next_manual and core.target != nil do
+      {core, send} = send_manual(core, now)
+      {core, send ++ actions}
+    else
+      {core, actions}
+    end
+  end
+
+  defp timesync_due({core, actions}, now) do
+    if now >= core.next_timesync and core.up do
+      ts1 = round(now * 1.0e9)
+
+      {%{core | next_timesync: next(core.next_timesync, 1.0, now)},
+       [{:send, :timesync, %{tc1: 0, ts1: ts1}} | actions]}
+    else
+      {core, actions}
+    end
+  end
+
+  defp link_timeout({%__MODULE__{up: true, heard_at: at} = core, actions}, now)
+       when now - at > core.link_timeout do
+    reason = "no heartbeat from the vehicle for #{core.link_timeout} s"
+    core = %{core | up: false, reason: reason}
+    {core, [{:link, %{up: false, reason: reason}} | actions]}
+  end
+
+  defp link_timeout(acc, _now), do: acc
+
+  defp command_timeout({%__MODULE__{pending: %{deadline: d} = p} = core, actions}, now)
+       when now >= d do
+    reason = "no answer from the vehicle within #{core.command_timeout} s"
+    {%{core | pending: nil}, [{:reply, p.from, {:error, reason}} | actions]}
+  end
+
+  defp command_timeout(acc, _now), do: acc
+
+  defp disarm_due({%__MODULE__{disarm_at: at} = core, actions}, now)
+       when is_float(at) and now >= at do
+    core = %{core | disarm_at: nil}
+
+    if core.up and core.vehicle.armed do
+      log = {:log, :warning, "disarming the vehicle: no pilot for #{core.disarm_delay} s", %{}}
+      {core, [command(core, @mav_cmd_component_arm_disarm, [0.0]), log | actions]}
+    else
+      {core, actions}
+    end
+  end
+
+  defp disarm_due(acc, _now), do: acc
+
+  defp finish({core, actions}), do: {core, Enum.reverse(actions)}
+
+  # the next deadline after `now` on the grid of `period` (a late tick does not send a burst)
+  defp next(deadline, period, now) do
+    n = Float.floor((now - deadline) / period) + 1
+    deadline + n * period
+  end
+
+  defp send_manual(core, now) do
+    target = elem(core.target, 0)
+    fields = Map.put(core.control, :target, target)
+    {%{core | next_manual: now + core.manual_period}, [{:send, :manual_control, fields}]}
+  end
+
+  @doc "The earliest time something is due (the process sleeps until then)."
+  @spec due(t()) :: float()
+  def due(core) do
+    [core.next_heartbeat, core.next_manual, core.next_timesync]
+    |> then(&if(core.pending, do: [core.pending.deadline | &1], else: &1))
+    |> then(&if(core.disarm_at, do: [core.disarm_at | &1], else: &1))
+    |> Enum.min()
+  end
+
+  # ── commands ─────────────────────────────────────────────────────────────────────────
+
+  @doc "Thruster values from control: MANUAL_CONTROL at once when the command changes."
+  @spec go(t(), Neptunus.Allocation.thrusters(), float()) :: {t(), [action()]}
+  def go(core, thrusters, now) do
+    control = manual_control(thrusters)
+
+    cond do
+      control == core.control -> {core, []}
+      core.target == nil -> {%{core | control: control}, []}
+      true -> send_manual(%{core | control: control}, now)
+    end
+  end
+
+  @doc "Neutral MANUAL_CONTROL now, changed or not (the board's last word when it stops)."
+  @spec neutral(t(), float()) :: {t(), [action()]}
+  def neutral(core, now) do
+    core = %{core | control: manual_control(Neptunus.Allocation.neutral())}
+    if core.target == nil, do: {core, []}, else: send_manual(core, now)
+  end
+
+  @doc """
+  Arms (`true`) or disarms (`false`) the vehicle; `from` gets the answer as an action
+  `{:reply, from, :ok | {:error, reason}}` (see the moduledoc).
+  """
+  @spec arm(t(), term(), boolean(), float()) :: {t(), [action()]}
+  def arm(core, from, arm?, now) when is_boolean(arm?) do
+    kind = if arm?, do: :arm, else: :disarm
+    param1 = if arm?, do: 1.0, else: 0.0
+    # a disarm asked for by the pilot supersedes a scheduled one
+    core = if arm?, do: core, else: %{core | disarm_at: nil}
+    request(core, from, kind, @mav_cmd_component_arm_disarm, [param1], now)
+  end
+
+  @doc """
+  Sets the vehicle's flight mode by name (`modes/0`, e.g. `"ALT_HOLD"`), answered like `arm/4`.
+  """
+  @spec set_mode(t(), term(), String.t(), float()) :: {t(), [action()]}
+  def set_mode(core, from, name, now) do
+    case Enum.find(modes(), fn {_n, mode} -> mode == name end) do
+      {number, _} ->
+        params = [@mav_mode_flag_custom_mode_enabled * 1.0, number * 1.0]
+        request(core, from, :mode, @mav_cmd_do_set_mode, params, now)
+
+      nil ->
+        {core, [{:reply, from, {:error, "unknown flight mode #{inspect(name)}"}}]}
+    end
+  end
+
+  @doc """
+  The autopilots as ArduSub's flight modes: `setpoints` as `Neptunus.Control.Command` validates
+  them (`%{depth: v, heading: v}`, each `:hold`, nil or `:unchanged`). Depth hold → ALT_HOLD
+  (which holds the heading too), heading hold alone → STABILIZE, neither → MANUAL; what the
+  current mode holds is what `:unchanged` keeps. Refused with a reason: a numeric setpoint
+  (ArduSub holds the depth and heading it has when the mode engages) and depth hold without
+  heading hold (ALT_HOLD holds both). Answered like `arm/4`.
+  """
+  @spec autopilot(t(), term(), map(), float()) :: {t(), [action()]}
+  def autopilot(core, from, %{depth: depth, heading: heading}, now) do
+    held = %{
+      depth: core.vehicle.mode == "ALT_HOLD",
+      heading: core.vehicle.mode in ["ALT_HOLD", "STABILIZE"]
+    }
+
+    wanted =
+      Map.new([depth: depth, heading: heading], fn
+        {axis, :unchanged} -> {axis, Map.fetch!(held, axis)}
+        {axis, :hold} -> {axis, true}
+        {axis, nil} -> {axis, false}
+        {axis, number} when is_number(number) -> {axis, {:setpoint, number}}
+      end)
+
+    case wanted do
+      %{depth: {:setpoint, _}} ->
+        refuse(core, from, "ArduSub holds the depth it has when ALT_HOLD engages: use \"hold\"")
+
+      %{heading: {:setpoint, _}} ->
+        refuse(
+          core,
+          from,
+          "ArduSub holds the heading it has when STABILIZE engages: use \"hold\""
+        )
+
+      %{depth: true, heading: false} ->
+        refuse(core, from, "ArduSub's depth hold (ALT_HOLD) holds the heading too")
+
+      %{depth: true} ->
+        set_mode(core, from, "ALT_HOLD", now)
+
+      %{heading: true} ->
+        set_mode(core, from, "STABILIZE", now)
+
+      _ ->
+        set_mode(core, from, "MANUAL", now)
+    end
+  end
+
+  defp refuse(core, from, reason), do: {core, [{:reply, from, {:error, reason}}]}
+
+  @doc """
+  Whether a validated control command (`Neptunus.Control.Command`) can be flown on an ArduSub
+  vehicle: manual per-thruster mode and dp are refused (ArduSub takes no per-thruster input
+  in normal flight, and dp needs a position it does not give), the laser too (none), and
+  the autopilots are its flight modes (`autopilot/4`), not Neptunus' own.
+  """
+  @spec vet(term()) :: :ok | {:error, String.t()}
+  def vet({:set_control_mode, :manual}),
+    do:
+      {:error,
+       "manual per-thruster mode is not available on an ArduSub vehicle (it takes no " <>
+         "per-thruster input in normal flight): fly in motion mode"}
+
+  def vet({:thrust, :manual, _}), do: vet({:set_control_mode, :manual})
+
+  def vet({:set_control_mode, :dp}),
+    do: {:error, "dp is not available on an ArduSub vehicle: it needs a position estimate"}
+
+  def vet({:set_laser, _}), do: {:error, "an ArduSub vehicle has no laser"}
+
+  def vet({:autopilot, _}),
+    do: {:error, "an ArduSub vehicle's autopilots are its flight modes (ALT_HOLD, STABILIZE)"}
+
+  def vet(_command), do: :ok
+
+  defp request(core, from, kind, command, params, now) do
+    cond do
+      not core.up ->
+        {core, [{:reply, from, {:error, "the vehicle's link is down (#{core.reason})"}}]}
+
+      core.pending != nil ->
+        reason = "a #{core.pending.kind} command is still waiting for the vehicle's answer"
+        {core, [{:reply, from, {:error, reason}}]}
+
+      true ->
+        pending = %{
+          kind: kind,
+          command: command,
+          from: from,
+          deadline: now + core.command_timeout,
+          text: nil
+        }
+
+        {%{core | pending: pending}, [command(core, command, params)]}
+    end
+  end
+
+  defp command(core, command, params) do
+    {system, component} = core.target
+    params = params ++ List.duplicate(0.0, 7 - length(params))
+
+    fields =
+      params
+      |> Enum.with_index(1)
+      |> Map.new(fn {value, i} -> {String.to_atom("param#{i}"), value} end)
+      |> Map.merge(%{
+        target_system: system,
+        target_component: component,
+        command: command,
+        confirmation: 0
+      })
+
+    {:send, :command_long, fields}
+  end
+
+  @doc """
+  Lights 0..255 → `MAV_CMD_DO_SET_SERVO` on the lights' servo output, 1100..1900 µs (ArduSub's
+  lights range). Nothing while no vehicle is known.
+  """
+  @spec lights(t(), 0..255) :: {t(), [action()]}
+  def lights(%__MODULE__{target: nil} = core, _n), do: {core, []}
+
+  def lights(core, n) when n in 0..255 do
+    us = 1100 + round(n * 800 / 255)
+    {core, [command(core, @mav_cmd_do_set_servo, [core.lights_servo * 1.0, us * 1.0])]}
+  end
+
+  @doc """
+  Camera tilt (rad, positive up) → `MAV_CMD_DO_MOUNT_CONTROL` pitch in degrees, mode
+  MAVLINK_TARGETING (2). Nothing while no vehicle is known.
+  """
+  @spec tilt(t(), number()) :: {t(), [action()]}
+  def tilt(%__MODULE__{target: nil} = core, _rad), do: {core, []}
+
+  def tilt(core, rad) when is_number(rad) do
+    degrees = rad * 180 / :math.pi()
+    params = [degrees, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0]
+    {core, [command(core, @mav_cmd_do_mount_control, params)]}
+  end
+
+  @doc """
+  A stop of the vehicle with `reason`: a pilot loss (`pilot_loss_reasons/0`) schedules a
+  disarm `disarm_delay` from `now` while the vehicle is armed or being armed.
+  """
+  @spec stopped(t(), String.t(), float()) :: t()
+  def stopped(core, reason, now) do
+    arming? = match?(%{kind: :arm}, core.pending)
+
+    if reason in @pilot_loss_reasons and (core.vehicle.armed or arming?) and
+         core.disarm_at == nil,
+       do: %{core | disarm_at: now + core.disarm_delay},
+       else: core
+  end
+
+  @doc """
+  The helm's pilot now (any term identifying them, nil when free): a pilot other than the
+  last one cancels a scheduled disarm (the helm was handed over or taken).
+  """
+  @spec pilot(t(), term()) :: t()
+  def pilot(core, pilot) do
+    core = if pilot != nil and pilot != core.pilot, do: %{core | disarm_at: nil}, else: core
+    %{core | pilot: pilot}
+  end
+
+  # ── what the vehicle sends ───────────────────────────────────────────────────────────
+
+  @doc "A message from the link."
+  @spec receive(t(), Message.t(), float()) :: {t(), [action()]}
+  def receive(
+        core,
+        %Message{name: :heartbeat, fields: %{type: type, autopilot: autopilot}} = m,
+        now
+      )
+      when type != @mav_type_gcs and autopilot != @mav_autopilot_invalid do
+    if core.target == nil or core.target == {m.system, m.component},
+      do: heartbeat(core, m, now),
+      else: {core, []}
+  end
+
+  def receive(%__MODULE__{target: {system, _}} = core, %Message{system: system} = m, now),
+    do: from_vehicle(core, m, now)
+
+  def receive(core, _message, _now), do: {core, []}
+
+  defp heartbeat(core, %Message{fields: f} = m, now) do
+    armed = (f.base_mode &&& @mav_mode_flag_safety_armed) != 0
+
+    vehicle = %{
+      armed: armed,
+      custom_mode: f.custom_mode,
+      mode: mode_name(f.type, f.custom_mode),
+      system_status: Enum.at(@system_status, f.system_status, "unknown"),
+      type: f.type
+    }
+
+    before = core.vehicle
+    core = %{core | target: {m.system, m.component}, heard_at: now, vehicle: vehicle}
+
+    link =
+      if core.up,
+        do: [],
+        else: [{:link, %{up: true, reason: "heartbeat"}}] ++ streams(core)
+
+    # what changed (everything when the link comes up) goes to the logger
+    logs =
+      for {key, what} <- [armed: "armed", mode: "mode"],
+          link != [] or Map.get(before, key) != Map.get(vehicle, key),
+          do: {:log, :info, "vehicle #{what}: #{Map.get(vehicle, key)}", %{}}
+
+    {%{core | up: true, reason: "heartbeat"}, link ++ logs}
+  end
+
+  defp mode_name(@mav_type_submarine, custom), do: Map.get(modes(), custom, "MODE #{custom}")
+  defp mode_name(_type, custom), do: "MODE #{custom}"
+
+  defp streams(core) do
+    {system, component} = core.target
+
+    for {stream, hz} <- @streams do
+      {:send, :request_data_stream,
+       %{
+         target_system: system,
+         target_component: component,
+         req_stream_id: stream,
+         req_message_rate: hz,
+         start_stop: 1
+       }}
+    end
+  end
+
+  defp from_vehicle(core, %Message{name: :command_ack, fields: f}, _now) do
+    case core.pending do
+      %{command: command} = p when command == f.command ->
+        reply =
+          case f.result do
+            0 -> :ok
+            result -> {:error, p.text || "#{Map.get(@results, result, "result #{result}")}"}
+          end
+
+        {%{core | pending: nil}, [{:reply, p.from, reply}]}
+
+      _ ->
+        {core, []}
+    end
+  end
+
+  # a text longer than 50 bytes comes in chunks of one `id` (MAVLink 2), the last one shorter
+  defp from_vehicle(core, %Message{name: :statustext, fields: %{id: id} = f}, now)
+       when is_integer(id) and id != 0 do
+    text = Map.get(core.texts, id, "") <> f.text
+
+    if byte_size(f.text) < 50 or byte_size(text) >= 50 * 8 do
+      core = %{core | texts: Map.delete(core.texts, id)}
+
+      from_vehicle(
+        core,
+        %Message{
+          name: :statustext,
+          fields: %{f | id: 0, text: text},
+          id: 253,
+          system: 0,
+          component: 0,
+          seq: 0,
+          version: 2
+        },
+        now
+      )
+    else
+      # at most a few texts in flight: an unfinished one is dropped by the next id's start
+      {%{core | texts: %{id => text}}, []}
+    end
+  end
+
+  defp from_vehicle(core, %Message{name: :statustext, fields: f}, _now) do
+    text = f.text
+    level = severity(f.severity)
+    core = if core.pending, do: put_in(core.pending.text, text), else: core
+    {core, [{:log, level, text, %{severity: f.severity, source: "vehicle"}}]}
+  end
+
+  defp from_vehicle(core, %Message{name: :attitude, fields: f}, now) do
+    readings = Map.merge(core.readings, %{roll: f.roll, pitch: f.pitch, heading: wrap(f.yaw)})
+    core = %{core | readings: readings}
+    {core, [{:sample, sample(core, f.time_boot_ms, now)}]}
+  end
+
+  defp from_vehicle(core, %Message{name: :vfr_hud, fields: %{alt: alt}}, _now)
+       when is_number(alt),
+       do: {put_reading(%{core | readings: Map.put(core.readings, :hud, true)}, :depth, -alt), []}
+
+  defp from_vehicle(core, %Message{name: :global_position_int, fields: f}, _now) do
+    if Map.has_key?(core.readings, :hud),
+      do: {core, []},
+      else: {put_reading(core, :depth, -f.relative_alt / 1000), []}
+  end
+
+  defp from_vehicle(core, %Message{name: :sys_status, fields: f}, _now) do
+    core =
+      if f.voltage_battery != 0xFFFF,
+        do: put_reading(core, :voltage, f.voltage_battery / 1000),
+        else: core
+
+    core =
+      if f.current_battery >= 0,
+        do: put_reading(core, :current, f.current_battery / 100),
+        else: core
+
+    {core, []}
+  end
+
+  defp from_vehicle(core, %Message{name: :servo_output_raw, fields: f}, _now) do
+    servos = for i <- 1..8, do: Map.get(f, String.to_atom("servo#{i}_raw"), 0)
+    {%{core | servo_us: servos}, []}
+  end
+
+  defp from_vehicle(core, %Message{name: :timesync, fields: %{tc1: tc1, ts1: ts1}}, now)
+       when tc1 != 0 do
+    rtt_ms = (now * 1.0e9 - ts1) / 1.0e6
+
+    if rtt_ms >= 0 and rtt_ms < 10_000,
+      do: {%{core | rtt_ms: Float.round(rtt_ms, 3)}, []},
+      else: {core, []}
+  end
+
+  defp from_vehicle(core, _message, _now), do: {core, []}
+
+  defp put_reading(core, key, value) when is_number(value),
+    do: %{core | readings: Map.put(core.readings, key, value * 1.0)}
+
+  defp put_reading(core, _key, _value), do: core
+
+  defp sample(core, time_boot_ms, now) do
+    measurement = Map.take(core.readings, [:depth, :heading, :roll, :pitch, :voltage, :current])
+
+    %{
+      t: now - core.started,
+      measurement: measurement,
+      sim: nil,
+      board: %{board_time: time_boot_ms / 1000}
+    }
+  end
+
+  defp wrap(yaw) when is_number(yaw) do
+    two_pi = 2 * :math.pi()
+    r = :math.fmod(yaw, two_pi)
+    if r < 0, do: r + two_pi, else: r
+  end
+
+  defp wrap(_), do: nil
+
+  # MAV_SEVERITY 0..7: emergency alert critical error warning notice info debug
+  defp severity(s) when s <= 3, do: :error
+  defp severity(4), do: :warning
+  defp severity(_), do: :info
+
+  # a servo output as a thruster value: ArduSub's motors run 1100..1900 µs, 1500 neutral
+  # (0 µs: an output not driven)
+  defp thruster(0), do: nil
+  defp thruster(us), do: ((us - 1500) / 400) |> max(-1.0) |> min(1.0) |> Float.round(3)
+
+  # ── status ───────────────────────────────────────────────────────────────────────────
+
+  @doc "The link's state and the vehicle's as the board reports them (`link_status`)."
+  @spec status(t()) :: map()
+  def status(core) do
+    %{
+      up: core.up,
+      reason: core.reason,
+      rtt_ms: core.rtt_ms,
+      mavlink: %{
+        armed: core.vehicle.armed,
+        mode: core.vehicle.mode,
+        system_status: core.vehicle.system_status,
+        target: core.target && Tuple.to_list(core.target),
+        servo_us: core.servo_us,
+        thrusters: Enum.map(core.servo_us, &thruster/1),
+        control: core.control,
+        disarm_pending: core.disarm_at != nil
+      }
+    }
+  end
+end

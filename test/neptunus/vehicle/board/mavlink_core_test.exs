@@ -1,0 +1,776 @@
+defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
+  use ExUnit.Case, async: true
+
+  alias Neptunus.Protocol.MAVLink.Message
+  alias Neptunus.Vehicle.Board.MAVLink.Core
+
+  doctest Core
+
+  @armed 128 + 64 + 16 + 1
+  @disarmed 64 + 16 + 1
+
+  defp msg(name, fields, system \\ 1, component \\ 1) do
+    %Message{
+      id: 0,
+      name: name,
+      system: system,
+      component: component,
+      seq: 0,
+      version: 2,
+      fields: fields
+    }
+  end
+
+  defp heartbeat(opts \\ []) do
+    msg(
+      :heartbeat,
+      %{
+        type: Keyword.get(opts, :type, 12),
+        autopilot: 3,
+        base_mode: if(Keyword.get(opts, :armed, false), do: @armed, else: @disarmed),
+        custom_mode: Keyword.get(opts, :mode, 19),
+        system_status: 4,
+        mavlink_version: 3
+      },
+      Keyword.get(opts, :system, 1),
+      Keyword.get(opts, :component, 1)
+    )
+  end
+
+  defp sends(actions, name), do: for({:send, ^name, f} <- actions, do: f)
+
+  # a core with the vehicle heard at t = 0.5
+  defp linked(opts \\ []) do
+    core = Core.new(0.0, opts)
+    {core, _} = Core.tick(core, 0.0)
+    {core, _} = Core.receive(core, heartbeat(opts), 0.5)
+    core
+  end
+
+  describe "time" do
+    test "a GCS heartbeat every second, on the grid, from the start" do
+      core = Core.new(10.0)
+      {core, actions} = Core.tick(core, 10.0)
+      assert [%{type: 6, autopilot: 8}] = sends(actions, :heartbeat)
+      {core, actions} = Core.tick(core, 10.5)
+      assert sends(actions, :heartbeat) == []
+      # late: one heartbeat, the next on the grid
+      {core, actions} = Core.tick(core, 13.2)
+      assert length(sends(actions, :heartbeat)) == 1
+      assert core.next_heartbeat == 14.0
+    end
+
+    test "no MANUAL_CONTROL before a vehicle is known; neutral at 10 Hz after" do
+      core = Core.new(0.0)
+      {core, actions} = Core.tick(core, 0.0)
+      assert sends(actions, :manual_control) == []
+      {core, _} = Core.receive(core, heartbeat(), 0.05)
+      {core, actions} = Core.tick(core, 0.1)
+
+      assert [%{target: 1, x: 0, y: 0, z: 500, r: 0, buttons: 0}] =
+               sends(actions, :manual_control)
+
+      {core, actions} = Core.tick(core, 0.15)
+      assert sends(actions, :manual_control) == []
+      {_core, actions} = Core.tick(core, 0.2)
+      assert length(sends(actions, :manual_control)) == 1
+    end
+
+    test "due/1 is the earliest deadline" do
+      core = linked()
+
+      assert Core.due(core) ==
+               Enum.min([core.next_heartbeat, core.next_manual, core.next_timesync])
+
+      {core, _} = Core.arm(core, :me, true, 0.5)
+      core = %{core | next_heartbeat: 9.0, next_manual: 9.0, next_timesync: 9.0}
+      assert Core.due(core) == 3.5
+    end
+  end
+
+  describe "go → MANUAL_CONTROL" do
+    test "undoes the allocation: x surge, z 500 − 500·heave, r yaw, y and buttons 0" do
+      for {thrusters, expected} <- [
+            {%{port: 0.0, vertical: 0.0, starboard: 0.0}, %{x: 0, z: 500, r: 0}},
+            {%{port: 0.5, vertical: 0.0, starboard: 0.5}, %{x: 500, z: 500, r: 0}},
+            {%{port: -1.0, vertical: 0.0, starboard: -1.0}, %{x: -1000, z: 500, r: 0}},
+            {%{port: 0.3, vertical: 0.0, starboard: -0.3}, %{x: 0, z: 500, r: 300}},
+            # positive heave is down: below 500
+            {%{port: 0.0, vertical: 1.0, starboard: 0.0}, %{x: 0, z: 0, r: 0}},
+            {%{port: 0.0, vertical: -1.0, starboard: 0.0}, %{x: 0, z: 1000, r: 0}},
+            {%{port: 0.0, vertical: -0.25, starboard: 0.0}, %{x: 0, z: 625, r: 0}}
+          ] do
+        assert Map.take(Core.manual_control(thrusters), [:x, :z, :r]) == expected
+        assert %{y: 0, buttons: 0} = Core.manual_control(thrusters)
+      end
+    end
+
+    test "motion allocated with any gain comes back as gain × command" do
+      for x <- [-1.0, -0.4, 0.0, 0.7],
+          m <- [-0.3, 0.0, 0.2],
+          z <- [-0.5, 0.0, 0.9],
+          k <- [0.5, 1.0] do
+        thrusters = Neptunus.Allocation.motion(%{surge: x, heave: z, yaw: m}, k)
+
+        if abs(k * (x + m)) <= 1 and abs(k * (x - m)) <= 1 do
+          c = Core.manual_control(thrusters)
+          assert c.x == round(1000 * k * x)
+          assert c.r == round(1000 * k * m)
+          assert c.z == 500 - round(500 * k * z)
+        end
+      end
+    end
+
+    test "a change is sent at once and restarts the period; no change sends nothing" do
+      core = linked()
+      {core, actions} = Core.go(core, %{port: 0.5, vertical: 0.0, starboard: 0.5}, 0.6)
+      assert [%{x: 500, z: 500, target: 1}] = sends(actions, :manual_control)
+      assert core.next_manual == 0.6 + 0.1
+      {_core, actions} = Core.go(core, %{port: 0.5, vertical: 0.0, starboard: 0.5}, 0.62)
+      assert actions == []
+    end
+
+    test "before a vehicle is known the command is kept, not sent" do
+      core = Core.new(0.0)
+      {core, actions} = Core.go(core, %{port: 0.5, vertical: 0.0, starboard: 0.5}, 0.1)
+      assert actions == []
+      {core, _} = Core.receive(core, heartbeat(), 0.2)
+      {_core, actions} = Core.tick(core, 0.2)
+      assert [%{x: 500}] = sends(actions, :manual_control)
+    end
+
+    test "neutral/2 sends neutral even when unchanged; nothing before a vehicle is known" do
+      core = linked()
+      {core, actions} = Core.neutral(core, 0.6)
+      assert [%{x: 0, z: 500, r: 0}] = sends(actions, :manual_control)
+      {core, _} = Core.go(core, %{port: 0.5, vertical: 0.0, starboard: 0.5}, 0.7)
+      {_core, actions} = Core.neutral(core, 0.71)
+      assert [%{x: 0, z: 500}] = sends(actions, :manual_control)
+      assert {_, []} = Core.neutral(Core.new(0.0), 0.1)
+    end
+
+    test "out-of-range values are clamped" do
+      assert %{x: 1000, z: 0} = Core.manual_control(%{port: 3.0, vertical: 2.0, starboard: 3.0})
+    end
+  end
+
+  describe "link" do
+    test "up on the vehicle's first heartbeat: requests the streams, logs armed and mode" do
+      core = Core.new(0.0)
+      {core, actions} = Core.receive(core, heartbeat(), 1.0)
+      assert {:link, %{up: true, reason: "heartbeat"}} in actions
+      streams = sends(actions, :request_data_stream)
+      assert length(streams) == 6
+
+      assert Enum.all?(
+               streams,
+               &match?(%{target_system: 1, target_component: 1, start_stop: 1}, &1)
+             )
+
+      assert Enum.any?(streams, &match?(%{req_stream_id: 10, req_message_rate: 10}, &1))
+      assert {:log, :info, "vehicle mode: MANUAL", %{}} in actions
+      assert {:log, :info, "vehicle armed: false", %{}} in actions
+
+      assert %{up: true, mavlink: %{armed: false, mode: "MANUAL", system_status: "active"}} =
+               Core.status(core)
+    end
+
+    test "a ground station's heartbeat is not a vehicle" do
+      {core, actions} = Core.receive(Core.new(0.0), heartbeat(type: 6, system: 254), 1.0)
+      assert actions == []
+      refute core.up
+      assert core.target == nil
+    end
+
+    test "a companion computer's or gimbal's heartbeat (autopilot invalid) is not the vehicle" do
+      for {type, component} <- [{18, 191}, {26, 154}, {30, 100}] do
+        hb = heartbeat(type: type, component: component)
+        hb = %{hb | fields: %{hb.fields | autopilot: 8}}
+        {core, actions} = Core.receive(Core.new(0.0), hb, 1.0)
+        assert actions == []
+        assert core.target == nil
+      end
+    end
+
+    test "the first vehicle heard is the target; another system's heartbeat is ignored" do
+      core = linked()
+      {core2, actions} = Core.receive(core, heartbeat(system: 2, armed: true), 0.7)
+      assert actions == []
+      assert core2 == core
+    end
+
+    test "changes of armed and mode are logged, repeated heartbeats are not" do
+      core = linked()
+      {core, actions} = Core.receive(core, heartbeat(), 1.5)
+      assert actions == []
+      {core, actions} = Core.receive(core, heartbeat(armed: true), 2.5)
+      assert actions == [{:log, :info, "vehicle armed: true", %{}}]
+      {_core, actions} = Core.receive(core, heartbeat(armed: true, mode: 2), 3.5)
+      assert actions == [{:log, :info, "vehicle mode: ALT_HOLD", %{}}]
+    end
+
+    test "down after link_timeout without a heartbeat; up again with the streams requested" do
+      core = linked()
+      {core, actions} = Core.tick(core, 3.5)
+      refute Enum.any?(actions, &match?({:link, _}, &1))
+      {core, actions} = Core.tick(core, 3.51)
+      assert {:link, %{up: false, reason: "no heartbeat from the vehicle for 3.0 s"}} in actions
+      refute core.up
+      {_core, actions} = Core.receive(core, heartbeat(), 4.0)
+      assert {:link, %{up: true, reason: "heartbeat"}} in actions
+      assert length(sends(actions, :request_data_stream)) == 6
+    end
+
+    test "TIMESYNC every second while up; the answer gives the round trip" do
+      core = linked()
+      {core, actions} = Core.tick(core, 1.0)
+      assert [%{tc1: 0, ts1: 1_000_000_000}] = sends(actions, :timesync)
+      answer = msg(:timesync, %{tc1: 77, ts1: 1_000_000_000})
+      {core, []} = Core.receive(core, answer, 1.004)
+      assert_in_delta Core.status(core).rtt_ms, 4.0, 1.0e-6
+      # a request from the vehicle (tc1 0) or a reply to nothing we sent changes nothing
+      {^core, []} = Core.receive(core, msg(:timesync, %{tc1: 0, ts1: 5}), 1.1)
+      {^core, []} = Core.receive(core, msg(:timesync, %{tc1: 1, ts1: 9_000_000_000}), 1.1)
+    end
+  end
+
+  describe "arming" do
+    test "arm sends COMMAND_LONG 400 param1 1 to the vehicle; ACCEPTED replies ok" do
+      core = linked()
+      {core, actions} = Core.arm(core, :me, true, 1.0)
+
+      assert [%{command: 400, param1: 1.0, param2: 0.0, target_system: 1, target_component: 1}] =
+               sends(actions, :command_long)
+
+      {core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 0}), 1.05)
+      assert actions == [{:reply, :me, :ok}]
+      assert core.pending == nil
+    end
+
+    test "a refusal replies with the vehicle's STATUSTEXT, else the result's name" do
+      core = linked()
+      {core, _} = Core.arm(core, :me, true, 1.0)
+      text = msg(:statustext, %{severity: 2, text: "Arm: Throttle too high"})
+      {core, actions} = Core.receive(core, text, 1.01)
+
+      assert [{:log, :error, "Arm: Throttle too high", %{severity: 2, source: "vehicle"}}] =
+               actions
+
+      {core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 4}), 1.02)
+      assert actions == [{:reply, :me, {:error, "Arm: Throttle too high"}}]
+
+      {core, _} = Core.arm(core, :me, true, 2.0)
+      {_core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 2}), 2.1)
+      assert actions == [{:reply, :me, {:error, "denied"}}]
+    end
+
+    test "an ACK of another command does not answer" do
+      core = linked()
+      {core, _} = Core.arm(core, :me, false, 1.0)
+      {core, actions} = Core.receive(core, msg(:command_ack, %{command: 176, result: 0}), 1.1)
+      assert actions == []
+      assert core.pending.kind == :disarm
+    end
+
+    test "no answer within command_timeout: a clear error, and the next command may go" do
+      core = linked()
+      {core, _} = Core.arm(core, :me, true, 1.0)
+      {core, _} = Core.receive(core, heartbeat(), 2.0)
+      {core, actions} = Core.tick(core, 3.99)
+      refute Enum.any?(actions, &match?({:reply, _, _}, &1))
+      {core, actions} = Core.tick(core, 4.0)
+      assert {:reply, :me, {:error, "no answer from the vehicle within 3.0 s"}} in actions
+      {_core, actions} = Core.arm(core, :me, true, 4.1)
+      assert [_] = sends(actions, :command_long)
+    end
+
+    test "one command at a time; refused while the link is down" do
+      core = linked()
+      {core, _} = Core.arm(core, :a, true, 1.0)
+      {core2, actions} = Core.arm(core, :b, false, 1.1)
+
+      assert actions == [
+               {:reply, :b, {:error, "a arm command is still waiting for the vehicle's answer"}}
+             ]
+
+      assert core2 == core
+
+      {down, actions} = Core.arm(Core.new(0.0), :c, true, 0.0)
+
+      assert [
+               {:reply, :c,
+                {:error, "the vehicle's link is down (no heartbeat from the vehicle yet)"}}
+             ] = actions
+
+      assert down.pending == nil
+    end
+
+    test "set_mode sends DO_SET_MODE with the custom mode; unknown modes are refused" do
+      core = linked()
+      {core, actions} = Core.set_mode(core, :me, "ALT_HOLD", 1.0)
+      assert [%{command: 176, param1: 1.0, param2: 2.0}] = sends(actions, :command_long)
+      {_core, actions} = Core.receive(core, msg(:command_ack, %{command: 176, result: 0}), 1.1)
+      assert actions == [{:reply, :me, :ok}]
+      {_core, actions} = Core.set_mode(linked(), :me, "LOITER", 1.0)
+      assert actions == [{:reply, :me, {:error, "unknown flight mode \"LOITER\""}}]
+    end
+  end
+
+  describe "pilot loss" do
+    defp armed, do: elem(Core.receive(linked(), heartbeat(armed: true), 0.6), 0)
+
+    test "a pilot-loss stop disarms after disarm_delay" do
+      for reason <- Core.pilot_loss_reasons() do
+        core = armed() |> Core.pilot("p1") |> Core.stopped(reason, 1.0)
+        {core, actions} = Core.tick(core, 2.99)
+        assert sends(actions, :command_long) == []
+        {core, actions} = Core.tick(core, 3.0)
+        assert [%{command: 400, param1: +0.0}] = sends(actions, :command_long)
+        assert Enum.any?(actions, &match?({:log, :warning, "disarming the vehicle" <> _, _}, &1))
+        assert core.disarm_at == nil
+      end
+    end
+
+    test "the delay is configurable" do
+      core = elem(Core.receive(linked(disarm_delay: 0.5), heartbeat(armed: true), 0.6), 0)
+      core = Core.stopped(core, "deadman", 1.0)
+      {_core, actions} = Core.tick(core, 1.5)
+      assert [%{command: 400}] = sends(actions, :command_long)
+    end
+
+    test "a new pilot before the delay cancels it; the same pilot staying does not" do
+      core = armed() |> Core.pilot("p1") |> Core.stopped("pilot_disconnected", 1.0)
+      core = core |> Core.pilot(nil) |> Core.pilot("p2")
+      {_core, actions} = Core.tick(core, 5.0)
+      assert sends(actions, :command_long) == []
+
+      # the deadman keeps the pilot: the helm broadcast after the stop names them again
+      core = armed() |> Core.pilot("p1") |> Core.stopped("deadman", 1.0) |> Core.pilot("p1")
+      {_core, actions} = Core.tick(core, 3.0)
+      assert [%{command: 400}] = sends(actions, :command_long)
+    end
+
+    test "handovers, the pilot's own stop and a disarmed vehicle schedule nothing" do
+      for reason <- ["control_transferred", "main_station_takeover", "pilot_stop", "whatever"] do
+        assert (armed() |> Core.stopped(reason, 1.0)).disarm_at == nil
+      end
+
+      assert (linked() |> Core.stopped("deadman", 1.0)).disarm_at == nil
+    end
+
+    test "a vehicle being armed is disarmed too" do
+      {core, _} = Core.arm(linked(), :me, true, 1.0)
+      assert Core.stopped(core, "pilot_left", 1.0).disarm_at == 3.0
+    end
+
+    test "nothing is sent if the vehicle disarmed meanwhile or the link is down" do
+      core = armed() |> Core.stopped("deadman", 1.0)
+      {core2, _} = Core.receive(core, heartbeat(), 2.0)
+      {_core, actions} = Core.tick(core2, 3.0)
+      assert sends(actions, :command_long) == []
+      {_core, actions} = Core.tick(%{core | up: false}, 3.0)
+      assert sends(actions, :command_long) == []
+    end
+
+    test "the pilot's own disarm supersedes the scheduled one" do
+      core = armed() |> Core.stopped("deadman", 1.0)
+      {core, _} = Core.arm(core, :me, false, 1.5)
+      assert core.disarm_at == nil
+    end
+  end
+
+  describe "telemetry" do
+    test "ATTITUDE makes a sample with the latest depth and battery" do
+      core = linked()
+      {core, []} = Core.receive(core, msg(:vfr_hud, %{alt: -2.5}), 1.0)
+
+      {core, []} =
+        Core.receive(
+          core,
+          msg(:sys_status, %{voltage_battery: 15_900, current_battery: 123}),
+          1.0
+        )
+
+      attitude = %{time_boot_ms: 42_000, roll: 0.1, pitch: -0.2, yaw: -:math.pi() / 2}
+      {_core, [{:sample, sample}]} = Core.receive(core, msg(:attitude, attitude), 1.5)
+      assert sample.t == 1.5
+      assert sample.sim == nil
+      assert sample.board == %{board_time: 42.0}
+      m = sample.measurement
+      assert m.depth == 2.5
+      assert m.roll == 0.1 and m.pitch == -0.2
+      assert_in_delta m.heading, 3 * :math.pi() / 2, 1.0e-9
+      assert m.voltage == 15.9
+      assert m.current == 1.23
+    end
+
+    test "depth from GLOBAL_POSITION_INT only while no VFR_HUD came; unknown battery left out" do
+      core = linked()
+      {core, []} = Core.receive(core, msg(:global_position_int, %{relative_alt: -1500}), 1.0)
+      assert core.readings.depth == 1.5
+      {core, []} = Core.receive(core, msg(:vfr_hud, %{alt: -1.0}), 1.1)
+      {core, []} = Core.receive(core, msg(:global_position_int, %{relative_alt: -3000}), 1.2)
+      assert core.readings.depth == 1.0
+
+      {core, []} =
+        Core.receive(core, msg(:sys_status, %{voltage_battery: 0xFFFF, current_battery: -1}), 1.3)
+
+      {_core, [{:sample, s}]} =
+        Core.receive(
+          core,
+          msg(:attitude, %{time_boot_ms: 0, roll: 0.0, pitch: 0.0, yaw: 0.0}),
+          1.4
+        )
+
+      refute Map.has_key?(s.measurement, :voltage)
+      refute Map.has_key?(s.measurement, :current)
+    end
+
+    test "SERVO_OUTPUT_RAW shows as the servo outputs" do
+      fields = Map.new(1..16, &{String.to_atom("servo#{&1}_raw"), 1400 + &1})
+      {core, []} = Core.receive(linked(), msg(:servo_output_raw, fields), 1.0)
+      assert Core.status(core).mavlink.servo_us == Enum.map(1..8, &(1400 + &1))
+      assert_in_delta Core.status(core).mavlink.thrusters |> hd(), -99 / 400, 0.001
+
+      {core, []} =
+        Core.receive(
+          core,
+          msg(:servo_output_raw, %{fields | servo1_raw: 1900, servo2_raw: 0, servo3_raw: 1100}),
+          1.0
+        )
+
+      assert [1.0, nil, -1.0 | _] = Core.status(core).mavlink.thrusters
+    end
+
+    test "STATUSTEXT is logged with its severity" do
+      for {severity, level} <- [
+            {0, :error},
+            {3, :error},
+            {4, :warning},
+            {5, :info},
+            {6, :info},
+            {7, :info}
+          ] do
+        {_core, actions} =
+          Core.receive(linked(), msg(:statustext, %{severity: severity, text: "x"}), 1.0)
+
+        assert [{:log, ^level, "x", %{severity: ^severity}}] = actions
+      end
+    end
+
+    test "messages of other systems are ignored" do
+      core = linked()
+      assert {^core, []} = Core.receive(core, msg(:vfr_hud, %{alt: -9.0}, 7), 1.0)
+      fresh = Core.new(0.0)
+      assert {^fresh, []} = Core.receive(fresh, msg(:vfr_hud, %{alt: 1.0}), 1.0)
+    end
+  end
+
+  describe "lights and tilt" do
+    test "lights → DO_SET_SERVO on the lights' servo, 1100..1900 µs" do
+      {_, [{:send, :command_long, f}]} = Core.lights(linked(), 255)
+      assert %{command: 183, param1: 9.0, param2: 1900.0} = f
+      {_, [{:send, :command_long, f}]} = Core.lights(linked(lights_servo: 10), 0)
+      assert %{param1: 10.0, param2: 1100.0} = f
+    end
+
+    test "tilt → DO_MOUNT_CONTROL pitch in degrees, MAVLink targeting" do
+      {_, [{:send, :command_long, f}]} = Core.tilt(linked(), :math.pi() / 4)
+      assert %{command: 205, param7: 2.0} = f
+      assert_in_delta f.param1, 45.0, 1.0e-9
+    end
+
+    test "nothing before a vehicle is known" do
+      assert {_, []} = Core.lights(Core.new(0.0), 10)
+      assert {_, []} = Core.tilt(Core.new(0.0), 0.1)
+    end
+  end
+end
+
+defmodule Neptunus.Vehicle.Board.MAVLink.CoreModesTest do
+  use ExUnit.Case, async: true
+
+  alias Neptunus.Protocol.MAVLink.Message
+  alias Neptunus.Vehicle.Board.MAVLink.Core
+
+  defp in_mode(mode) do
+    fields = %{type: 12, autopilot: 3, base_mode: 209, custom_mode: mode, system_status: 4}
+
+    m = %Message{
+      id: 0,
+      name: :heartbeat,
+      system: 1,
+      component: 1,
+      seq: 0,
+      version: 2,
+      fields: fields
+    }
+
+    elem(Core.receive(Core.new(0.0), m, 0.1), 0)
+  end
+
+  defp mode_sent({_core, actions}) do
+    case actions do
+      [{:send, :command_long, %{command: 176, param1: 1.0, param2: mode}}] -> {:mode, round(mode)}
+      [{:reply, :me, reply}] -> reply
+    end
+  end
+
+  @manual 19
+  @stabilize 0
+  @alt_hold 2
+
+  test "depth hold → ALT_HOLD, heading hold → STABILIZE, neither → MANUAL" do
+    for {from, setpoints, expected} <- [
+          {@manual, %{depth: :hold, heading: :hold}, {:mode, @alt_hold}},
+          {@manual, %{depth: :hold, heading: :unchanged},
+           {:error, "ArduSub's depth hold (ALT_HOLD) holds the heading too"}},
+          {@stabilize, %{depth: :hold, heading: :unchanged}, {:mode, @alt_hold}},
+          {@manual, %{depth: :unchanged, heading: :hold}, {:mode, @stabilize}},
+          {@manual, %{depth: nil, heading: :hold}, {:mode, @stabilize}},
+          {@alt_hold, %{depth: nil, heading: :unchanged}, {:mode, @stabilize}},
+          {@alt_hold, %{depth: :unchanged, heading: nil},
+           {:error, "ArduSub's depth hold (ALT_HOLD) holds the heading too"}},
+          {@alt_hold, %{depth: nil, heading: nil}, {:mode, @manual}},
+          {@stabilize, %{depth: :unchanged, heading: nil}, {:mode, @manual}},
+          {@manual, %{depth: 3.0, heading: :unchanged},
+           {:error, "ArduSub holds the depth it has when ALT_HOLD engages: use \"hold\""}},
+          {@manual, %{depth: :unchanged, heading: 1.0},
+           {:error, "ArduSub holds the heading it has when STABILIZE engages: use \"hold\""}}
+        ] do
+      assert mode_sent(Core.autopilot(in_mode(from), :me, setpoints, 1.0)) == expected,
+             "from #{from} with #{inspect(setpoints)}"
+    end
+  end
+
+  test "the mode's ACK answers" do
+    {core, _} = Core.autopilot(in_mode(@manual), :me, %{depth: :hold, heading: :hold}, 1.0)
+
+    ack = %Message{
+      id: 77,
+      name: :command_ack,
+      system: 1,
+      component: 1,
+      seq: 1,
+      version: 2,
+      fields: %{command: 176, result: 0}
+    }
+
+    assert {_, [{:reply, :me, :ok}]} = Core.receive(core, ack, 1.1)
+  end
+
+  test "vet refuses what ArduSub cannot fly, with a reason" do
+    assert {:error, "manual per-thruster mode is not available" <> _} =
+             Core.vet({:set_control_mode, :manual})
+
+    assert {:error, "manual per-thruster" <> _} =
+             Core.vet({:thrust, :manual, %{port: 0.0, vertical: 0.0, starboard: 0.0}})
+
+    assert {:error, "dp is not available" <> _} = Core.vet({:set_control_mode, :dp})
+    assert {:error, _} = Core.vet({:set_laser, 3})
+    assert {:error, _} = Core.vet({:autopilot, %{depth: :hold, heading: :hold}})
+
+    for ok <- [
+          {:set_control_mode, :motion},
+          {:thrust, :motion, %{surge: 0.1, heave: 0.0, yaw: 0.0}},
+          {:set_gain, 0.5},
+          {:set_lights, 10},
+          {:set_tilt, 0.1},
+          {:set_run_mode, :simulator}
+        ] do
+      assert Core.vet(ok) == :ok
+    end
+  end
+end
+
+defmodule Neptunus.Vehicle.Board.MAVLink.CoreTextTest do
+  use ExUnit.Case, async: true
+
+  alias Neptunus.Protocol.MAVLink.Message
+  alias Neptunus.Vehicle.Board.MAVLink.Core
+
+  defp msg(name, fields),
+    do: %Message{id: 0, name: name, system: 1, component: 1, seq: 0, version: 2, fields: fields}
+
+  defp linked do
+    hb = %{type: 12, autopilot: 3, base_mode: 81, custom_mode: 19, system_status: 3}
+    elem(Core.receive(Core.new(0.0), msg(:heartbeat, hb), 0.1), 0)
+  end
+
+  test "a long STATUSTEXT in chunks is one text, and answers a waiting command" do
+    {core, _} = Core.arm(linked(), :me, true, 1.0)
+    first = String.duplicate("a", 50)
+
+    {core, []} =
+      Core.receive(core, msg(:statustext, %{severity: 2, text: first, id: 7, chunk_seq: 0}), 1.0)
+
+    {core, [{:log, :error, text, _}]} =
+      Core.receive(core, msg(:statustext, %{severity: 2, text: "bc", id: 7, chunk_seq: 1}), 1.0)
+
+    assert text == first <> "bc"
+    {_core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 4}), 1.1)
+    assert actions == [{:reply, :me, {:error, first <> "bc"}}]
+  end
+
+  test "a text of exactly 50 bytes ends with an empty chunk" do
+    first = String.duplicate("z", 50)
+
+    {core, []} =
+      Core.receive(
+        linked(),
+        msg(:statustext, %{severity: 6, text: first, id: 3, chunk_seq: 0}),
+        1.0
+      )
+
+    assert {_, [{:log, :info, ^first, _}]} =
+             Core.receive(
+               core,
+               msg(:statustext, %{severity: 6, text: "", id: 3, chunk_seq: 1}),
+               1.0
+             )
+  end
+end
+
+defmodule Neptunus.Vehicle.Board.MAVLink.CorePropertiesTest do
+  use ExUnit.Case, async: true
+
+  alias Neptunus.Protocol.MAVLink, as: Codec
+  alias Neptunus.Protocol.MAVLink.Message
+  alias Neptunus.Test.Properties
+  alias Neptunus.Vehicle.Board.MAVLink.Core
+
+  defp unit, do: :proper_types.float(-1.0, 1.0)
+
+  test "MANUAL_CONTROL from any thruster values: in range, encodable, neutral only from neutral" do
+    gen = :proper_types.tuple([unit(), unit(), unit()])
+
+    Properties.check(gen, fn {p, v, s} ->
+      c = Core.manual_control(%{port: p, vertical: v, starboard: s})
+      fields = Map.put(c, :target, 1)
+
+      c.x in -1000..1000 and c.r in -1000..1000 and c.z in 0..1000 and c.y == 0 and
+        c.buttons == 0 and
+        match?(
+          {:ok, _},
+          Codec.encode(:manual_control, fields, %{system: 255, component: 190, seq: 0})
+        ) and
+        c == Core.manual_control(%{port: 0.0, vertical: 0.0, starboard: 0.0}) ==
+          (round(500 * (p + s)) == 0 and round(500 * (p - s)) == 0 and round(500 * v) == 0)
+    end)
+  end
+
+  # whatever a vehicle sends, in any order, the core never crashes and its actions are of the
+  # documented shapes
+  test "any sequence of vehicle messages and ticks: no crash, documented actions" do
+    fields = %{
+      heartbeat: fn ->
+        %{
+          type: Enum.random([6, 12, 2]),
+          autopilot: 3,
+          base_mode: Enum.random(0..255),
+          custom_mode: Enum.random(0..30),
+          system_status: Enum.random(0..10)
+        }
+      end,
+      attitude: fn ->
+        %{
+          time_boot_ms: Enum.random(0..100_000),
+          roll: :rand.uniform(),
+          pitch: :rand.uniform(),
+          yaw: :rand.uniform() * 8 - 4
+        }
+      end,
+      vfr_hud: fn -> %{alt: Enum.random([-3.0, 0.0, 1.5, :nan])} end,
+      sys_status: fn ->
+        %{
+          voltage_battery: Enum.random([0, 15_000, 0xFFFF]),
+          current_battery: Enum.random([-1, 0, 250])
+        }
+      end,
+      statustext: fn ->
+        %{severity: Enum.random(0..7), text: "t", id: Enum.random([0, 1, 2]), chunk_seq: 0}
+      end,
+      command_ack: fn -> %{command: Enum.random([400, 176, 183]), result: Enum.random(0..6)} end,
+      timesync: fn -> %{tc1: Enum.random([0, 5]), ts1: Enum.random([0, 1_000_000_000, -1])} end,
+      global_position_int: fn -> %{relative_alt: Enum.random([-2000, 0, 100])} end,
+      servo_output_raw: fn ->
+        Map.new(1..16, &{String.to_atom("servo#{&1}_raw"), Enum.random([0, 1100, 1500, 1900])})
+      end
+    }
+
+    # a message is its name and a seed for its field values (so a counterexample replays)
+    message =
+      :proper_types.tuple([
+        :proper_types.oneof(Enum.map(Map.keys(fields), &:proper_types.exactly/1)),
+        :proper_types.pos_integer()
+      ])
+
+    step =
+      :proper_types.oneof([:proper_types.exactly(:tick), :proper_types.exactly(:arm), message])
+
+    Properties.check(
+      :proper_types.list(step),
+      fn steps ->
+        {_core, _t, ok?} =
+          Enum.reduce(steps, {Core.new(0.0), 0.0, true}, fn s, {core, t, ok?} ->
+            t = t + 0.05
+
+            {core, actions} =
+              case s do
+                :tick ->
+                  Core.tick(core, t)
+
+                :arm ->
+                  Core.arm(core, :me, true, t)
+
+                {name, seed} ->
+                  :rand.seed(:exsss, {seed, 7, 11})
+                  system = Enum.random([1, 2])
+
+                  m = %Message{
+                    id: 0,
+                    name: name,
+                    system: system,
+                    component: 1,
+                    seq: 0,
+                    version: 2,
+                    fields: fields[name].()
+                  }
+
+                  Core.receive(core, m, t)
+              end
+
+            shapes? =
+              Enum.all?(actions, fn
+                {:send, name, f} when is_atom(name) and is_map(f) ->
+                  match?({:ok, _}, Codec.encode(name, f, %{system: 255, component: 190, seq: 0}))
+
+                {:reply, :me, :ok} ->
+                  true
+
+                {:reply, :me, {:error, r}} when is_binary(r) ->
+                  true
+
+                {:link, %{up: up, reason: r}} when is_boolean(up) and is_binary(r) ->
+                  true
+
+                {:log, level, text, %{}}
+                when level in [:info, :warning, :error] and is_binary(text) ->
+                  true
+
+                {:sample, %{t: t, measurement: m, sim: nil}} when is_float(t) and is_map(m) ->
+                  true
+
+                _ ->
+                  false
+              end)
+
+            {core, t, ok? and shapes?}
+          end)
+
+        ok?
+      end,
+      200
+    )
+  end
+end

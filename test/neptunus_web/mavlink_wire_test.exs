@@ -1,0 +1,214 @@
+defmodule NeptunusWeb.MAVLinkWireTest do
+  # A mavlink vehicle flown through a WebSocket against the fake ArduSub (pymavlink): what the
+  # vehicle receives is what the fake reports.
+  use ExUnit.Case, async: false
+
+  import NeptunusWeb.Test.Wire
+
+  alias Neptunus.Test.FakeArduSub
+
+  @moduletag :external
+  @moduletag :capture_log
+
+  @refusal "PreArm: Must assign a disarm or arm_toggle button or disarm aux function"
+
+  setup do
+    fake = FakeArduSub.start!(:udp)
+    id = "mav-#{System.unique_integer([:positive])}"
+
+    vehicle = %{
+      id: id,
+      board: :mavlink,
+      link: {:udpout, "127.0.0.1", fake.udp},
+      system: 255,
+      component: 190,
+      disarm_delay: 0.5
+    }
+
+    {:ok, _} = Neptunus.Fleet.start_vehicle(vehicle)
+    on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
+    # the board is a ground station to the vehicle from the start
+    FakeArduSub.expect!(fake, &(&1["event"] == "heartbeat" and &1["sysid"] == 255))
+    link_up!(id)
+    %{fake: fake, id: id, topic: "vehicle:" <> id}
+  end
+
+  defp client(topic, name), do: client!(topic, %{"name" => name})
+  defp push(c, event, payload \\ %{}), do: push_and_reply(c.ws, c.jr, c.topic, event, payload)
+
+  defp pilot(topic) do
+    ada = client(topic, "Ada")
+    {"ok", %{"grant" => %{"epoch" => epoch}}} = push(ada, "request_control")
+    Map.put(ada, :epoch, epoch)
+  end
+
+  # arms through the channel: the reply carries the vehicle's answer, or `pending` and then
+  # the `vehicle_answer` event
+  defp arm!(c, fake) do
+    case push(c, "arm") do
+      {"ok", %{"status" => "ok"}} -> :ok
+      {"ok", %{"status" => "pending"}} -> assert %{"ok" => true} = event!(c.ws, "vehicle_answer")
+    end
+
+    FakeArduSub.expect!(fake, &(&1["event"] == "armed" and &1["armed"] == true))
+  end
+
+  defp manual_control!(fake, pred),
+    do: FakeArduSub.expect!(fake, &(&1["event"] == "manual_control" and pred.(&1)))
+
+  test "neutral MANUAL_CONTROL from 255 to target 1 while nobody pilots", %{fake: fake} do
+    mc = manual_control!(fake, fn _ -> true end)
+    assert %{"x" => 0, "y" => 0, "z" => 500, "r" => 0, "buttons" => 0} = mc
+    assert %{"sysid" => 255, "target" => 1, "accepted" => true} = mc
+  end
+
+  test "the pilot arms, drives and sees MANUAL_CONTROL; a stop sends neutral at once", ctx do
+    %{fake: fake, topic: topic} = ctx
+    ada = pilot(topic)
+    arm!(ada, fake)
+
+    # gain 0.5: surge 0.8 → 0.4 → x 400; heave 0.4 (down) → z 400; yaw −0.2 → r −100
+    payload = %{"mode" => "motion", "surge" => 0.8, "heave" => 0.4, "yaw" => -0.2}
+    assert {"ok", _} = push(ada, "thrust", Map.put(payload, "epoch", ada.epoch))
+
+    assert %{"armed" => true} =
+             manual_control!(fake, &(&1["x"] == 400 and &1["z"] == 400 and &1["r"] == -100))
+
+    # still sent at the pilot's values while piloted (10 Hz)
+    manual_control!(fake, &(&1["x"] == 400))
+
+    assert {"ok", _} = push(ada, "stop")
+    manual_control!(fake, &(&1["x"] == 0 and &1["z"] == 500 and &1["r"] == 0))
+
+    # and the page sees the armed vehicle in telemetry
+    assert %{"link" => %{"mavlink" => %{"armed" => true, "mode" => "MANUAL"}}} =
+             event!(ada.ws, "telemetry", &get_in(&1, ["link", "mavlink", "armed"]))
+  end
+
+  test "disarm; only the pilot arms", %{fake: fake, topic: topic} do
+    bob = client(topic, "Bob")
+    assert {"error", %{"reason" => "not_in_control"}} = push(bob, "arm")
+    ada = pilot(topic)
+    arm!(ada, fake)
+
+    case push(ada, "disarm") do
+      {"ok", %{"status" => "ok"}} ->
+        :ok
+
+      {"ok", %{"status" => "pending"}} ->
+        assert %{"ok" => true} = event!(ada.ws, "vehicle_answer")
+    end
+
+    FakeArduSub.expect!(fake, &(&1["event"] == "armed" and &1["armed"] == false))
+  end
+
+  test "a refusal gives ArduSub's own text", %{fake: fake, topic: topic} do
+    FakeArduSub.tell(fake, %{refuse_arm: @refusal})
+    FakeArduSub.expect!(fake, &(&1["event"] == "refuse_arm"))
+    ada = pilot(topic)
+
+    reason =
+      case push(ada, "arm") do
+        {"error", %{"reason" => reason}} ->
+          reason
+
+        {"ok", %{"status" => "pending"}} ->
+          assert %{"ok" => false, "reason" => r} = event!(ada.ws, "vehicle_answer")
+          r
+      end
+
+    assert reason == @refusal
+  end
+
+  test "pilot loss disarms the vehicle after the delay", %{fake: fake, topic: topic} do
+    ada = pilot(topic)
+    arm!(ada, fake)
+    NeptunusWeb.Test.WSClient.close(ada.ws)
+    assert %{"why" => "gcs"} = FakeArduSub.expect!(fake, &(&1["event"] == "armed"), 5_000)
+  end
+
+  test "a handover keeps the vehicle armed", %{fake: fake, topic: topic} do
+    ada = pilot(topic)
+    arm!(ada, fake)
+    bob = client(topic, "Bob")
+    {"ok", %{"status" => "pending"}} = push(bob, "request_control")
+    event!(ada.ws, "control_request")
+    {"ok", _} = push(ada, "answer_request", %{"accept" => true})
+    event!(bob.ws, "control_granted")
+    Process.sleep(1_000)
+    refute_armed_change(fake)
+  end
+
+  test "when Neptunus falls silent, ArduSub's own pilot-input failsafe disarms", ctx do
+    %{fake: fake, topic: topic, id: id} = ctx
+    ada = pilot(topic)
+    arm!(ada, fake)
+    Neptunus.Fleet.stop_vehicle(id)
+    # the board's last word is neutral; then nothing comes, and 3 s later the vehicle disarms
+    manual_control!(fake, &(&1["x"] == 0 and &1["z"] == 500))
+
+    assert %{"why" => "pilot_input_failsafe"} =
+             FakeArduSub.expect!(fake, &(&1["event"] == "armed"), 6_000)
+  end
+
+  test "lights and camera tilt through the vehicle's own commands", %{fake: fake, topic: topic} do
+    ada = pilot(topic)
+    assert {"ok", %{"control" => %{"lights" => 255}}} = push(ada, "set_lights", %{"value" => 255})
+
+    assert %{"params" => [9.0, 1900.0 | _], "result" => 0} =
+             FakeArduSub.expect!(fake, &(&1["event"] == "command" and &1["command"] == 183))
+
+    assert {"ok", _} = push(ada, "set_tilt", %{"value" => -0.5})
+
+    assert %{"params" => [pitch | _]} =
+             FakeArduSub.expect!(fake, &(&1["event"] == "command" and &1["command"] == 205))
+
+    assert_in_delta pitch, -0.5 * 180 / :math.pi(), 1.0e-3
+
+    assert {"error", %{"reason" => "an ArduSub vehicle has no laser"}} =
+             push(ada, "set_laser", %{"value" => 3})
+  end
+
+  test "manual per-thruster mode is refused with a reason", %{topic: topic} do
+    ada = pilot(topic)
+
+    assert {"error", %{"reason" => "manual per-thruster mode is not available" <> _}} =
+             push(ada, "set_control_mode", %{"mode" => "manual"})
+  end
+
+  test "depth hold sets ALT_HOLD; a setpoint is refused", %{fake: fake, topic: topic} do
+    ada = pilot(topic)
+
+    case push(ada, "autopilot", %{"depth" => "hold", "heading" => "hold"}) do
+      {"ok", %{"status" => "ok"}} ->
+        :ok
+
+      {"ok", %{"status" => "pending"}} ->
+        assert %{"ok" => true} = event!(ada.ws, "vehicle_answer")
+    end
+
+    assert %{"mode" => "ALT_HOLD"} = FakeArduSub.expect!(fake, &(&1["event"] == "mode"))
+
+    assert {"error", %{"reason" => "ArduSub holds the depth" <> _}} =
+             push(ada, "autopilot", %{"depth" => 3})
+  end
+
+  defp link_up!(id, left \\ 500) do
+    cond do
+      Neptunus.Vehicle.Board.link_status(id).up -> :ok
+      left == 0 -> flunk("the mavlink link did not come up")
+      true -> Process.sleep(10) && link_up!(id, left - 1)
+    end
+  end
+
+  defp refute_armed_change(%{port: port}) do
+    receive do
+      {^port, {:data, {:eol, line}}} ->
+        report = :jiffy.decode(line, [:return_maps])
+        refute report["event"] == "armed", "the vehicle was disarmed: #{line}"
+        refute_armed_change(%{port: port})
+    after
+      0 -> :ok
+    end
+  end
+end
