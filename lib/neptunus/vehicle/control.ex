@@ -278,7 +278,7 @@ defmodule Neptunus.Vehicle.Control do
       category: "autopilot",
       level: "info",
       message: text,
-      at: System.os_time(:millisecond)
+      at: Neptunus.Clock.wall_ms()
     })
 
     Logger.info("vehicle #{state.id}: #{text}")

@@ -435,7 +435,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
         category: "vehicle",
         level: Atom.to_string(level),
         message: text,
-        at: System.os_time(:millisecond)
+        at: Neptunus.Clock.wall_ms()
       })
     )
 
@@ -506,5 +506,6 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
     :ok
   end
 
-  defp now, do: System.monotonic_time(:microsecond) / 1.0e6
+  # the core runs on float seconds of the monotonic clock (converted here, at its edge)
+  defp now, do: Neptunus.Clock.monotonic_ms() / 1000
 end
