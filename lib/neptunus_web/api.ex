@@ -3,7 +3,8 @@ defmodule NeptunusWeb.API do
   The HTTP API under `/api` (a yaws appmod). JSON in, JSON out; errors are
   `{"error": reason}` with a 4xx status.
 
-    * `GET /api/health` → `{"status": "ok", "version": v, "vehicles": [{"id", "board"}]}`
+    * `GET /api/health` → `{"status": "ok", "version": v, "vehicles": [{"id", "board", "node", "status", "helm", "pilot", "link"}]}`
+      (every vehicle of the fleet, `Neptunus.Fleet.directory/0`)
     * `POST /api/login` `{"name", "password"}` → `{"token", "expires_at", "user": {"name",
       "role"}}`; 400 in local mode or for a malformed body, 401 for a wrong name or password,
       403 for a foreign `Origin`, 429 (with `Retry-After`) after too many attempts from one
@@ -59,7 +60,8 @@ defmodule NeptunusWeb.API do
     %{
       status: "ok",
       version: Application.spec(:neptunus, :vsn) |> to_string(),
-      vehicles: Neptunus.Fleet.list()
+      # every vehicle of the fleet, with its node (unreachable ones too)
+      vehicles: Neptunus.Fleet.directory()
     }
   end
 

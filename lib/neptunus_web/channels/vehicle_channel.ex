@@ -33,13 +33,28 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
 
   @impl true
   def join("vehicle:" <> id, _payload, socket) do
-    if Fleet.exists?(id) do
+    # a vehicle on another node of the fleet is joined the same way: its state comes from
+    # its node, its commands go to its helm there (Neptunus.Vehicle.Helm), its broadcasts
+    # through this node's relay (Neptunus.PubSub)
+    where =
+      if Fleet.local?(id) do
+        {:ok, node()}
+      else
+        case Fleet.locate(id) do
+          {:ok, node, _helm} -> {:ok, node}
+          {:error, :unreachable} -> {:error, "vehicle unreachable: #{id}"}
+          {:error, :not_found} -> {:error, "unknown vehicle: #{id}"}
+        end
+      end
+
+    with {:ok, node} <- where,
+         {:ok, state} <- vehicle_state(node, id) do
       socket = Channel.assign(socket, vehicle_id: id, since: System.os_time(:millisecond))
       socket = track(socket, false)
       Channel.send_self(socket, :after_join)
-      {:ok, snapshot(id, socket), socket}
+      {:ok, Map.put(state, :session, session(socket)), socket}
     else
-      {:error, %{reason: "unknown vehicle: #{id}"}}
+      {:error, reason} -> {:error, %{reason: reason}}
     end
   end
 
@@ -146,23 +161,38 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     :ok
   end
 
-  defp snapshot(id, socket) do
+  defp vehicle_state(node, id) when node == node(), do: {:ok, vehicle_state(id)}
+
+  defp vehicle_state(node, id) do
+    {:ok, :erpc.call(node, __MODULE__, :vehicle_state, [id], 5_000)}
+  catch
+    :error, {:erpc, _} -> {:error, "vehicle unreachable: #{id}"}
+    :exit, _ -> {:error, "vehicle unreachable: #{id}"}
+  end
+
+  @doc false
+  # The vehicle's part of the join reply, on the vehicle's own node.
+  @spec vehicle_state(String.t()) :: map()
+  def vehicle_state(id) do
     helm = Helm.status(id)
     [vehicle] = Enum.filter(Fleet.list(), &(&1.id == id))
 
     %{
-      vehicle: vehicle,
+      vehicle: Map.put(vehicle, :node, Atom.to_string(node())),
       telemetry: Telemetry.latest(id),
       helm: helm,
       pilot: helm.pilot && %{name: helm.pilot.name},
       control: Control.status(id),
-      camera: camera(id),
-      session: %{
-        id: socket.user.id,
-        name: socket.user.name,
-        role: Atom.to_string(socket.user.role),
-        mode: Atom.to_string(Auth.mode())
-      }
+      camera: camera(id)
+    }
+  end
+
+  defp session(socket) do
+    %{
+      id: socket.user.id,
+      name: socket.user.name,
+      role: Atom.to_string(socket.user.role),
+      mode: Atom.to_string(Auth.mode())
     }
   end
 
