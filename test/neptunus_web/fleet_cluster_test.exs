@@ -1,0 +1,216 @@
+defmodule NeptunusWeb.FleetClusterTest do
+  @moduledoc """
+  A fleet of two nodes on one machine: the test node (T, the topside, serving on the test
+  port) and a peer (V, serving on the next ports, hosting the vehicle), through real
+  WebSockets on both (see `Neptunus.Test.Cluster`).
+  """
+  use ExUnit.Case, async: false
+
+  import NeptunusWeb.Test.Wire
+
+  alias Neptunus.Fleet
+  alias Neptunus.Test.Cluster
+  alias NeptunusWeb.Test.WSClient
+
+  @moduletag timeout: 120_000
+
+  setup_all do
+    Cluster.distribute!()
+    :ok
+  end
+
+  # each test its own vehicle node, on its own port (the test port + 1..8)
+  defp start_vehicle_node!(ctx, offset) do
+    id = "far-#{System.unique_integer([:positive])}"
+    name = :"fleet_v#{port()}_#{System.unique_integer([:positive])}"
+    peer = Cluster.start_node!(name, port() + offset, [%{id: id, board: :simulated}])
+    on_exit(fn -> Cluster.stop_node(peer) end)
+    Map.merge(ctx, %{peer: peer, id: id, topic: "vehicle:" <> id})
+  end
+
+  defp connect_to!(port, name) do
+    query = URI.encode_query(%{"vsn" => "2.0.0", "name" => name})
+    {:ok, ws} = WSClient.connect(port, "/socket/websocket?" <> query)
+    ws
+  end
+
+  defp health(port) do
+    {:ok, {{_, 200, _}, _, body}} =
+      :httpc.request(:get, {~c"http://127.0.0.1:#{port}/api/health", []}, [], [])
+
+    :jiffy.decode(body, [:return_maps])
+  end
+
+  test "one directory: each node lists the other's vehicles with their node", ctx do
+    %{peer: peer, id: id} = start_vehicle_node!(ctx, 1)
+    v = Atom.to_string(peer.node)
+    t = Atom.to_string(node())
+
+    assert %{"status" => "up", "node" => ^v, "board" => "simulated", "helm" => "free"} =
+             Enum.find(health(port())["vehicles"], &(&1["id"] == id))
+
+    # the vehicle node sees the topside's vehicle too
+    assert %{"node" => ^t, "status" => "up"} =
+             Enum.find(health(peer.port)["vehicles"], &(&1["id"] == "neptunus-1"))
+
+    ws = connect!()
+    {_, %{"vehicles" => vehicles}} = join!(ws, "fleet")
+    assert %{"node" => ^v} = Enum.find(vehicles, &(&1["id"] == id))
+  end
+
+  test "a browser on T flies the vehicle on V: join, telemetry, control, commands, presence",
+       ctx do
+    %{peer: peer, id: id, topic: topic} = start_vehicle_node!(ctx, 2)
+    v = Atom.to_string(peer.node)
+
+    ws = connect!(%{"name" => "Ada"})
+    {jr, snapshot} = join!(ws, topic)
+    assert %{"vehicle" => %{"id" => ^id, "node" => ^v}, "helm" => %{"state" => "free"}} = snapshot
+
+    # telemetry crosses (the vehicle's node broadcasts it, T's relay serves it)
+    assert %{"t" => _} = event!(ws, "telemetry")
+
+    {"ok", %{"status" => "granted", "grant" => %{"epoch" => epoch}}} =
+      push_and_reply(ws, jr, topic, "request_control", %{})
+
+    assert {"ok", _} = push_and_reply(ws, jr, topic, "heartbeat", %{})
+    assert {"ok", _} = push_and_reply(ws, jr, topic, "thrust", thrust(0.5, epoch))
+
+    # the helm and the command are on V
+    assert %{pilot: %{name: "Ada"}, state: "piloted"} =
+             Cluster.call(peer, Neptunus.Vehicle.Helm, :status, [id])
+
+    assert %{"command" => %{"surge" => surge}} =
+             event!(ws, "telemetry", &(get_in(&1, ["command", "surge"]) not in [nil, 0, 0.0]))
+
+    assert surge > 0
+
+    # an observer on V sees the pilot from T, and presence counts both nodes' connections
+    observer = connect_to!(peer.port, "Grace")
+    {:ok, %{"pilot" => %{"name" => "Ada"}}} = WSClient.join(observer, topic)
+
+    [_, _, _, "presence_state", state] =
+      WSClient.recv_until(observer, &match?([_, _, _, "presence_state", _], &1), 2_000)
+
+    assert %{"Ada" => %{"metas" => [%{"node" => ada_node, "pilot" => true}]}, "Grace" => _} =
+             state
+
+    assert ada_node == Atom.to_string(node())
+
+    # the presence diff of V's join reaches T
+    assert %{"joins" => %{"Grace" => _}} =
+             event!(ws, "presence_diff", &Map.has_key?(&1["joins"], "Grace"))
+  end
+
+  test "telemetry crosses once per node: one relay on T however many sockets", ctx do
+    %{peer: peer, topic: topic} = start_vehicle_node!(ctx, 3)
+
+    clients =
+      for n <- 1..3 do
+        ws = connect!(%{"name" => "watcher#{n}"})
+        join!(ws, topic)
+        ws
+      end
+
+    relay = Process.whereis(Neptunus.PubSub.Relay)
+
+    Cluster.wait!(
+      fn ->
+        Cluster.call(peer, :pg, :get_members, [Neptunus.PubSub, {:relay, topic}]) == [relay]
+      end,
+      "T's relay in V's relay group"
+    )
+
+    # V's broadcast targets on T: the relay only (the sockets are T's local subscribers)
+    t = node()
+
+    remote_fastlane =
+      for group <- [{:fastlane, topic}, {:fastlane_first, topic}],
+          pid <- Cluster.call(peer, :pg, :get_local_members, [Neptunus.PubSub, group]),
+          node(pid) == t,
+          do: pid
+
+    assert remote_fastlane == []
+
+    for ws <- clients, do: assert(%{"t" => _} = event!(ws, "telemetry"))
+  end
+
+  test "partition: the pilot on T loses control on V, T says unreachable; healing needs a fresh request",
+       ctx do
+    %{peer: peer, id: id, topic: topic} = start_vehicle_node!(ctx, 4)
+    {:ok, collector} = Cluster.call(peer, Cluster.Collector, :start, [topic])
+
+    ws = connect!(%{"name" => "Ada"})
+    {jr, _} = join!(ws, topic)
+
+    {"ok", %{"status" => "granted", "grant" => %{"epoch" => epoch}}} =
+      push_and_reply(ws, jr, topic, "request_control", %{})
+
+    assert {"ok", _} = push_and_reply(ws, jr, topic, "thrust", thrust(0.6, epoch))
+
+    Cluster.partition!(peer)
+
+    # T: at once, the vehicle is unreachable (no frozen telemetry passed off as live)
+    assert %{"id" => ^id, "reason" => "node_unreachable"} = event!(ws, "unreachable")
+    assert {:error, :unreachable} = Fleet.locate(id)
+
+    assert %{"status" => "unreachable", "helm" => nil} =
+             Enum.find(Fleet.directory(), &(&1.id == id)) |> stringify()
+
+    assert {"error", %{"reason" => "vehicle_unreachable"}} =
+             push_and_reply(ws, jr, topic, "thrust", thrust(0.6, epoch))
+
+    # V: the pilot's connection is gone: neutral, and why (the event, not its timing)
+    Cluster.wait!(
+      fn ->
+        {"stopped", %{reason: "pilot_unreachable"}} in Cluster.call(
+          peer,
+          Cluster.Collector,
+          :events,
+          [collector]
+        )
+      end,
+      "V stops the vehicle: pilot_unreachable"
+    )
+
+    assert %{pilot: nil, state: "free"} = Cluster.call(peer, Neptunus.Vehicle.Helm, :status, [id])
+
+    assert %{command: command} = Cluster.call(peer, Neptunus.Vehicle.Telemetry, :latest, [id])
+
+    assert Enum.all?(Map.take(command, [:surge, :sway, :heave, :yaw]), fn {_, v} ->
+             v in [0, 0.0, nil]
+           end)
+
+    Cluster.heal!(peer)
+    assert %{"id" => ^id} = event!(ws, "reachable")
+    assert %{"t" => _} = event!(ws, "telemetry")
+
+    # nobody in control after healing: the old grant is void, a fresh request picks up
+    assert {"error", %{"reason" => "not_in_control"}} =
+             push_and_reply(ws, jr, topic, "thrust", thrust(0.6, epoch))
+
+    assert {"ok", %{"status" => "granted"}} =
+             push_and_reply(ws, jr, topic, "request_control", %{})
+  end
+
+  test "a vehicle node that restarts: unreachable, then up again with telemetry", ctx do
+    %{peer: peer, id: id, topic: topic} = start_vehicle_node!(ctx, 5)
+    ws = connect!(%{"name" => "Ada"})
+    join!(ws, topic)
+    assert %{"t" => _} = event!(ws, "telemetry")
+
+    Cluster.stop_node(peer)
+    assert %{"id" => ^id} = event!(ws, "unreachable")
+    assert %{status: "unreachable"} = Enum.find(Fleet.directory(), &(&1.id == id))
+
+    [name, _] = peer.node |> Atom.to_string() |> String.split("@")
+    again = Cluster.start_node!(String.to_atom(name), peer.port, [%{id: id, board: :simulated}])
+    on_exit(fn -> Cluster.stop_node(again) end)
+
+    assert %{"id" => ^id} = event!(ws, "reachable", fn _ -> true end, 5_000)
+    assert %{"t" => _} = event!(ws, "telemetry")
+    assert %{status: "up", helm: "free"} = Enum.find(Fleet.directory(), &(&1.id == id))
+  end
+
+  defp stringify(map), do: Map.new(map, fn {k, v} -> {Atom.to_string(k), v} end)
+end
