@@ -2,6 +2,7 @@ defmodule Neptunus.Fleet.ClusterConfigTest do
   use ExUnit.Case, async: true
 
   alias Neptunus.Config.Cluster
+  alias Neptunus.Test.Properties
 
   doctest Neptunus.Config.Cluster
 
@@ -24,6 +25,10 @@ defmodule Neptunus.Fleet.ClusterConfigTest do
 
   defp tls_env(%{"cert" => cert, "key" => key, "ca" => ca}) do
     %{"NEPTUNUS_DIST_CERT" => cert, "NEPTUNUS_DIST_KEY" => key, "NEPTUNUS_DIST_CACERT" => ca}
+  end
+
+  test "NEPTUNUS_VEHICLES=none: a node without vehicles (topside, relay)" do
+    assert Neptunus.Config.Vehicles.vehicles!(%{"NEPTUNUS_VEHICLES" => " none "}) == []
   end
 
   test "no NEPTUNUS_NODE: a single node, nothing distributed" do
@@ -162,5 +167,48 @@ defmodule Neptunus.Fleet.ClusterConfigTest do
     assert message =~ "-proto_dist inet_tls -ssl_dist_optfile"
     assert {:error, _} = Cluster.check_proto_dist(c, {:ok, [[~c"inet_tcp"]]})
     assert Cluster.check_proto_dist(%{c | tls: nil}, :error) == :ok
+  end
+
+  describe "property" do
+    # text from an alphabet that makes node names, lists and near misses
+    defp text do
+      chars = Enum.map(~c"ab1@.,: -_x", &:proper_types.exactly/1)
+      :proper_types.list(:proper_types.oneof(chars)) |> Properties.bind(&List.to_string/1)
+    end
+
+    test "any environment: settings or a clear error that never shows the cookie" do
+      cookie_gen =
+        :proper_types.oneof([
+          :proper_types.exactly(nil),
+          Properties.bind(:proper_types.integer(20, 40), &("C" <> String.duplicate("k", &1)))
+        ])
+
+      generator =
+        :proper_types.tuple([
+          :proper_types.oneof([:proper_types.exactly(nil), text()]),
+          cookie_gen,
+          :proper_types.oneof([:proper_types.exactly(nil), text()])
+        ])
+
+      Properties.check(generator, fn {name, cookie, cluster} ->
+        env =
+          [{"NEPTUNUS_NODE", name}, {"NEPTUNUS_COOKIE", cookie}, {"NEPTUNUS_CLUSTER", cluster}]
+          |> Enum.reject(&(elem(&1, 1) == nil))
+          |> Map.new()
+
+        try do
+          case Cluster.cluster!(env) do
+            nil ->
+              String.trim(name || "") == ""
+
+            %{node: node, cluster: nodes, cookie: c} ->
+              Atom.to_string(c) == cookie and node not in nodes and
+                Enum.all?(nodes, &(&1 |> Atom.to_string() |> String.contains?("@")))
+          end
+        rescue
+          e in ArgumentError -> cookie == nil or not String.contains?(e.message, cookie)
+        end
+      end)
+    end
   end
 end
