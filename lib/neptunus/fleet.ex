@@ -159,6 +159,49 @@ defmodule Neptunus.Fleet do
     end)
   end
 
+  @doc """
+  Runs `module.fun(args)` on vehicle `id`'s node (here when it runs here, or is not known
+  anywhere: then the call decides); `default` when its node is cut off or does not answer
+  within 5 s. For reads of a vehicle's processes from any node (camera, recorder).
+  """
+  @spec on_vehicle_node(vehicle_id(), module(), atom(), list(), term()) :: term()
+  def on_vehicle_node(id, module, fun, args, default) do
+    case vehicle_node(id) do
+      {:ok, node} when node == node() -> apply(module, fun, args)
+      {:ok, node} -> :erpc.call(node, module, fun, args, 5_000)
+      {:error, :unreachable} -> default
+    end
+  catch
+    :error, {:erpc, _} -> default
+    :exit, {:timeout, _} -> default
+  end
+
+  @doc """
+  The node of vehicle `id`: `{:ok, node}` (this node for a vehicle known nowhere, whose
+  leftovers, e.g. recordings, would be here) or `{:error, :unreachable}`.
+  """
+  @spec vehicle_node(vehicle_id()) :: {:ok, node()} | {:error, :unreachable}
+  def vehicle_node(id) do
+    cond do
+      local?(id) ->
+        {:ok, node()}
+
+      true ->
+        case locate(id) do
+          {:ok, node, _helm} -> {:ok, node}
+          {:error, :unreachable} -> {:error, :unreachable}
+          {:error, :not_found} -> {:ok, node()}
+        end
+    end
+  end
+
+  @doc "This node and every reachable node hosting vehicles (for cluster-wide reads)."
+  @spec nodes() :: [node()]
+  def nodes do
+    remote = for %{status: :up, node: node} <- Directory.entries(), node != node(), do: node
+    Enum.uniq([node() | remote])
+  end
+
   @doc false
   # This node's vehicles' helm state, pilot and link (called by directory/0 on every node).
   @spec local_details() :: %{optional(vehicle_id()) => map()}

@@ -213,4 +213,64 @@ defmodule NeptunusWeb.FleetClusterTest do
   end
 
   defp stringify(map), do: Map.new(map, fn {k, v} -> {Atom.to_string(k), v} end)
+
+  @tag :tmp_dir
+  test "recordings and camera of a vehicle on V: listed, exported and watched from T", ctx do
+    script = Path.expand("../fixtures/camera/fake_camera.sh", __DIR__)
+    id = "far-cam-#{System.unique_integer([:positive])}"
+    camera = %{kind: :exec, program: "/bin/sh", args: [script, "0"]}
+    recording = Map.put(Application.get_env(:neptunus, :recording), :dir, ctx.tmp_dir)
+    name = :"fleet_v#{port()}_#{System.unique_integer([:positive])}"
+
+    peer =
+      Cluster.start_node!(name, port() + 6, [%{id: id, board: :simulated, camera: camera}],
+        recording: recording
+      )
+
+    on_exit(fn -> Cluster.stop_node(peer) end)
+    v = Atom.to_string(peer.node)
+
+    list = fn query ->
+      {:ok, {{_, 200, _}, _, body}} =
+        :httpc.request(:get, {~c"http://127.0.0.1:#{port()}/api/recordings#{query}", []}, [], [])
+
+      :jiffy.decode(body, [:return_maps])
+    end
+
+    Cluster.wait!(fn -> list.("?vehicle=#{id}")["recordings"] != [] end, "a recording on V")
+
+    assert %{"recording" => true, "recordings" => [%{"node" => ^v, "name" => file}]} =
+             list.("?vehicle=#{id}")
+
+    assert Enum.any?(list.("")["recordings"], &(&1["vehicle"] == id and &1["node"] == v))
+
+    {:ok, {{_, 200, _}, _, csv}} =
+      :httpc.request(
+        :get,
+        {~c"http://127.0.0.1:#{port()}/api/recordings/#{id}/#{file}?format=csv", []},
+        [],
+        body_format: :binary
+      )
+
+    assert [header | rows] = String.split(csv, "\n", trim: true)
+    assert header =~ "t"
+    assert rows != []
+
+    # the camera: the snapshot's url on T streams V's camera
+    ws = connect!()
+    {_, %{"camera" => %{"url" => url}}} = join!(ws, "vehicle:" <> id)
+    {200, headers, body, socket} = raw_get(url)
+    assert headers["content-type"] == "multipart/x-mixed-replace; boundary=neptunusframe"
+    assert read_until(socket, body, "Content-Type: image/jpeg")
+    :gen_tcp.close(socket)
+  end
+
+  defp read_until(socket, acc, text) do
+    if String.contains?(acc, text) do
+      true
+    else
+      {:ok, more} = :gen_tcp.recv(socket, 0, 5_000)
+      read_until(socket, acc <> more, text)
+    end
+  end
 end

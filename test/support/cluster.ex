@@ -32,10 +32,11 @@ defmodule Neptunus.Test.Cluster do
   @doc """
   Starts a Neptunus node `name` (`name@127.0.0.1`) serving on `port` with `vehicles`
   (`[%{id, board}]`, `[]` for a relay node), connected to the test node. The test node's
-  application settings are copied, but for the port and the vehicles.
+  application settings are copied, but for the port, the vehicles and `env` (application
+  settings of the peer's own).
   """
-  @spec start_node!(atom(), :inet.port_number(), [map()]) :: peer()
-  def start_node!(name, port, vehicles) do
+  @spec start_node!(atom(), :inet.port_number(), [map()], keyword()) :: peer()
+  def start_node!(name, port, vehicles, env \\ []) do
     distribute!()
     paths = Enum.flat_map(:code.get_path(), &[~c"-pa", &1])
 
@@ -51,6 +52,7 @@ defmodule Neptunus.Test.Cluster do
     env =
       Application.get_all_env(:neptunus)
       |> Keyword.merge(cluster: nil, vehicles: vehicles)
+      |> Keyword.merge(env)
       |> Keyword.update!(:endpoint, &%{&1 | port: port})
 
     call(%{pid: pid}, Application, :load, [:neptunus])
