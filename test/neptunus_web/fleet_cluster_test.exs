@@ -103,7 +103,7 @@ defmodule NeptunusWeb.FleetClusterTest do
   end
 
   test "telemetry crosses once per node: one relay on T however many sockets", ctx do
-    %{peer: peer, topic: topic} = start_vehicle_node!(ctx, 3)
+    %{peer: peer, id: id, topic: topic} = start_vehicle_node!(ctx, 3)
 
     clients =
       for n <- 1..3 do
@@ -121,18 +121,19 @@ defmodule NeptunusWeb.FleetClusterTest do
       "T's relay in V's relay group"
     )
 
-    # V's broadcast targets on T: the relay only (the sockets are T's local subscribers)
-    t = node()
-
-    remote_fastlane =
-      for group <- [{:fastlane, topic}, {:fastlane_first, topic}],
-          pid <- Cluster.call(peer, :pg, :get_local_members, [Neptunus.PubSub, group]),
-          node(pid) == t,
-          do: pid
-
-    assert remote_fastlane == []
+    # what the vehicle's telemetry process sends across: only to T's relay, whatever the
+    # number of sockets on T
+    telemetry = Cluster.call(peer, Fleet, :whereis, [Neptunus.Vehicle.Telemetry, id])
+    {:ok, tracer} = Cluster.call(peer, Cluster.SendTracer, :start, [telemetry])
 
     for ws <- clients, do: assert(%{"t" => _} = event!(ws, "telemetry"))
+    for ws <- clients, do: assert(%{"t" => _} = event!(ws, "telemetry"))
+
+    assert %{^relay => count} =
+             receivers = Cluster.call(peer, Cluster.SendTracer, :remote_receivers, [tracer])
+
+    assert map_size(receivers) == 1
+    assert count >= 2
   end
 
   test "partition: the pilot on T loses control on V, T says unreachable; healing needs a fresh request",

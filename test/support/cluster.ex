@@ -151,4 +151,36 @@ defmodule Neptunus.Test.Cluster do
     def handle_info({:pubsub, _topic, event, payload}, events),
       do: {:noreply, [{event, payload} | events]}
   end
+
+  defmodule SendTracer do
+    @moduledoc """
+    Traces the messages a process sends (`:erlang.trace/3`, on the process' node) and keeps
+    the distinct receivers on other nodes, to show what crosses the node boundary.
+    Started on a peer with `Neptunus.Test.Cluster.call/4`.
+    """
+    use GenServer
+
+    @spec start(pid()) :: {:ok, pid()}
+    def start(traced), do: GenServer.start(__MODULE__, traced)
+
+    @doc "The receivers on other nodes so far, and how many messages went to each."
+    @spec remote_receivers(pid()) :: %{pid() => pos_integer()}
+    def remote_receivers(pid), do: GenServer.call(pid, :receivers)
+
+    @impl true
+    def init(traced) do
+      1 = :erlang.trace(traced, true, [:send, {:tracer, self()}])
+      {:ok, %{}}
+    end
+
+    @impl true
+    def handle_call(:receivers, _from, seen), do: {:reply, seen, seen}
+
+    @impl true
+    def handle_info({:trace, _from, :send, _msg, to}, seen)
+        when is_pid(to) and node(to) != node(),
+        do: {:noreply, Map.update(seen, to, 1, &(&1 + 1))}
+
+    def handle_info(_other, seen), do: {:noreply, seen}
+  end
 end
