@@ -200,8 +200,10 @@ defmodule NeptunusWeb.FleetClusterTest do
     join!(ws, topic)
     assert %{"t" => _} = event!(ws, "telemetry")
 
+    # a clean shutdown: its vehicles stop, then the node goes
+    Cluster.call(peer, :init, :stop, [])
+    assert %{"id" => ^id} = event!(ws, "unreachable", fn _ -> true end, 10_000)
     Cluster.stop_node(peer)
-    assert %{"id" => ^id} = event!(ws, "unreachable")
     assert %{status: "unreachable"} = Enum.find(Fleet.directory(), &(&1.id == id))
 
     [name, _] = peer.node |> Atom.to_string() |> String.split("@")

@@ -7,9 +7,10 @@ defmodule Neptunus.Fleet.Book do
   helm joins the group `{:vehicle, id, board}` on its node, and leaves it when it stops or
   when its node is cut off (`:pg` drops a lost node's members). A vehicle whose helm left
   while its node is still connected stopped (or its helm restarts and joins again): it is
-  gone. A vehicle whose node is **not** connected any more is remembered as `:unreachable`,
-  so the pages say so instead of losing it silently; it is up again when its helm joins
-  again (the nodes healed, or its node restarted).
+  no longer listed, but remembered as `:gone` with its node. A vehicle whose node is **not**
+  connected any more — cut off, crashed, or shut down (its vehicles stop just before it
+  goes) — is `:unreachable`, so the pages say so instead of losing it silently; it is up
+  again when its helm joins again (the nodes healed, or its node restarted).
 
   Each change returns the announcements to make on the vehicle's topic on this node:
   `{:unreachable, id, node}` and `{:reachable, id, node}`.
@@ -18,7 +19,7 @@ defmodule Neptunus.Fleet.Book do
   @enforce_keys [:entries]
   defstruct entries: %{}
 
-  @type status :: :up | :unreachable
+  @type status :: :up | :unreachable | :gone
   @type entry :: %{
           id: String.t(),
           board: atom(),
@@ -48,6 +49,9 @@ defmodule Neptunus.Fleet.Book do
       %{status: :unreachable, node: ^node} ->
         {put(book, entry), [{:reachable, id, node}]}
 
+      %{status: :unreachable} ->
+        {put(book, entry), [{:reachable, id, node}]}
+
       _ ->
         {put(book, entry), []}
     end
@@ -63,8 +67,8 @@ defmodule Neptunus.Fleet.Book do
       %{pid: ^pid, node: node} = entry when not connected? ->
         {put(book, %{entry | pid: nil, status: :unreachable}), [{:unreachable, id, node}]}
 
-      %{pid: ^pid} ->
-        {%{book | entries: Map.delete(book.entries, id)}, []}
+      %{pid: ^pid} = entry ->
+        {put(book, %{entry | pid: nil, status: :gone}), []}
 
       _ ->
         {book, []}
@@ -72,13 +76,14 @@ defmodule Neptunus.Fleet.Book do
   end
 
   @doc """
-  Node `node` went down: its vehicles are unreachable (`:pg` reports their helms leaving as
-  well; whichever comes first announces).
+  Node `node` went down: its vehicles are unreachable, those that stopped just before too
+  (`:pg` reports their helms leaving as well; whichever comes first announces).
   """
   @spec nodedown(t(), node()) :: {t(), [announcement()]}
   def nodedown(%__MODULE__{} = book, node) do
     Enum.reduce(book.entries, {book, []}, fn
-      {id, %{node: ^node, status: :up} = entry}, {book, announced} ->
+      {id, %{node: ^node, status: status} = entry}, {book, announced}
+      when status in [:up, :gone] ->
         {put(book, %{entry | pid: nil, status: :unreachable}),
          announced ++ [{:unreachable, id, node}]}
 
@@ -87,24 +92,31 @@ defmodule Neptunus.Fleet.Book do
     end)
   end
 
-  @doc "Forgets the unreachable vehicles of `node` (e.g. the operator removed it)."
+  @doc "Forgets the unreachable (and gone) vehicles of `node` (e.g. the operator removed it)."
   @spec forget(t(), node()) :: t()
   def forget(%__MODULE__{} = book, node) do
     entries =
       book.entries
-      |> Enum.reject(fn {_, e} -> e.node == node and e.status == :unreachable end)
+      |> Enum.reject(fn {_, e} -> e.node == node and e.status != :up end)
       |> Map.new()
 
     %{book | entries: entries}
   end
 
-  @doc "Vehicle `id`'s entry, or nil."
+  @doc "Vehicle `id`'s entry (up or unreachable), or nil."
   @spec lookup(t(), String.t()) :: entry() | nil
-  def lookup(%__MODULE__{} = book, id), do: Map.get(book.entries, id)
+  def lookup(%__MODULE__{} = book, id) do
+    case Map.get(book.entries, id) do
+      %{status: :gone} -> nil
+      entry -> entry
+    end
+  end
 
-  @doc "Every entry, sorted by id."
+  @doc "Every entry up or unreachable, sorted by id."
   @spec entries(t()) :: [entry()]
-  def entries(%__MODULE__{} = book), do: book.entries |> Map.values() |> Enum.sort_by(& &1.id)
+  def entries(%__MODULE__{} = book) do
+    book.entries |> Map.values() |> Enum.reject(&(&1.status == :gone)) |> Enum.sort_by(& &1.id)
+  end
 
   defp put(book, entry), do: %{book | entries: Map.put(book.entries, entry.id, entry)}
 end

@@ -23,10 +23,23 @@ defmodule Neptunus.Fleet.BookTest do
     assert Book.lookup(book, "other") == nil
   end
 
-  test "a helm that leaves while its node is connected: the vehicle is gone" do
+  test "a helm that leaves while its node is connected: the vehicle is no longer listed" do
     {book, []} = Book.join(Book.new(), "rov", :simulated, pid(1), @v, @local)
     assert {book, []} = Book.leave(book, "rov", pid(1), true)
     assert Book.entries(book) == []
+    assert Book.lookup(book, "rov") == nil
+    # and back when it starts again
+    {book, []} = Book.join(book, "rov", :simulated, pid(2), @v, @local)
+    assert %{status: :up} = Book.lookup(book, "rov")
+  end
+
+  test "a node that shuts down (its vehicles stop first, then it goes): unreachable, announced" do
+    {book, []} = Book.join(Book.new(), "rov", :simulated, pid(1), @v, @local)
+    {book, []} = Book.join(book, "other", :simulated, pid(2), :"rov2@127.0.0.1", @local)
+    {book, []} = Book.leave(book, "rov", pid(1), true)
+    {book, [{:unreachable, "rov", @v}]} = Book.nodedown(book, @v)
+    assert %{status: :unreachable, node: @v} = Book.lookup(book, "rov")
+    assert %{status: :up} = Book.lookup(book, "other")
   end
 
   test "a helm that leaves with its node cut off: unreachable, announced once, then back" do
