@@ -276,4 +276,24 @@ defmodule NeptunusWeb.FleetClusterTest do
       read_until(socket, acc <> more, text)
     end
   end
+
+  @tag :external
+  test "the official phoenix JS client on T drives the vehicle on V (the protocol suite)", ctx do
+    %{id: id} = start_vehicle_node!(ctx, 7)
+    node = System.find_executable("node") || flunk("node is not installed: run `make setup`")
+    root = Path.expand("../..", __DIR__)
+
+    {output, status} =
+      System.cmd(
+        node,
+        ["--test", "--test-reporter=spec", "assets/test/protocol/vehicle.test.mjs"],
+        cd: root,
+        env: [{"NEPTUNUS_URL", "http://127.0.0.1:#{port()}"}, {"NEPTUNUS_VEHICLE", id}],
+        stderr_to_stdout: true
+      )
+
+    assert status == 0, "the protocol suite failed against #{id} on V:\n#{output}"
+    assert output =~ ~r/pass \d+/
+    refute output =~ ~r/fail [1-9]/
+  end
 end
