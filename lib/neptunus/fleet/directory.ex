@@ -8,8 +8,9 @@ defmodule Neptunus.Fleet.Directory do
   When a vehicle becomes unreachable (its node cut off) or reachable again, it says so to
   this node's subscribers of the vehicle's topic (`Neptunus.PubSub.local_broadcast/4`):
   events `unreachable` `%{id, node, reason: "node_unreachable"}` and `reachable`
-  `%{id, node}`; the vehicle's own node cannot tell them, and a page must not show frozen
-  telemetry as live.
+  `%{id, node}`, followed by the helm's state as it is now (`helm`: what the helm broadcast
+  while the nodes were apart never arrived here); the vehicle's own node cannot tell them,
+  and a page must not show frozen telemetry as live.
   """
   use GenServer
 
@@ -132,10 +133,18 @@ defmodule Neptunus.Fleet.Directory do
 
   defp announce({:reachable, id, node}) do
     Logger.info("vehicle #{id} reachable again on node #{node}")
+    topic = Neptunus.Vehicle.Telemetry.topic(id)
+    PubSub.local_broadcast(topic, "reachable", %{id: id, node: Atom.to_string(node)})
 
-    PubSub.local_broadcast(Neptunus.Vehicle.Telemetry.topic(id), "reachable", %{
-      id: id,
-      node: Atom.to_string(node)
-    })
+    # The helm's broadcasts while the nodes were apart never came here (it freed a pilot of
+    # this node, for one): this node's subscribers get its state now, asked off this process.
+    spawn(fn -> refresh_helm(id, topic) end)
+  end
+
+  defp refresh_helm(id, topic) do
+    PubSub.local_broadcast(topic, "helm", Neptunus.Vehicle.Helm.status(id))
+  catch
+    # cut off again, or stopped: the next announcement says so
+    :exit, _ -> :ok
   end
 end
