@@ -215,6 +215,11 @@ export interface VehicleHandlers {
   readonly stopped?: (reason: string) => void;
   /** The board link came up or went down (serial boards). */
   readonly link?: (link: LinkStatus) => void;
+  /**
+   * The vehicle's node of the fleet was cut off from ours (`false`: no telemetry, commands
+   * refused, a pilot here lost control) or is back (`true`); `node` names it.
+   */
+  readonly reachability?: (reachable: boolean, node: string) => void;
   /** Who is connected to this vehicle (after every presence sync). */
   readonly presence?: (entries: readonly PresenceEntry[]) => void;
   readonly status?: (status: ConnectionStatus) => void;
@@ -269,6 +274,16 @@ export class VehicleChannel {
     });
     this.channel.on("stopped", (payload: unknown) => {
       handlers.stopped?.(errorReason(payload));
+    });
+    this.channel.on("unreachable", (payload: unknown) => {
+      const node = isRecord(payload) ? payload["node"] : undefined;
+      if (typeof node === "string") handlers.reachability?.(false, node);
+      else handlers.protocolError?.("unreachable", payload);
+    });
+    this.channel.on("reachable", (payload: unknown) => {
+      const node = isRecord(payload) ? payload["node"] : undefined;
+      if (typeof node === "string") handlers.reachability?.(true, node);
+      else handlers.protocolError?.("reachable", payload);
     });
     this.channel.on("link", (payload: unknown) => {
       const link = decodeLinkStatus(payload);

@@ -357,6 +357,11 @@ export class OperatorController {
         this.store.update({ link });
         this.dispatch({ type: "link", up: link.up });
       },
+      // the vehicle runs on another node of the fleet, now cut off from this one (or back)
+      reachability: (reachable, node) => {
+        if (reachable) this.clearMessage("unreachable");
+        else this.showMessage(`Vehicle unreachable: its node ${node} is cut off from this server.`, "error", "unreachable");
+      },
       presence: (entries) => this.store.update({ presence: entries }),
       status: (status) => {
         this.setStatus(status);
