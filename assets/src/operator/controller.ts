@@ -55,6 +55,7 @@ import type {
   Role,
   RunMode,
   Telemetry,
+  VehicleInfo,
 } from "../lib/protocol";
 import { PageSession, loginUrl } from "../lib/session";
 import { Store } from "../lib/store";
@@ -87,6 +88,8 @@ export interface OperatorState {
   /** when the connection was lost (ms, performance clock), for "reconnecting for N s" */
   readonly disconnectedAt: number | null;
   readonly vehicleId: string | null;
+  /** every vehicle of the fleet, for the picker (empty until listed) */
+  readonly fleet: readonly VehicleInfo[];
   readonly banner: { readonly mode: AuthMode; readonly user: { readonly name: string; readonly role: Role } | null } | null;
   readonly helm: HelmView;
   readonly pilotName: string | null;
@@ -177,6 +180,7 @@ export class OperatorController {
       status: "connecting",
       disconnectedAt: null,
       vehicleId: null,
+      fleet: [],
       banner: null,
       helm: seenView(INITIAL_REACTIONS.helm, 0),
       pilotName: null,
@@ -303,6 +307,11 @@ export class OperatorController {
   private async chooseVehicle(client: NeptunusClient): Promise<string> {
     const requested = this.params.get("vehicle");
     if (requested !== null) {
+      // the picker's list; the requested vehicle opens whatever it says
+      client.fleet().then(
+        (fleet) => this.store.update({ fleet: fleet.vehicles }),
+        () => undefined,
+      );
       if (VEHICLE_ID.test(requested)) return requested;
       this.showMessage(`Invalid vehicle id in the address: "${requested}"`, "error");
       return new Promise<string>(() => undefined); // nothing to connect to
@@ -311,6 +320,7 @@ export class OperatorController {
       try {
         const fleet = await client.fleet();
         const first = fleet.vehicles[0];
+        this.store.update({ fleet: fleet.vehicles });
         if (first) {
           this.clearMessage("fleet");
           return first.id;
