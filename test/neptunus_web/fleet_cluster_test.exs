@@ -295,4 +295,30 @@ defmodule NeptunusWeb.FleetClusterTest do
     assert output =~ ~r/pass \d+/
     refute output =~ ~r/fail [1-9]/
   end
+
+  @tag :external
+  test "a browser on T picks the vehicle on V and takes control (Chromium)", ctx do
+    %{peer: peer, id: id} = start_vehicle_node!(ctx, 8)
+    root = Path.expand("../..", __DIR__)
+    # the browser's pilot is on T, the helm it took on V (the page's helm state says "pilot")
+
+    unless File.exists?(Path.join(root, "priv/static/index.html")),
+      do: flunk("priv/static is not built: run `make assets`")
+
+    node = System.find_executable("node") || flunk("node is not installed: run `make setup`")
+
+    {output, status} =
+      System.cmd(node, ["--test", "--test-reporter=spec", "test/e2e/fleet.e2e.mjs"],
+        cd: root,
+        env: [
+          {"NEPTUNUS_URL", "http://127.0.0.1:#{port()}"},
+          {"FLEET_VEHICLE", id},
+          {"FLEET_NODE", Atom.to_string(peer.node)}
+        ],
+        stderr_to_stdout: true
+      )
+
+    assert status == 0, "the browser test failed:\n#{output}"
+    refute output =~ ~r/fail [1-9]/
+  end
 end
