@@ -148,8 +148,10 @@ defmodule NeptunusWeb.FleetClusterTest do
 
     Cluster.partition!(peer)
 
-    # T: at once, the vehicle is unreachable (no frozen telemetry passed off as live)
+    # T: at once, the vehicle is unreachable (no frozen telemetry passed off as live), and
+    # the pilot here has lost control
     assert %{"id" => ^id, "reason" => "node_unreachable"} = event!(ws, "unreachable")
+    assert %{"reason" => "pilot_unreachable"} = event!(ws, "control_lost")
     assert {:error, :unreachable} = Fleet.locate(id)
 
     assert %{"status" => "unreachable", "helm" => nil} =

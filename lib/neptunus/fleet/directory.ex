@@ -10,7 +10,9 @@ defmodule Neptunus.Fleet.Directory do
   events `unreachable` `%{id, node, reason: "node_unreachable"}` and `reachable`
   `%{id, node}`, followed by the helm's state as it is now (`helm`: what the helm broadcast
   while the nodes were apart never arrived here); the vehicle's own node cannot tell them,
-  and a page must not show frozen telemetry as live.
+  and a page must not show frozen telemetry as live. The same two events go to this node's
+  subscribers of `"fleet"` (the fleet channel's clients, and the presence server, which
+  tells a pilot of this node that it lost control).
   """
   use GenServer
 
@@ -20,6 +22,7 @@ defmodule Neptunus.Fleet.Directory do
   alias Neptunus.PubSub
 
   @table __MODULE__
+  @fleet_topic "fleet"
 
   defmodule State do
     @moduledoc false
@@ -123,18 +126,17 @@ defmodule Neptunus.Fleet.Directory do
 
   defp announce({:unreachable, id, node}) do
     Logger.warning("vehicle #{id} unreachable: node #{node} is not connected")
-
-    PubSub.local_broadcast(Neptunus.Vehicle.Telemetry.topic(id), "unreachable", %{
-      id: id,
-      node: Atom.to_string(node),
-      reason: "node_unreachable"
-    })
+    payload = %{id: id, node: Atom.to_string(node), reason: "node_unreachable"}
+    PubSub.local_broadcast(Neptunus.Vehicle.Telemetry.topic(id), "unreachable", payload)
+    PubSub.local_broadcast(@fleet_topic, "unreachable", payload)
   end
 
   defp announce({:reachable, id, node}) do
     Logger.info("vehicle #{id} reachable again on node #{node}")
     topic = Neptunus.Vehicle.Telemetry.topic(id)
-    PubSub.local_broadcast(topic, "reachable", %{id: id, node: Atom.to_string(node)})
+    payload = %{id: id, node: Atom.to_string(node)}
+    PubSub.local_broadcast(topic, "reachable", payload)
+    PubSub.local_broadcast(@fleet_topic, "reachable", payload)
 
     # The helm's broadcasts while the nodes were apart never came here (it freed a pilot of
     # this node, for one): this node's subscribers get its state now, asked off this process.
