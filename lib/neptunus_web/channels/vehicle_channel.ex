@@ -16,7 +16,10 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `set_control_mode`, `set_gain`, `set_lights`, `set_laser`, `set_tilt`, `autopilot`,
   `set_run_mode` (`Neptunus.Vehicle.Control.command/3`). Server events: `telemetry`, `helm`, `stopped`,
   `presence_diff` (broadcast), and to one connection only `control_request`,
-  `control_granted`, `control_lost`, `request_denied`.
+  `control_granted`, `control_lost`, `request_denied`. A vehicle on another node of the
+  fleet is joined the same way (its snapshot is made there, its helm called there); this
+  node says `unreachable` and `reachable` when that node is cut off and back
+  (`Neptunus.Fleet.Directory`).
 
   Presence: keyed by user name, one meta per connection:
   `%{name, role, since, pilot, conn, node, online_at}`; `pilot` is updated on every grant and
