@@ -204,7 +204,7 @@ defmodule NeptunusWeb.FleetClusterTest do
     # a clean shutdown: its vehicles stop, then the node goes
     Cluster.call(peer, :init, :stop, [])
     assert %{"id" => ^id} = event!(ws, "unreachable", fn _ -> true end, 10_000)
-    Cluster.stop_node(peer)
+    Cluster.wait!(fn -> peer.node not in Node.list() end, "V down")
     assert %{status: "unreachable"} = Enum.find(Fleet.directory(), &(&1.id == id))
 
     [name, _] = peer.node |> Atom.to_string() |> String.split("@")
@@ -322,5 +322,14 @@ defmodule NeptunusWeb.FleetClusterTest do
 
     assert status == 0, "the browser test failed:\n#{output}"
     refute output =~ ~r/fail [1-9]/
+  end
+
+  test "a node taken out of the fleet: its vehicles are forgotten, not listed unreachable", ctx do
+    %{peer: peer, id: id} = start_vehicle_node!(ctx, 1)
+    Cluster.partition!(peer)
+    Cluster.wait!(fn -> Fleet.locate(id) == {:error, :unreachable} end, "#{id} unreachable")
+    :ok = Neptunus.Fleet.Directory.forget(peer.node)
+    assert Fleet.locate(id) == {:error, :not_found}
+    refute Enum.any?(Fleet.directory(), &(&1.id == id))
   end
 end

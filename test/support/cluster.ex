@@ -66,12 +66,22 @@ defmodule Neptunus.Test.Cluster do
     peer
   end
 
-  @doc "Stops the peer node (as if it crashed: no goodbye to the cluster)."
+  @doc """
+  Stops the peer node (as if it crashed: no goodbye to the cluster), and makes the test
+  node's directory forget its vehicles (they would be listed as unreachable to the tests
+  that follow, and a page opens the first vehicle listed).
+  """
   @spec stop_node(peer()) :: :ok
-  def stop_node(%{pid: pid}) do
-    :peer.stop(pid)
-  catch
-    :exit, _ -> :ok
+  def stop_node(%{pid: pid, node: node}) do
+    try do
+      :peer.stop(pid)
+    catch
+      :exit, _ -> :ok
+    end
+
+    wait!(fn -> node not in Node.list() end, "#{node} down")
+    Neptunus.Fleet.Directory.sync()
+    Neptunus.Fleet.Directory.forget(node)
   end
 
   @doc "Runs `module.fun(args)` on the peer (over its control connection)."

@@ -319,7 +319,8 @@ export class OperatorController {
     for (;;) {
       try {
         const fleet = await client.fleet();
-        const first = fleet.vehicles[0];
+        // the first vehicle that can be reached (one whose node of the fleet is cut off cannot be joined)
+        const first = fleet.vehicles.find((v) => v.status !== "unreachable") ?? fleet.vehicles[0];
         this.store.update({ fleet: fleet.vehicles });
         if (first) {
           this.clearMessage("fleet");

@@ -57,6 +57,13 @@ defmodule Neptunus.Fleet.Directory do
     ArgumentError -> []
   end
 
+  @doc """
+  Forgets the vehicles remembered as unreachable on `node` (a node taken out of the fleet
+  for good): they are no longer listed. A vehicle of it that comes back is listed again.
+  """
+  @spec forget(node()) :: :ok
+  def forget(node) when is_atom(node), do: GenServer.call(__MODULE__, {:forget, node})
+
   @doc "Waits until the directory has handled every event sent to it so far (tests)."
   @spec sync() :: :ok
   def sync, do: GenServer.call(__MODULE__, :sync)
@@ -78,6 +85,9 @@ defmodule Neptunus.Fleet.Directory do
 
   @impl true
   def handle_call(:sync, _from, state), do: {:reply, :ok, state}
+
+  def handle_call({:forget, node}, _from, state),
+    do: {:reply, :ok, publish(%{state | book: Book.forget(state.book, node)})}
 
   @impl true
   def handle_info({ref, :join, {:vehicle, id, board}, pids}, %State{ref: ref} = state) do
