@@ -69,6 +69,8 @@ defmodule NeptunusWeb.FleetClusterTest do
 
     # telemetry crosses (the vehicle's node broadcasts it, T's relay serves it)
     assert %{"t" => _} = event!(ws, "telemetry")
+    # the developer logger's topic of a vehicle on V is joined on T too
+    assert {_, %{"vehicle" => ^id}} = join!(connect!(), "log:" <> id)
 
     {"ok", %{"status" => "granted", "grant" => %{"epoch" => epoch}}} =
       push_and_reply(ws, jr, topic, "request_control", %{})
