@@ -108,8 +108,9 @@ defmodule Neptunus.Fleet do
 
   @typedoc """
   A vehicle of the cluster: `status` `"up"` or `"unreachable"` (its node is cut off: then
-  `helm`, `pilot` and `link` are nil); `helm` the helm's state, `pilot` the pilot's name,
-  `link` the board link `%{up, reason}` (nil before the first telemetry).
+  the rest is nil, `recording` false); `helm` the helm's state, `pilot` the pilot's name,
+  `link` the board link `%{up, reason}` (nil before the first telemetry), `depth` (m) and
+  `heading` (rad) measured, `recording` whether its recorder records (a fleet overview).
   """
   @type entry :: %{
           id: vehicle_id(),
@@ -118,7 +119,10 @@ defmodule Neptunus.Fleet do
           status: String.t(),
           helm: String.t() | nil,
           pilot: String.t() | nil,
-          link: map() | nil
+          link: map() | nil,
+          depth: float() | nil,
+          heading: float() | nil,
+          recording: boolean()
         }
 
   @doc """
@@ -150,7 +154,10 @@ defmodule Neptunus.Fleet do
         status: "unreachable",
         helm: nil,
         pilot: nil,
-        link: nil
+        link: nil,
+        depth: nil,
+        heading: nil,
+        recording: false
       }
 
       if entry.status == :up and detail != nil,
@@ -208,7 +215,7 @@ defmodule Neptunus.Fleet do
   def local_details do
     for %{id: id} <- list(), into: %{} do
       {helm, pilot} = helm_detail(id)
-      {id, %{helm: helm, pilot: pilot, link: link_detail(id)}}
+      {id, Map.merge(%{helm: helm, pilot: pilot}, telemetry_detail(id))}
     end
   end
 
@@ -221,13 +228,19 @@ defmodule Neptunus.Fleet do
     :exit, _ -> {nil, nil}
   end
 
-  defp link_detail(id) do
-    case Vehicle.Telemetry.latest(id) do
-      %{link: link} -> Map.take(link, [:up, :reason])
-      _ -> nil
-    end
+  # the link, depth (m), heading (rad) and whether it records, from the latest telemetry
+  defp telemetry_detail(id) do
+    latest = Vehicle.Telemetry.latest(id) || %{}
+    measurement = Map.get(latest, :measurement) || %{}
+
+    %{
+      link: latest |> Map.get(:link) |> then(&(&1 && Map.take(&1, [:up, :reason]))),
+      depth: Map.get(measurement, :depth),
+      heading: Map.get(measurement, :heading),
+      recording: match?(%{recording: %{on: true}}, latest)
+    }
   catch
-    :exit, _ -> nil
+    :exit, _ -> %{link: nil, depth: nil, heading: nil, recording: false}
   end
 
   @impl true

@@ -3,7 +3,7 @@ defmodule NeptunusWeb.API do
   The HTTP API under `/api` (a yaws appmod). JSON in, JSON out; errors are
   `{"error": reason}` with a 4xx status.
 
-    * `GET /api/health` → `{"status": "ok", "version": v, "vehicles": [{"id", "board", "node", "status", "helm", "pilot", "link"}]}`
+    * `GET /api/health` → `{"status": "ok", "version": v, "vehicles": [{"id", "board", "node", "status", "helm", "pilot", "link", "depth", "heading", "recording"}]}`
       (every vehicle of the fleet, `Neptunus.Fleet.directory/0`)
     * `POST /api/login` `{"name", "password"}` → `{"token", "expires_at", "user": {"name",
       "role"}}`; 400 in local mode or for a malformed body, 401 for a wrong name or password,

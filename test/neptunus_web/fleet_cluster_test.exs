@@ -49,6 +49,17 @@ defmodule NeptunusWeb.FleetClusterTest do
     assert %{"status" => "up", "node" => ^v, "board" => "simulated", "helm" => "free"} =
              Enum.find(health(port())["vehicles"], &(&1["id"] == id))
 
+    # a fleet overview: the vehicle's depth, heading, link and recording (once it has telemetry)
+    Cluster.wait!(
+      fn -> is_number(Enum.find(Fleet.directory(), &(&1.id == id)).depth) end,
+      "depth of #{id}"
+    )
+
+    assert %{heading: heading, link: %{up: true}, recording: false, pilot: nil} =
+             Enum.find(Fleet.directory(), &(&1.id == id))
+
+    assert is_number(heading)
+
     # the vehicle node sees the topside's vehicle too
     assert %{"node" => ^t, "status" => "up"} =
              Enum.find(health(peer.port)["vehicles"], &(&1["id"] == "neptunus-1"))

@@ -1,7 +1,7 @@
 defmodule NeptunusWeb.Channels.FleetChannel do
   @moduledoc """
   Topic `fleet`: the vehicles of the fleet, every node's (`Neptunus.Fleet.directory/0`).
-  Join reply `%{vehicles: [%{id, board, node, status, helm, pilot, link}]}`; `status` is
+  Join reply `%{vehicles: [%{id, board, node, status, helm, pilot, link, depth, heading, recording}]}`; `status` is
   `"up"` or `"unreachable"` (its node is cut off).
   No client events yet; any push is answered with an error naming the event.
   """
