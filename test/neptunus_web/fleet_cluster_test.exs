@@ -345,4 +345,16 @@ defmodule NeptunusWeb.FleetClusterTest do
     assert Fleet.locate(id) == {:error, :not_found}
     refute Enum.any?(Fleet.directory(), &(&1.id == id))
   end
+
+  test "the connector reconnects to a node of NEPTUNUS_CLUSTER after a cut, with backoff", ctx do
+    %{peer: peer, id: id} = start_vehicle_node!(ctx, 2)
+    connector = start_supervised!({Neptunus.Fleet.Connector, [peer.node]})
+    Cluster.partition!(peer)
+    Cluster.wait!(fn -> Fleet.locate(id) == {:error, :unreachable} end, "#{id} unreachable")
+    # the peer accepts us again; nobody but the connector connects
+    :ok = Cluster.call(peer, :net_kernel, :allow, [[node()]])
+    Cluster.wait!(fn -> peer.node in Node.list() end, "the connector reconnects", 10_000)
+    Cluster.await_located!(id, peer.node)
+    assert Process.alive?(connector)
+  end
 end
