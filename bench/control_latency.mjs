@@ -47,7 +47,9 @@ const WebSocket = require('ws');
 const URL_BASE = process.env.LAT_URL ?? 'ws://127.0.0.1:4211';
 const VEHICLE = process.env.LAT_VEHICLE ?? 'rov';
 const TOPIC = `vehicle:${VEHICLE}`;
-const wsUrl = (name) => `${URL_BASE}/socket/websocket?vsn=2.0.0&name=${encodeURIComponent(name)}`;
+const wsUrl = (name, base = URL_BASE) => `${base}/socket/websocket?vsn=2.0.0&name=${encodeURIComponent(name)}`;
+// LAT_OBSERVER_URL: the observers connect to another node of the fleet (bench/cluster)
+const OBSERVER_URL_BASE = process.env.LAT_OBSERVER_URL ?? URL_BASE;
 
 if (process.env.LAT_ROLE === 'observers') {
   await observers();
@@ -339,7 +341,7 @@ async function observers() {
   const WINDOW = Number(process.env.LAT_WINDOW ?? 100);
 
   const openOne = (k) => new Promise((resolve) => {
-    const ws = new WebSocket(wsUrl(`obs${k}`), { perMessageDeflate: false });
+    const ws = new WebSocket(wsUrl(`obs${k}`, OBSERVER_URL_BASE), { perMessageDeflate: false });
     const done = (ok) => { resolve(ok); };
     const telemetry = `[null,null,${JSON.stringify(TOPIC)},"telemetry"`;
     ws.on('message', (data) => {

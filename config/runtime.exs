@@ -32,6 +32,10 @@ endpoint =
   |> Map.put(:tls, Neptunus.Config.TLS.tls!(env))
   |> Map.put(:max_connections, Neptunus.Config.Endpoint.max_connections!(env))
 
+# Fleet (Neptunus.Config.Cluster): NEPTUNUS_NODE, NEPTUNUS_COOKIE, NEPTUNUS_CLUSTER,
+# NEPTUNUS_DIST_CERT, NEPTUNUS_DIST_KEY, NEPTUNUS_DIST_CACERT. Unset NEPTUNUS_NODE: one node.
+config :neptunus, cluster: Neptunus.Config.Cluster.cluster!(env)
+
 config :neptunus,
   endpoint: endpoint,
   vehicles: Neptunus.Config.Vehicles.vehicles!(env),

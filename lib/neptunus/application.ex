@@ -4,10 +4,15 @@ defmodule Neptunus.Application do
 
       Neptunus.Application        one_for_one
       ├── Neptunus.PubSub         :pg scope, topic fan-out
+      ├── Neptunus.PubSub.Relay   other nodes' broadcasts to this node's subscribers
       ├── Neptunus.Settings       per-user and per-vehicle settings, on disk
-      ├── Neptunus.Fleet          registry + one supervisor per vehicle
+      ├── Neptunus.Fleet          directory scope, registry, one supervisor per vehicle
       ├── NeptunusWeb.Presence    who watches which topic
-      └── NeptunusWeb.Endpoint    yaws: static files, HTTP API, WebSocket (last up, first down)
+      ├── NeptunusWeb.Endpoint    yaws: static files, HTTP API, WebSocket (last up, first down)
+      └── Neptunus.Fleet.Connector  (a fleet's node only) connects to NEPTUNUS_CLUSTER
+
+  A node named by `NEPTUNUS_NODE` starts distribution before all of them
+  (`Neptunus.Fleet.Distribution`): without it, the node is a single node as before.
 
   Restart intensity: the default, 3 restarts in 5 s. A restart of PubSub or Presence is
   cheap and tells every client (docs/API.md), so a single crash, or a few spread over time,
@@ -28,6 +33,14 @@ defmodule Neptunus.Application do
     Neptunus.OS.apply_configured(Keyword.get(app_env, :os_time_slice_ns))
     # before the port programs and the endpoint: they inherit and size by it
     Neptunus.OS.apply_fd_limit()
+    # before anything joins a :pg scope: a fleet's node is named before its vehicles publish
+    cluster = Keyword.get(app_env, :cluster)
+
+    case Neptunus.Fleet.Distribution.start(cluster) do
+      :ok -> :ok
+      {:error, message} -> raise ArgumentError, message
+    end
+
     web = Neptunus.Config.Endpoint.web_settings!(app_env)
     settings = vehicle_settings(app_env)
     vehicles = Enum.map(Keyword.fetch!(app_env, :vehicles), &Map.merge(settings, &1))
@@ -35,11 +48,20 @@ defmodule Neptunus.Application do
     children = [
       # the fastlane subscribers are WebSocket connections: frames in the Channels format
       {Neptunus.PubSub, encoder: NeptunusWeb.Channels.Wire},
-      {Neptunus.Settings, dir: Application.fetch_env!(:neptunus, :settings_dir)},
+      # serves this node's subscribers the frames of other nodes' broadcasts
+      Neptunus.PubSub.Relay,
+      {Neptunus.Settings, dir: Keyword.fetch!(app_env, :settings_dir)},
       {Neptunus.Fleet, vehicles},
       NeptunusWeb.Presence,
       {NeptunusWeb.Endpoint, web}
     ]
+
+    # the fleet's other nodes, connected once this node serves (a single node: none)
+    children =
+      case cluster do
+        %{cluster: [_ | _] = nodes} -> children ++ [{Neptunus.Fleet.Connector, nodes}]
+        _ -> children
+      end
 
     with {:ok, pid} <-
            Supervisor.start_link(children, strategy: :one_for_one, name: Neptunus.Supervisor) do

@@ -17,6 +17,17 @@ defmodule Neptunus.PubSub do
 
   Subscriptions end when the subscriber exits (`:pg` monitors members).
 
+  ## Across nodes
+
+  The scope spans every connected node running it, so term subscribers anywhere get every
+  broadcast. Fastlane frames cross a node boundary **once per broadcast per node**: a
+  broadcast serves this node's fastlane subscribers itself, and sends the frame once to the
+  relay (`Neptunus.PubSub.Relay`) of every other node that has fastlane subscribers of the
+  topic, which serves its own (`deliver_local/3`). A node's relay is in the group
+  `{:relay, topic}` while that node has fastlane subscribers of `topic`
+  (`subscribe_fastlane/1` tells it). So a vehicle's node sends one message per watching
+  node, whatever the number of browsers there, and encodes the frame once.
+
   ## When the scope restarts
 
   The subscriptions live in the scope process (`:pg` keeps them in its own table): when it
@@ -121,8 +132,11 @@ defmodule Neptunus.PubSub do
   `subscribe/1`; a prioritized subscriber stays prioritized).
   """
   @spec subscribe_fastlane(topic()) :: :ok | {:error, :not_running}
-  def subscribe_fastlane(topic),
-    do: join_once({:fastlane, topic}, [{:fastlane, topic}, {:fastlane_first, topic}])
+  def subscribe_fastlane(topic) do
+    with :ok <- join_once({:fastlane, topic}, [{:fastlane, topic}, {:fastlane_first, topic}]) do
+      __MODULE__.Relay.watch(topic)
+    end
+  end
 
   defp join_once(group, groups) do
     cond do
@@ -225,6 +239,53 @@ defmodule Neptunus.PubSub do
     do: deliver(topic, event, frame, pids)
 
   @doc """
+  Broadcasts to this node's subscribers only (term and fastlane): for news about the
+  cluster that only this node knows, e.g. that another node became unreachable.
+  """
+  @spec local_broadcast(topic(), event(), map(), module()) :: :ok
+  def local_broadcast(topic, event, payload, encoder \\ default_encoder()) do
+    for pid <- :pg.get_local_members(@scope, {:term, topic}) do
+      send(pid, {:pubsub, topic, event, payload})
+    end
+
+    case local_fastlane(topic) do
+      {[], []} ->
+        :ok
+
+      {first, others} ->
+        frame = encoder.encode_broadcast(topic, event, payload)
+        deliver(topic, event, frame, first)
+        deliver(topic, event, frame, others)
+    end
+  end
+
+  @doc """
+  Serves an already encoded `frame` to this node's fastlane subscribers of `topic`
+  (prioritized first): what a node's relay does with a frame from another node. Returns
+  `:none` when the node has none (the relay then leaves the topic's relay group).
+  """
+  @spec deliver_local(topic(), event(), binary()) :: :ok | :none
+  def deliver_local(topic, event, frame) when is_binary(frame) do
+    case local_fastlane(topic) do
+      {[], []} ->
+        :none
+
+      {first, others} ->
+        deliver(topic, event, frame, first)
+        deliver(topic, event, frame, others)
+    end
+  end
+
+  defp local_fastlane(topic) do
+    {:pg.get_local_members(@scope, {:fastlane_first, topic}),
+     :pg.get_local_members(@scope, {:fastlane, topic})}
+  end
+
+  @doc false
+  @spec scope() :: atom()
+  def scope, do: @scope
+
+  @doc """
   How `count` subscribers are sliced (pure): `{slice size, gap in ms}`. Slices are
   `pace.slice` long unless that would spread them beyond `pace.spread_ms`; then they grow
   so that the last one goes out by then.
@@ -246,22 +307,25 @@ defmodule Neptunus.PubSub do
 
   defp ceil_div(a, b), do: div(a + b - 1, b)
 
-  # Term subscribers and prioritized fastlane subscribers get the broadcast now; returns
-  # the frame, the other fastlane subscribers and the prioritized ones (nil when there is no
-  # fastlane subscriber).
+  # Term subscribers, prioritized fastlane subscribers and other nodes' relays get the
+  # broadcast now; returns the frame, this node's other fastlane subscribers and its
+  # prioritized ones (nil when no node has a fastlane subscriber).
   defp send_terms_and_first(topic, event, payload, encoder) do
     for pid <- :pg.get_members(@scope, {:term, topic}) do
       send(pid, {:pubsub, topic, event, payload})
     end
 
-    case {:pg.get_members(@scope, {:fastlane_first, topic}),
-          :pg.get_members(@scope, {:fastlane, topic})} do
-      {[], []} ->
+    relays = for pid <- :pg.get_members(@scope, {:relay, topic}), node(pid) != node(), do: pid
+
+    case {local_fastlane(topic), relays} do
+      {{[], []}, []} ->
         nil
 
-      {first, others} ->
+      {{first, others}, relays} ->
         frame = encoder.encode_broadcast(topic, event, payload)
         deliver(topic, event, frame, first)
+        # one message per other node with subscribers: its relay serves them
+        Enum.each(relays, &send(&1, {__MODULE__.Relay, topic, event, frame}))
         {frame, others, first}
     end
   end

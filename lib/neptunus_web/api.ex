@@ -3,7 +3,8 @@ defmodule NeptunusWeb.API do
   The HTTP API under `/api` (a yaws appmod). JSON in, JSON out; errors are
   `{"error": reason}` with a 4xx status.
 
-    * `GET /api/health` → `{"status": "ok", "version": v, "vehicles": [{"id", "board"}]}`
+    * `GET /api/health` → `{"status": "ok", "version": v, "vehicles": [{"id", "board", "node", "status", "helm", "pilot", "link", "depth", "heading", "recording"}]}`
+      (every vehicle of the fleet, `Neptunus.Fleet.directory/0`)
     * `POST /api/login` `{"name", "password"}` → `{"token", "expires_at", "user": {"name",
       "role"}}`; 400 in local mode or for a malformed body, 401 for a wrong name or password,
       403 for a foreign `Origin`, 429 (with `Retry-After`) after too many attempts from one
@@ -71,7 +72,8 @@ defmodule NeptunusWeb.API do
     %{
       status: "ok",
       version: Application.spec(:neptunus, :vsn) |> to_string(),
-      vehicles: Neptunus.Fleet.list()
+      # every vehicle of the fleet, with its node (unreachable ones too)
+      vehicles: Neptunus.Fleet.directory()
     }
   end
 
@@ -245,24 +247,112 @@ defmodule NeptunusWeb.API do
 
   defp recording_dir, do: NeptunusWeb.Settings.get().recording_dir
 
+  # Every node's recordings (a vehicle's: its node's), each with its node: a vehicle on
+  # another node of the fleet records there, and its recordings are listed, exported and
+  # deleted from any node.
   defp recordings(arg) do
     vehicle = Map.get(query(arg), "vehicle")
 
-    cond do
-      recording_dir() == nil ->
-        {200, %{recording: false, recordings: []}}
+    if vehicle != nil and not Recording.valid?(vehicle, "00000000-000000Z-1.log") do
+      {400, %{error: "vehicle must be a vehicle id"}}
+    else
+      nodes =
+        case vehicle && Neptunus.Fleet.vehicle_node(vehicle) do
+          nil -> Neptunus.Fleet.nodes()
+          {:ok, node} -> [node]
+          {:error, :unreachable} -> []
+        end
 
-      vehicle != nil and not Recording.valid?(vehicle, "00000000-000000Z-1.log") ->
-        {400, %{error: "vehicle must be a vehicle id"}}
-
-      true ->
-        {200, %{recording: true, recordings: Recording.list(recording_dir(), vehicle)}}
+      results = on_nodes(nodes, :local_recordings, [vehicle])
+      list = Enum.flat_map(results, & &1.recordings)
+      list = if length(results) > 1, do: Enum.sort_by(list, & &1.modified_at, :desc), else: list
+      {200, %{recording: Enum.any?(results, & &1.recording), recordings: list}}
     end
   end
 
-  # GET /api/recordings/<vehicle>/<name>?format=csv|jsonl&every=N&max=M
+  @doc false
+  # This node's recordings (of one vehicle, or all), each with this node's name.
+  @spec local_recordings(String.t() | nil) :: %{recording: boolean(), recordings: [map()]}
+  def local_recordings(vehicle) do
+    case recording_dir() do
+      nil ->
+        %{recording: false, recordings: []}
+
+      dir ->
+        here = Atom.to_string(node())
+
+        %{
+          recording: true,
+          recordings: Enum.map(Recording.list(dir, vehicle), &Map.put(&1, :node, here))
+        }
+    end
+  end
+
+  # `fun(args)` of this module on each of `nodes` (this one directly); nodes that fail or do
+  # not answer within 5 s are left out.
+  defp on_nodes(nodes, fun, args) do
+    {here, remote} = Enum.split_with(nodes, &(&1 == node()))
+    local = if here == [], do: [], else: [apply(__MODULE__, fun, args)]
+
+    remote_results =
+      remote
+      |> :erpc.multicall(__MODULE__, fun, args, 5_000)
+      |> Enum.flat_map(fn
+        {:ok, result} -> [result]
+        _ -> []
+      end)
+
+    local ++ remote_results
+  end
+
+  # GET /api/recordings/<vehicle>/<name>?format=csv|jsonl&every=N&max=M, on the vehicle's
+  # node: planned there (`export_plan/3`), read there, streamed from here.
   defp recording(arg, [vehicle, name]) do
     params = query(arg)
+
+    case vehicle_call(vehicle, :export_plan, [vehicle, name, params]) do
+      {:ok, node, {:ok, plan}} when node == node() -> export(arg, plan, lines(plan))
+      {:ok, node, {:ok, plan}} -> export(arg, plan, remote_lines(node, plan))
+      {:ok, _node, {status, body}} -> {status, body}
+      {:error, response} -> response
+    end
+  end
+
+  defp recording(_arg, _parts), do: {404, %{error: "no such recording"}}
+
+  # `fun(args)` of this module on vehicle's node: `{:ok, node, result}`, or the response
+  # when that node is cut off.
+  defp vehicle_call(vehicle, fun, args) do
+    case Neptunus.Fleet.vehicle_node(vehicle) do
+      {:ok, node} when node == node() ->
+        {:ok, node, apply(__MODULE__, fun, args)}
+
+      {:ok, node} ->
+        {:ok, node, :erpc.call(node, __MODULE__, fun, args, 10_000)}
+
+      {:error, :unreachable} ->
+        {:error, {503, %{error: "vehicle unreachable: #{vehicle}"}}}
+    end
+  catch
+    :error, {:erpc, _} -> {:error, {503, %{error: "vehicle unreachable: #{vehicle}"}}}
+    :exit, {:timeout, _} -> {:error, {503, %{error: "vehicle unreachable: #{vehicle}"}}}
+  end
+
+  @typedoc "What an export reads, decided on the recording's node."
+  @type plan :: %{
+          path: Path.t(),
+          format: String.t(),
+          every: pos_integer(),
+          count: non_neg_integer(),
+          columns: term(),
+          file: String.t()
+        }
+
+  @doc false
+  # Checks an export's request against this node's recordings: `{:ok, plan}` or
+  # `{status, body}`.
+  @spec export_plan(String.t(), String.t(), map()) :: {:ok, plan()} | {pos_integer(), map()}
+  def export_plan(vehicle, name, params) do
     dir = recording_dir()
 
     with true <- dir != nil || {404, %{error: "recording is off on this server"}},
@@ -278,20 +368,102 @@ defmodule NeptunusWeb.API do
       # did, though the recorder may have written more since
       summary = path |> Recording.entries() |> Recording.scan()
       every = if max, do: max(every, ceil_div(summary.telemetry, max)), else: every
-      entries = path |> Recording.entries() |> Stream.take(summary.entries)
-      export(arg, format, entries, summary.columns, every, "#{vehicle}-#{Path.rootname(name)}")
+
+      {:ok,
+       %{
+         path: path,
+         format: format,
+         every: every,
+         count: summary.entries,
+         columns: summary.columns,
+         file: "#{vehicle}-#{Path.rootname(name)}"
+       }}
     end
   end
 
-  defp recording(_arg, _parts), do: {404, %{error: "no such recording"}}
+  # The export's lines, read on this node.
+  defp lines(plan) do
+    entries = plan.path |> Recording.entries() |> Stream.take(plan.count)
+
+    case plan.format do
+      "csv" -> Recording.csv_stream(entries, plan.columns, plan.every)
+      "jsonl" -> Recording.json_lines_stream(entries, plan.every)
+    end
+  end
+
+  @remote_batch 256
+
+  # The export's lines, read on `node` by a process there that sends a batch of lines each
+  # time this one asks for more (so a slow client holds back the reading, not a mailbox).
+  defp remote_lines(node, plan) do
+    Stream.resource(
+      fn ->
+        pid = Node.spawn(node, __MODULE__, :serve_lines, [self(), plan])
+        {pid, Process.monitor(pid)}
+      end,
+      fn {pid, ref} = acc ->
+        send(pid, {:more, self()})
+
+        receive do
+          {:lines, ^pid, batch} -> {batch, acc}
+          {:done, ^pid} -> {:halt, acc}
+          {:DOWN, ^ref, :process, _, reason} -> :erlang.error({:recording_node, reason})
+        after
+          30_000 -> :erlang.error({:recording_node, :timeout})
+        end
+      end,
+      fn {pid, ref} ->
+        Process.demonitor(ref, [:flush])
+        Process.exit(pid, :kill)
+      end
+    )
+  end
+
+  @doc false
+  # On the recording's node: sends `to` the export's lines, a batch per `{:more, to}`, then
+  # `{:done, self()}`; ends when `to` does.
+  @spec serve_lines(pid(), plan()) :: :ok
+  def serve_lines(to, plan) do
+    ref = Process.monitor(to)
+
+    plan
+    |> lines()
+    |> Stream.chunk_every(@remote_batch)
+    |> Stream.concat([:done])
+    |> Enum.each(fn batch ->
+      receive do
+        {:more, ^to} ->
+          if batch == :done,
+            do: send(to, {:done, self()}),
+            else: send(to, {:lines, self(), batch})
+
+        {:DOWN, ^ref, :process, _, _} ->
+          exit(:normal)
+      end
+    end)
+  end
 
   # DELETE /api/recordings/<vehicle>/<name>: who may pilot may delete (local mode, a pilot or
   # the main station); never the file being written.
   defp delete_recording(arg, [vehicle, name]) do
+    with :ok <- may_delete(arg),
+         {:ok, _node, response} <- vehicle_call(vehicle, :delete_local, [vehicle, name]) do
+      response
+    else
+      {:error, {status, body}} -> {status, body}
+      {status, body} -> {status, body}
+    end
+  end
+
+  defp delete_recording(_arg, _parts), do: {404, %{error: "no such recording"}}
+
+  @doc false
+  # Deletes a recording of this node (never the file being written): `{status, body}`.
+  @spec delete_local(String.t(), String.t()) :: {pos_integer(), map()}
+  def delete_local(vehicle, name) do
     dir = recording_dir()
 
-    with :ok <- may_delete(arg),
-         true <- dir != nil || {404, %{error: "recording is off on this server"}},
+    with true <- dir != nil || {404, %{error: "recording is off on this server"}},
          true <- Recording.valid?(vehicle, name) || {404, %{error: "no such recording"}},
          path = Recording.path(dir, vehicle, name),
          true <- File.regular?(path) || {404, %{error: "no such recording: #{vehicle}/#{name}"}},
@@ -308,8 +480,6 @@ defmodule NeptunusWeb.API do
       {status, body} -> {status, body}
     end
   end
-
-  defp delete_recording(_arg, _parts), do: {404, %{error: "no such recording"}}
 
   defp may_delete(arg) do
     case Auth.session(token(arg)) do
@@ -354,21 +524,21 @@ defmodule NeptunusWeb.API do
     end
   end
 
-  defp export(arg, "csv", entries, columns, every, file) do
+  defp export(arg, %{format: "csv", file: file}, lines) do
     [
       {:status, 200},
       {:header, {:cache_control, ~c"no-store"}},
       {:header,
        {~c"Content-Disposition", String.to_charlist("attachment; filename=\"#{file}.csv\"")}}
-      | stream(arg, ~c"text/csv; charset=utf-8", Recording.csv_stream(entries, columns, every))
+      | stream(arg, ~c"text/csv; charset=utf-8", lines)
     ]
   end
 
-  defp export(arg, "jsonl", entries, _columns, every, _file) do
+  defp export(arg, %{format: "jsonl"}, lines) do
     [
       {:status, 200},
       {:header, {:cache_control, ~c"no-store"}}
-      | stream(arg, ~c"application/x-ndjson", Recording.json_lines_stream(entries, every))
+      | stream(arg, ~c"application/x-ndjson", lines)
     ]
   end
 

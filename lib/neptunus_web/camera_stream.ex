@@ -10,10 +10,14 @@ defmodule NeptunusWeb.CameraStream do
   while it was writing are dropped for it alone. It ends when the client goes away. When the
   PubSub scope restarts (its subscription gone, see `Neptunus.PubSub`), it subscribes again
   as soon as the scope is back: the viewer misses a few frames, not the rest of the stream.
+
+  A vehicle on another node of the fleet is watched the same way from any node: whether it
+  has a camera and its newest frame are asked on its node (`Neptunus.Fleet.on_vehicle_node/5`),
+  its frames arrive as broadcasts of its topic.
   """
   import NeptunusWeb.Yaws
 
-  alias Neptunus.PubSub
+  alias Neptunus.{Fleet, PubSub}
   alias Neptunus.Camera.MJPEG
   alias Neptunus.Vehicle.Camera
   alias NeptunusWeb.API
@@ -24,7 +28,7 @@ defmodule NeptunusWeb.CameraStream do
 
     with {:ok, id} <- vehicle(path),
          :ok <- allowed(arg),
-         true <- Camera.configured?(id) || {404, %{error: "vehicle #{id} has no camera"}} do
+         true <- configured?(id) || {404, %{error: "vehicle #{id} has no camera"}} do
       socket = arg(arg, :clisock)
       pid = spawn(fn -> start(id, socket) end)
       {:streamcontent_from_pid, String.to_charlist(MJPEG.content_type()), pid}
@@ -32,6 +36,10 @@ defmodule NeptunusWeb.CameraStream do
       {status, body} -> API.respond({status, body})
     end
   end
+
+  # the camera of a vehicle on another node of the fleet is asked there; its frames come as
+  # broadcasts of its topic (term subscribers anywhere get them)
+  defp configured?(id), do: Fleet.on_vehicle_node(id, Camera, :configured?, [id], false)
 
   defp vehicle("/camera/" <> file) do
     case String.split(file, ".") do
@@ -57,7 +65,7 @@ defmodule NeptunusWeb.CameraStream do
         ref = Process.monitor(yaws)
         watch = {id, ref, pubsub}
 
-        case Camera.latest(id) do
+        case Fleet.on_vehicle_node(id, Camera, :latest, [id], nil) do
           nil ->
             stream(socket, yaws, watch)
 

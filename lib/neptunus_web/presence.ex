@@ -20,6 +20,11 @@ defmodule NeptunusWeb.Presence do
   the dead server and of connections that went meanwhile disappear); the others' tracks
   reach it as diffs. The server itself watches the PubSub scope and joins its group again
   when the scope restarts, so the other nodes find it.
+
+  A fleet: when a vehicle of another node is cut off from this one (`unreachable` on topic
+  `"fleet"`, from `Neptunus.Fleet.Directory`), its helm frees a pilot connected here but
+  cannot tell it: the server tells that connection's channel `control_lost`
+  (`pilot_unreachable`), as the helm would have.
   """
   use GenServer
 
@@ -28,6 +33,7 @@ defmodule NeptunusWeb.Presence do
   @table __MODULE__
   @group {__MODULE__, :servers}
   @batch_ms 100
+  @fleet_topic "fleet"
 
   defmodule State do
     @moduledoc false
@@ -122,7 +128,8 @@ defmodule NeptunusWeb.Presence do
   # Joins the group the other nodes find this server by, watching the scope (see "Restarts").
   defp join_group(state) do
     with {:ok, ref} <- PubSub.monitor(),
-         :ok <- safe_join() do
+         :ok <- safe_join(),
+         :ok <- PubSub.subscribe(@fleet_topic) do
       %{state | pubsub: ref}
     else
       _ ->
@@ -168,6 +175,21 @@ defmodule NeptunusWeb.Presence do
 
     {:noreply, %{state | monitors: Map.delete(state.monitors, pid)}}
   end
+
+  # A vehicle of another node is cut off from this one (Neptunus.Fleet.Directory): its helm
+  # has freed a pilot connected here (`pilot_unreachable`) but cannot tell it; this node can.
+  def handle_info({:pubsub, @fleet_topic, "unreachable", %{id: id}}, state) do
+    topic = Neptunus.Vehicle.Telemetry.topic(id)
+
+    for [pid] <- :ets.match(@table, {{topic, :"$1"}, :_, %{pilot: true}}) do
+      # as the helm's own targeted events arrive (NeptunusWeb.Channel.send_self/2)
+      send(pid, {:channel_info, topic, {:helm, "control_lost", %{reason: "pilot_unreachable"}}})
+    end
+
+    {:noreply, state}
+  end
+
+  def handle_info({:pubsub, _topic, _event, _payload}, state), do: {:noreply, state}
 
   def handle_info(:flush, state) do
     for {topic, events} <- state.pending do

@@ -89,8 +89,12 @@ defmodule NeptunusWeb.SocketTest do
   test "fleet lists the vehicles", %{id: id} do
     ws = connect!()
     {_, %{"vehicles" => vehicles}} = join!(ws, "fleet")
-    assert %{"id" => id, "board" => "simulated"} in vehicles
-    assert %{"id" => "neptunus-1", "board" => "simulated"} in vehicles
+    node = Atom.to_string(node())
+
+    for vid <- [id, "neptunus-1"] do
+      assert %{"board" => "simulated", "node" => ^node, "status" => "up", "helm" => "free"} =
+               Enum.find(vehicles, &(&1["id"] == vid))
+    end
   end
 
   test "vehicle join: snapshot, then presence_state with ourselves, then telemetry", ctx do

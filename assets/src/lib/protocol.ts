@@ -8,6 +8,10 @@
 export interface VehicleInfo {
   readonly id: string;
   readonly board: string;
+  /** the node of the fleet it runs on (servers of a fleet say) */
+  readonly node?: string;
+  /** "up", or "unreachable" while its node is cut off from the server's */
+  readonly status?: string;
 }
 
 /** Sensor readings as the board reports them (after wild-point rejection). */
@@ -590,9 +594,14 @@ export function decodeCamera(snapshot: Record<string, unknown>): CameraInfo | nu
 
 export function decodeVehicleInfo(value: unknown): VehicleInfo | null {
   if (!isRecord(value)) return null;
-  const { id, board } = value;
+  const { id, board, node, status } = value;
   if (typeof id !== "string" || typeof board !== "string") return null;
-  return { id, board };
+  return {
+    id,
+    board,
+    ...(typeof node === "string" ? { node } : {}),
+    ...(typeof status === "string" ? { status } : {}),
+  };
 }
 
 /** `null` and a missing pilot both mean "nobody"; anything else malformed is `undefined`. */

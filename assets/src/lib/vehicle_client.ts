@@ -229,6 +229,11 @@ export interface VehicleHandlers {
   readonly link?: (link: LinkStatus) => void;
   /** A mavlink vehicle's late answer to `arm`/`disarm`/`autopilot` (the reply said pending). */
   readonly vehicleAnswer?: (answer: VehicleAnswer) => void;
+  /**
+   * The vehicle's node of the fleet was cut off from ours (`false`: no telemetry, commands
+   * refused, a pilot here lost control) or is back (`true`); `node` names it.
+   */
+  readonly reachability?: (reachable: boolean, node: string) => void;
   /** Who is connected to this vehicle (after every presence sync). */
   readonly presence?: (entries: readonly PresenceEntry[]) => void;
   readonly status?: (status: ConnectionStatus) => void;
@@ -296,6 +301,16 @@ export class VehicleChannel {
         const reason = payload["reason"];
         handlers.vehicleAnswer?.({ command: payload["command"], ok: payload["ok"], reason: typeof reason === "string" ? reason : null });
       } else handlers.protocolError?.("vehicle_answer", payload);
+    });
+    this.channel.on("unreachable", (payload: unknown) => {
+      const node = isRecord(payload) ? payload["node"] : undefined;
+      if (typeof node === "string") handlers.reachability?.(false, node);
+      else handlers.protocolError?.("unreachable", payload);
+    });
+    this.channel.on("reachable", (payload: unknown) => {
+      const node = isRecord(payload) ? payload["node"] : undefined;
+      if (typeof node === "string") handlers.reachability?.(true, node);
+      else handlers.protocolError?.("reachable", payload);
     });
     this.channel.on("link", (payload: unknown) => {
       const link = decodeLinkStatus(payload);

@@ -6,7 +6,7 @@ import { ageText } from "../lib/clock";
 import { PLACEHOLDER, formatFixed, formatHeading } from "../lib/units";
 import { useStore } from "../lib/use_store";
 import type { OperatorController, OperatorState } from "./controller";
-import { barGeometry, downFor, fmt, formatDeg } from "./format";
+import { barGeometry, downFor, fmt, formatDeg, vehicleHref, vehicleLabel } from "./format";
 import { Camera, Hud } from "./hud";
 import { HelmPanel, InputPanel, Panel, SettingsPanel } from "./panels";
 import { TouchPad } from "./touchpad";
@@ -20,6 +20,28 @@ function statusText(s: OperatorState): string {
   return `disconnected${since} — reconnecting`;
 }
 
+/** The fleet's vehicles (every node's): choosing one opens it (`?vehicle=ID`). */
+function VehiclePicker({ s }: { s: OperatorState }): preact.JSX.Element {
+  return (
+    <select
+      id="vehicle-picker"
+      data-testid="vehicle-picker"
+      aria-label="Vehicle"
+      value={s.vehicleId ?? ""}
+      onChange={(e) => {
+        const id = e.currentTarget.value;
+        if (id !== s.vehicleId) window.location.assign(vehicleHref(window.location.search, id));
+      }}
+    >
+      {s.fleet.map((v) => (
+        <option key={v.id} value={v.id}>
+          {vehicleLabel(v)}
+        </option>
+      ))}
+    </select>
+  );
+}
+
 function Header({ s }: { s: OperatorState }): preact.JSX.Element {
   const watching = s.presence.reduce((n, e) => n + e.connections, 0);
   const devHref = s.vehicleId === null ? "/dev.html" : `/dev.html?vehicle=${encodeURIComponent(s.vehicleId)}`;
@@ -31,6 +53,7 @@ function Header({ s }: { s: OperatorState }): preact.JSX.Element {
         <strong id="vehicle-id" data-testid="vehicle-id">
           {s.vehicleId ?? "—"}
         </strong>
+        {s.fleet.length > 1 ? <VehiclePicker s={s} /> : null}
       </span>
       <span id="status" class="status" data-testid="status" data-state={s.status} role="status">
         {statusText(s)}

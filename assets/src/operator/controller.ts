@@ -62,6 +62,7 @@ import type {
   Role,
   RunMode,
   Telemetry,
+  VehicleInfo,
 } from "../lib/protocol";
 import { PageSession, loginUrl } from "../lib/session";
 import { GAMEPAD_MAPPING_KEY, SettingsClient, notKept } from "../lib/settings";
@@ -102,6 +103,8 @@ export interface OperatorState {
   /** when the connection was lost (ms, performance clock), for "reconnecting for N s" */
   readonly disconnectedAt: number | null;
   readonly vehicleId: string | null;
+  /** every vehicle of the fleet, for the picker (empty until listed) */
+  readonly fleet: readonly VehicleInfo[];
   readonly banner: { readonly mode: AuthMode; readonly user: { readonly name: string; readonly role: Role } | null } | null;
   readonly helm: HelmView;
   readonly pilotName: string | null;
@@ -193,6 +196,7 @@ export class OperatorController {
       status: "connecting",
       disconnectedAt: null,
       vehicleId: null,
+      fleet: [],
       banner: null,
       helm: seenView(INITIAL_REACTIONS.helm, 0),
       pilotName: null,
@@ -332,6 +336,11 @@ export class OperatorController {
   private async chooseVehicle(client: NeptunusClient): Promise<string> {
     const requested = this.params.get("vehicle");
     if (requested !== null) {
+      // the picker's list; the requested vehicle opens whatever it says
+      client.fleet().then(
+        (fleet) => this.store.update({ fleet: fleet.vehicles }),
+        () => undefined,
+      );
       if (VEHICLE_ID.test(requested)) return requested;
       this.showMessage(`Invalid vehicle id in the address: "${requested}"`, "error");
       return new Promise<string>(() => undefined); // nothing to connect to
@@ -339,7 +348,9 @@ export class OperatorController {
     for (;;) {
       try {
         const fleet = await client.fleet();
-        const first = fleet.vehicles[0];
+        // the first vehicle that can be reached (one whose node of the fleet is cut off cannot be joined)
+        const first = fleet.vehicles.find((v) => v.status !== "unreachable") ?? fleet.vehicles[0];
+        this.store.update({ fleet: fleet.vehicles });
         if (first) {
           this.clearMessage("fleet");
           return first.id;
@@ -391,6 +402,11 @@ export class OperatorController {
         this.dispatch({ type: "link", up: link.up });
       },
       vehicleAnswer: (answer) => this.vehicleAnswer(answer.command, answer.ok ? null : (answer.reason ?? "refused")),
+      // the vehicle runs on another node of the fleet, now cut off from this one (or back)
+      reachability: (reachable, node) => {
+        if (reachable) this.clearMessage("unreachable");
+        else this.showMessage(`Vehicle unreachable: its node ${node} is cut off from this server.`, "error", "unreachable");
+      },
       presence: (entries) => this.store.update({ presence: entries }),
       status: (status) => {
         this.setStatus(status);

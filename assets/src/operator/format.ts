@@ -1,6 +1,6 @@
 /** Display helpers of the operator page (pure). */
 
-import type { BoardLinkDetails, MeasurementState } from "../lib/protocol";
+import type { BoardLinkDetails, MeasurementState, VehicleInfo } from "../lib/protocol";
 import { clampUnit, formatFixed, formatHeading, radToDeg } from "../lib/units";
 
 /** Bar geometry for a value in [-1, 1] on a meter centred on zero (percent of the width). */
@@ -97,3 +97,17 @@ export function boardLinkText(d: BoardLinkDetails): { summary: string; warnings:
   }
   return { summary: parts.join(" · "), warnings };
 }
+
+/** The vehicle picker's label of a vehicle of the fleet: its id, its node, whether unreachable. */
+export function vehicleLabel(v: VehicleInfo): string {
+  const where = v.node === undefined ? "" : ` on ${v.node}`;
+  return `${v.id}${where}${v.status === "unreachable" ? " (unreachable)" : ""}`;
+}
+
+/** The operator page's address for vehicle `id` (deep link `?vehicle=ID`, other parameters kept). */
+export function vehicleHref(search: string, id: string): string {
+  const params = new URLSearchParams(search);
+  params.set("vehicle", id);
+  return `?${params.toString()}`;
+}
+

@@ -289,6 +289,7 @@ export function startFakeServer(port = 4199) {
       const actual = http.address().port;
       resolve({
         url: `http://127.0.0.1:${actual}`,
+        broadcast: (topic, event, payload) => broadcast(topic, event, payload),
         close: () =>
           new Promise((done) => {
             clearInterval(step);

@@ -194,3 +194,23 @@ describe("NeptunusClient", () => {
     log.leave();
   });
 });
+
+describe("a vehicle on another node of the fleet", () => {
+  it("reports its node cut off and back (unreachable, reachable); malformed payloads are protocol errors", async () => {
+    const seen: [boolean, string][] = [];
+    const errors: string[] = [];
+    const watcher = client("fleet-watcher").vehicle("neptunus-1", {
+      reachability: (reachable, node) => seen.push([reachable, node]),
+      protocolError: (what) => errors.push(what),
+    });
+    await watcher.join();
+    server.broadcast("vehicle:neptunus-1", "unreachable", { id: "neptunus-1", node: "rov1@10.0.0.2", reason: "node_unreachable" });
+    server.broadcast("vehicle:neptunus-1", "reachable", { id: "neptunus-1", node: "rov1@10.0.0.2" });
+    server.broadcast("vehicle:neptunus-1", "unreachable", { id: "neptunus-1" });
+    expect(await eventually(() => (errors.length > 0 ? errors : undefined))).toEqual(["unreachable"]);
+    expect(seen).toEqual([
+      [false, "rov1@10.0.0.2"],
+      [true, "rov1@10.0.0.2"],
+    ]);
+  });
+});

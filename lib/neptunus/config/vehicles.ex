@@ -112,6 +112,11 @@ defmodule Neptunus.Config.Vehicles do
   def vehicles!(env) do
     spec = Map.get(env, "NEPTUNUS_VEHICLES", @default_vehicles)
 
+    # a fleet's topside or relay node (Neptunus.Config.Cluster) hosts no vehicle
+    if String.trim(spec) == "none", do: [], else: vehicles_of!(env, spec)
+  end
+
+  defp vehicles_of!(env, spec) do
     vehicles =
       spec
       |> String.split(",")

@@ -9,7 +9,8 @@ defmodule Neptunus.Vehicle.Helm do
   `Neptunus.Vehicle.Control` (stop, thrust — so a command and a transfer can never overtake
   each other), broadcasts `helm` on `"vehicle:<id>"`, sends targeted events to parties,
   monitors the pilot, the requester and the main station taking over (a connection that dies
-  is a `{:leave, id, "pilot_disconnected"}`), and keeps two timers:
+  is a `{:leave, id, "pilot_disconnected"}`; one on another node that is cut off, a
+  `:noconnection`, is `"pilot_unreachable"`), and keeps two timers:
 
     * `:state_timeout` — the pending request (`request_timeout_ms`, default 10 s) and the
       takeover countdown (`takeover_ms`, default 3 s); leaving the state cancels it;
@@ -83,6 +84,7 @@ defmodule Neptunus.Vehicle.Helm do
   @type reply :: {:ok, map()} | {:error, String.t()}
 
   @restarting "vehicle restarting: try again"
+  @unreachable "vehicle_unreachable"
 
   defmodule Data do
     @moduledoc false
@@ -179,7 +181,8 @@ defmodule Neptunus.Vehicle.Helm do
 
   @doc """
   A party's connection left the vehicle's topic or closed (`reason`: `pilot_left`,
-  `pilot_disconnected`). Its pilot's helm is freed and the vehicle stops.
+  `pilot_disconnected`). Its pilot's helm is freed and the vehicle stops. A vehicle that is
+  unreachable is left already (its helm monitors every party's connection).
   """
   @spec leave(String.t(), String.t(), String.t()) :: :ok
   def leave(id, party_id, reason) do
@@ -187,6 +190,8 @@ defmodule Neptunus.Vehicle.Helm do
     case call(id, {:helm, {:leave, party_id, reason}}) do
       {:ok, _} -> :ok
       {:error, @restarting} -> :ok
+      # a cut-off vehicle's helm learns it from its monitor (`pilot_unreachable`)
+      {:error, @unreachable} -> :ok
     end
   end
 
@@ -198,25 +203,49 @@ defmodule Neptunus.Vehicle.Helm do
   @spec check_deadman(String.t()) :: :ok
   def check_deadman(id), do: call(id, :check_deadman)
 
-  defp call(id, :status), do: :gen_statem.call(via(id), :status)
-  defp call(id, :check_deadman), do: :gen_statem.call(via(id), :check_deadman)
+  defp call(id, :status), do: :gen_statem.call(target(id), :status)
+  defp call(id, :check_deadman), do: :gen_statem.call(target(id), :check_deadman)
 
   # A request while the helm is down (its vehicle's control chain restarting after a crash)
   # is refused with a reason instead of crashing the caller (a client's channel): the new
   # helm drives neutral and says `stopped` as it starts, and the client may ask again. A
-  # vehicle that no longer runs is no restart: the caller exits as before.
+  # vehicle that no longer runs is no restart: the caller exits as before. A vehicle on a
+  # node that is cut off (or went down during the call) is `vehicle_unreachable`.
   defp call(id, request) do
-    :gen_statem.call(via(id), request)
+    case target(id) do
+      :unreachable -> {:error, @unreachable}
+      target -> :gen_statem.call(target, request)
+    end
   catch
     :exit, {reason, {:gen_statem, :call, _}} = exit ->
-      if helm_down?(reason) and Neptunus.Fleet.exists?(id),
-        do: {:error, @restarting},
-        else: :erlang.raise(:exit, exit, __STACKTRACE__)
+      cond do
+        unreachable?(reason) -> {:error, @unreachable}
+        helm_down?(reason) and Neptunus.Fleet.exists?(id) -> {:error, @restarting}
+        true -> :erlang.raise(:exit, exit, __STACKTRACE__)
+      end
   end
 
   defp helm_down?(reason) when reason in [:noproc, :normal, :killed, :shutdown], do: true
   defp helm_down?({:shutdown, _}), do: true
   defp helm_down?(_), do: false
+
+  defp unreachable?(:noconnection), do: true
+  defp unreachable?({:nodedown, _}), do: true
+  defp unreachable?(_), do: false
+
+  # This node's helm by its name; another node's by the pid the fleet's directory knows
+  # (`Neptunus.Fleet.locate/1`): the helm lives only on its vehicle's node.
+  defp target(id) do
+    if Neptunus.Fleet.local?(id) do
+      via(id)
+    else
+      case Neptunus.Fleet.locate(id) do
+        {:ok, _node, pid} -> pid
+        {:error, :unreachable} -> :unreachable
+        {:error, :not_found} -> via(id)
+      end
+    end
+  end
 
   defp via(id), do: Neptunus.Fleet.via(__MODULE__, id)
 
@@ -231,6 +260,8 @@ defmodule Neptunus.Vehicle.Helm do
     # pilot's command is not queued behind the telemetry fan-out (see the moduledoc).
     Process.flag(:priority, :high)
     id = Keyword.fetch!(opts, :id)
+    # in the cluster's directory while it lives (browsers on other nodes find it there)
+    :ok = Neptunus.Fleet.publish(id)
 
     config = Keyword.merge(@defaults, Keyword.get(opts, :helm, []))
 
@@ -288,11 +319,11 @@ defmodule Neptunus.Vehicle.Helm do
     transition(state, data, [])
   end
 
-  def handle_event(:info, {:DOWN, ref, :process, pid, _reason}, state, data) do
+  def handle_event(:info, {:DOWN, ref, :process, pid, reason}, state, data) do
     case Map.pop(data.monitors, pid) do
       {{^ref, party_id}, monitors} ->
         {:ok, data, false} =
-          step(%{data | monitors: monitors}, {:leave, party_id, "pilot_disconnected"})
+          step(%{data | monitors: monitors}, {:leave, party_id, leave_reason(reason)})
 
         transition(state, data, [])
 
@@ -305,6 +336,11 @@ defmodule Neptunus.Vehicle.Helm do
     Logger.debug("helm ignored #{inspect(msg)}")
     :keep_state_and_data
   end
+
+  # A party's connection on another node that is cut off (`:noconnection`) is unreachable;
+  # any other end of it is a disconnection.
+  defp leave_reason(:noconnection), do: "pilot_unreachable"
+  defp leave_reason(_reason), do: "pilot_disconnected"
 
   # Runs the policy and carries out its actions; `run?` tells whether a command may run.
   defp step(data, event) do

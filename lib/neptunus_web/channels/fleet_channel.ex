@@ -1,12 +1,14 @@
 defmodule NeptunusWeb.Channels.FleetChannel do
   @moduledoc """
-  Topic `fleet`: the vehicles of this node. Join reply `%{vehicles: [%{id, board}]}`.
+  Topic `fleet`: the vehicles of the fleet, every node's (`Neptunus.Fleet.directory/0`).
+  Join reply `%{vehicles: [%{id, board, node, status, helm, pilot, link, depth, heading, recording}]}`; `status` is
+  `"up"` or `"unreachable"` (its node is cut off).
   No client events yet; any push is answered with an error naming the event.
   """
   @behaviour NeptunusWeb.Channel
 
   @impl true
-  def join("fleet", _payload, socket), do: {:ok, %{vehicles: Neptunus.Fleet.list()}, socket}
+  def join("fleet", _payload, socket), do: {:ok, %{vehicles: Neptunus.Fleet.directory()}, socket}
 
   @impl true
   def handle_in(event, _payload, socket),

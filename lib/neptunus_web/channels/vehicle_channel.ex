@@ -23,7 +23,10 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `Neptunus.Vehicle.Board.MAVLink.autopilot/3`). Server events: `telemetry`, `helm`, `stopped`,
   `presence_diff` (broadcast), and to one connection only `control_request`,
   `control_granted`, `control_lost`, `request_denied`, `vehicle_answer` (the late answer to an
-  `arm`/`disarm`/`autopilot` whose reply was `%{status: "pending"}`).
+  `arm`/`disarm`/`autopilot` whose reply was `%{status: "pending"}`). A vehicle on another node
+  of the fleet is joined the same way (its snapshot is made there, its helm, control and settings
+  called there); this node says `unreachable` and `reachable` when that node is cut off and back
+  (`Neptunus.Fleet.Directory`).
 
   Presence: keyed by user name, one meta per connection:
   `%{name, role, since, pilot, conn, node, online_at}`; `pilot` is updated on every grant and
@@ -43,19 +46,34 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
 
   @impl true
   def join("vehicle:" <> id, _payload, socket) do
-    if Fleet.exists?(id) do
+    # a vehicle on another node of the fleet is joined the same way: its state comes from
+    # its node, its commands go to its helm there (Neptunus.Vehicle.Helm), its broadcasts
+    # through this node's relay (Neptunus.PubSub)
+    where =
+      if Fleet.local?(id) do
+        {:ok, node()}
+      else
+        case Fleet.locate(id) do
+          {:ok, node, _helm} -> {:ok, node}
+          {:error, :unreachable} -> {:error, "vehicle unreachable: #{id}"}
+          {:error, :not_found} -> {:error, "unknown vehicle: #{id}"}
+        end
+      end
+
+    with {:ok, node} <- where,
+         {:ok, state} <- vehicle_state(node, id) do
       socket =
         Channel.assign(socket,
           vehicle_id: id,
-          board: Board.type(id),
+          board: state.vehicle.board,
           since_wall_ms: Neptunus.Clock.wall_ms()
         )
 
       socket = track(socket, false)
       Channel.send_self(socket, :after_join)
-      {:ok, snapshot(id, socket), socket}
+      {:ok, Map.put(state, :session, session(socket)), socket}
     else
-      {:error, %{reason: "unknown vehicle: #{id}"}}
+      {:error, reason} -> {:error, %{reason: reason}}
     end
   end
 
@@ -135,8 +153,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
 
     with :ok <- may_tune(id, socket, "tuning") do
       case event do
-        "set_tuning" -> Control.tune(id, payload)
-        "step_response" -> Control.step_response(id, payload)
+        "set_tuning" -> on_vehicle(id, Control, :tune, [id, payload])
+        "step_response" -> on_vehicle(id, Control, :step_response, [id, payload])
       end
     end
     |> reply(socket)
@@ -148,13 +166,19 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     id = id(socket)
 
     with :ok <- may_tune(id, socket, "the camera rotation") do
-      ViewSettings.set_camera_rotation(id, payload)
+      on_vehicle(id, ViewSettings, :set_camera_rotation, [id, payload])
     end
     |> reply(socket)
   end
 
   def handle_in("get_tuning", _payload, socket) do
-    {:reply, {:ok, Control.tuning(id(socket))}, socket}
+    id = id(socket)
+
+    case on_vehicle(id, Control, :tuning, [id]) do
+      {:error, reason} -> {:error, reason}
+      tuning -> {:ok, tuning}
+    end
+    |> reply(socket)
   end
 
   # Simulator controls `sim_reset`, `sim_set` (Neptunus.Sim.Live): pilot only, through the
@@ -216,24 +240,39 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     :ok
   end
 
-  defp snapshot(id, socket) do
+  defp vehicle_state(node, id) when node == node(), do: {:ok, vehicle_state(id)}
+
+  defp vehicle_state(node, id) do
+    {:ok, :erpc.call(node, __MODULE__, :vehicle_state, [id], 5_000)}
+  catch
+    :error, {:erpc, _} -> {:error, "vehicle unreachable: #{id}"}
+    :exit, _ -> {:error, "vehicle unreachable: #{id}"}
+  end
+
+  @doc false
+  # The vehicle's part of the join reply, on the vehicle's own node.
+  @spec vehicle_state(String.t()) :: map()
+  def vehicle_state(id) do
     helm = Helm.status(id)
     [vehicle] = Enum.filter(Fleet.list(), &(&1.id == id))
 
     %{
-      vehicle: vehicle,
+      vehicle: Map.put(vehicle, :node, Atom.to_string(node())),
       telemetry: Telemetry.latest(id),
       helm: helm,
       pilot: helm.pilot && %{name: helm.pilot.name},
       control: Control.status(id),
       camera: camera(id),
-      settings: ViewSettings.get(id),
-      session: %{
-        id: socket.user.id,
-        name: socket.user.name,
-        role: Atom.to_string(socket.user.role),
-        mode: Atom.to_string(Auth.mode())
-      }
+      settings: ViewSettings.get(id)
+    }
+  end
+
+  defp session(socket) do
+    %{
+      id: socket.user.id,
+      name: socket.user.name,
+      role: Atom.to_string(socket.user.role),
+      mode: Atom.to_string(Auth.mode())
     }
   end
 
@@ -306,15 +345,22 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     with {:ok, _} <- asked do
       receive do
         {:channel_info, ^topic, {:vehicle_answer, ^ref, _event, :ok}} ->
-          {:ok, %{status: "ok", control: Control.status(id)}}
+          {:ok, %{status: "ok", control: on_vehicle(id, Control, :status, [id])}}
 
         {:channel_info, ^topic, {:vehicle_answer, ^ref, _event, {:error, r}}} ->
           {:error, r}
       after
-        @vehicle_answer_ms -> {:ok, %{status: "pending", control: Control.status(id)}}
+        @vehicle_answer_ms ->
+          {:ok, %{status: "pending", control: on_vehicle(id, Control, :status, [id])}}
       end
     end
     |> reply(socket)
+  end
+
+  # A call to one of the vehicle's processes, on the vehicle's node (here, or another node of
+  # the fleet); a clear error when that node is cut off.
+  defp on_vehicle(id, module, fun, args) do
+    Fleet.on_vehicle_node(id, module, fun, args, {:error, "vehicle unreachable: #{id}"})
   end
 
   defp reply({:ok, response}, socket), do: {:reply, {:ok, response}, socket}
