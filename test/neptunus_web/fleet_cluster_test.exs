@@ -98,6 +98,15 @@ defmodule NeptunusWeb.FleetClusterTest do
 
     assert surge > 0
 
+    # the vehicle's tuning and settings live on V: read and set from T by the pilot
+    assert {"ok", %{"gains" => %{"depth" => %{"kp" => _}}}} =
+             push_and_reply(ws, jr, topic, "get_tuning", %{})
+
+    assert {"ok", %{"camera_rotation" => 90}} =
+             push_and_reply(ws, jr, topic, "set_camera_rotation", %{"value" => 90})
+
+    assert %{camera_rotation: 90} = Cluster.call(peer, Neptunus.Vehicle.ViewSettings, :get, [id])
+
     # an observer on V sees the pilot from T, and presence counts both nodes' connections
     observer = connect_to!(peer.port, "Grace")
     {:ok, %{"pilot" => %{"name" => "Ada"}}} = WSClient.join(observer, topic)
