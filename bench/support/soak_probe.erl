@@ -1,5 +1,5 @@
 %% The soak's server-side probe (bench/soak, bench/soak.mjs): run on a hidden node, it loads
-%% itself into the server's node and reports, as one line of JSON on stdout, where the server's
+%% itself into the server's node (once) and reports, as one line of JSON on stdout, where the server's
 %% memory is:
 %%
 %%   * process count and the two longest message queues (and whose);
@@ -31,8 +31,7 @@ main() ->
     Node = list_to_atom(NodeName),
     Out =
         try
-            {Mod, Bin, File} = code:get_object_code(?MODULE),
-            {module, Mod} = rpc:call(Node, code, load_binary, [Mod, File, Bin], 30000),
+            ok = load(Node),
             case rpc:call(Node, ?MODULE, collect, [Mode], 60000) of
                 {badrpc, R} -> #{error => fmt("~p", [R])};
                 Map -> Map
@@ -42,6 +41,18 @@ main() ->
         end,
     io:format("~n~s~n", [json(Out)]),
     halt().
+
+%% Loads this module into the server's node unless the same version is there already (loading
+%% it again would make the node purge the old one at every row).
+load(Node) ->
+    Md5 = ?MODULE:module_info(md5),
+    case rpc:call(Node, ?MODULE, module_info, [md5], 30000) of
+        Md5 -> ok;
+        _ ->
+            {Mod, Bin, File} = code:get_object_code(?MODULE),
+            {module, Mod} = rpc:call(Node, code, load_binary, [Mod, File, Bin], 30000),
+            ok
+    end.
 
 %% On the server's node.
 collect(Mode) ->
