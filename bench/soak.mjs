@@ -161,7 +161,7 @@ async function main() {
     const m = srv.memory;
     const st = Object.fromEntries((srv.states ?? []).map((x) => [x.name, x]));
     const part = (x) => (x?.found ? `state ${KiB(x.state)} KiB, process ${KiB(x.memory)} KiB, binaries ${KiB(x.binary)} KiB` : 'not found');
-    return `  ${label}: total ${MiB(m.total)} = processes ${MiB(m.processes)} + system ${MiB(m.system)} ` +
+    return `  ${label}: total ${MiB(m.total)} = processes ${MiB(m.processes)} (data in them ${MiB(srv.processes_live)}) + system ${MiB(m.system)} ` +
       `(binary ${MiB(m.binary)}, ets ${MiB(m.ets)}, code ${MiB(m.code)}, atom ${MiB(m.atom)}) MiB; ` +
       `allocator carriers ${MiB(srv.carriers)} MiB, blocks in use ${MiB(srv.blocks)} MiB` +
       (srv.mode === 'gc' ? `; before the GC: total ${MiB(srv.gc_before_total)} MiB (GC took ${srv.gc_ms} ms)` : '') +
@@ -229,13 +229,19 @@ async function main() {
     const g = (fin.rss - base.rss) / base.rss * 100, gb = (fin.beam - base.beam) / base.beam * 100;
     console.log(`# memory flat: ${g < 5 ? 'yes' : 'NO'} — RSS ${f1(base.rss)} -> ${f1(fin.rss)} MiB (${g.toFixed(1)} %) from minute ${f1(base.min)} to ${f1(fin.min)}; ` +
       `erlang:memory(total) ${f1(base.beam)} -> ${f1(fin.beam)} MiB (${gb.toFixed(1)} %); processes ${base.procs} -> ${fin.procs}`);
-    const gt = (r) => r?.gc?.memory?.total;
-    if (gcBase && gcBase !== fin && gt(fin) != null) {
-      const a = gt(gcBase), b = gt(fin), gg = (b - a) / a * 100;
-      const parts = ['processes', 'binary', 'ets', 'code', 'atom']
+    // live data after the GC: the processes' data (not their heap blocks, whose size after a
+    // GC depends on their size before it) + everything else erlang:memory counts (system)
+    const live = (r) => (r?.gc?.memory && r.gc.processes_live != null ? r.gc.memory.system + r.gc.processes_live : undefined);
+    if (gcBase && gcBase !== fin && live(fin) != null) {
+      const a = live(gcBase), b = live(fin), gg = (b - a) / a * 100;
+      const tg = (fin.gc.memory.total - gcBase.gc.memory.total) / gcBase.gc.memory.total * 100;
+      const parts = ['binary', 'ets', 'code', 'atom']
         .map((k) => `${k} ${MiB(gcBase.gc.memory[k])} -> ${MiB(fin.gc.memory[k])}`).join(', ');
-      console.log(`# memory after a forced GC flat: ${gg < 5 ? 'yes' : 'NO'} — erlang:memory(total) after garbage-collecting every process ` +
-        `${MiB(a)} -> ${MiB(b)} MiB (${gg.toFixed(1)} %, flat: < 5 %) from minute ${f1(gcBase.min)} to ${f1(fin.min)} (${parts} MiB); ` +
+      console.log(`# memory after a forced GC flat: ${gg < 5 ? 'yes' : 'NO'} — live data after garbage-collecting every process ` +
+        `(erlang:memory(system) + the processes' data) ${MiB(a)} -> ${MiB(b)} MiB (${gg.toFixed(1)} %, flat: < 5 %) ` +
+        `from minute ${f1(gcBase.min)} to ${f1(fin.min)}: processes' data ${MiB(gcBase.gc.processes_live)} -> ${MiB(fin.gc.processes_live)}, ` +
+        `${parts} MiB; erlang:memory(total) after the GC ${MiB(gcBase.gc.memory.total)} -> ${MiB(fin.gc.memory.total)} MiB (${tg.toFixed(1)} %, ` +
+        `processes' heap blocks ${MiB(gcBase.gc.memory.processes)} -> ${MiB(fin.gc.memory.processes)}); ` +
         `allocator carriers ${MiB(gcBase.gc.carriers)} -> ${MiB(fin.gc.carriers)} MiB, blocks in use ${MiB(gcBase.gc.blocks)} -> ${MiB(fin.gc.blocks)} MiB` +
         (g >= 5 && gg < 5 ? ' — RSS grew but live data did not: allocator retention, not a leak' : ''));
     } else {

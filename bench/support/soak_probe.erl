@@ -4,7 +4,8 @@
 %%
 %%   * process count and the two longest message queues (and whose);
 %%   * erlang:memory() by type (total, processes, processes_used, system, binary, ets, code,
-%%     atom), in bytes;
+%%     atom), in bytes, and the processes' live data (`processes_live`: the heap words in use,
+%%     not the heap blocks);
 %%   * the allocators' carriers (what the VM holds from the OS) and the blocks in them (what is
 %%     in use), summed over every alloc_util allocator and instance (mbcs + sbcs), so that RSS
 %%     can be told apart from live data;
@@ -70,6 +71,7 @@ collect(Mode) ->
     Infos = lists:filtermap(
         fun(P) ->
             case erlang:process_info(P, [memory, message_queue_len, total_heap_size,
+                                         garbage_collection_info,
                                          registered_name, dictionary, initial_call]) of
                 undefined -> false;
                 I -> {true, {P, I}}
@@ -85,6 +87,7 @@ collect(Mode) ->
     {Carriers, Blocks} = allocated(),
     #{procs => erlang:system_info(process_count),
       memory => Mem,
+      processes_live => lists:sum([live_bytes(I) || {_, I} <- Infos]),
       mode => Mode,
       gc_before_total => Before,
       gc_ms => GcMs,
@@ -99,6 +102,13 @@ collect(Mode) ->
                                                                  {telemetry, 'Elixir.Neptunus.Vehicle.Telemetry'}]]}.
 
 get(K, I) -> proplists:get_value(K, I).
+
+%% The words a process' data takes (young and old heap in use, heap fragments, stack), in
+%% bytes: unlike `memory`, not the heap blocks' size, which after a GC depends on the heap's
+%% size before it (three full GCs in a row give process memory totals ±50 % apart).
+live_bytes(I) ->
+    G = get(garbage_collection_info, I),
+    8 * lists:sum([proplists:get_value(K, G, 0) || K <- [heap_size, old_heap_size, mbuf_size, stack_size]]).
 
 %% The refc binaries a process references, in bytes.
 binary_bytes(P) ->
