@@ -3,7 +3,7 @@
 // SOAK_MINUTES; every SOAK_INTERVAL_MINUTES it prints the server's RSS, process count, largest
 // message queues, the control latency p99, the telemetry delivery p99 and the recordings' size,
 // and where the server's memory is (see below). At the end: memory flat (RSS growth after
-// SOAK_WARMUP_MINUTES < 5 %, and erlang:memory(total) after a forced GC < 5 %) and latency flat.
+// SOAK_WARMUP_MINUTES < 5 %, and live data after a forced GC < 5 %) and latency flat.
 // Prints figures, asserts nothing (exit 0 unless it cannot run).
 //
 // What it measures, exactly:
@@ -18,7 +18,8 @@
 //     BEAM itself, through a hidden Erlang node (erl -sname, SOAK_NODE / SOAK_COOKIE) running
 //     bench/support/soak_probe.erl (compiled into SOAK_PROBE_EBIN, loaded into the server's node
 //     at the first row). Indented under each row: erlang:memory() by type, the allocators'
-//     carriers (held from the OS: what RSS follows) and blocks (in use), the 5 largest processes
+//     carriers (held from the OS: what RSS follows) and blocks (in use), the processes' data (heap
+//     words in use, not heap blocks), the 5 largest processes
 //     (memory, heap, refc binaries referenced, queue), the recorder's and telemetry's state size.
 //   * memory after a forced GC (`after GC` lines): every process garbage-collected, then the same
 //     figures, at the first row after the warm-up and the last (SOAK_GC_EVERY_ROW=1: every row).
