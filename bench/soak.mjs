@@ -1,8 +1,9 @@
 // Soak benchmark client (bench/soak starts the server and this script): a pilot drives a vehicle
 // (thrust at SOAK_THRUST_HZ, heartbeat every 100 ms) while SOAK_OBSERVERS observers watch it, for
 // SOAK_MINUTES; every SOAK_INTERVAL_MINUTES it prints the server's RSS, process count, largest
-// message queues, the control latency p99, the telemetry delivery p99 and the recordings' size.
-// At the end: memory flat (RSS growth after SOAK_WARMUP_MINUTES < 5 %) and latency flat.
+// message queues, the control latency p99, the telemetry delivery p99 and the recordings' size,
+// and where the server's memory is (see below). At the end: memory flat (RSS growth after
+// SOAK_WARMUP_MINUTES < 5 %, and live data after a forced GC < 5 %) and latency flat.
 // Prints figures, asserts nothing (exit 0 unless it cannot run).
 //
 // What it measures, exactly:
@@ -14,11 +15,21 @@
 //   * telemetry delivery: observer receive time - payload.sent_at (ms since the epoch, one machine
 //     clock), every telemetry frame of every observer; includes the observers' event-loop delay.
 //   * server RSS (/proc/<pid>/status), process count, message queues, erlang:memory(total): the
-//     BEAM itself, through a hidden Erlang node (erl -sname, SOAK_NODE / SOAK_COOKIE).
+//     BEAM itself, through a hidden Erlang node (erl -sname, SOAK_NODE / SOAK_COOKIE) running
+//     bench/support/soak_probe.erl (compiled into SOAK_PROBE_EBIN, loaded into the server's node
+//     at the first row). Indented under each row: erlang:memory() by type, the allocators'
+//     carriers (held from the OS: what RSS follows) and blocks (in use), the processes' data (heap
+//     words in use, not heap blocks), the 5 largest processes
+//     (memory, heap, refc binaries referenced, queue), the recorder's and telemetry's state size.
+//   * memory after a forced GC (`after GC` lines): every process garbage-collected, then the same
+//     figures, at the first row after the warm-up and the last (SOAK_GC_EVERY_ROW=1: every row).
+//     What a GC gives back was garbage; growth that survives it is live data (a leak), growth of
+//     RSS/carriers alone is the allocators keeping memory after a load spike.
 //
 // Environment: SOAK_URL, SOAK_VEHICLE (rov), SOAK_MINUTES (60), SOAK_OBSERVERS (500),
 // SOAK_INTERVAL_MINUTES (5), SOAK_WARMUP_MINUTES (10), SOAK_THRUST_HZ (10), SOAK_SERVER_PID,
-// SOAK_NODE, SOAK_COOKIE, SOAK_RECORDINGS (directory), SOAK_WINDOW (100 connects in flight).
+// SOAK_NODE, SOAK_COOKIE, SOAK_PROBE_EBIN, SOAK_GC_EVERY_ROW (0), SOAK_RECORDINGS (directory),
+// SOAK_WINDOW (100 connects in flight).
 
 import { createRequire } from 'node:module';
 import { Worker, isMainThread, parentPort, workerData } from 'node:worker_threads';
@@ -132,14 +143,33 @@ async function main() {
     });
   }, 1000 / THRUST_HZ);
 
-  const probe = () => new Promise((resolve) => {
-    if (!process.env.SOAK_NODE) return resolve(null);
+  // The server-side figures (bench/support/soak_probe.erl, compiled by bench/soak into
+  // SOAK_PROBE_EBIN): `stats`, or `gc` (every process garbage-collected first).
+  const probe = (mode = 'stats') => new Promise((resolve) => {
+    if (!process.env.SOAK_NODE || !process.env.SOAK_PROBE_EBIN) return resolve(null);
     execFile('erl', ['-hidden', '-noshell', '-sname', `soakprobe${process.pid}`, '-setcookie', process.env.SOAK_COOKIE,
-      '-eval', PROBE], { timeout: 60_000 }, (err, stdout) => {
+      '-pa', process.env.SOAK_PROBE_EBIN, '-eval', 'soak_probe:main()', '--', process.env.SOAK_NODE, mode],
+    { timeout: 90_000 }, (err, stdout) => {
       if (err) return resolve({ error: String(err.message).split('\n')[0] });
       try { resolve(JSON.parse(stdout.trim().split('\n').pop())); } catch { resolve({ error: stdout.slice(0, 200) }); }
     });
   });
+  const MiB = (b) => (Number.isFinite(b) ? (b / 1048576).toFixed(1) : 'n/a');
+  const KiB = (b) => (Number.isFinite(b) ? (b / 1024).toFixed(1) : 'n/a');
+  // Where the memory is, one indented line (after a forced GC: `gc`).
+  const memLine = (srv, label) => {
+    if (!srv || srv.error) return `  ${label}: n/a ${srv?.error ?? ''}`;
+    const m = srv.memory;
+    const st = Object.fromEntries((srv.states ?? []).map((x) => [x.name, x]));
+    const part = (x) => (x?.found ? `state ${KiB(x.state)} KiB, process ${KiB(x.memory)} KiB, binaries ${KiB(x.binary)} KiB` : 'not found');
+    return `  ${label}: total ${MiB(m.total)} = processes ${MiB(m.processes)} (data in them ${MiB(srv.processes_live)}) + system ${MiB(m.system)} ` +
+      `(binary ${MiB(m.binary)}, ets ${MiB(m.ets)}, code ${MiB(m.code)}, atom ${MiB(m.atom)}) MiB; ` +
+      `allocator carriers ${MiB(srv.carriers)} MiB, blocks in use ${MiB(srv.blocks)} MiB` +
+      (srv.mode === 'gc' ? `; before the GC: total ${MiB(srv.gc_before_total)} MiB (GC took ${srv.gc_ms} ms)` : '') +
+      `\n  ${label} largest: ${(srv.largest ?? []).map((p) => `${p.who} ${KiB(p.memory)} KiB (heap ${KiB(p.heap)}, binaries ${KiB(p.binary)}, queue ${p.queue})`).join('; ')}` +
+      `\n  ${label} recorder: ${part(st.recorder)}; telemetry: ${part(st.telemetry)}`;
+  };
+  const GC_EVERY_ROW = process.env.SOAK_GC_EVERY_ROW === '1';
 
   const rows = [];
   let closed = 0;
@@ -158,7 +188,8 @@ async function main() {
     const rec = RECORDINGS ? dirBytes(RECORDINGS) : { total: NaN, files: 0 };
     const row = {
       min: (performance.now() - t0) / 60000, rss: rssKb() / 1024,
-      beam: srv?.memory != null ? srv.memory / 1048576 : NaN, procs: srv?.procs ?? NaN,
+      beam: srv?.memory?.total != null ? srv.memory.total / 1048576 : NaN, procs: srv?.procs ?? NaN,
+      srv, gc: null,
       queue: srv?.queues ? srv.queues.map((q) => `${q.len} ${q.who}`).join(', ') : `n/a ${srv?.error ?? ''}`,
       c50: pct(r, 50), c99: pct(r, 99), t99: pct(tt, 99), d50: histPct(hist, 50), d99: histPct(hist, 99),
       rate: frames / ((label.secs) || 1), rec: rec.total / 1048576, files: rec.files,
@@ -166,14 +197,23 @@ async function main() {
     rows.push(row);
     console.log([f1(row.min), f1(row.rss), f1(row.beam), row.procs, row.queue, `${f1(row.c50)}/${f1(row.c99)} ms`,
       `${f1(row.t99)} ms`, `${f1(row.d50)}/${f1(row.d99)} ms`, f1(row.rate), `${f1(row.rec)} (${row.files} files)`].join(' | '));
+    console.log(memLine(srv, 'memory'));
+    // after a forced GC: at the first row after the warm-up, the last row (label.last) and,
+    // with SOAK_GC_EVERY_ROW=1, every row (the GC is the last thing a row does)
+    if (GC_EVERY_ROW || label.last || (!gcBase && row.min >= WARMUP / 60000 - 0.01)) {
+      row.gc = await probe('gc');
+      if (!gcBase && row.min >= WARMUP / 60000 - 0.01 && row.gc && !row.gc.error) gcBase = row;
+      console.log(memLine(row.gc, 'after GC'));
+    }
   };
+  let gcBase = null;
 
   const end = t0 + MINUTES * 60_000;
   let last = performance.now();
   while (performance.now() < end - 1000) {
     await sleep(Math.min(INTERVAL, end - performance.now()));
     const now = performance.now();
-    await take({ secs: (now - last) / 1000 });
+    await take({ secs: (now - last) / 1000, last: performance.now() >= end - 1000 });
     last = now;
   }
   clearInterval(thrust);
@@ -190,6 +230,24 @@ async function main() {
     const g = (fin.rss - base.rss) / base.rss * 100, gb = (fin.beam - base.beam) / base.beam * 100;
     console.log(`# memory flat: ${g < 5 ? 'yes' : 'NO'} — RSS ${f1(base.rss)} -> ${f1(fin.rss)} MiB (${g.toFixed(1)} %) from minute ${f1(base.min)} to ${f1(fin.min)}; ` +
       `erlang:memory(total) ${f1(base.beam)} -> ${f1(fin.beam)} MiB (${gb.toFixed(1)} %); processes ${base.procs} -> ${fin.procs}`);
+    // live data after the GC: the processes' data (not their heap blocks, whose size after a
+    // GC depends on their size before it) + everything else erlang:memory counts (system)
+    const live = (r) => (r?.gc?.memory && r.gc.processes_live != null ? r.gc.memory.system + r.gc.processes_live : undefined);
+    if (gcBase && gcBase !== fin && live(fin) != null) {
+      const a = live(gcBase), b = live(fin), gg = (b - a) / a * 100;
+      const tg = (fin.gc.memory.total - gcBase.gc.memory.total) / gcBase.gc.memory.total * 100;
+      const parts = ['binary', 'ets', 'code', 'atom']
+        .map((k) => `${k} ${MiB(gcBase.gc.memory[k])} -> ${MiB(fin.gc.memory[k])}`).join(', ');
+      console.log(`# memory after a forced GC flat: ${gg < 5 ? 'yes' : 'NO'} — live data after garbage-collecting every process ` +
+        `(erlang:memory(system) + the processes' data) ${MiB(a)} -> ${MiB(b)} MiB (${gg.toFixed(1)} %, flat: < 5 %) ` +
+        `from minute ${f1(gcBase.min)} to ${f1(fin.min)}: processes' data ${MiB(gcBase.gc.processes_live)} -> ${MiB(fin.gc.processes_live)}, ` +
+        `${parts} MiB; erlang:memory(total) after the GC ${MiB(gcBase.gc.memory.total)} -> ${MiB(fin.gc.memory.total)} MiB (${tg.toFixed(1)} %, ` +
+        `processes' heap blocks ${MiB(gcBase.gc.memory.processes)} -> ${MiB(fin.gc.memory.processes)}); ` +
+        `allocator carriers ${MiB(gcBase.gc.carriers)} -> ${MiB(fin.gc.carriers)} MiB, blocks in use ${MiB(gcBase.gc.blocks)} -> ${MiB(fin.gc.blocks)} MiB` +
+        (g >= 5 && gg < 5 ? ' — RSS grew but live data did not: allocator retention, not a leak' : ''));
+    } else {
+      console.log('# memory after a forced GC flat: n/a (no forced GC after the warm-up besides the last row)');
+    }
     const ok = (a, b) => b <= 1.5 * a + 2; // last interval's p99 within 1.5x + 2 ms of the first after warm-up
     console.log(`# latency flat: ${ok(base.c99, fin.c99) && ok(base.d99, fin.d99) ? 'yes' : 'NO'} — control p99 ${f1(base.c99)} -> ${f1(fin.c99)} ms, ` +
       `delivery p99 ${f1(base.d99)} -> ${f1(fin.d99)} ms (flat: last <= 1.5 x first after warm-up + 2 ms); ` +
@@ -201,35 +259,6 @@ async function main() {
   await Promise.all(workers.map((w) => w.terminate()));
   process.exit(0);
 }
-
-// The server-side figures, evaluated on the server's node through a hidden node: JSON on one line.
-const PROBE = `
-Node = list_to_atom(os:getenv("SOAK_NODE")),
-F = fun() ->
-  Who = fun(P, I) ->
-    case proplists:get_value(registered_name, I) of
-      [] -> case proplists:get_value('$initial_call', proplists:get_value(dictionary, I, [])) of
-              {M, Fn, A} -> io_lib:format("~p (~s:~s/~b)", [P, M, Fn, A]);
-              _ -> {M, Fn, A} = proplists:get_value(initial_call, I), io_lib:format("~p (~s:~s/~b)", [P, M, Fn, A])
-            end;
-      Name -> atom_to_list(Name)
-    end
-  end,
-  Qs = lists:foldl(fun(P, Acc) ->
-    case erlang:process_info(P, [message_queue_len, registered_name, dictionary, initial_call]) of
-      undefined -> Acc;
-      I -> [{proplists:get_value(message_queue_len, I), P, I} | Acc]
-    end end, [], erlang:processes()),
-  Top = lists:sublist(lists:reverse(lists:keysort(1, Qs)), 2),
-  {erlang:system_info(process_count), erlang:memory(total), [{L, lists:flatten(Who(P, I))} || {L, P, I} <- Top]}
-end,
-case rpc:call(Node, erlang, apply, [F, []], 30000) of
-  {Procs, Mem, Top} ->
-    Q = [io_lib:format("{\\"len\\":~b,\\"who\\":\\"~s\\"}", [L, [C || C <- W, C =/= $", C =/= $\\\\]]) || {L, W} <- Top],
-    io:format("~n{\\"procs\\":~b,\\"memory\\":~b,\\"queues\\":[~s]}~n", [Procs, Mem, lists:join(",", Q)]);
-  Other -> io:format("~n{\\"error\\":\\"~s\\"}~n", [[C || C <- lists:flatten(io_lib:format("~p", [Other])), C =/= $", C =/= $\\\\]])
-end,
-halt().`;
 
 // Telemetry delivery latencies: a histogram of 0.1 ms bins up to 10 s (the last bin: beyond).
 const BINS = 100_000;
