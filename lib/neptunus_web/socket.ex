@@ -65,7 +65,12 @@ defmodule NeptunusWeb.Socket do
       fill up with dead states between its rare full sweeps and keep the heap large;
     * a connection that receives nothing for a second (an observer of a
       vehicle that does not stream, a page left open on the fleet) hibernates: its heap is
-      shrunk to its live data until the next message.
+      shrunk to its live data until the next message;
+    * a streaming connection is never idle that long, so it also hibernates at each idle
+      check (every quarter of `idle_timeout_ms`): a burst (the presence diffs of many joins,
+      a backlog of frames) grows the heap, and a full sweep keeps a heap as long as a
+      quarter of it is in use; hibernation shrinks it to the live data, and the heap grows
+      back only as far as the frames need.
   """
   require Logger
 
@@ -336,7 +341,8 @@ defmodule NeptunusWeb.Socket do
         {:close, {1000, "heartbeat timeout"}, state}
 
       true ->
-        {:noreply, state}
+        # compact the heap a burst left large (see "Memory")
+        {:noreply, state, :hibernate}
     end
   end
 
