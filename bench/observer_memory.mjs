@@ -1,16 +1,18 @@
 // Memory per observer, client side (bench/observer_memory starts the server and this script):
 // opens observers of "vehicle:<id>" step by step over raw Phoenix Channels v2 WebSockets (the
 // `ws` package, worker threads), each joined and reading every frame; after each step waits
-// OBSMEM_SETTLE_S, checks that every observer receives telemetry at the vehicle's rate, and
-// samples the server: RSS (/proc/<pid>/status) and, through a hidden Erlang node on the
-// server's VM, erlang:memory() by type, process and port counts, and yaws' WebSocket
-// connection processes (children of yaws_ws_sup, one per connection: the process that runs
-// NeptunusWeb.Socket) — memory, heap, stack, mailbox, the refc binaries they reference — and
-// their sockets (port memory, sndbuf/recbuf/buffer). Prints a table, then the deltas per
-// observer against the first step. Prints figures, asserts nothing.
+// OBSMEM_SETTLE_S (longer than a connection's idle check, every 15 s), checks that every
+// observer receives telemetry at the vehicle's rate, and samples the server: RSS
+// (/proc/<pid>/status) and, through a hidden Erlang node on the server's VM, erlang:memory()
+// by type (taken first, before the probe allocates anything), process and port counts, yaws'
+// WebSocket connection processes (children of yaws_ws_sup, one per connection: the process
+// that runs NeptunusWeb.Socket) — memory, heap, stack, mailbox, the refc binaries they
+// reference — their sockets (port memory, sndbuf/recbuf/buffer), and the largest other
+// processes. Prints a table, then the deltas per observer against the first step. Prints
+// figures, asserts nothing.
 //
 // Environment: OBSMEM_URL, OBSMEM_VEHICLE (neptunus-1), OBSMEM_STEPS ("0 250 500 1000 2000"),
-// OBSMEM_SETTLE_S (10), OBSMEM_HZ (20, the expected telemetry rate), OBSMEM_SERVER_PID,
+// OBSMEM_SETTLE_S (20), OBSMEM_HZ (20, the expected telemetry rate), OBSMEM_SERVER_PID,
 // OBSMEM_NODE, OBSMEM_COOKIE, OBSMEM_WINDOW (100 connects in flight).
 
 import { createRequire } from 'node:module';
@@ -36,7 +38,7 @@ const wsUrl = (name) => `${URL_BASE}/socket/websocket?vsn=2.0.0&name=${name}`;
 const PROBE = `
 Node = list_to_atom(os:getenv("OBSMEM_NODE")),
 F = fun() ->
-  garbage_collect(),
+  Mem = erlang:memory(),
   Ws = [P || {_, P, _, _} <- supervisor:which_children(yaws_ws_sup), is_pid(P)],
   Keys = [memory, total_heap_size, heap_size, stack_size, message_queue_len, binary],
   {Sum, Max, Bins} = lists:foldl(fun(P, {S, M, B}) ->
@@ -57,12 +59,28 @@ F = fun() ->
            [S1 | _] -> case inet:getopts(S1, [sndbuf, recbuf, buffer]) of {ok, O} -> O; _ -> [] end;
            [] -> []
          end,
+  Name = fun(P) ->
+    case erlang:process_info(P, [registered_name, dictionary, initial_call]) of
+      undefined -> "gone";
+      I -> case proplists:get_value(registered_name, I) of
+             [] -> case proplists:get_value('$initial_call', proplists:get_value(dictionary, I)) of
+                     {M, Fn, A} -> lists:flatten(io_lib:format("~s:~s/~b", [M, Fn, A]));
+                     _ -> {M, Fn, A} = proplists:get_value(initial_call, I), lists:flatten(io_lib:format("~s:~s/~b", [M, Fn, A]))
+                   end;
+             N -> atom_to_list(N)
+           end
+    end
+  end,
+  Others = lists:sublist(lists:reverse(lists:sort(
+    [{M, P} || P <- erlang:processes(), not maps:is_key(P, WsSet), {memory, M} <- [erlang:process_info(P, memory)]])), 6),
+  Top = [{list_to_atom("top " ++ [C || C <- Name(P), C =/= $"]), M} || {M, P} <- Others],
+  Top ++
   [{procs, erlang:system_info(process_count)}, {ports, length(erlang:ports())}, {conns, length(Ws)},
    {conn_sockets, length(Socks)}, {conn_port_memory, PortMem}, {conn_max_memory, Max},
    {conn_unique_binary_bytes, lists:sum(maps:values(Bins))}]
   ++ lists:zip([conn_memory, conn_total_heap_words, conn_heap_words, conn_stack_words, conn_queue,
                 conn_binaries, conn_binary_bytes], Sum)
-  ++ [{list_to_atom("mem_" ++ atom_to_list(K)), V} || {K, V} <- erlang:memory()]
+  ++ [{list_to_atom("mem_" ++ atom_to_list(K)), V} || {K, V} <- Mem]
   ++ [{list_to_atom("sock_" ++ atom_to_list(K)), V} || {K, V} <- Opts]
   ++ [{wordsize, erlang:system_info(wordsize)}]
 end,
@@ -75,7 +93,7 @@ halt().`;
 
 async function main() {
   const STEPS = (process.env.OBSMEM_STEPS ?? '0 250 500 1000 2000').trim().split(/\s+/).map(Number).sort((a, b) => a - b);
-  const SETTLE = num(process.env.OBSMEM_SETTLE_S, 10) * 1000;
+  const SETTLE = num(process.env.OBSMEM_SETTLE_S, 20) * 1000;
   const HZ = num(process.env.OBSMEM_HZ, 20);
   const SERVER_PID = Number(process.env.OBSMEM_SERVER_PID ?? 0);
   const WINDOW = num(process.env.OBSMEM_WINDOW, 100);
@@ -145,6 +163,7 @@ async function main() {
       s.conns ? `${(s.conn_binaries / c).toFixed(1)} (${KiB(s.conn_binary_bytes / c)}; ${KiB(s.conn_unique_binary_bytes)} distinct in all)` : '-',
       s.conns ? (s.conn_queue / c).toFixed(2) : '-',
       s.conn_sockets ? `${Math.round(s.conn_port_memory / s.conn_sockets)}` : '-'].join(' | '));
+    console.log(`#   largest other processes: ${Object.entries(s).filter(([k]) => k.startsWith('top ')).map(([k, v]) => `${k.slice(4)} ${KiB(v)} KiB`).join(', ')}`);
     if (starved || closed) console.log(`#   ${starved} observers received fewer than ${HZ / 2} frames/s; ${closed} closed by the server`);
   }
   const base = rows[0];
