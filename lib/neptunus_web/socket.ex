@@ -63,10 +63,6 @@ defmodule NeptunusWeb.Socket do
       0): the connection's live data is small and lasts (yaws' request record, the router),
       while each frame leaves only short-lived garbage, so a generational old heap would only
       fill up with dead states between its rare full sweeps and keep the heap large;
-    * messages waiting in the mailbox stay off the process heap (`message_queue_data`
-      `:off_heap`): a burst of broadcasts (the presence diffs of many joins, a slow client's
-      backlog) would otherwise be copied into the heap at the next collection and grow it for
-      good;
     * a connection that receives nothing for a second (an observer of a
       vehicle that does not stream, a page left open on the fleet) hibernates: its heap is
       shrunk to its live data until the next message;
@@ -178,10 +174,8 @@ defmodule NeptunusWeb.Socket do
 
     # an observer until the helm grants this connection control (FlowControl)
     Process.flag(:priority, FlowControl.priority(flow))
-    # every collection a full one: no old heap of dead frames and states; waiting messages
-    # kept off the heap, so a burst does not grow it (see "Memory")
+    # every collection a full one: no old heap of dead frames and states (see "Memory")
     :erlang.process_flag(:fullsweep_after, @fullsweep_after)
-    :erlang.process_flag(:message_queue_data, :off_heap)
     :timer.send_interval(max(div(idle_timeout_ms, 4), 10), :check_idle)
 
     {:ok,
