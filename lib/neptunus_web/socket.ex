@@ -68,9 +68,9 @@ defmodule NeptunusWeb.Socket do
       shrunk to its live data until the next message;
     * a streaming connection is never idle that long, so it also hibernates at each idle
       check (every quarter of `idle_timeout_ms`): a burst (the presence diffs of many joins,
-      a backlog of frames) grows the heap, and a full sweep keeps a heap as long as a
-      quarter of it is in use; hibernation shrinks it to the live data, and the heap grows
-      back only as far as the frames need.
+      a backlog of frames) grows the heap, and a full sweep shrinks a heap only when little
+      of it is in use; hibernation shrinks it to the live data, and the heap grows back only
+      as far as the frames need.
   """
   require Logger
 
