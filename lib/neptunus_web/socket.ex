@@ -57,15 +57,15 @@ defmodule NeptunusWeb.Socket do
 
     * broadcast frames go out as the shared binary `Neptunus.PubSub` encoded once, behind a
       WebSocket header written here (`NeptunusWeb.Socket.WsFrame`), never through yaws' send,
-      which copies header and payload into one new binary per connection: each connection
-      then held a private copy of every recent frame until its next collection;
+      which copies header and payload into one new binary per connection and so would give
+      each connection a private copy of every recent frame until its next collection;
     * every garbage collection of the connection process is a full one (`fullsweep_after`
       0): the connection's live data is small and lasts (yaws' request record, the router),
       while each frame leaves only short-lived garbage, so a generational old heap would only
       fill up with dead states between its rare full sweeps and keep the heap large;
-    * a connection that receives nothing for a second (an observer of a
-      vehicle that does not stream, a page left open on the fleet) hibernates: its heap is
-      shrunk to its live data until the next message;
+    * a connection that receives nothing for a second (an observer of a vehicle that does
+      not stream, a page left open on the fleet) hibernates: its heap is shrunk to its live
+      data until the next message;
     * a streaming connection is never idle that long, so it also hibernates at each idle
       check (every quarter of `idle_timeout_ms`): a burst (the presence diffs of many joins,
       a backlog of frames) grows the heap, and a full sweep shrinks a heap only when little
