@@ -50,6 +50,27 @@ defmodule NeptunusWeb.Socket do
   new one and sends each joined channel `:presence_restarted` (see `NeptunusWeb.Channel`):
   the vehicle channel tracks again and pushes a fresh `presence_state`. A join while either
   is restarting is refused with "server restarting: join again" (the client retries).
+
+  ## Memory
+
+  A board serves many observers, so a connection is kept small (`bench/observer_memory`):
+
+    * broadcast frames go out as the shared binary `Neptunus.PubSub` encoded once, behind a
+      WebSocket header written here (`NeptunusWeb.Socket.WsFrame`), never through yaws' send,
+      which copies header and payload into one new binary per connection and so would give
+      each connection a private copy of every recent frame until its next collection;
+    * every garbage collection of the connection process is a full one (`fullsweep_after`
+      0): the connection's live data is small and lasts (yaws' request record, the router),
+      while each frame leaves only short-lived garbage, so a generational old heap would only
+      fill up with dead states between its rare full sweeps and keep the heap large;
+    * a connection that receives nothing for a second (an observer of a vehicle that does
+      not stream, a page left open on the fleet) hibernates: its heap is shrunk to its live
+      data until the next message;
+    * a streaming connection is never idle that long, so it also hibernates at each idle
+      check (every quarter of `idle_timeout_ms`): a burst (the presence diffs of many joins,
+      a backlog of frames) grows the heap, and a full sweep shrinks a heap only when little
+      of it is in use; hibernation shrinks it to the live data, and the heap grows back only
+      as far as the frames need.
   """
   require Logger
 
@@ -58,15 +79,19 @@ defmodule NeptunusWeb.Socket do
   alias Neptunus.PubSub
   alias NeptunusWeb.{Auth, Presence}
   alias NeptunusWeb.Channels.{FleetChannel, LogChannel, VehicleChannel}
-  alias NeptunusWeb.Socket.{FlowControl, Router}
+  alias NeptunusWeb.Socket.{FlowControl, Router, WsFrame}
 
   @routes [{"fleet", FleetChannel}, {"vehicle:*", VehicleChannel}, {"log:*", LogChannel}]
 
   @ipproto_tcp 6
+  # see "Memory"
+  @fullsweep_after 0
   @tcp_notsent_lowat 25
   @max_message_bytes 65_536
   # how often to look for the presence server while it restarts
   @presence_retry_ms 20
+  # an idle connection (nothing received for this long) hibernates (see "Memory")
+  @hibernate_after_ms 1_000
 
   defmodule State do
     @moduledoc false
@@ -116,6 +141,7 @@ defmodule NeptunusWeb.Socket do
       {:ok, user} ->
         opts = [
           {:callback, {:basic, %{user: user}}},
+          {:hibernate_after, @hibernate_after_ms},
           {:max_frame_size, @max_message_bytes},
           {:max_message_size, @max_message_bytes}
         ]
@@ -148,6 +174,8 @@ defmodule NeptunusWeb.Socket do
 
     # an observer until the helm grants this connection control (FlowControl)
     Process.flag(:priority, FlowControl.priority(flow))
+    # every collection a full one: no old heap of dead frames and states (see "Memory")
+    :erlang.process_flag(:fullsweep_after, @fullsweep_after)
     :timer.send_interval(max(div(idle_timeout_ms, 4), 10), :check_idle)
 
     {:ok,
@@ -188,7 +216,7 @@ defmodule NeptunusWeb.Socket do
   def handle_info({:pubsub_frame, topic, event, frame}, state) do
     cond do
       not Router.joined?(state.router, topic) -> {:noreply, state}
-      FlowControl.deliver?(state.flow, event, waiting()) -> {:reply, {:text, frame}, state}
+      FlowControl.deliver?(state.flow, event, waiting()) -> push(state, frame)
       true -> shed(state)
     end
   end
@@ -313,7 +341,8 @@ defmodule NeptunusWeb.Socket do
         {:close, {1000, "heartbeat timeout"}, state}
 
       true ->
-        {:noreply, state}
+        # compact the heap a burst left large (see "Memory")
+        {:noreply, state, :hibernate}
     end
   end
 
@@ -356,6 +385,20 @@ defmodule NeptunusWeb.Socket do
 
     %{state | presence: ref}
   end
+
+  # A broadcast frame, shared with every other connection that receives it: sent as the
+  # header and that binary, not through yaws, which would copy it (see "Memory"). The result
+  # is ignored as yaws ignores it: a socket closed by the send timeout is found by
+  # `connected?/1`, one the client closed by yaws.
+  defp push(%State{sock: nil} = state, frame), do: {:reply, {:text, frame}, state}
+
+  defp push(%State{sock: sock} = state, frame) do
+    _ = send_data(sock, WsFrame.text(frame))
+    {:noreply, state}
+  end
+
+  defp send_data({:ssl, sock}, data), do: :ssl.send(sock, data)
+  defp send_data(sock, data), do: :gen_tcp.send(sock, data)
 
   defp reply(state, []), do: {:noreply, state}
   defp reply(state, frames), do: {:reply, Enum.map(frames, &{:text, &1}), state}
