@@ -10,7 +10,7 @@
 
 import assert from "node:assert/strict";
 import { after, before, test } from "node:test";
-import { DESKTOP, TABLET, TEST_MS, WAIT_MS, assertNoPageProblems, launch, open, takeHelm, until, waitTelemetry } from "./helpers.mjs";
+import { DESKTOP, TABLET, TEST_MS, WAIT_MS, assertNoPageProblems, launch, open, screenshot, takeHelm, until, waitTelemetry } from "./helpers.mjs";
 
 const VEHICLE = process.env.FLEET_VEHICLE;
 const NODE = process.env.FLEET_NODE;
@@ -83,6 +83,7 @@ test("the fleet overview on a 1024×768 touch tablet: the vehicle on V, live; a 
     await waitTelemetry(pilot.page);
     await takeHelm(pilot.page);
     await until(() => overviewRow(page), (r) => r.pilot === "fleet-pilot", 10_000, "the pilot's name in the overview");
+    await screenshot(page, "fleet-overview-tablet.png", { fullPage: false });
 
     await Promise.all([page.waitForURL((url) => url.searchParams.get("vehicle") === VEHICLE, { timeout: WAIT_MS }), row.tap()]);
     await page.locator('#status[data-state="connected"]').waitFor({ timeout: WAIT_MS });
