@@ -16,8 +16,10 @@ defmodule Neptunus.Fleet do
   the same id).
 
   `:rest_for_one`, in order: the scope (a crash empties it: everything after restarts and
-  joins again, the vehicles neutral), the registry, the vehicles, then the directory (a
-  crash of it restarts nothing that moves a vehicle).
+  joins again, the vehicles neutral), the registry, the vehicles, then the directory, the
+  overview's feed (`Neptunus.Fleet.Overview`) and the camera relays
+  (`NeptunusWeb.CameraRelay`, in the registry too): a crash of these restarts nothing that
+  moves a vehicle.
   """
   use Supervisor
 
@@ -250,7 +252,10 @@ defmodule Neptunus.Fleet do
       {Registry, keys: :unique, name: @registry},
       {DynamicSupervisor, strategy: :one_for_one, name: @vehicles},
       %{id: :configured, start: {__MODULE__, :start_configured, [vehicles]}, restart: :transient},
-      {Directory, @scope}
+      {Directory, @scope},
+      Neptunus.Fleet.Overview,
+      # one relay per camera of another node that this node's viewers watch
+      {DynamicSupervisor, strategy: :one_for_one, name: Neptunus.Fleet.Relays}
     ]
 
     Supervisor.init(children, strategy: :rest_for_one)

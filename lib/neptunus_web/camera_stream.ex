@@ -12,15 +12,16 @@ defmodule NeptunusWeb.CameraStream do
   as soon as the scope is back: the viewer misses a few frames, not the rest of the stream.
 
   A vehicle on another node of the fleet is watched the same way from any node: whether it
-  has a camera and its newest frame are asked on its node (`Neptunus.Fleet.on_vehicle_node/5`),
-  its frames arrive as broadcasts of its topic.
+  has a camera and its newest frame are asked on its node (`Neptunus.Fleet.on_vehicle_node/5`);
+  its frames come through this node's relay of that camera (`NeptunusWeb.CameraRelay`), so
+  they cross between the nodes once per frame, not once per viewer.
   """
   import NeptunusWeb.Yaws
 
   alias Neptunus.{Fleet, PubSub}
   alias Neptunus.Camera.MJPEG
   alias Neptunus.Vehicle.Camera
-  alias NeptunusWeb.API
+  alias NeptunusWeb.{API, CameraRelay}
 
   @doc false
   def out(arg) do
@@ -79,8 +80,18 @@ defmodule NeptunusWeb.CameraStream do
     )
   end
 
-  # Subscribes to the camera's frames, watching the PubSub scope (waits while it restarts).
+  # Subscribes to the camera's frames: a vehicle on another node through this node's relay,
+  # a vehicle here directly. Returns a monitor of what serves the frames (the relay or the
+  # PubSub scope): on its :DOWN, subscribe again.
   defp subscribe(id) do
+    case Fleet.vehicle_node(id) do
+      {:ok, node} when node != node() -> CameraRelay.subscribe(id)
+      _here_or_unreachable -> subscribe_here(id)
+    end
+  end
+
+  # Subscribes to the camera's topic, watching the PubSub scope (waits while it restarts).
+  defp subscribe_here(id) do
     case PubSub.monitor() do
       {:ok, ref} ->
         case PubSub.subscribe(Camera.topic(id)) do

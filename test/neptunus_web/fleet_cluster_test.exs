@@ -291,6 +291,52 @@ defmodule NeptunusWeb.FleetClusterTest do
     :gen_tcp.close(socket)
   end
 
+  test "camera frames cross to T once per frame, not once per viewer on T" do
+    script = Path.expand("../fixtures/camera/fake_camera.sh", __DIR__)
+    id = "far-cam-#{System.unique_integer([:positive])}"
+    camera = %{kind: :exec, program: "/bin/sh", args: [script, "0"]}
+    name = :"fleet_v#{port()}_#{System.unique_integer([:positive])}"
+    peer = Cluster.start_node!(name, port() + 5, [%{id: id, board: :simulated, camera: camera}])
+    on_exit(fn -> Cluster.stop_node(peer) end)
+
+    # what the camera process on V sends to other nodes
+    broadcaster = Cluster.call(peer, Fleet, :whereis, [Neptunus.Vehicle.Camera, id])
+    assert is_pid(broadcaster)
+    {:ok, tracer} = Cluster.call(peer, Cluster.SendTracer, :start, [broadcaster])
+
+    # three viewers on T
+    viewers =
+      for _ <- 1..3 do
+        {200, headers, body, socket} = raw_get("/camera/#{id}.mjpg")
+        assert headers["content-type"] =~ "multipart/x-mixed-replace"
+        {socket, body}
+      end
+
+    # each gets new frames (at least three parts each)
+    for {socket, body} <- viewers,
+        do: assert(read_parts(socket, body, 3))
+
+    # one receiver on T (this node's relay), not one per viewer
+    receivers = Cluster.call(peer, Cluster.SendTracer, :remote_receivers, [tracer])
+    assert map_size(receivers) == 1, "receivers on T: #{inspect(receivers)}"
+    assert Map.keys(receivers) == [NeptunusWeb.CameraRelay.whereis(id)]
+
+    # the last viewer gone, the relay stops
+    for {socket, _} <- viewers, do: :gen_tcp.close(socket)
+    Cluster.wait!(fn -> NeptunusWeb.CameraRelay.whereis(id) == nil end, "the relay stops")
+  end
+
+  defp read_parts(socket, acc, n) do
+    parts = length(String.split(acc, "Content-Type: image/jpeg")) - 1
+
+    if parts >= n do
+      true
+    else
+      {:ok, more} = :gen_tcp.recv(socket, 0, 5_000)
+      read_parts(socket, acc <> more, n)
+    end
+  end
+
   defp read_until(socket, acc, text) do
     if String.contains?(acc, text) do
       true

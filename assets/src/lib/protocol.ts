@@ -12,6 +12,24 @@ export interface VehicleInfo {
   readonly node?: string;
   /** "up", or "unreachable" while its node is cut off from the server's */
   readonly status?: string;
+  /** the fleet's directory (topic `fleet`) says these; absent from a snapshot or an older server */
+  readonly detail?: FleetDetail;
+}
+
+/** What the fleet's directory says of a vehicle (nulls: unknown, or its node is cut off). */
+export interface FleetDetail {
+  /** the helm's state ("free", "held", …) */
+  readonly helm: string | null;
+  /** the pilot's name; null: nobody */
+  readonly pilot: string | null;
+  /** the board link (null before the first telemetry) */
+  readonly link: { readonly up: boolean; readonly reason: string | null } | null;
+  /** m, positive down */
+  readonly depth: number | null;
+  /** rad */
+  readonly heading: number | null;
+  /** whether its recorder records */
+  readonly recording: boolean;
 }
 
 /** Sensor readings as the board reports them (after wild-point rejection). */
@@ -596,11 +614,40 @@ export function decodeVehicleInfo(value: unknown): VehicleInfo | null {
   if (!isRecord(value)) return null;
   const { id, board, node, status } = value;
   if (typeof id !== "string" || typeof board !== "string") return null;
+  const detail = decodeFleetDetail(value);
   return {
     id,
     board,
     ...(typeof node === "string" ? { node } : {}),
     ...(typeof status === "string" ? { status } : {}),
+    ...(detail ? { detail } : {}),
+  };
+}
+
+function finiteOrNull(value: unknown): number | null {
+  return typeof value === "number" && Number.isFinite(value) ? value : null;
+}
+
+function stringOrNull(value: unknown): string | null {
+  return typeof value === "string" ? value : null;
+}
+
+/**
+ * The directory's fields of a fleet entry (`helm`, `pilot`, `link`, `depth`, `heading`,
+ * `recording`), or null when it has none of them (a snapshot's vehicle, an older server).
+ * A malformed field reads as unknown (null).
+ */
+export function decodeFleetDetail(value: Json): FleetDetail | null {
+  const keys = ["helm", "pilot", "link", "depth", "heading", "recording"];
+  if (!keys.some((k) => k in value)) return null;
+  const link = value["link"];
+  return {
+    helm: stringOrNull(value["helm"]),
+    pilot: stringOrNull(value["pilot"]),
+    link: isRecord(link) && typeof link["up"] === "boolean" ? { up: link["up"], reason: stringOrNull(link["reason"]) } : null,
+    depth: finiteOrNull(value["depth"]),
+    heading: finiteOrNull(value["heading"]),
+    recording: value["recording"] === true,
   };
 }
 

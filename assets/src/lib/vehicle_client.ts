@@ -3,7 +3,8 @@
  *
  * - `NeptunusClient` owns the Socket (`/socket`, params `{name}` in local mode, `{token}` after
  *   a login — in the query string: yaws has no WebSocket subprotocols).
- * - `fleet()` joins `fleet` and resolves with the vehicle list.
+ * - `fleet()` joins `fleet` and resolves with the vehicle list; `FleetHandlers` get its
+ *   updates (`vehicles`, `unreachable`, `reachable`) while joined.
  * - `vehicle(id)` gives a `VehicleChannel` for `vehicle:<id>`: join → snapshot, telemetry,
  *   helm, presence and the helm's events for this connection (`control_request`,
  *   `control_granted`, `control_lost`, `request_denied`), and commands (`thrust`, `stop`,
@@ -49,6 +50,7 @@ import type {
   PresenceEntry,
   Telemetry,
   ThrustReply,
+  VehicleInfo,
   VehicleSettings,
   VehicleSnapshot,
 } from "./protocol";
@@ -72,6 +74,15 @@ export class CommandError extends Error {
 
 export const DEFAULT_JOIN_TIMEOUT_MS = 5000;
 export const DEFAULT_COMMAND_TIMEOUT_MS = 2000;
+
+/** Updates of the fleet's directory (topic `fleet`) after its join reply. */
+export interface FleetHandlers {
+  /** the whole list, when it changed (at most once a second) */
+  readonly vehicles?: (vehicles: readonly VehicleInfo[]) => void;
+  /** vehicle `id`'s node was cut off from the server's (`false`) or is back (`true`) */
+  readonly reachability?: (id: string, reachable: boolean) => void;
+  readonly protocolError?: (what: string, payload: unknown) => void;
+}
 
 export interface NeptunusClientOptions {
   /** Socket endpoint; the client appends `/websocket`. Default "/socket". */
@@ -129,11 +140,29 @@ export class NeptunusClient {
     return new Promise((resolve) => this.socket.disconnect(() => resolve()));
   }
 
-  /** Joins `fleet` (once) and resolves with its join reply. */
-  fleet(timeoutMs = DEFAULT_JOIN_TIMEOUT_MS): Promise<FleetReply> {
+  /**
+   * Joins `fleet` (once: a second call leaves the first) and resolves with its join reply;
+   * `handlers` get the directory's updates while it stays joined.
+   */
+  fleet(timeoutMs = DEFAULT_JOIN_TIMEOUT_MS, handlers: FleetHandlers = {}): Promise<FleetReply> {
     if (this.fleetChannel) this.fleetChannel.leave();
     const channel = this.socket.channel("fleet", {});
     this.fleetChannel = channel;
+    channel.on("vehicles", (payload: unknown) => {
+      const reply = decodeFleetReply(payload);
+      if (reply) handlers.vehicles?.(reply.vehicles);
+      else handlers.protocolError?.("vehicles", payload);
+    });
+    for (const [event, reachable] of [
+      ["unreachable", false],
+      ["reachable", true],
+    ] as const) {
+      channel.on(event, (payload: unknown) => {
+        const id = isRecord(payload) ? payload["id"] : undefined;
+        if (typeof id === "string") handlers.reachability?.(id, reachable);
+        else handlers.protocolError?.(event, payload);
+      });
+    }
     return awaitPush(channel.join(timeoutMs), decodeFleetReply, "fleet join").catch(
       (err: unknown) => {
         // A refused join is retried forever by the client; we asked once.

@@ -6,6 +6,7 @@ import { ageText } from "../lib/clock";
 import { PLACEHOLDER, formatFixed, formatHeading } from "../lib/units";
 import { useStore } from "../lib/use_store";
 import type { OperatorController, OperatorState } from "./controller";
+import { overviewRows } from "./fleet";
 import { barGeometry, downFor, fmt, formatDeg, vehicleHref, vehicleLabel } from "./format";
 import { Camera, Hud } from "./hud";
 import { HelmPanel, InputPanel, Panel, SettingsPanel } from "./panels";
@@ -39,6 +40,56 @@ function VehiclePicker({ s }: { s: OperatorState }): preact.JSX.Element {
         </option>
       ))}
     </select>
+  );
+}
+
+/**
+ * Every vehicle of the fleet with depth, heading, pilot, link, REC, node and status, live;
+ * a click or a tap opens it (`?vehicle=ID`). Rows are links: big enough for a finger.
+ */
+function FleetOverview({ s }: { s: OperatorState }): preact.JSX.Element {
+  const rows = overviewRows(s.fleet, s.vehicleId, window.location.search);
+  return (
+    <Panel title="Fleet" id="fleet">
+      <ul class="fleet-list" id="fleet-overview" data-testid="fleet-overview">
+        {rows.map((r) => (
+          <li key={r.id}>
+            <a
+              class="fleet-row"
+              href={r.href}
+              data-vehicle={r.id}
+              data-status={r.status}
+              aria-current={r.current ? "page" : undefined}
+              title={r.summary}
+            >
+              <span class="fleet-name">
+                <strong>{r.id}</strong> <small class="fleet-node">{r.node}</small>
+                {r.rec ? (
+                  <span class="fleet-rec" data-testid="fleet-rec">
+                    {" "}
+                    REC
+                  </span>
+                ) : null}
+              </span>
+              {r.status === "unreachable" ? (
+                <span class="fleet-status" data-field="status">
+                  unreachable
+                </span>
+              ) : (
+                <span class="fleet-fields">
+                  <span data-field="depth">{r.depth}</span>
+                  <span data-field="heading">{r.heading}</span>
+                  <span data-field="pilot">{r.pilot}</span>
+                  <span data-field="link" data-up={r.linkUp === null ? undefined : String(r.linkUp)}>
+                    link {r.link}
+                  </span>
+                </span>
+              )}
+            </a>
+          </li>
+        ))}
+      </ul>
+    </Panel>
   );
 }
 
@@ -263,6 +314,7 @@ export function App({ controller }: { controller: OperatorController }): preact.
           </div>
         </div>
         <aside class="side-column">
+          {s.fleet.length > 1 ? <FleetOverview s={s} /> : null}
           <HelmPanel s={s} c={controller} />
           <VehiclePanel s={s} c={controller} />
           <InputPanel s={s} c={controller} />

@@ -68,7 +68,8 @@ import { PageSession, loginUrl } from "../lib/session";
 import { GAMEPAD_MAPPING_KEY, SettingsClient, notKept } from "../lib/settings";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
-import type { ConnectionStatus, VehicleChannel } from "../lib/vehicle_client";
+import type { ConnectionStatus, FleetHandlers, VehicleChannel } from "../lib/vehicle_client";
+import { withReachability } from "./fleet";
 import { HEADSET_OFF, HeadsetInput } from "./headset";
 import type { HeadsetState } from "./headset";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
@@ -337,7 +338,7 @@ export class OperatorController {
     const requested = this.params.get("vehicle");
     if (requested !== null) {
       // the picker's list; the requested vehicle opens whatever it says
-      client.fleet().then(
+      client.fleet(undefined, this.fleetHandlers()).then(
         (fleet) => this.store.update({ fleet: fleet.vehicles }),
         () => undefined,
       );
@@ -347,7 +348,7 @@ export class OperatorController {
     }
     for (;;) {
       try {
-        const fleet = await client.fleet();
+        const fleet = await client.fleet(undefined, this.fleetHandlers());
         // the first vehicle that can be reached (one whose node of the fleet is cut off cannot be joined)
         const first = fleet.vehicles.find((v) => v.status !== "unreachable") ?? fleet.vehicles[0];
         this.store.update({ fleet: fleet.vehicles });
@@ -361,6 +362,15 @@ export class OperatorController {
       }
       await sleep(RETRY_MS);
     }
+  }
+
+  /** The fleet overview follows the directory's updates. */
+  private fleetHandlers(): FleetHandlers {
+    return {
+      vehicles: (vehicles) => this.store.update({ fleet: vehicles }),
+      reachability: (id, reachable) => this.store.update({ fleet: withReachability(this.state.fleet, id, reachable) }),
+      protocolError: (what, payload) => console.warn(`neptunus: unexpected fleet ${what} payload`, payload),
+    };
   }
 
   private openVehicle(client: NeptunusClient, id: string): void {

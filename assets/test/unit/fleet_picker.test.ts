@@ -16,7 +16,13 @@ describe("the fleet's vehicles", () => {
       }),
     ).toEqual({
       vehicles: [
-        { id: "rov1", board: "uart", node: "rov1@10.0.0.2", status: "up" },
+        {
+          id: "rov1",
+          board: "uart",
+          node: "rov1@10.0.0.2",
+          status: "up",
+          detail: { helm: "free", pilot: null, link: null, depth: null, heading: null, recording: false },
+        },
         { id: "rov2", board: "simulated", node: "rov2@10.0.0.3", status: "unreachable" },
         { id: "solo", board: "simulated" },
       ],

@@ -214,3 +214,30 @@ describe("a vehicle on another node of the fleet", () => {
     ]);
   });
 });
+
+describe("the fleet's directory, live", () => {
+  it("hands on vehicles, unreachable and reachable pushes of topic fleet; malformed payloads are protocol errors", async () => {
+    const lists: (readonly unknown[])[] = [];
+    const reach: [string, boolean][] = [];
+    const errors: string[] = [];
+    await client("fleet-overview").fleet(undefined, {
+      vehicles: (vs) => lists.push(vs),
+      reachability: (id, reachable) => reach.push([id, reachable]),
+      protocolError: (what) => errors.push(what),
+    });
+    const rov = { id: "rov1", board: "uart", node: "rov1@10.0.0.2", status: "up", helm: "free", pilot: "ada", link: { up: true, reason: null }, depth: 2.5, heading: 1, recording: true };
+    server.broadcast("fleet", "vehicles", { vehicles: [rov] });
+    server.broadcast("fleet", "unreachable", { id: "rov1", node: "rov1@10.0.0.2", reason: "node_unreachable" });
+    server.broadcast("fleet", "reachable", { id: "rov1", node: "rov1@10.0.0.2" });
+    server.broadcast("fleet", "vehicles", { vehicles: "none" });
+    server.broadcast("fleet", "reachable", { node: "rov1@10.0.0.2" });
+    expect(await eventually(() => (errors.length > 1 ? errors : undefined))).toEqual(["vehicles", "reachable"]);
+    expect(lists).toEqual([
+      [{ id: "rov1", board: "uart", node: "rov1@10.0.0.2", status: "up", detail: { helm: "free", pilot: "ada", link: { up: true, reason: null }, depth: 2.5, heading: 1, recording: true } }],
+    ]);
+    expect(reach).toEqual([
+      ["rov1", false],
+      ["rov1", true],
+    ]);
+  });
+});

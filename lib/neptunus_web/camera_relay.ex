@@ -1,0 +1,127 @@
+defmodule NeptunusWeb.CameraRelay do
+  @moduledoc """
+  One stream of a camera's frames per node: the camera of a vehicle on another node of the
+  fleet reaches this node's viewers (`NeptunusWeb.CameraStream`) through one relay process
+  here, the only subscriber of the camera's topic on this node. The camera's node sends
+  each frame once to this node, whatever the number of viewers here; the relay hands it to
+  each of them (a JPEG is a shared binary: a local send copies no pixels).
+
+  A relay is started for the first viewer (under `Neptunus.Fleet`'s relays supervisor,
+  named in its registry) and stops when the last one has gone. Viewers monitor it: if it
+  dies they subscribe again (a new relay). When the PubSub scope restarts (its
+  subscription gone) the relay subscribes again as soon as the scope is back.
+  """
+  use GenServer
+
+  alias Neptunus.{Fleet, PubSub}
+  alias Neptunus.Vehicle.Camera
+
+  @supervisor Neptunus.Fleet.Relays
+
+  defmodule State do
+    @moduledoc false
+    @type t :: %__MODULE__{
+            id: String.t(),
+            topic: String.t(),
+            viewers: %{optional(pid()) => reference()},
+            pubsub: reference() | nil
+          }
+    @enforce_keys [:id, :topic]
+    defstruct [:id, :topic, :pubsub, viewers: %{}]
+  end
+
+  @doc false
+  @spec start_link(String.t()) :: GenServer.on_start()
+  def start_link(id), do: GenServer.start_link(__MODULE__, id, name: Fleet.via(__MODULE__, id))
+
+  @doc false
+  @spec child_spec(String.t()) :: Supervisor.child_spec()
+  def child_spec(id),
+    do: %{id: {__MODULE__, id}, start: {__MODULE__, :start_link, [id]}, restart: :temporary}
+
+  @doc """
+  Subscribes the calling process to vehicle `id`'s camera frames through this node's relay
+  (term messages `{:pubsub, topic, "frame", %{jpeg: binary}}`, as from `Neptunus.PubSub`);
+  returns a monitor of the relay: on its `:DOWN`, subscribe again.
+  """
+  @spec subscribe(String.t()) :: reference()
+  def subscribe(id), do: subscribe(id, 5)
+
+  defp subscribe(id, tries) do
+    relay = relay!(id)
+    ref = Process.monitor(relay)
+    :ok = GenServer.call(relay, {:subscribe, self()})
+    ref
+  catch
+    # the relay was stopping (its last viewer gone) or restarting: a new one
+    :exit, _ when tries > 0 ->
+      Process.sleep(10)
+      subscribe(id, tries - 1)
+  end
+
+  @doc "This node's relay of vehicle `id`'s camera, or nil."
+  @spec whereis(String.t()) :: pid() | nil
+  def whereis(id), do: Fleet.whereis(__MODULE__, id)
+
+  defp relay!(id) do
+    case whereis(id) || DynamicSupervisor.start_child(@supervisor, {__MODULE__, id}) do
+      pid when is_pid(pid) -> pid
+      {:ok, pid} -> pid
+      {:error, {:already_started, pid}} -> pid
+    end
+  end
+
+  @impl true
+  def init(id) do
+    {:ok, subscribe_pubsub(%State{id: id, topic: Camera.topic(id)})}
+  end
+
+  @impl true
+  def handle_call({:subscribe, viewer}, _from, state) do
+    viewers = Map.put_new_lazy(state.viewers, viewer, fn -> Process.monitor(viewer) end)
+    {:reply, :ok, %{state | viewers: viewers}}
+  end
+
+  @impl true
+  def handle_info({:pubsub, _topic, "frame", _payload} = frame, state) do
+    Enum.each(Map.keys(state.viewers), &send(&1, frame))
+    {:noreply, state}
+  end
+
+  def handle_info({:DOWN, ref, :process, _pid, _reason}, %State{pubsub: ref} = state),
+    do: {:noreply, subscribe_pubsub(%{state | pubsub: nil})}
+
+  def handle_info({:DOWN, _ref, :process, pid, _reason}, state) do
+    viewers = Map.delete(state.viewers, pid)
+
+    if viewers == %{},
+      do: {:stop, :normal, %{state | viewers: viewers}},
+      else: {:noreply, %{state | viewers: viewers}}
+  end
+
+  def handle_info(:subscribe, state), do: {:noreply, subscribe_pubsub(state)}
+
+  def handle_info(_msg, state), do: {:noreply, state}
+
+  defp subscribe_pubsub(state) do
+    with {:ok, ref} <- PubSub.monitor(),
+         :ok <- subscribe_or_demonitor(state.topic, ref) do
+      %{state | pubsub: ref}
+    else
+      {:error, :not_running} ->
+        Process.send_after(self(), :subscribe, 20)
+        state
+    end
+  end
+
+  defp subscribe_or_demonitor(topic, ref) do
+    case PubSub.subscribe(topic) do
+      :ok ->
+        :ok
+
+      {:error, :not_running} = error ->
+        Process.demonitor(ref, [:flush])
+        error
+    end
+  end
+end
