@@ -183,7 +183,15 @@ defmodule Neptunus.MixProject do
 
   # What installs and runs the release on a machine, carried in it: bin/neptunus-install,
   # etc/neptunus.service (the systemd unit) and etc/neptunus.env (the settings' template).
+  # Also yaws' include files: yaws compiles a module at startup that includes them (mix copies
+  # only ebin/ and priv/ of an application), and logs errors without them.
   defp install_files(release) do
+    with yaws when is_list(yaws) <- release.applications[:yaws],
+         source = Path.join(to_string(yaws[:path]), "include"),
+         true <- File.dir?(source) do
+      File.cp_r!(source, Path.join([release.path, "lib", "yaws-#{yaws[:vsn]}", "include"]))
+    end
+
     bin = Path.join(release.path, "bin/neptunus-install")
     File.cp!("rel/neptunus-install", bin)
     File.chmod!(bin, 0o755)

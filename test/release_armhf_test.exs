@@ -138,6 +138,18 @@ defmodule Neptunus.ReleaseArmhfTest do
 
     assert_receive {^node, {:exit_status, 0}}, 120_000
     assert ReleaseRig.get(port, "/api/health") == :down
+    # a clean boot: nothing at error level until it serves (yaws' include files are in the
+    # release)
+    assert [boot, _] = node |> output("") |> String.split("serving http://127.0.0.1:#{port}")
+    refute boot =~ "[error]"
+  end
+
+  defp output(node, acc) do
+    receive do
+      {^node, {:data, data}} -> output(node, acc <> data)
+    after
+      0 -> acc
+    end
   end
 
   # thrust and heartbeat every 100 ms until the watcher in the node reports what the board got
