@@ -173,12 +173,22 @@ defmodule Neptunus.InstallTest do
         assert File.read_link!(current) == "releases/0.1.0"
         refute File.exists?(Path.join(root, "opt/neptunus/releases/0.1.1"))
 
-        # the pilot leaves; the update starts 0.1.1, which never becomes healthy
+        # with --wait it waits for the helm; the pilot leaves; the update starts 0.1.1, which
+        # never becomes healthy
+        updater =
+          Port.open({:spawn_executable, System.find_executable("bash")}, [
+            :binary,
+            :exit_status,
+            :stderr_to_stdout,
+            args: [@script, "--root", root, "--no-systemd", "--wait", "--timeout", "20", v2]
+          ])
+
+        waiting = port_output(updater, "", "waiting for a free helm: rov (piloted)")
+        assert File.read_link!(current) == "releases/0.1.0"
+        refute File.exists?(Path.join(root, "opt/neptunus/releases/0.1.1"))
         {ws, _, _, _} = pilot
         NeptunusWeb.Test.WSClient.close(ws)
-        await_free_helm(current, rpc_env)
-
-        assert {out, 1} = install(["--root", root, "--no-systemd", "--timeout", "20", v2])
+        {out, 1} = port_exit(updater, waiting)
         assert out =~ "starting neptunus 0.1.1 (was 0.1.0)"
         assert out =~ "neptunus 0.1.1 did not become healthy within 20s"
         assert out =~ "rolled back to neptunus 0.1.0"
@@ -200,19 +210,30 @@ defmodule Neptunus.InstallTest do
     end
   end
 
-  defp await_free_helm(current, env, tries \\ 60) do
-    state = ReleaseRig.rpc!(current, ~s|IO.write(Neptunus.Vehicle.Helm.status("rov").state)|, env)
+  # the output of the install script's port until it contains `line` (or the script exits)
+  defp port_output(port, acc, line) do
+    if acc =~ line do
+      acc
+    else
+      receive do
+        {^port, {:data, data}} ->
+          port_output(port, acc <> data, line)
 
-    cond do
-      state == "free" -> :ok
-      tries == 0 -> flunk("the helm stayed #{state} after the pilot left")
-      true -> await_free_helm_later(current, env, tries - 1)
+        {^port, {:exit_status, status}} ->
+          flunk("exit #{status} before #{inspect(line)}:\n#{acc}")
+      after
+        120_000 -> flunk("no #{inspect(line)} within 120 s:\n#{acc}")
+      end
     end
   end
 
-  defp await_free_helm_later(current, env, tries) do
-    Process.sleep(500)
-    await_free_helm(current, env, tries)
+  defp port_exit(port, acc) do
+    receive do
+      {^port, {:data, data}} -> port_exit(port, acc <> data)
+      {^port, {:exit_status, status}} -> {acc, status}
+    after
+      180_000 -> flunk("the install script did not finish:\n#{acc}")
+    end
   end
 
   # `mix release` of this tree as release version `version` (MIX_ENV=prod), with `env_sh`
