@@ -13,7 +13,8 @@
 //
 // Environment: BUDGET_URL, BUDGET_SERVER_PID, BUDGET_STEPS, BUDGET_RELEASE (bin/neptunus rpc
 // for erlang:memory(); RELEASE_NODE set by the caller), BUDGET_SECONDS (20), BUDGET_SETTLE (5),
-// BUDGET_THRUST_HZ (10), BUDGET_WORKERS (2), BUDGET_WINDOW (100 joins in flight), BUDGET_CPU.
+// BUDGET_THRUST_HZ (10), BUDGET_WORKERS (2), BUDGET_WINDOW (100 joins in flight), BUDGET_MARK
+// (what every figure is marked with: whose CPU it was measured on).
 
 import { createRequire } from 'node:module';
 import { Worker, isMainThread, parentPort, workerData } from 'node:worker_threads';
@@ -34,7 +35,7 @@ const URL_BASE = process.env.BUDGET_URL ?? 'ws://127.0.0.1:4214';
 const TOPIC = 'vehicle:rov';
 const wsUrl = (name) => `${URL_BASE}/socket/websocket?vsn=2.0.0&name=${name}`;
 const BINS = 100_000; // delivery latency histogram: 0.1 ms bins up to 10 s
-const MARK = '[this CPU]';
+const MARK = process.env.BUDGET_MARK || '[this CPU]';
 
 function histPct(hist, p) {
   let n = 0; for (let b = 0; b <= BINS; b++) n += hist[b];
