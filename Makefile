@@ -12,7 +12,8 @@ ASSETS_STAMP := assets/node_modules/.package-lock.json
 PYMAVLINK_VERSION := 2.4.50
 VENV_STAMP := .venv/.pymavlink-$(PYMAVLINK_VERSION)
 
-.PHONY: help setup setup-apt setup-links setup-npm setup-venv assets compile run test bench release clean
+.PHONY: help setup setup-apt setup-links setup-npm setup-venv assets compile run test bench release clean \
+        setup-armhf release-armhf test-target
 
 help:
 	@echo "make run    - install what is missing, build, start the server (http://127.0.0.1:4000)"
@@ -21,6 +22,9 @@ help:
 	@echo "make assets - build the browser code into priv/static"
 	@echo "make bench  - benchmarks (figures, not assertions)"
 	@echo "make release - the deployable node in _build/prod/rel/neptunus (see rel/neptunus.service)"
+	@echo "make release-armhf - the node for a Debian 12 armhf board (BeagleBone), built here:"
+	@echo "                     _build/armhf/neptunus-<version>-armhf.tar.gz (see README, Deploy)"
+	@echo "make test-target - the slow release tests: armhf tarball booted under qemu, install/rollback"
 	@echo "make clean  - remove build output"
 
 setup: setup-apt setup-links setup-npm setup-venv
@@ -104,6 +108,38 @@ bench: setup assets
 # machine's Erlang runtime and our C programs compiled for it.
 release: setup assets
 	MIX_ENV=prod mix release --overwrite
+
+# Cross-building for a Debian 12 armhf board: the cross compiler, qemu-user (the emulated boot
+# test) and `file`, installed with apt when missing; the armhf architecture is added to dpkg
+# only so that `apt-get download pkg:armhf` finds the board's packages (nothing :armhf is ever
+# installed here: an armhf Erlang would displace the host's through multiarch conflicts).
+ARMHF_HOST_PACKAGES := gcc-arm-linux-gnueabihf libc6-dev-armhf-cross binutils-arm-linux-gnueabihf \
+                       qemu-user-static file
+
+setup-armhf:
+	@missing=$$(for p in $(ARMHF_HOST_PACKAGES); do \
+	    dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || echo $$p; \
+	  done); \
+	armhf=$$(dpkg --print-foreign-architectures | grep -qx armhf || echo add); \
+	if [ -n "$$missing$$armhf" ]; then \
+	  if [ "$$(id -u)" != 0 ]; then \
+	    echo "Cross-building needs, as root:"; \
+	    [ -z "$$armhf" ] || echo "  sudo dpkg --add-architecture armhf"; \
+	    echo "  sudo apt-get update && sudo apt-get install -y" $$missing; \
+	    exit 1; \
+	  fi; \
+	  [ -z "$$armhf" ] || dpkg --add-architecture armhf; \
+	  apt-get update -qq; \
+	  [ -z "$$missing" ] || { echo "Installing Debian packages:" $$missing; \
+	    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null; }; \
+	fi
+
+release-armhf: setup assets setup-armhf
+	rel/armhf/build
+
+test-target: release-armhf
+	MIX_ENV=test mix compile --warnings-as-errors
+	mix test --only target
 
 clean:
 	rm -rf _build priv/static test/e2e/artifacts

@@ -9,40 +9,55 @@ defmodule Mix.Tasks.Compile.PortPrograms do
   resolution, so "as new" rebuilds rather than misses a change made in the same second).
   The binary is written to a temporary name and renamed into place, so builds from several
   `_build` directories at once never leave a half-written program. Binaries are git-ignored.
+
+  Cross-compiling (`rel/armhf/build`, for the armhf board): `CC=arm-linux-gnueabihf-gcc mix
+  compile.port_programs --force --out DIR --erl-include INCLUDE` builds the same programs with
+  the same flags into `DIR` instead of `priv/`, against the target Erlang's `erl_nif.h`
+  (`INCLUDE`: the sizes of C types in it differ between 32- and 64-bit machines).
   """
   use Mix.Task.Compiler
 
   @cflags ~w(-std=c99 -Wall -Wextra -Werror -O2)
 
   @impl true
-  def run(_args) do
-    File.mkdir_p!("priv")
+  def run(args) do
+    # `mix compile` passes its own options (--warnings-as-errors, ...) to every compiler
+    {opts, _, _} =
+      OptionParser.parse(args, switches: [out: :string, erl_include: :string, force: :boolean])
+
+    out = Keyword.get(opts, :out, "priv")
+    include = Keyword.get(opts, :erl_include, Path.join([:code.root_dir(), "usr", "include"]))
+    File.mkdir_p!(out)
     sources = Path.wildcard("c_src/*.c")
     newest = "c_src/*" |> Path.wildcard() |> Enum.map(&mtime/1) |> Enum.max(fn -> 0 end)
 
     results =
-      for source <- sources, stale?(target(source), newest), do: build(source, target(source))
+      for source <- sources,
+          target = target(source, out),
+          opts[:force] || stale?(target, newest),
+          do: build(source, target, include)
 
     cond do
       results == [] -> {:noop, []}
       Enum.all?(results, &(&1 == :ok)) -> {:ok, []}
+      # run by itself (cross-compiling) nothing else would turn errors into an exit status
+      opts[:out] -> Mix.raise("compile.port_programs: could not build every program")
       true -> {:error, for({:error, diagnostic} <- results, do: diagnostic)}
     end
   end
 
   @impl true
-  def clean, do: Enum.each(Path.wildcard("c_src/*.c"), &File.rm(target(&1)))
+  def clean, do: Enum.each(Path.wildcard("c_src/*.c"), &File.rm(target(&1, "priv")))
 
-  defp target(source) do
+  defp target(source, out) do
     name = Path.basename(source, ".c")
-    if nif?(source), do: Path.join("priv", name <> ".so"), else: Path.join("priv", name)
+    if nif?(source), do: Path.join(out, name <> ".so"), else: Path.join(out, name)
   end
 
   defp nif?(source), do: String.ends_with?(source, "_nif.c")
 
-  defp flags(source) do
+  defp flags(source, include) do
     if nif?(source) do
-      include = Path.join([:code.root_dir(), "usr", "include"])
       @cflags ++ ~w(-ffp-contract=off -fPIC -shared -I) ++ [include]
     else
       @cflags
@@ -60,13 +75,13 @@ defmodule Mix.Tasks.Compile.PortPrograms do
     end
   end
 
-  defp build(source, target) do
+  defp build(source, target, include) do
     cc = System.get_env("CC") || System.find_executable("cc") || System.find_executable("gcc")
     tmp = "#{target}.#{System.unique_integer([:positive])}.tmp"
 
     with cc when is_binary(cc) <- cc,
          {_output, 0} <-
-           System.cmd(cc, flags(source) ++ ["-o", tmp, source] ++ libs(source),
+           System.cmd(cc, flags(source, include) ++ ["-o", tmp, source] ++ libs(source),
              stderr_to_stdout: true
            ) do
       File.rename!(tmp, target)
@@ -151,7 +166,39 @@ defmodule Neptunus.MixProject do
     []
   end
 
+  # `NEPTUNUS_ERTS` (set by rel/armhf/build): the erts directory of another machine's Erlang
+  # to put in the release instead of this machine's (the board's armhf erts).
+  # `NEPTUNUS_RELEASE_VERSION`: a release version other than the application's (a rebuild of
+  # the same version to install beside it: releases are installed by release version).
   defp releases do
-    [neptunus: [include_executables_for: [:unix]]]
+    [
+      neptunus: [
+        version: System.get_env("NEPTUNUS_RELEASE_VERSION") || @version,
+        include_executables_for: [:unix],
+        include_erts: System.get_env("NEPTUNUS_ERTS") || true,
+        steps: [:assemble, &install_files/1]
+      ]
+    ]
+  end
+
+  # What installs and runs the release on a machine, carried in it: bin/neptunus-install,
+  # etc/neptunus.service (the systemd unit) and etc/neptunus.env (the settings' template).
+  # Also yaws' include files: yaws compiles a module at startup that includes them (mix copies
+  # only ebin/ and priv/ of an application), and logs errors without them.
+  defp install_files(release) do
+    with yaws when is_list(yaws) <- release.applications[:yaws],
+         source = Path.join(to_string(yaws[:path]), "include"),
+         true <- File.dir?(source) do
+      File.cp_r!(source, Path.join([release.path, "lib", "yaws-#{yaws[:vsn]}", "include"]))
+    end
+
+    bin = Path.join(release.path, "bin/neptunus-install")
+    File.cp!("rel/neptunus-install", bin)
+    File.chmod!(bin, 0o755)
+    etc = Path.join(release.path, "etc")
+    File.mkdir_p!(etc)
+    File.cp!("rel/neptunus.service", Path.join(etc, "neptunus.service"))
+    File.cp!("rel/neptunus.env", Path.join(etc, "neptunus.env"))
+    release
   end
 end

@@ -4,5 +4,8 @@
 # Tags:
 #   :external — runs Node (protocol client, Playwright). Included by default; `make test`
 #               builds what they need first. Skip with `mix test --exclude external`.
+#   :target   — the slow release tests (the armhf tarball under qemu-user, install/update/
+#               rollback of built releases): excluded here; `make test-target` builds the
+#               tarball and runs them (`mix test --only target`).
 {:ok, _} = Application.ensure_all_started(:inets)
-ExUnit.start()
+ExUnit.start(exclude: [:target])
