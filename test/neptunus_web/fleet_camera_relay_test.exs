@@ -51,7 +51,8 @@ defmodule NeptunusWeb.FleetCameraRelayTest do
 
     send(b, :stop)
     assert_receive {:DOWN, ^ref, :process, ^relay, :normal}
-    assert CameraRelay.whereis(id) == nil
+    # the registry drops a dead process's name on its own monitor message, just after
+    Neptunus.Test.Cluster.wait!(fn -> CameraRelay.whereis(id) == nil end, "relay unregistered")
     Neptunus.Test.Cluster.wait!(fn -> PubSub.subscriber_count(topic) == 0 end, "no subscriber")
   end
 
