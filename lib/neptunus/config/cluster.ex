@@ -107,6 +107,7 @@ defmodule Neptunus.Config.Cluster do
     end
   end
 
+  @spec bad_name!(String.t(), String.t()) :: no_return()
   defp bad_name!(variable, value),
     do: Config.bad!(variable, value, "a node name name@host, e.g. rov1@10.0.0.2 or top@localhost")
 
@@ -229,7 +230,10 @@ defmodule Neptunus.Config.Cluster do
       iex> Neptunus.Config.Cluster.check_proto_dist(%{tls: nil}, :error)
       :ok
   """
-  @spec check_proto_dist(%{tls: tls() | nil}, {:ok, [[charlist()]]} | :error) ::
+  @spec check_proto_dist(
+          %{required(:tls) => tls() | nil, optional(atom()) => term()},
+          {:ok, [[charlist()]]} | :error
+        ) ::
           :ok | {:error, String.t()}
   def check_proto_dist(%{tls: nil}, _proto_dist), do: :ok
   def check_proto_dist(%{tls: _}, {:ok, [[~c"inet_tls"]]}), do: :ok

@@ -154,7 +154,11 @@ defmodule Neptunus.Vehicle.Telemetry do
   `Board.UART` once a second with its liveness fields, see the moduledoc): `up`, `reason` and
   any of the `@link_keys`.
   """
-  @spec link(String.t(), %{required(:up) => boolean(), required(:reason) => String.t()}) :: :ok
+  @spec link(String.t(), %{
+          required(:up) => boolean(),
+          required(:reason) => String.t(),
+          optional(atom()) => term()
+        }) :: :ok
   def link(id, %{up: up, reason: reason} = link) when is_boolean(up) and is_binary(reason),
     do: GenServer.cast(via(id), {:link, Map.take(link, @link_keys)})
 

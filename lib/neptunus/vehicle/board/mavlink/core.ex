@@ -716,10 +716,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
 
   defp from_vehicle(core, _message, _now), do: {core, []}
 
-  defp put_reading(core, key, value) when is_number(value),
+  # the codec decodes every numeric field as a number
+  defp put_reading(core, key, value),
     do: %{core | readings: Map.put(core.readings, key, value * 1.0)}
-
-  defp put_reading(core, _key, _value), do: core
 
   defp sample(core, time_boot_ms, now) do
     measurement = Map.take(core.readings, [:depth, :heading, :roll, :pitch, :voltage, :current])
