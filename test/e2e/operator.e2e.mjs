@@ -331,26 +331,28 @@ test("tablet 1024×768 touch: the sticks and their labels clear the HUD's boxes;
   }
 });
 
+/** A stubbed standard pad: `window.__pad` holds its axes and buttons (the page reads copies). */
+const stubPad = () => {
+  const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
+  window.__pad = { axes: [0, 0, 0, 0], buttons: buttons() };
+  Object.defineProperty(Navigator.prototype, "getGamepads", {
+    configurable: true,
+    value: () => [
+      {
+        id: "Stub pad (STANDARD GAMEPAD)",
+        index: 0,
+        connected: true,
+        mapping: "standard",
+        timestamp: performance.now(),
+        axes: window.__pad.axes.slice(),
+        buttons: window.__pad.buttons.map((b) => ({ ...b })),
+      },
+    ],
+  });
+};
+
 test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard is ignored in gamepad mode", { timeout: TEST_MS }, async () => {
-  const init = () => {
-    const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
-    window.__pad = { axes: [0, 0, 0, 0], buttons: buttons() };
-    Object.defineProperty(Navigator.prototype, "getGamepads", {
-      configurable: true,
-      value: () => [
-        {
-          id: "Stub pad (STANDARD GAMEPAD)",
-          index: 0,
-          connected: true,
-          mapping: "standard",
-          timestamp: performance.now(),
-          axes: window.__pad.axes.slice(),
-          buttons: window.__pad.buttons.map((b) => ({ ...b })),
-        },
-      ],
-    });
-  };
-  const { context, page } = await operator({ ...DESKTOP, name: "e2e-gamepad", init });
+  const { context, page } = await operator({ ...DESKTOP, name: "e2e-gamepad", init: stubPad });
   const setPad = (axes) => page.evaluate((a) => (window.__pad.axes = a), axes);
   try {
     await page.locator("#input-gamepad").click();
@@ -379,26 +381,6 @@ test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard i
     await context.close();
   }
 });
-
-/** A stubbed standard pad: `window.__pad` holds its axes and buttons (the page reads copies). */
-const stubPad = () => {
-  const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
-  window.__pad = { axes: [0, 0, 0, 0], buttons: buttons() };
-  Object.defineProperty(Navigator.prototype, "getGamepads", {
-    configurable: true,
-    value: () => [
-      {
-        id: "Stub pad (STANDARD GAMEPAD)",
-        index: 0,
-        connected: true,
-        mapping: "standard",
-        timestamp: performance.now(),
-        axes: window.__pad.axes.slice(),
-        buttons: window.__pad.buttons.map((b) => ({ ...b })),
-      },
-    ],
-  });
-};
 
 const setButton = (page, index, pressed) =>
   page.evaluate(([i, p]) => (window.__pad.buttons[i] = { value: p ? 1 : 0, pressed: p, touched: p }), [index, pressed]);

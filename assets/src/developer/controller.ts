@@ -17,7 +17,7 @@ import { deleteRecording, fetchRecording, fetchRecordings } from "../lib/recordi
 import type { ParsedRecording, RecordingInfo, RecordingList } from "../lib/recordings";
 import { decodeTelemetry } from "../lib/protocol";
 import type { Helm, Telemetry } from "../lib/protocol";
-import { ClockOffset, STALE_AFTER_MS, ageOnArrival, freshness, telemetryAge } from "../lib/clock";
+import { TelemetryClock } from "../lib/clock";
 import type { TelemetryState } from "../lib/clock";
 import { PageSession, loginUrl } from "../lib/session";
 import { DEVELOPER_PLOTS_KEY, SettingsClient, notKept } from "../lib/settings";
@@ -112,10 +112,7 @@ export class DevController {
   private readonly session: PageSession;
   private readonly settings: SettingsClient;
   private vehicle: VehicleChannel | null = null;
-  private lastTelemetryAt: number | null = null;
-  private lastTelemetryLate: number | null = null;
-  private readonly clock = new ClockOffset(60);
-  private clockPending = false;
+  private readonly clock = new TelemetryClock(() => this.vehicle);
 
   constructor(params: URLSearchParams, capacity?: number) {
     this.params = params;
@@ -164,7 +161,7 @@ export class DevController {
     }, 250);
 
     window.setInterval(() => this.tick(), 250);
-    window.setInterval(() => this.readClock(), CLOCK_MS);
+    window.setInterval(() => this.clock.read(), CLOCK_MS);
 
     const session = await this.session.authenticate();
     if (session === null) return; // leaving for the login page
@@ -249,10 +246,7 @@ export class DevController {
   }
 
   private onTelemetry(t: Telemetry): void {
-    this.lastTelemetryAt = performance.now();
-    // a slow link delivers frames that are already old: stale, though they keep coming
-    this.lastTelemetryLate = ageOnArrival(t.sent_at, Date.now(), this.clock.offsetMs);
-    this.store.update(freshness(this.lastTelemetryLate ?? 0));
+    this.store.update(this.clock.received(t.sent_at, performance.now(), Date.now()));
     // while a recording is shown, live samples are not mixed into it
     if (this.store.get().replay === null) this.recorder.add(t.sent_at / 1000, flattenNumeric(t.raw));
     const facts = telemetryFacts(t);
@@ -261,27 +255,9 @@ export class DevController {
   }
 
   private tick(): void {
-    if (this.lastTelemetryAt !== null) {
-      const age = telemetryAge(performance.now(), this.lastTelemetryAt, this.lastTelemetryLate);
-      if (age > STALE_AFTER_MS) this.store.update(freshness(age));
-    }
-    // the first reading as soon as the vehicle is joined, then every CLOCK_MS
-    if (this.clock.offsetMs === null) this.readClock();
-  }
-
-  private readClock(): void {
-    const vehicle = this.vehicle;
-    if (this.clockPending || !vehicle || !vehicle.joined) return;
-    this.clockPending = true;
-    vehicle.clock().then(
-      (sample) => {
-        this.clockPending = false;
-        this.clock.add(sample);
-      },
-      () => {
-        this.clockPending = false;
-      },
-    );
+    // stale telemetry ages on screen; the clock is read as soon as the vehicle is joined
+    const stale = this.clock.tick(performance.now());
+    if (stale !== null) this.store.update(stale);
   }
 
   private onHelm(h: Helm): void {

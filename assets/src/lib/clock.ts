@@ -95,3 +95,56 @@ export function freshness(ageMs: number): { telemetryState: TelemetryState; tele
 export function ageText(state: TelemetryState, ageMs: number): string {
   return state === "none" ? "none yet" : state === "live" ? "live" : `stale (${(ageMs / 1000).toFixed(1)} s)`;
 }
+
+/** What the telemetry clock asks the server's clock through: a joined vehicle channel. */
+export interface ClockSource {
+  readonly joined: boolean;
+  clock(): Promise<ClockSample>;
+}
+
+/**
+ * The pages' telemetry age: when the newest frame arrived and how old it was then, and the
+ * server's clock offset that says so (read through `source()` when a vehicle is joined: at
+ * once while the offset is unknown, then on `read()`, one request at a time).
+ */
+export class TelemetryClock {
+  private receivedAt: number | null = null;
+  private lateMs: number | null = null;
+  private pending = false;
+  /** the server's clock against ours: 60 readings, the quickest round trip wins */
+  readonly offset = new ClockOffset(60);
+
+  constructor(private readonly source: () => ClockSource | null) {}
+
+  /** A frame stamped `sentAt` (server ms) arrived at `now` (performance.now()), `wall` (Date.now()). */
+  received(sentAt: number, now: number, wall: number): { telemetryState: TelemetryState; telemetryAgeMs: number } {
+    this.receivedAt = now;
+    // a slow link delivers frames that are already old: stale, though they keep coming
+    this.lateMs = ageOnArrival(sentAt, wall, this.offset.offsetMs);
+    return freshness(this.lateMs ?? 0);
+  }
+
+  /** Every tick: the freshness when the telemetry has gone stale (else null); reads the clock while unknown. */
+  tick(now: number): { telemetryState: TelemetryState; telemetryAgeMs: number } | null {
+    if (this.offset.offsetMs === null) this.read();
+    if (this.receivedAt === null) return null;
+    const age = telemetryAge(now, this.receivedAt, this.lateMs);
+    return age > STALE_AFTER_MS ? freshness(age) : null;
+  }
+
+  /** One reading of the server's clock, unless one is under way or no vehicle is joined. */
+  read(): void {
+    const source = this.source();
+    if (this.pending || source === null || !source.joined) return;
+    this.pending = true;
+    source.clock().then(
+      (sample) => {
+        this.pending = false;
+        this.offset.add(sample);
+      },
+      () => {
+        this.pending = false;
+      },
+    );
+  }
+}

@@ -34,7 +34,7 @@ import { KeyboardInput, keyboardDemand } from "../input/keyboard";
 import { TouchTracker, touchDemand } from "../input/touch";
 import type { TouchControl, TouchState } from "../input/touch";
 import { beep } from "../lib/beep";
-import { ClockOffset, STALE_AFTER_MS, ageOnArrival, freshness, telemetryAge } from "../lib/clock";
+import { TelemetryClock } from "../lib/clock";
 import type { TelemetryState } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
 import { formDegrees, formValue } from "../lib/forms";
@@ -178,12 +178,8 @@ export class OperatorController {
   private readonly session: PageSession;
   private client: NeptunusClient | null = null;
   private vehicle: VehicleChannel | null = null;
-  private lastTelemetryAt: number | null = null;
-  /** how old the newest telemetry was when it arrived (ms; null while the clock offset is unknown) */
-  private lastTelemetryLate: number | null = null;
-  /** the server's clock against ours: 60 readings, 10 min, the quickest round trip wins */
-  private readonly clock = new ClockOffset(60);
-  private clockPending = false;
+  /** how old the newest telemetry is, on the server's clock */
+  private readonly clock = new TelemetryClock(() => this.vehicle);
   private heartbeat: number | null = null;
   private heldKeys: ReadonlySet<string> = new Set();
   private readonly settings: SettingsClient;
@@ -298,7 +294,7 @@ export class OperatorController {
     window.addEventListener("pagehide", () => this.safetyStop("page closed"));
     window.setInterval(() => this.tick(), 250);
     window.setInterval(() => this.pingIfWatching(), PING_MS);
-    window.setInterval(() => this.readClock(), CLOCK_MS);
+    window.setInterval(() => this.clock.read(), CLOCK_MS);
     // buttons act in every input mode; the sticks only in gamepad mode (`accepts`)
     this.gamepad.start();
 
@@ -441,12 +437,9 @@ export class OperatorController {
   // Vehicle events
 
   private onTelemetry(t: Telemetry): void {
-    this.lastTelemetryAt = performance.now();
-    // a slow link delivers frames that are already old: stale, though they keep coming
-    this.lastTelemetryLate = ageOnArrival(t.sent_at, Date.now(), this.clock.offsetMs);
     this.store.update({
       telemetry: t,
-      ...freshness(this.lastTelemetryLate ?? 0),
+      ...this.clock.received(t.sent_at, performance.now(), Date.now()),
       ...(t.control ? { control: t.control } : {}),
       ...(t.link ? { link: t.link } : {}),
     });
@@ -503,27 +496,9 @@ export class OperatorController {
 
   private tick(): void {
     this.renderHelm();
-    if (this.lastTelemetryAt !== null) {
-      const age = telemetryAge(performance.now(), this.lastTelemetryAt, this.lastTelemetryLate);
-      if (age > STALE_AFTER_MS) this.store.update(freshness(age));
-    }
-    // the first reading as soon as the vehicle is joined, then every CLOCK_MS
-    if (this.clock.offsetMs === null) this.readClock();
-  }
-
-  private readClock(): void {
-    const vehicle = this.vehicle;
-    if (this.clockPending || !vehicle || !vehicle.joined) return;
-    this.clockPending = true;
-    vehicle.clock().then(
-      (sample) => {
-        this.clockPending = false;
-        this.clock.add(sample);
-      },
-      () => {
-        this.clockPending = false;
-      },
-    );
+    // stale telemetry ages on screen; the clock is read as soon as the vehicle is joined
+    const stale = this.clock.tick(performance.now());
+    if (stale !== null) this.store.update(stale);
   }
 
   // ------------------------------------------------------------------------------------------

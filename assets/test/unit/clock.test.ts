@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { ClockOffset, ageOnArrival, telemetryAge, STALE_AFTER_MS, ageText, freshness } from "../../src/lib/clock";
+import { ClockOffset, TelemetryClock, ageOnArrival, telemetryAge, STALE_AFTER_MS, ageText, freshness } from "../../src/lib/clock";
 
 describe("the server's clock against this one", () => {
   it("has no offset before the first reading", () => {
@@ -70,5 +70,53 @@ describe("freshness and ageText (both pages)", () => {
     expect(ageText("none", 0)).toBe("none yet");
     expect(ageText("live", 0)).toBe("live");
     expect(ageText("stale", 2300)).toBe("stale (2.3 s)");
+  });
+});
+
+describe("TelemetryClock: the pages' telemetry age", () => {
+  const source = (joined: boolean, serverNow: number) => {
+    let asked = 0;
+    return {
+      get asked() {
+        return asked;
+      },
+      joined,
+      clock: () => {
+        asked += 1;
+        return Promise.resolve({ sentAt: 1_000, serverNow, receivedAt: 1_040 });
+      },
+    };
+  };
+
+  it("says nothing before the first frame, and reads the clock only once a vehicle is joined", () => {
+    const none = new TelemetryClock(() => null);
+    expect(none.tick(0)).toBeNull();
+    const left = source(false, 0);
+    new TelemetryClock(() => left).tick(0);
+    expect(left.asked).toBe(0);
+  });
+
+  it("reads the server's clock while its offset is unknown, one request at a time", async () => {
+    const s = source(true, 6_020);
+    const c = new TelemetryClock(() => s);
+    c.tick(0);
+    c.tick(250);
+    expect(s.asked).toBe(1);
+    await Promise.resolve();
+    expect(c.offset.offsetMs).toBe(5_000);
+    c.tick(500);
+    expect(s.asked).toBe(1);
+  });
+
+  it("a frame that was already old on arrival is stale; a silent link goes stale with time", async () => {
+    const s = source(true, 6_020);
+    const c = new TelemetryClock(() => s);
+    c.read();
+    await Promise.resolve();
+    // server 5 s ahead: stamped 4 000 by the server, arriving at our 1 000 (its 6 000): 2 s old
+    expect(c.received(4_000, 100, 1_000)).toEqual({ telemetryState: "stale", telemetryAgeMs: 2_000 });
+    expect(c.received(6_000, 200, 1_000)).toEqual({ telemetryState: "live", telemetryAgeMs: 0 });
+    expect(c.tick(900)).toBeNull();
+    expect(c.tick(1_300)).toEqual({ telemetryState: "stale", telemetryAgeMs: 1_100 });
   });
 });

@@ -272,16 +272,7 @@ defmodule Neptunus.Vehicle.Control do
   def handle_call({:tune, gains}, _from, state) do
     state = %{state | core: Core.retune(state.core, gains)} |> publish()
     json = Tuning.to_json(state.core.gains)
-    text = "autopilot tuning: " <> Tuning.describe(json)
-
-    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
-      category: "autopilot",
-      level: "info",
-      message: text,
-      at: Neptunus.Clock.wall_ms()
-    })
-
-    Logger.info("vehicle #{state.id}: #{text}")
+    autopilot_log(state, "info", "autopilot tuning: " <> Tuning.describe(json))
     {:reply, {:ok, json}, state}
   end
 
@@ -334,6 +325,18 @@ defmodule Neptunus.Vehicle.Control do
 
   defp perform(state, actions), do: Enum.reduce(actions, state, &act/2)
 
+  # an autopilot entry for the developer page's logger (and the recording), and the node's log
+  defp autopilot_log(state, level, text) do
+    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
+      category: "autopilot",
+      level: level,
+      message: text,
+      at: Neptunus.Clock.wall_ms()
+    })
+
+    Logger.info("vehicle #{state.id}: #{text}")
+  end
+
   defp act({:go, thrusters}, %State{simulator: nil} = state) do
     Board.go(state.id, thrusters)
     state
@@ -362,14 +365,7 @@ defmodule Neptunus.Vehicle.Control do
   end
 
   defp act({:notice, text}, state) do
-    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
-      category: "autopilot",
-      level: "warning",
-      message: text,
-      at: Neptunus.Clock.wall_ms()
-    })
-
-    Logger.info("vehicle #{state.id}: #{text}")
+    autopilot_log(state, "warning", text)
     state
   end
 
