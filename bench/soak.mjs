@@ -40,6 +40,7 @@ import { performance } from 'node:perf_hooks';
 import os from 'node:os';
 import path from 'node:path';
 import { channelsSocket } from './support/channels.mjs';
+import { BINS, histPct, pct } from './support/stats.mjs';
 
 const require = createRequire(new URL('../assets/package.json', import.meta.url));
 const WebSocket = require('ws');
@@ -258,23 +259,6 @@ async function main() {
   pilot.close();
   await Promise.all(workers.map((w) => w.terminate()));
   process.exit(0);
-}
-
-// Telemetry delivery latencies: a histogram of 0.1 ms bins up to 10 s (the last bin: beyond).
-const BINS = 100_000;
-function histPct(hist, p) {
-  let n = 0; for (let b = 0; b <= BINS; b++) n += hist[b];
-  if (n === 0) return NaN;
-  const want = Math.ceil((p / 100) * n);
-  let c = 0;
-  for (let b = 0; b <= BINS; b++) { c += hist[b]; if (c >= want) return (b + 1) / 10; }
-  return NaN;
-}
-
-function pct(xs, p) {
-  if (!xs.length) return NaN;
-  const s = [...xs].sort((a, b) => a - b);
-  return s[Math.min(s.length - 1, Math.max(0, Math.ceil((p / 100) * s.length) - 1))];
 }
 
 // A raw Phoenix Channels v2 socket: push() resolves with the phx_reply payload.

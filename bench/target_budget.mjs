@@ -24,6 +24,7 @@ import { fileURLToPath } from 'node:url';
 import { performance } from 'node:perf_hooks';
 import path from 'node:path';
 import { channelsSocket } from './support/channels.mjs';
+import { BINS, histPct, pct } from './support/stats.mjs';
 
 const require = createRequire(new URL('../assets/package.json', import.meta.url));
 const WebSocket = require('ws');
@@ -34,22 +35,8 @@ const num = (v, d) => { const n = Number(v ?? ''); return Number.isFinite(n) && 
 const URL_BASE = process.env.BUDGET_URL ?? 'ws://127.0.0.1:4214';
 const TOPIC = 'vehicle:rov';
 const wsUrl = (name) => `${URL_BASE}/socket/websocket?vsn=2.0.0&name=${name}`;
-const BINS = 100_000; // delivery latency histogram: 0.1 ms bins up to 10 s
 const MARK = process.env.BUDGET_MARK || '[this CPU]';
 
-function histPct(hist, p) {
-  let n = 0; for (let b = 0; b <= BINS; b++) n += hist[b];
-  if (n === 0) return NaN;
-  const want = Math.ceil((p / 100) * n);
-  let c = 0;
-  for (let b = 0; b <= BINS; b++) { c += hist[b]; if (c >= want) return (b + 1) / 10; }
-  return NaN;
-}
-function pct(xs, p) {
-  if (!xs.length) return NaN;
-  const s = [...xs].sort((a, b) => a - b);
-  return s[Math.min(s.length - 1, Math.max(0, Math.ceil((p / 100) * s.length) - 1))];
-}
 const f1 = (x) => (Number.isFinite(x) ? x.toFixed(1) : 'n/a');
 const f0 = (x) => (Number.isFinite(x) ? x.toFixed(0) : 'n/a');
 
