@@ -19,7 +19,7 @@ import { decodeTelemetry } from "../lib/protocol";
 import type { Helm, Telemetry } from "../lib/protocol";
 import { TelemetryClock } from "../lib/clock";
 import type { TelemetryState } from "../lib/clock";
-import { PageSession, loginUrl } from "../lib/session";
+import { PageSession, browserSessionEnv } from "../lib/session";
 import { DEVELOPER_PLOTS_KEY, SettingsClient, notKept } from "../lib/settings";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
@@ -135,19 +135,9 @@ export class DevController {
       replay: null,
     });
     this.store.update({ plots: this.specs(DEFAULT_PLOT_SET) });
-    this.session = new PageSession({
-      tokens: {
-        getItem: (key) => window.localStorage.getItem(key),
-        setItem: (key, value) => window.localStorage.setItem(key, value),
-        removeItem: (key) => window.localStorage.removeItem(key),
-      },
-      fetch: (input, init) => fetch(input, init),
-      wallMs: () => Date.now(),
-      monotonicMs: () => performance.now(),
-      sleep: (ms) => new Promise((resolve) => setTimeout(resolve, ms)),
-      toLogin: (reason) => window.location.assign(loginUrl(window.location.pathname + window.location.search, reason)),
-      onUnreachable: (reason) => this.store.update({ message: reason === null ? "" : `Cannot reach the server: ${reason}` }),
-    });
+    this.session = new PageSession(
+      browserSessionEnv((reason) => this.store.update({ message: reason === null ? "" : `Cannot reach the server: ${reason}` })),
+    );
     this.settings = new SettingsClient(() => this.session.token);
   }
 

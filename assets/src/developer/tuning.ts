@@ -64,19 +64,28 @@ export class TuningController {
     if (info !== null) this.store.update({ form: formOf(info.defaults), message: "default gains in the form (not applied)", error: false });
   }
 
-  /** Runs the step on the vehicle's simulator model with the form's gains. */
-  async preview(): Promise<void> {
-    const { info, form, axis } = this.store.get();
+  /** The joined vehicle, the tuning it reported and the form's gains, or null (a form error is shown). */
+  private formGains() {
+    const { info, form } = this.store.get();
     const v = this.vehicle;
-    if (info === null || form === null || v === null) return;
+    if (info === null || form === null || v === null) return null;
     const parsed = parseForm(form, info.ranges);
     if (!parsed.ok) {
       this.store.update({ message: parsed.error, error: true });
-      return;
+      return null;
     }
+    return { v, info, gains: parsed.gains };
+  }
+
+  /** Runs the step on the vehicle's simulator model with the form's gains. */
+  async preview(): Promise<void> {
+    const ready = this.formGains();
+    if (ready === null) return;
+    const { v, gains } = ready;
+    const axis = this.store.get().axis;
     this.store.update({ busy: "preview", message: "running the step on the simulator model…", error: false });
     try {
-      const preview = await v.request("step_response", { axis, step: PREVIEW_STEP[axis], gains: { [axis]: parsed.gains[axis] } }, decodeStepResponse, RUN_TIMEOUT_MS);
+      const preview = await v.request("step_response", { axis, step: PREVIEW_STEP[axis], gains: { [axis]: gains[axis] } }, decodeStepResponse, RUN_TIMEOUT_MS);
       this.store.update({ preview, busy: null, message: "", error: false });
     } catch (err) {
       this.store.update({ busy: null, message: `step response: ${reasonOf(err)}`, error: true });
@@ -85,17 +94,12 @@ export class TuningController {
 
   /** Applies the form's gains to the vehicle (bumpless; stored for the vehicle). */
   async apply(): Promise<void> {
-    const { info, form } = this.store.get();
-    const v = this.vehicle;
-    if (info === null || form === null || v === null) return;
-    const parsed = parseForm(form, info.ranges);
-    if (!parsed.ok) {
-      this.store.update({ message: parsed.error, error: true });
-      return;
-    }
+    const ready = this.formGains();
+    if (ready === null) return;
+    const { v, info } = ready;
     this.store.update({ busy: "apply", message: "applying…", error: false });
     try {
-      const gains = await v.request("set_tuning", parsed.gains, decodeSetTuning, RUN_TIMEOUT_MS);
+      const gains = await v.request("set_tuning", ready.gains, decodeSetTuning, RUN_TIMEOUT_MS);
       this.store.update({ info: { ...info, gains }, form: formOf(gains), busy: null, message: "applied to the vehicle and stored", error: false });
     } catch (err) {
       this.store.update({ busy: null, message: `not applied: ${reasonOf(err)}`, error: true });

@@ -174,6 +174,27 @@ export interface SessionEnv {
   readonly onUnreachable: (reason: string | null) => void;
 }
 
+/**
+ * A page's session in the browser: tokens in localStorage (read when used, so a page whose
+ * storage is blocked still renders and says why it cannot connect), the browser's fetch and
+ * clocks, and the login page for this address. `onUnreachable` is the page's own.
+ */
+export function browserSessionEnv(onUnreachable: (reason: string | null) => void): SessionEnv {
+  return {
+    tokens: {
+      getItem: (key) => window.localStorage.getItem(key),
+      setItem: (key, value) => window.localStorage.setItem(key, value),
+      removeItem: (key) => window.localStorage.removeItem(key),
+    },
+    fetch: (input, init) => fetch(input, init),
+    wallMs: () => Date.now(),
+    monotonicMs: () => performance.now(),
+    sleep: (ms) => new Promise((resolve) => setTimeout(resolve, ms)),
+    toLogin: (reason) => window.location.assign(loginUrl(window.location.pathname + window.location.search, reason)),
+    onUnreachable,
+  };
+}
+
 /** How long `authenticate` waits before asking again after a failure (ms). */
 export const SESSION_RETRY_MS = 2000;
 /** `recheck` asks the server at most this often (ms). */

@@ -64,7 +64,7 @@ import type {
   Telemetry,
   VehicleInfo,
 } from "../lib/protocol";
-import { PageSession, loginUrl } from "../lib/session";
+import { PageSession, browserSessionEnv } from "../lib/session";
 import { GAMEPAD_MAPPING_KEY, SettingsClient, notKept } from "../lib/settings";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
@@ -255,21 +255,11 @@ export class OperatorController {
       onControl: (control) => this.store.update({ control }),
       onResult: (error) => (error === null ? this.setField("headset", "ok", "") : this.setField("headset", "error", error)),
     });
-    this.session = new PageSession({
-      // read when used: a page whose storage is blocked still renders (and says why it cannot connect)
-      tokens: {
-        getItem: (key) => window.localStorage.getItem(key),
-        setItem: (key, value) => window.localStorage.setItem(key, value),
-        removeItem: (key) => window.localStorage.removeItem(key),
-      },
-      fetch: (input, init) => fetch(input, init),
-      wallMs: () => Date.now(),
-      monotonicMs: () => performance.now(),
-      sleep,
-      toLogin: (reason) => window.location.assign(loginUrl(window.location.pathname + window.location.search, reason)),
-      onUnreachable: (reason) =>
+    this.session = new PageSession(
+      browserSessionEnv((reason) =>
         reason === null ? this.clearMessage("session") : this.showMessage(`Cannot reach the server: ${reason}`, "warn", "session"),
-    });
+      ),
+    );
     this.settings = new SettingsClient(() => this.session.token);
   }
 
