@@ -50,16 +50,6 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   @behaviour Board
 
-  @core_opts [
-    :system,
-    :component,
-    :manual_period,
-    :link_timeout,
-    :command_timeout,
-    :disarm_delay,
-    :lights_servo
-  ]
-
   defmodule State do
     @moduledoc false
     @type t :: %__MODULE__{
@@ -173,7 +163,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       id: id,
       topic: Telemetry.topic(id),
       link: Keyword.fetch!(opts, :link),
-      core: Core.new(now(), Keyword.take(opts, @core_opts)),
+      core: Core.new(now(), opts),
       decoder: Codec.new(),
       reconnect_ms: Keyword.get(opts, :reconnect_ms, 1_000),
       program: Keyword.get(opts, :program) || Board.UART.program()
