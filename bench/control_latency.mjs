@@ -30,7 +30,9 @@
 // LAT_DONE_FILE (written when the figures are out; then this process waits for SIGTERM),
 // LAT_VEHICLE (rov), LAT_UART (priv/neptunus_uart), LAT_CLK_TCK (100), LAT_WINDOW (100 joins in flight),
 // LAT_BOARD_SLICE_US (100), LAT_OBSERVER_NICE (0: the observer process' nice value, 0..19), LAT_OBSERVER_CPUS (unset: any
-// CPU; e.g. "1": the observer process runs on those CPUs only, see bench/README.md).
+// CPU; e.g. "1": the observer process runs on those CPUs only, see bench/README.md),
+// LAT_BOARD_RT (unset; N: the board's port program — where the go(...) bytes are timed — runs
+// SCHED_FIFO N, as root: see bench/cluster).
 
 import { createRequire } from 'node:module';
 import { spawn } from 'node:child_process';
@@ -169,7 +171,8 @@ async function main() {
   console.log(`# ${SAMPLES} commands per run, vehicle ${VEHICLE}, server ${URL_BASE}`);
   console.log(`# observers: a separate node process (os pid ${worker.pid}) at nice ${OBSERVER_NICE}` +
     `${OBSERVER_CPUS ? ` on CPUs ${OBSERVER_CPUS}` : ''}; ` +
-    `pilot + board: this process (os pid ${process.pid}) at nice ${os.getPriority()}`);
+    `pilot + board: this process (os pid ${process.pid}) at nice ${os.getPriority()}` +
+    (process.env.LAT_BOARD_RT ? `, the board's port program real-time (SCHED_FIFO ${process.env.LAT_BOARD_RT}, LAT_BOARD_RT)` : ''));
   console.log(`# load average at start: ${os.loadavg().map((x) => x.toFixed(2)).join(' ')}`);
 
   for (const n of counts) {
@@ -289,7 +292,12 @@ function uartPty(program, link) {
   const sliceUs = process.env.LAT_BOARD_SLICE_US ?? '100';
   if (sliceUs === 'default') delete env.NEPTUNUS_SLICE_NS;
   else env.NEPTUNUS_SLICE_NS = String(Number(sliceUs) * 1000);
-  const child = spawn(program, ['pty', link], { stdio: ['pipe', 'pipe', 'inherit'], env });
+  // LAT_BOARD_RT=N: the board's port program real-time (chrt -f N; the caller checked it is
+  // allowed): it stands for the board's microcontroller, which no load on the pilot's machine delays
+  const rt = process.env.LAT_BOARD_RT;
+  const cpus = process.env.LAT_BOARD_CPUS; // the board's port program on these CPUs (taskset)
+  const argv = [...(cpus ? ['taskset', '-c', cpus] : []), ...(rt ? ['chrt', '-f', rt] : []), program, 'pty', link];
+  const child = spawn(argv[0], argv.slice(1), { stdio: ['pipe', 'pipe', 'inherit'], env });
   let buf = Buffer.alloc(0);
   let opened;
   let readNs = null; // the time of the read that gave the next 'r' frame ('t' frame)
