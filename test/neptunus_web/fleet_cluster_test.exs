@@ -64,6 +64,11 @@ defmodule NeptunusWeb.FleetClusterTest do
     assert %{"node" => ^t, "status" => "up"} =
              Enum.find(health(peer.port)["vehicles"], &(&1["id"] == "neptunus-1"))
 
+    # and T lists its own vehicle on its node as named now (it joined the directory before
+    # the test node became distributed)
+    assert %{"node" => ^t, "status" => "up"} =
+             Enum.find(health(port())["vehicles"], &(&1["id"] == "neptunus-1"))
+
     ws = connect!()
     {_, %{"vehicles" => vehicles}} = join!(ws, "fleet")
     assert %{"node" => ^v} = Enum.find(vehicles, &(&1["id"] == id))

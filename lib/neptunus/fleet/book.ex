@@ -92,6 +92,20 @@ defmodule Neptunus.Fleet.Book do
     end)
   end
 
+  @doc """
+  This node was renamed from `old` to `new` (it became distributed after its vehicles joined:
+  they joined as `nonode@nohost`): its entries now name it as it is.
+  """
+  @spec rename(t(), node(), node()) :: t()
+  def rename(%__MODULE__{} = book, old, new) do
+    entries =
+      Map.new(book.entries, fn {id, e} ->
+        {id, if(e.node == old, do: %{e | node: new}, else: e)}
+      end)
+
+    %{book | entries: entries}
+  end
+
   @doc "Forgets the unreachable (and gone) vehicles of `node` (e.g. the operator removed it)."
   @spec forget(t(), node()) :: t()
   def forget(%__MODULE__{} = book, node) do

@@ -26,9 +26,14 @@ defmodule Neptunus.Fleet.Directory do
 
   defmodule State do
     @moduledoc false
-    @type t :: %__MODULE__{book: Neptunus.Fleet.Book.t(), ref: reference(), scope: atom()}
-    @enforce_keys [:book, :ref, :scope]
-    defstruct [:book, :ref, :scope]
+    @type t :: %__MODULE__{
+            book: Neptunus.Fleet.Book.t(),
+            ref: reference(),
+            scope: atom(),
+            node: node()
+          }
+    @enforce_keys [:book, :ref, :scope, :node]
+    defstruct [:book, :ref, :scope, :node]
   end
 
   @spec start_link(atom()) :: GenServer.on_start()
@@ -41,7 +46,7 @@ defmodule Neptunus.Fleet.Directory do
   @spec lookup(String.t()) :: Book.entry() | nil
   def lookup(id) do
     case :ets.lookup(@table, id) do
-      [{^id, entry}] -> entry
+      [{^id, entry}] -> current_node(entry)
       [] -> nil
     end
   rescue
@@ -52,10 +57,16 @@ defmodule Neptunus.Fleet.Directory do
   @doc "Every entry, sorted by id."
   @spec entries() :: [Book.entry()]
   def entries do
-    @table |> :ets.tab2list() |> Enum.map(&elem(&1, 1)) |> Enum.sort_by(& &1.id)
+    @table |> :ets.tab2list() |> Enum.map(&current_node(elem(&1, 1))) |> Enum.sort_by(& &1.id)
   rescue
     ArgumentError -> []
   end
+
+  # A vehicle that is up is on its helm's node as it is named now: this node's own vehicles
+  # joined before distribution may have started (then as nonode@nohost), and a pid's node
+  # follows the node's name.
+  defp current_node(%{pid: pid} = entry) when is_pid(pid), do: %{entry | node: node(pid)}
+  defp current_node(entry), do: entry
 
   @doc """
   Forgets the vehicles remembered as unreachable on `node` (a node taken out of the fleet
@@ -80,16 +91,22 @@ defmodule Neptunus.Fleet.Directory do
         _, book -> book
       end)
 
-    {:ok, publish(%State{book: book, ref: ref, scope: scope})}
+    {:ok, publish(%State{book: book, ref: ref, scope: scope, node: node()})}
   end
 
   @impl true
-  def handle_call(:sync, _from, state), do: {:reply, :ok, state}
+  def handle_call(:sync, _from, state), do: {:reply, :ok, renamed(state)}
 
-  def handle_call({:forget, node}, _from, state),
-    do: {:reply, :ok, publish(%{state | book: Book.forget(state.book, node)})}
+  def handle_call({:forget, node}, _from, state) do
+    state = renamed(state)
+    {:reply, :ok, publish(%{state | book: Book.forget(state.book, node)})}
+  end
 
   @impl true
+  def handle_info(msg, %State{node: named} = state) when named != node() do
+    handle_info(msg, renamed(state))
+  end
+
   def handle_info({ref, :join, {:vehicle, id, board}, pids}, %State{ref: ref} = state) do
     book = join(state.book, id, board, pids, &announce/1)
     {:noreply, publish(%{state | book: book})}
@@ -115,6 +132,15 @@ defmodule Neptunus.Fleet.Directory do
   end
 
   def handle_info(_msg, state), do: {:noreply, state}
+
+  # This node became distributed (or was renamed) since the last event: its vehicles joined
+  # under its former name.
+  defp renamed(%State{node: named} = state) do
+    case node() do
+      ^named -> state
+      now -> publish(%{state | book: Book.rename(state.book, named, now), node: now})
+    end
+  end
 
   defp join(book, id, board, pids, announce \\ fn _ -> :ok end) do
     Enum.reduce(pids, book, fn pid, book ->

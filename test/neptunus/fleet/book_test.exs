@@ -74,4 +74,15 @@ defmodule Neptunus.Fleet.BookTest do
     {book, []} = Book.join(Book.new(), "rov", :simulated, pid(1), @local, @local)
     assert {^book, []} = Book.join(book, "rov", :simulated, pid(2), @v, @local)
   end
+
+  test "a node renamed (distributed after its vehicles joined) keeps its vehicles as its own" do
+    {book, []} = Book.join(Book.new(), "rov", :simulated, pid(1), :nonode@nohost, :nonode@nohost)
+    {book, []} = Book.join(book, "far", :simulated, pid(2), @v, :nonode@nohost)
+    book = Book.rename(book, :nonode@nohost, @local)
+
+    assert %{node: @local, status: :up} = Book.lookup(book, "rov")
+    assert %{node: @v} = Book.lookup(book, "far")
+    # still this node's: a remote vehicle of the same id does not take its place
+    assert {^book, []} = Book.join(book, "rov", :simulated, pid(3), @v, @local)
+  end
 end
