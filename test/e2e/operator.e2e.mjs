@@ -331,6 +331,17 @@ test("tablet 1024×768 touch: the sticks and their labels clear the HUD's boxes;
   }
 });
 
+/** Resolves after `n` animation frames of the page (its gamepad poller runs on them). */
+const afterFrames = (page, n = 2) =>
+  page.evaluate(
+    (count) =>
+      new Promise((resolve) => {
+        const step = (left) => (left === 0 ? resolve(undefined) : requestAnimationFrame(() => step(left - 1)));
+        step(count);
+      }),
+    n,
+  );
+
 /** A stubbed standard pad: `window.__pad` holds its axes and buttons (the page reads copies). */
 const stubPad = () => {
   const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
@@ -358,9 +369,22 @@ test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard i
     await page.locator("#input-gamepad").click();
     await page.locator('[data-testid="gamepad-status"]', { hasText: "Stub pad" }).waitFor();
     await takeHelm(page);
+    // The grant forgot every input: the pad counts again once the page has read it at rest,
+    // on an animation frame after the grant (a stick held through a grant stays neutral).
+    await afterFrames(page);
     // right stick 55 % up: surge (0.55 − 0.1) / 0.9 = 0.5 after the default deadband
     await setPad([0, 0, 0, -0.55]);
     await until(() => num(page, "#cmd-surge"), (v) => Math.abs(v - 0.5) < 0.011, WAIT_MS, "surge 0.50 from the right stick");
+    // a stop with the stick held: neutral, and the pad disarmed until it is centred
+    await page.locator("#stop").click();
+    await page.locator('[data-testid="gamepad-status"]', { hasText: "centre the sticks to arm" }).waitFor();
+    await until(() => num(page, "#cmd-surge"), (v) => v === 0, WAIT_MS, "neutral after the stop with the stick held");
+    await afterFrames(page);
+    assert.equal(await num(page, "#cmd-surge"), 0, "a stick held through a stop moved the vehicle");
+    await setPad([0, 0, 0, 0]);
+    await page.locator('[data-testid="gamepad-status"]', { hasText: "centre the sticks" }).waitFor({ state: "detached" });
+    await setPad([0, 0, 0, -0.55]);
+    await until(() => num(page, "#cmd-surge"), (v) => Math.abs(v - 0.5) < 0.011, WAIT_MS, "surge 0.50 again once centred");
     // right stick X: yaw; left stick Y down: heave
     await setPad([0, 1, 0.55, -0.55]);
     await until(
