@@ -154,7 +154,7 @@ defmodule NeptunusWeb.Endpoint do
       id: NeptunusWeb.Endpoint.Server,
       start:
         {Supervisor, :start_link,
-         [Enum.map(yaws_children, &brutal_server/1) ++ [listener], server_options()]},
+         [Enum.map(yaws_children, &quick_server/1) ++ [listener], server_options()]},
       type: :supervisor
     }
 
@@ -168,15 +168,22 @@ defmodule NeptunusWeb.Endpoint do
 
   defp server_options, do: [strategy: :one_for_all, name: NeptunusWeb.Endpoint.Server]
 
-  # yaws' server process, stopped in order, waits a whole second (`timer:sleep(1000)`)
-  # before it looks whether its connections have ended; so when another of yaws' processes
-  # crashes and the group restarts, the endpoint would be gone for over a second. Killed,
-  # it takes its listener, acceptors and connections (all linked to it) down at once.
-  defp brutal_server({:yaws_server, start, restart, _shutdown, type, modules}),
-    do: {:yaws_server, start, restart, :brutal_kill, type, modules}
+  # yaws' server process, stopped in order, tells its listening process to stop, which
+  # unlinks from it, closes the listening socket, shuts its connections down and then waits
+  # a whole second (`timer:sleep(1000)`) before it looks whether they have ended; so when
+  # another of yaws' processes crashes and the group restarts, the endpoint would be gone
+  # for over a second. Given a moment to pass the stop on (the listener is unlinked by then:
+  # no "Top proc died" error at a clean stop), it is killed, which takes whatever is still
+  # linked to it down at once.
+  @server_shutdown_ms 50
 
-  defp brutal_server(%{id: :yaws_server} = spec), do: Map.put(spec, :shutdown, :brutal_kill)
-  defp brutal_server(spec), do: spec
+  defp quick_server({:yaws_server, start, restart, _shutdown, type, modules}),
+    do: {:yaws_server, start, restart, @server_shutdown_ms, type, modules}
+
+  defp quick_server(%{id: :yaws_server} = spec),
+    do: Map.put(spec, :shutdown, @server_shutdown_ms)
+
+  defp quick_server(spec), do: spec
 
   @doc """
   How long (ms) a send to a client may wait for the client to read before the connection

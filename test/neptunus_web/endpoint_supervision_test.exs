@@ -77,6 +77,47 @@ defmodule NeptunusWeb.EndpointSupervisionTest do
     assert granted_at - t0 <= 1_000, "granted #{granted_at - t0} ms after the crash"
   end
 
+  # yaws' listening process is linked to its server process: killed at once, the server
+  # made it log "Top proc died, terminate gserv" as an error at every clean stop.
+  test "a clean stop of the web server logs no error, closes the connections, and it starts again",
+       %{topic: topic} do
+    _pilot = Wire.client!(topic, %{name: "pilot"})
+    Process.flag(:trap_exit, true)
+
+    # whatever fails below, the next tests find the web server up
+    on_exit(fn ->
+      Supervisor.restart_child(NeptunusWeb.Endpoint, NeptunusWeb.Endpoint.Server)
+    end)
+
+    log =
+      ExUnit.CaptureLog.capture_log([level: :error], fn ->
+        t0 = System.monotonic_time(:millisecond)
+        :ok = Supervisor.terminate_child(NeptunusWeb.Endpoint, NeptunusWeb.Endpoint.Server)
+        stop_ms = System.monotonic_time(:millisecond) - t0
+        assert stop_ms < 1_000, "the web server took #{stop_ms} ms to stop"
+        assert_receive {:ws, _, :closed}, 2_000
+        # what yaws' processes log as they end has reached the logger
+        Process.sleep(200)
+      end)
+
+    refute log =~ "Top proc died"
+    refute log =~ "[error]", "a clean stop logged an error:\n#{log}"
+
+    {:ok, _} = Supervisor.restart_child(NeptunusWeb.Endpoint, NeptunusWeb.Endpoint.Server)
+
+    Neptunus.Test.Pty.wait_until(
+      fn -> match?({200, _, _, _}, Wire.raw_get("/")) end,
+      "the web server to serve again"
+    )
+
+    again = Wire.client!(topic, %{name: "pilot"})
+
+    assert {"ok", %{"status" => "granted"}} =
+             Wire.push_and_reply(again.ws, again.jr, topic, "request_control", %{})
+
+    WSClient.close(again.ws)
+  end
+
   defp safe_join(ws, topic) do
     WSClient.join(ws, topic, %{}, "1")
   catch
