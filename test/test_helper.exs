@@ -8,4 +8,7 @@
 #               rollback of built releases): excluded here; `make test-target` builds the
 #               tarball and runs them (`mix test --only target`).
 {:ok, _} = Application.ensure_all_started(:inets)
-ExUnit.start(exclude: [:target])
+#
+# After ExUnit's summary, Neptunus.Test.FailureRecap repeats which tests failed and the end
+# of their reports (a CI log often keeps only its tail).
+ExUnit.start(exclude: [:target], formatters: [ExUnit.CLIFormatter, Neptunus.Test.FailureRecap])
