@@ -88,6 +88,15 @@ async function loginAs(name, { wrongFirst = false } = {}) {
 
 const helm = (page) => page.locator("#helm-state");
 
+/**
+ * No page of this test reported an error, up to and including its closing (each test
+ * checks after it has closed its pages, so what a page says as it closes is its own test's).
+ */
+function assertNoPageProblems() {
+  const problems = pageProblems.splice(0);
+  assert.deepEqual(problems, [], `the pages reported errors:\n${problems.join("\n")}`);
+}
+
 test("login, roles, and the main station's takeover with a warning", { timeout: TEST_MS }, async () => {
   const pilot = await loginAs("e2e-pilot", { wrongFirst: true });
   const olga = await loginAs("e2e-olga");
@@ -123,12 +132,10 @@ test("login, roles, and the main station's takeover with a warning", { timeout: 
     await pilot.page.waitForURL(/\/login\.html/);
     await pilot.page.goto(`${BASE}/`);
     await pilot.page.waitForURL(/\/login\.html\?next=/);
-
-    const problems = pageProblems.splice(0);
-    assert.deepEqual(problems, [], `the pages reported errors:\n${problems.join("\n")}`);
   } finally {
     for (const side of [pilot, olga, main]) await side.context.close();
   }
+  assertNoPageProblems();
 });
 
 test("developer page in secure mode: to the login page and back; each user's plots are their own", { timeout: TEST_MS }, async () => {
@@ -184,9 +191,8 @@ test("developer page in secure mode: to the login page and back; each user's plo
     } finally {
       await again.context.close();
     }
-    const problems = pageProblems.splice(0);
-    assert.deepEqual(problems, [], `the pages reported errors:\n${problems.join("\n")}`);
   } finally {
     await olga.context.close();
   }
+  assertNoPageProblems();
 });
