@@ -8,7 +8,8 @@ defmodule Neptunus.ChaosTest do
   #
   #   * a kill that touched a vehicle's control path has its board at neutral within
   #     @neutral_ms, as the board sees it (a sampler reads the SITL board's `go()` targets and
-  #     the simulated board's thrusters every few ms),
+  #     its count of neutral commands received, and the simulated board's thrusters, every
+  #     few ms),
   #   * every client of the vehicles it touched is told: `stopped` with a reason, or its
   #     connection closed (for a kill of the board or its link: the `link` event),
   #   * the service is back within @back_ms: the pilot, asking again, is granted control
@@ -92,7 +93,10 @@ defmodule Neptunus.ChaosTest do
 
   # -- the board side -------------------------------------------------------------------
 
-  # Reads each board every @sample_ms into an ETS table: {{t, vehicle}, neutral?}.
+  # Reads each board every @sample_ms into an ETS table: {{t, vehicle}, neutral?}. A board is
+  # at neutral when its thrusters are, or (the SITL board) when a neutral command arrived
+  # since the last sample: a new link's neutral `go()` followed at once by the pilot's next
+  # `go()` may never show in the board's targets, yet the board received it.
   defp start_sampler(vehicles) do
     table = :ets.new(:chaos_samples, [:ordered_set, :public])
 
@@ -105,27 +109,29 @@ defmodule Neptunus.ChaosTest do
     {table, pid}
   end
 
-  defp sample(table, vehicles, pids \\ %{}) do
-    pids =
-      Enum.reduce(vehicles, pids, fn {id, kind}, pids ->
+  # `seen`: each vehicle's board pid and its count of neutral commands at the last sample
+  defp sample(table, vehicles, seen \\ %{}) do
+    seen =
+      Enum.reduce(vehicles, seen, fn {id, kind}, seen ->
         pid = board_pid(id, kind)
+        {last_pid, last_count} = Map.get(seen, id, {nil, nil})
 
-        neutral =
+        {neutral, count} =
           cond do
             # no board running: its ESCs, without pulses, stop
-            pid == nil -> true
+            pid == nil -> {true, nil}
             # a board process that started since the last sample: a board that booted, whose
             # firmware starts at neutral (it may still be in its init, not answering)
-            pid != Map.get(pids, id) and Map.has_key?(pids, id) -> true
-            true -> neutral?(id, kind)
+            pid != last_pid and Map.has_key?(seen, id) -> {true, nil}
+            true -> read_board(id, kind, last_count)
           end
 
         if neutral != nil, do: :ets.insert(table, {{now(), id}, neutral})
-        Map.put(pids, id, pid)
+        Map.put(seen, id, {pid, count})
       end)
 
     Process.sleep(@sample_ms)
-    sample(table, vehicles, pids)
+    sample(table, vehicles, seen)
   end
 
   defp board_pid(id, :sitl), do: Fleet.whereis(SITL.Device, id)
@@ -133,21 +139,23 @@ defmodule Neptunus.ChaosTest do
 
   @neutral_us {1500, 1500, 1500}
 
-  # A board too busy to answer within 100 ms gives no sample; one that ends meanwhile has
-  # stopped.
-  defp neutral?(id, :sitl) do
-    GenServer.call(Fleet.via(SITL.Device, id), :state, 100).firmware.target_us == @neutral_us
+  # {neutral?, the board's count of neutral commands}. A board too busy to answer within
+  # 100 ms gives no sample; one that ends meanwhile has stopped.
+  defp read_board(id, :sitl, last_count) do
+    fw = GenServer.call(Fleet.via(SITL.Device, id), :state, 100).firmware
+    arrived = last_count != nil and fw.neutral_commands > last_count
+    {fw.target_us == @neutral_us or arrived, fw.neutral_commands}
   catch
-    :exit, reason -> down?(reason)
+    :exit, reason -> {down?(reason), last_count}
   end
 
-  defp neutral?(id, :simulated) do
+  defp read_board(id, :simulated, _last_count) do
     %{sim: %{thrusters: thrusters}} =
       GenServer.call(Fleet.via(Neptunus.Vehicle.Board, id), :state, 100)
 
-    thrusters |> Map.values() |> Enum.all?(&(&1 == 0))
+    {thrusters |> Map.values() |> Enum.all?(&(&1 == 0)), nil}
   catch
-    :exit, reason -> down?(reason)
+    :exit, reason -> {down?(reason), nil}
   end
 
   defp down?({:noproc, _}), do: true

@@ -167,7 +167,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
     depth_ms: 0,
     last_ping: nil,
     commands: 0,
-    bad_commands: 0
+    bad_commands: 0,
+    neutral_commands: 0
   ]
 
   @typedoc """
@@ -188,7 +189,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   * `armed`, `tripped`, `blink` — the deadman; `last_ping` — millis of the last ping
   * `depth`, `pressure`, `temperature` — the depth sensor's last reading (0.0 before the
     first); `attitude` — the IMU's; `status` — `vout`, `iout`, `time` as last sampled
-  * `commands` — commands accepted; `bad_commands` — commands dropped (CRC)
+  * `commands` — commands accepted; `bad_commands` — commands dropped (CRC);
+    `neutral_commands` — neutral `go()`s and `stop`s among them (a neutral followed at once
+    by another `go()` may never show in `target_us`: this says it arrived)
   """
   @type t :: %__MODULE__{
           profile: profile(),
@@ -231,7 +234,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
           depth_ms: non_neg_integer(),
           last_ping: integer() | nil,
           commands: non_neg_integer(),
-          bad_commands: non_neg_integer()
+          bad_commands: non_neg_integer(),
+          neutral_commands: non_neg_integer()
         }
 
   @profiles [:openrov_25, :openrov_30]
@@ -592,7 +596,11 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
         {go(fw, arg.(1), arg.(2), arg.(3), arg.(4)), []}
 
       is.("stop") ->
-        {%{fw | target_us: {@neutral, @neutral, @neutral}}, []}
+        {%{
+           fw
+           | target_us: {@neutral, @neutral, @neutral},
+             neutral_commands: fw.neutral_commands + 1
+         }, []}
 
       true ->
         {fw, []}
@@ -603,9 +611,18 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   defp cdiv(n), do: div(n, 100)
 
   defp go(fw, p, v, s, flag) do
-    if Enum.all?([p, v, s], &(&1 > 999 and &1 < 2001)),
-      do: %{fw | target_us: {p, v, s}, bypass: fw.bypass or flag == 1},
-      else: fw
+    if Enum.all?([p, v, s], &(&1 > 999 and &1 < 2001)) do
+      neutral = if {p, v, s} == {@neutral, @neutral, @neutral}, do: 1, else: 0
+
+      %{
+        fw
+        | target_us: {p, v, s},
+          bypass: fw.bypass or flag == 1,
+          neutral_commands: fw.neutral_commands + neutral
+      }
+    else
+      fw
+    end
   end
 
   defp ping(fw, count, m) do

@@ -180,6 +180,20 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
   end
 
   describe "motors" do
+    test "a neutral go() or stop is counted though a later go() in the same loop hides it" do
+      {fw, _} = send_cmd(boot(), "go(1500,1500,1500,1);go(1700,1500,1300,1);", 1, 10)
+      assert fw.target_us == {1700, 1500, 1300}
+      assert fw.neutral_commands == 1
+
+      {fw, _} = send_cmd(fw, "stop();go(1600,1500,1400,1);go(1500,1500,1499,1);", 11, 20)
+      assert fw.target_us == {1500, 1500, 1499}
+      assert fw.neutral_commands == 2
+
+      # refused (out of range) neutral-looking commands are not counted
+      {fw, _} = send_cmd(fw, "go(1500,1500,2500,1);", 21, 30)
+      assert fw.neutral_commands == 2
+    end
+
     test "Motor::goms with the default modifiers: go(1300,1500,1700) → 1090/1500/1730" do
       {fw, out} = send_cmd(boot(), "go(1300,1500,1700,1);", 1, 100)
       assert fw.esc_us == {1090, 1500, 1730}
