@@ -456,9 +456,14 @@ defmodule Neptunus.ChaosTest do
       for id <- stopped do
         at = wait_for(fn -> first_neutral(table, id, t0) end, 3_000)
 
-        assert at != nil and at - t0 <= @neutral_ms,
-               "kill #{n} (#{what}): #{id}'s board at neutral " <>
-                 if(at, do: "#{at - t0} ms after the kill", else: "never")
+        # (the diagnosis only when it fails: it asks the board link)
+        unless at != nil and at - t0 <= @neutral_ms do
+          flunk(
+            "kill #{n} (#{what}): #{id}'s board at neutral " <>
+              if(at, do: "#{at - t0} ms after the kill", else: "never") <>
+              " (#{diagnosis(target, id, table, t0)})"
+          )
+        end
 
         at - t0
       end
@@ -498,6 +503,42 @@ defmodule Neptunus.ChaosTest do
         neutral: neutral_ms ++ acc.neutral,
         log: [{n, what, target, t0, os_t0, stopped} | acc.log]
     }
+  end
+
+  # What a failed neutral check saw: the board link, the killed program, the last samples.
+  defp diagnosis(target, id, table, t0) do
+    link =
+      try do
+        state = :sys.get_state(Fleet.via(Neptunus.Vehicle.Board, id), 500)
+
+        os_pid =
+          with port when is_port(port) <- Map.get(state, :port),
+               {:os_pid, p} <- Port.info(port, :os_pid),
+               do: p
+
+        "board link #{inspect(Map.get(state, :link))}, its program #{inspect(os_pid)}"
+      catch
+        kind, reason -> "board link not read: #{kind} #{inspect(reason, limit: 5)}"
+      end
+
+    program =
+      case target do
+        {:port_program, _, _, os_pid} ->
+          case File.read("/proc/#{os_pid}/stat") do
+            {:ok, stat} -> "; the killed program still exists: #{String.slice(stat, 0, 60)}"
+            {:error, _} -> "; the killed program is gone"
+          end
+
+        _ ->
+          ""
+      end
+
+    samples =
+      :ets.select(table, [{{{:"$1", id}, :"$2"}, [{:>=, :"$1", t0 - 20}], [{{:"$1", :"$2"}}]}])
+      |> Enum.map(fn {t, neutral} -> "#{t - t0}:#{if neutral, do: "N", else: "d"}" end)
+
+    "#{link}#{program}; #{length(samples)} samples since 20 ms before the kill: " <>
+      Enum.join(Enum.take(samples, 8), " ") <> " … " <> Enum.join(Enum.take(samples, -3), " ")
   end
 
   # Takes the next report of `name`: whether it tells of a stop or, for a board or link
