@@ -7,13 +7,18 @@ defmodule NeptunusWeb.HeaderDeadline do
   `keepalive_timeout`), not the whole head: a client sending a short header line every second
   or so (a "slowloris") would hold its connection, and a descriptor, for as long as it likes.
   Every `interval_ms` this process looks at yaws' connection processes: one whose stack is in
-  `yaws:http_recv_request/2` or `yaws:http_collect_headers/5` is reading a request head, and
-  the request it reads is told by yaws' `request_start_time` (set when a request line
-  arrives). A process seen reading the same head (same phase, same request) for the timeout is
-  killed: its socket closes, and yaws counts the connection as gone (`NeptunusWeb.ConnectionLog`
-  counts it for the log). A connection that makes
-  progress (its next request, its headers complete) starts a fresh deadline; WebSocket and
-  streaming connections never read a head and are never touched.
+  `yaws:http_recv_request/2` or `yaws:http_collect_headers/5` is reading a request head.
+  Which head it reads: while reading headers, the request is told by yaws'
+  `request_start_time` (set when a request line arrives); while waiting for a request line,
+  by the bytes the server has sent on the connection — yaws clears its process dictionary
+  after every request, so on a kept-alive connection only its answers tell one wait from the
+  next (empty lines, which yaws skips with a fresh read timeout, send nothing). A process
+  seen reading the same head (same phase, same request) for the timeout is killed: its
+  socket closes, and yaws counts the connection as gone. `NeptunusWeb.ConnectionLog` counts
+  it for the log: as idle when it never sent a byte (a browser's spare connection), else as
+  slow. A connection that makes progress (its next request, its headers complete) starts a
+  fresh deadline; WebSocket and streaming connections never read a head and are never
+  touched.
 
   The decision is `sweep/4`, a pure function; this process only observes and kills. It runs
   in `NeptunusWeb.Endpoint`'s supervisor after yaws, and never fails on a process that ends
@@ -21,8 +26,11 @@ defmodule NeptunusWeb.HeaderDeadline do
   """
   use GenServer
 
-  @typedoc "What a connection process is reading: the phase and yaws' request start time."
-  @type key :: {:request_line | :headers, term()}
+  @typedoc """
+  What a connection process is reading: the request line and the bytes sent on its socket
+  so far, or headers and yaws' start time of their request.
+  """
+  @type key :: {:request_line, non_neg_integer() | nil} | {:headers, term()}
 
   @typedoc "Each connection reading a head: what it reads, since when (ms, monotonic)."
   @type seen :: %{pid() => {key(), integer()}}
@@ -73,14 +81,54 @@ defmodule NeptunusWeb.HeaderDeadline do
   def handle_info(:sweep, state) do
     now = Neptunus.Clock.monotonic_ms()
     {seen, expired} = sweep(state.seen, reading_heads(), now, state.timeout_ms)
+    {idle, slow} = Enum.split_with(expired, &idle?(Map.get(state.seen, &1), received(&1)))
 
     Enum.each(expired, &Process.exit(&1, :kill))
-    NeptunusWeb.ConnectionLog.closed_slow(length(expired))
+    NeptunusWeb.ConnectionLog.closed_idle(length(idle))
+    NeptunusWeb.ConnectionLog.closed_slow(length(slow))
     schedule(state)
     {:noreply, %{state | seen: seen}}
   end
 
   def handle_info(_other, state), do: {:noreply, state}
+
+  @doc """
+  Whether an expiring connection was idle: `seen` is what it was seen reading (and since
+  when), `received` the bytes its socket has received (nil: unknown). Idle is a connection
+  waiting for a request line that never sent a byte; one that did, or whose socket cannot be
+  read, is slow.
+
+      iex> NeptunusWeb.HeaderDeadline.idle?({{:request_line, 0}, 0}, 0)
+      true
+      iex> NeptunusWeb.HeaderDeadline.idle?({{:request_line, 0}, 0}, 3)
+      false
+      iex> NeptunusWeb.HeaderDeadline.idle?({{:headers, {1, 2, 3}}, 0}, 0)
+      false
+      iex> NeptunusWeb.HeaderDeadline.idle?({{:request_line, 0}, 0}, nil)
+      false
+  """
+  @spec idle?({key(), integer()} | nil, non_neg_integer() | nil) :: boolean()
+  def idle?({{:request_line, _sent}, _since}, 0), do: true
+  def idle?(_seen, _received), do: false
+
+  defp received(pid), do: socket_stat(pid, :recv_oct)
+
+  # A statistic of a connection process's TCP socket (nil: no plain TCP socket, e.g. TLS,
+  # whose socket belongs to the ssl processes).
+  defp socket_stat(pid, stat) do
+    with {:links, links} <- Process.info(pid, :links),
+         port when is_port(port) <- Enum.find(links, &tcp_port?/1),
+         {:ok, [{^stat, n}]} <- :inet.getstat(port, [stat]) do
+      n
+    else
+      _ -> nil
+    end
+  end
+
+  defp tcp_port?(port) when is_port(port),
+    do: :erlang.port_info(port, :name) == {:name, ~c"tcp_inet"}
+
+  defp tcp_port?(_), do: false
 
   defp schedule(state), do: Process.send_after(self(), :sweep, state.interval_ms)
 
@@ -110,7 +158,8 @@ defmodule NeptunusWeb.HeaderDeadline do
         if Keyword.get(dictionary, :"$initial_call") == {:yaws_server, :acceptor0, 2} do
           case phase(stack) do
             nil -> nil
-            phase -> {phase, Keyword.get(dictionary, :request_start_time)}
+            :headers -> {:headers, Keyword.get(dictionary, :request_start_time)}
+            :request_line -> {:request_line, socket_stat(pid, :send_oct)}
           end
         end
 

@@ -3,6 +3,8 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
 
   alias NeptunusWeb.HeaderDeadline
 
+  import ExUnit.CaptureLog
+
   doctest HeaderDeadline
 
   @timeout 5_000
@@ -58,9 +60,52 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
 
     # a header line well within yaws' per-read timeout, again and again, until closed
     timeout = NeptunusWeb.Endpoint.header_timeout_ms()
-    lines = trickle(trickler, 0, div(timeout, 10))
-    assert lines < 30, "the trickler sent #{lines} lines and was never closed"
+
+    log =
+      capture_log(fn ->
+        lines = trickle(trickler, 0, div(timeout, 10))
+        assert lines < 30, "the trickler sent #{lines} lines and was never closed"
+        NeptunusWeb.ConnectionLog.flush()
+      end)
+
+    # counted as slow, not idle: it sent bytes
+    assert log =~ ~r/\[warning\] closed \d+ connections: .*\d+ slower than the header timeout/
     :gen_tcp.close(served)
+  end
+
+  test "a kept-alive connection asking again and again is never closed, however long it lives" do
+    # yaws clears a connection's process dictionary after each request: between requests
+    # every wait looks alike but for the answers sent (a browser reusing a connection was
+    # cut off the timeout after it was first seen waiting, busy or not)
+    port = Application.fetch_env!(:neptunus, :endpoint).port
+    timeout = NeptunusWeb.Endpoint.header_timeout_ms()
+    {:ok, socket} = :gen_tcp.connect(~c"127.0.0.1", port, [:binary, active: false])
+    every = div(timeout, 3)
+    asks = div(2 * timeout, every) + 2
+
+    for n <- 1..asks do
+      :ok = :gen_tcp.send(socket, "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+      assert {:ok, "HTTP/1.1 200" <> _ = answer} = recv_answer(socket, ""), "request #{n}"
+      assert answer =~ "\r\n\r\n"
+      Process.sleep(every)
+    end
+
+    :gen_tcp.close(socket)
+  end
+
+  # one whole answer (head and a body of Content-Length bytes)
+  defp recv_answer(socket, acc) do
+    with [head, body] <- String.split(acc, "\r\n\r\n", parts: 2),
+         [_, length] <- Regex.run(~r/content-length: *(\d+)/i, head),
+         true <- byte_size(body) >= String.to_integer(length) do
+      {:ok, acc}
+    else
+      _ ->
+        case :gen_tcp.recv(socket, 0, 5_000) do
+          {:ok, more} -> recv_answer(socket, acc <> more)
+          error -> error
+        end
+    end
   end
 
   defp trickle(_socket, 40, _every), do: 40
