@@ -13,7 +13,7 @@ defmodule NeptunusWeb.HeaderDeadline do
   by the bytes the server has sent on the connection — yaws clears its process dictionary
   after every request, so on a kept-alive connection only its answers tell one wait from the
   next (empty lines, which yaws skips with a fresh read timeout, send nothing). A process
-  seen reading the same head (same phase, same request) for the timeout is killed: its
+  seen reading the same head (same phase, same request) for its `deadline/3` is killed: its
   socket closes, and yaws counts the connection as gone. `NeptunusWeb.ConnectionLog` counts
   it for the log: as idle when it never sent a byte (a browser's spare connection), else as
   slow. A connection that makes progress (its next request, its headers complete) starts a
@@ -44,9 +44,9 @@ defmodule NeptunusWeb.HeaderDeadline do
 
   @doc """
   One sweep: given the connections seen before, those reading a head now (`[{pid, key}]`),
-  the time and the timeout, returns the connections to remember and those to close. A
-  connection is closed when it has been reading the same head for `timeout_ms` or more; one
-  no longer reading a head is forgotten.
+  the time and the timeout (ms, or a function of the key giving it), returns the
+  connections to remember and those to close. A connection is closed when it has been
+  reading the same head for its timeout or more; one no longer reading a head is forgotten.
 
       iex> {seen, []} = NeptunusWeb.HeaderDeadline.sweep(%{}, [{:a, {:headers, 1}}], 0, 5000)
       iex> {_, []} = NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 4999, 5000)
@@ -54,19 +54,48 @@ defmodule NeptunusWeb.HeaderDeadline do
       {%{}, [:a]}
       iex> NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 2}}], 5000, 5000)
       {%{a: {{:headers, 2}, 5000}}, []}
+      iex> longer = fn {:headers, _} -> 6000 end
+      iex> {_, []} = NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 5000, longer)
   """
-  @spec sweep(%{term() => {term(), integer()}}, [{term(), term()}], integer(), pos_integer()) ::
-          {%{term() => {term(), integer()}}, [term()]}
-  def sweep(seen, reading, now, timeout_ms) do
+  @spec sweep(
+          %{term() => {term(), integer()}},
+          [{term(), term()}],
+          integer(),
+          pos_integer() | (term() -> pos_integer())
+        ) :: {%{term() => {term(), integer()}}, [term()]}
+  def sweep(seen, reading, now, timeout_ms) when is_integer(timeout_ms),
+    do: sweep(seen, reading, now, fn _key -> timeout_ms end)
+
+  def sweep(seen, reading, now, timeout_of) do
     Enum.reduce(reading, {%{}, []}, fn {pid, key}, {next, expired} ->
       case Map.fetch(seen, pid) do
-        {:ok, {^key, since}} when now - since >= timeout_ms -> {next, [pid | expired]}
-        {:ok, {^key, since}} -> {Map.put(next, pid, {key, since}), expired}
-        _ -> {Map.put(next, pid, {key, now}), expired}
+        {:ok, {^key, since}} ->
+          if now - since >= timeout_of.(key),
+            do: {next, [pid | expired]},
+            else: {Map.put(next, pid, {key, since}), expired}
+
+        _ ->
+          {Map.put(next, pid, {key, now}), expired}
       end
     end)
     |> then(fn {next, expired} -> {next, Enum.reverse(expired)} end)
   end
+
+  @doc """
+  The deadline of what a connection reads. A request line is awaited in one read, which
+  yaws itself bounds by the same timeout (its `keepalive_timeout`): it closes an idle
+  connection first, and this process gives it one more sweep, so that it only catches what
+  yaws does not (empty lines, which yaws skips with a fresh read timeout). Headers are read
+  line by line, each read bounded by yaws, the whole by the timeout.
+
+      iex> NeptunusWeb.HeaderDeadline.deadline({:request_line, 0}, 5000, 1000)
+      6000
+      iex> NeptunusWeb.HeaderDeadline.deadline({:headers, {1, 2, 3}}, 5000, 1000)
+      5000
+  """
+  @spec deadline(key(), pos_integer(), pos_integer()) :: pos_integer()
+  def deadline({:request_line, _}, timeout_ms, interval_ms), do: timeout_ms + interval_ms
+  def deadline({:headers, _}, timeout_ms, _interval_ms), do: timeout_ms
 
   @impl true
   def init(opts) do
@@ -80,7 +109,8 @@ defmodule NeptunusWeb.HeaderDeadline do
   @impl true
   def handle_info(:sweep, state) do
     now = Neptunus.Clock.monotonic_ms()
-    {seen, expired} = sweep(state.seen, reading_heads(), now, state.timeout_ms)
+    timeout_of = &deadline(&1, state.timeout_ms, state.interval_ms)
+    {seen, expired} = sweep(state.seen, reading_heads(), now, timeout_of)
     {idle, slow} = Enum.split_with(expired, &idle?(Map.get(state.seen, &1), received(&1)))
 
     Enum.each(expired, &Process.exit(&1, :kill))

@@ -93,6 +93,32 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
     :gen_tcp.close(socket)
   end
 
+  test "empty lines instead of a request line do not hold a connection" do
+    # yaws skips an empty line with a fresh read timeout: only the deadline ends this
+    port = Application.fetch_env!(:neptunus, :endpoint).port
+    timeout = NeptunusWeb.Endpoint.header_timeout_ms()
+    {:ok, socket} = :gen_tcp.connect(~c"127.0.0.1", port, [:binary, active: false])
+    started = System.monotonic_time(:millisecond)
+    lines = empty_lines(socket, 0, div(timeout, 5))
+    lasted = System.monotonic_time(:millisecond) - started
+
+    assert lines < 40, "#{lines} empty lines sent and the connection was never closed"
+    assert lasted < 2 * timeout, "closed after #{lasted} ms"
+  end
+
+  defp empty_lines(_socket, 40, _every), do: 40
+
+  defp empty_lines(socket, n, every) do
+    Process.sleep(every)
+
+    with :ok <- :gen_tcp.send(socket, "\r\n"),
+         {:error, :timeout} <- :gen_tcp.recv(socket, 0, 0) do
+      empty_lines(socket, n + 1, every)
+    else
+      _ -> n
+    end
+  end
+
   # one whole answer (head and a body of Content-Length bytes)
   defp recv_answer(socket, acc) do
     with [head, body] <- String.split(acc, "\r\n\r\n", parts: 2),
