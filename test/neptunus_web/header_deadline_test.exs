@@ -50,11 +50,10 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
   end
 
   test "the running process finds a trickling connection and closes it, not a served one" do
-    port = Application.fetch_env!(:neptunus, :endpoint).port
-    {:ok, trickler} = :gen_tcp.connect(~c"127.0.0.1", port, [:binary, active: false])
+    trickler = connect!()
     :ok = :gen_tcp.send(trickler, "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n")
 
-    {:ok, served} = :gen_tcp.connect(~c"127.0.0.1", port, [:binary, active: false])
+    served = connect!()
     :ok = :gen_tcp.send(served, "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
     assert {:ok, "HTTP/1.1 200" <> _} = :gen_tcp.recv(served, 0, 5_000)
 
@@ -63,7 +62,7 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
 
     log =
       capture_log(fn ->
-        lines = trickle(trickler, 0, div(timeout, 10))
+        lines = drip(trickler, div(timeout, 5), &"X-#{&1}: 1\r\n")
         assert lines < 30, "the trickler sent #{lines} lines and was never closed"
         NeptunusWeb.ConnectionLog.flush()
       end)
@@ -77,9 +76,8 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
     # yaws clears a connection's process dictionary after each request: between requests
     # every wait looks alike but for the answers sent (a browser reusing a connection was
     # cut off the timeout after it was first seen waiting, busy or not)
-    port = Application.fetch_env!(:neptunus, :endpoint).port
     timeout = NeptunusWeb.Endpoint.header_timeout_ms()
-    {:ok, socket} = :gen_tcp.connect(~c"127.0.0.1", port, [:binary, active: false])
+    socket = connect!()
     every = div(timeout, 3)
     asks = div(2 * timeout, every) + 2
 
@@ -95,28 +93,20 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
 
   test "empty lines instead of a request line do not hold a connection" do
     # yaws skips an empty line with a fresh read timeout: only the deadline ends this
-    port = Application.fetch_env!(:neptunus, :endpoint).port
     timeout = NeptunusWeb.Endpoint.header_timeout_ms()
-    {:ok, socket} = :gen_tcp.connect(~c"127.0.0.1", port, [:binary, active: false])
+    socket = connect!()
     started = System.monotonic_time(:millisecond)
-    lines = empty_lines(socket, 0, div(timeout, 5))
+    lines = drip(socket, div(timeout, 5), fn _ -> "\r\n" end)
     lasted = System.monotonic_time(:millisecond) - started
 
     assert lines < 40, "#{lines} empty lines sent and the connection was never closed"
     assert lasted < 2 * timeout, "closed after #{lasted} ms"
   end
 
-  defp empty_lines(_socket, 40, _every), do: 40
-
-  defp empty_lines(socket, n, every) do
-    Process.sleep(every)
-
-    with :ok <- :gen_tcp.send(socket, "\r\n"),
-         {:error, :timeout} <- :gen_tcp.recv(socket, 0, 0) do
-      empty_lines(socket, n + 1, every)
-    else
-      _ -> n
-    end
+  defp connect! do
+    port = Application.fetch_env!(:neptunus, :endpoint).port
+    {:ok, socket} = :gen_tcp.connect(~c"127.0.0.1", port, [:binary, active: false])
+    socket
   end
 
   # one whole answer (head and a body of Content-Length bytes)
@@ -134,14 +124,17 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
     end
   end
 
-  defp trickle(_socket, 40, _every), do: 40
+  # Sends line(n) every `every` ms until the server closes the connection (or 40 lines):
+  # the number of lines it took.
+  defp drip(socket, every, line, n \\ 0)
+  defp drip(_socket, _every, _line, 40), do: 40
 
-  defp trickle(socket, n, every) do
-    Process.sleep(every * 2)
+  defp drip(socket, every, line, n) do
+    Process.sleep(every)
 
-    with :ok <- :gen_tcp.send(socket, "X-#{n}: 1\r\n"),
+    with :ok <- :gen_tcp.send(socket, line.(n)),
          {:error, :timeout} <- :gen_tcp.recv(socket, 0, 0) do
-      trickle(socket, n + 1, every)
+      drip(socket, every, line, n + 1)
     else
       _ -> n
     end
