@@ -8,15 +8,9 @@ defmodule NeptunusWeb.ConnectionLog do
   that is thousands of lines a second, which would bury everything else and fill the
   journal. A primary logger filter (`filter/2`, installed while this process runs) drops
   that message and counts it; `NeptunusWeb.HeaderDeadline` counts the connections it closes
-  for a slow head (`closed_slow/1`) and those it closes idle, never having sent a byte
-  (`closed_idle/1`). Every second this process looks at the counts; when there are some and
-  the last report is `:report_ms` old, it logs one line with them all and starts counting
-  again.
-
-  The line is a warning when connections were refused or slow, or when many were idle: a
-  browser opens a spare connection or two for every page (Chromium's speculative
-  connections) and never uses some, so a few idle ones are routine (info), while a flood of
-  them is someone holding descriptors.
+  for a slow head (`closed_slow/1`). Every second this process looks at the counts; when
+  there are some and the last report is `:report_ms` old, it logs one warning with both
+  and starts counting again (`flush/0`: at once).
   """
   use GenServer
 
@@ -26,9 +20,6 @@ defmodule NeptunusWeb.ConnectionLog do
   @yaws_max_connections ~c"Max connections reached - closing conn to ~s~n"
   @refused 1
   @slow 2
-  @idle 3
-  # idle connections in one report from which the line is a warning
-  @many_idle 10
 
   defstruct counters: nil, report_ms: 10_000, tick_ms: 1_000, last_report_ms: nil
 
@@ -65,55 +56,34 @@ defmodule NeptunusWeb.ConnectionLog do
 
   @doc "Counts `n` connections closed for taking too long over their request head."
   @spec closed_slow(non_neg_integer()) :: :ok
-  def closed_slow(n) when is_integer(n) and n >= 0, do: count(@slow, n)
-
-  @doc "Counts `n` connections closed at the header timeout without having sent a byte."
-  @spec closed_idle(non_neg_integer()) :: :ok
-  def closed_idle(n) when is_integer(n) and n >= 0, do: count(@idle, n)
-
-  defp count(index, n) do
+  def closed_slow(n) when is_integer(n) and n >= 0 do
     case :persistent_term.get({__MODULE__, :counters}, nil) do
       nil -> :ok
-      counters -> :counters.add(counters, index, n)
+      counters -> :counters.add(counters, @slow, n)
     end
   end
 
   @doc """
-  The report for `refused` connections closed beyond the limit, `slow` ones closed for a
-  slow head and `idle` ones that never sent a byte: its level and line, or nil when all are
-  0.
+  The report line for `refused` connections closed beyond the limit and `slow` ones closed
+  for a slow head, or nil when both are 0.
 
-      iex> NeptunusWeb.ConnectionLog.report(0, 0, 0)
+      iex> NeptunusWeb.ConnectionLog.report(0, 0)
       nil
-      iex> NeptunusWeb.ConnectionLog.report(120, 3, 0)
-      {:warning, "closed 123 connections: 120 beyond the connection limit, 3 slower than the header timeout"}
-      iex> NeptunusWeb.ConnectionLog.report(0, 0, 2)
-      {:info, "closed 2 connections: 2 idle (no request sent within the header timeout)"}
-      iex> NeptunusWeb.ConnectionLog.report(0, 0, 10)
-      {:warning, "closed 10 connections: 10 idle (no request sent within the header timeout)"}
+      iex> NeptunusWeb.ConnectionLog.report(120, 3)
+      "closed 123 connections: 120 beyond the connection limit, 3 slower than the header timeout"
   """
-  @spec report(non_neg_integer(), non_neg_integer(), non_neg_integer()) ::
-          {:info | :warning, String.t()} | nil
-  def report(0, 0, 0), do: nil
+  @spec report(non_neg_integer(), non_neg_integer()) :: String.t() | nil
+  def report(0, 0), do: nil
 
-  def report(refused, slow, idle) do
-    parts =
-      for {n, what} <- [
-            {refused, "beyond the connection limit"},
-            {slow, "slower than the header timeout"},
-            {idle, "idle (no request sent within the header timeout)"}
-          ],
-          n > 0,
-          do: "#{n} #{what}"
-
-    level = if refused > 0 or slow > 0 or idle >= @many_idle, do: :warning, else: :info
-    {level, "closed #{refused + slow + idle} connections: " <> Enum.join(parts, ", ")}
+  def report(refused, slow) do
+    "closed #{refused + slow} connections: #{refused} beyond the connection limit, " <>
+      "#{slow} slower than the header timeout"
   end
 
   @impl true
   def init(opts) do
     Process.flag(:trap_exit, true)
-    counters = :counters.new(3, [:write_concurrency])
+    counters = :counters.new(2, [:write_concurrency])
     :persistent_term.put({__MODULE__, :counters}, counters)
     _ = :logger.remove_primary_filter(@filter_id)
     :ok = :logger.add_primary_filter(@filter_id, {&__MODULE__.filter/2, counters})
@@ -151,16 +121,12 @@ defmodule NeptunusWeb.ConnectionLog do
   end
 
   defp log_counts(state, now) do
-    refused = take(state.counters, @refused)
-    slow = take(state.counters, @slow)
-    idle = take(state.counters, @idle)
-
-    case report(refused, slow, idle) do
+    case report(take(state.counters, @refused), take(state.counters, @slow)) do
       nil ->
         state
 
-      {level, line} ->
-        Logger.log(level, line)
+      line ->
+        Logger.warning(line)
         %{state | last_report_ms: now}
     end
   end

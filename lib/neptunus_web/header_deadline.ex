@@ -14,9 +14,8 @@ defmodule NeptunusWeb.HeaderDeadline do
   after every request, so on a kept-alive connection only its answers tell one wait from the
   next (empty lines, which yaws skips with a fresh read timeout, send nothing). A process
   seen reading the same head (same phase, same request) for its `deadline/3` is killed: its
-  socket closes, and yaws counts the connection as gone. `NeptunusWeb.ConnectionLog` counts
-  it for the log: as idle when it never sent a byte (a browser's spare connection), else as
-  slow. A connection that makes progress (its next request, its headers complete) starts a
+  socket closes, and yaws counts the connection as gone (`NeptunusWeb.ConnectionLog` counts
+  it for the log). A connection that makes progress (its next request, its headers complete) starts a
   fresh deadline; WebSocket and streaming connections never read a head and are never
   touched.
 
@@ -111,37 +110,14 @@ defmodule NeptunusWeb.HeaderDeadline do
     now = Neptunus.Clock.monotonic_ms()
     timeout_of = &deadline(&1, state.timeout_ms, state.interval_ms)
     {seen, expired} = sweep(state.seen, reading_heads(), now, timeout_of)
-    {idle, slow} = Enum.split_with(expired, &idle?(Map.get(state.seen, &1), received(&1)))
 
     Enum.each(expired, &Process.exit(&1, :kill))
-    NeptunusWeb.ConnectionLog.closed_idle(length(idle))
-    NeptunusWeb.ConnectionLog.closed_slow(length(slow))
+    NeptunusWeb.ConnectionLog.closed_slow(length(expired))
     schedule(state)
     {:noreply, %{state | seen: seen}}
   end
 
   def handle_info(_other, state), do: {:noreply, state}
-
-  @doc """
-  Whether an expiring connection was idle: `seen` is what it was seen reading (and since
-  when), `received` the bytes its socket has received (nil: unknown). Idle is a connection
-  waiting for a request line that never sent a byte; one that did, or whose socket cannot be
-  read, is slow.
-
-      iex> NeptunusWeb.HeaderDeadline.idle?({{:request_line, 0}, 0}, 0)
-      true
-      iex> NeptunusWeb.HeaderDeadline.idle?({{:request_line, 0}, 0}, 3)
-      false
-      iex> NeptunusWeb.HeaderDeadline.idle?({{:headers, {1, 2, 3}}, 0}, 0)
-      false
-      iex> NeptunusWeb.HeaderDeadline.idle?({{:request_line, 0}, 0}, nil)
-      false
-  """
-  @spec idle?({key(), integer()} | nil, non_neg_integer() | nil) :: boolean()
-  def idle?({{:request_line, _sent}, _since}, 0), do: true
-  def idle?(_seen, _received), do: false
-
-  defp received(pid), do: socket_stat(pid, :recv_oct)
 
   # A statistic of a connection process's TCP socket (nil: no plain TCP socket, e.g. TLS,
   # whose socket belongs to the ssl processes).

@@ -67,7 +67,7 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
         NeptunusWeb.ConnectionLog.flush()
       end)
 
-    # counted as slow, not idle: it sent bytes
+    # counted for the log, in one line
     assert log =~ ~r/\[warning\] closed \d+ connections: .*\d+ slower than the header timeout/
     :gen_tcp.close(served)
   end

@@ -1,4 +1,8 @@
 defmodule Neptunus.Test.FailureRecap do
+  @max_failures 5
+  @max_lines 30
+  @max_line_chars 400
+
   @moduledoc """
   An ExUnit formatter that repeats, at the very end of the run, which tests failed and the
   last lines of each failure's report.
@@ -6,18 +10,15 @@ defmodule Neptunus.Test.FailureRecap do
   ExUnit prints a failure when its test ends, which in a run of a thousand tests is far from
   the end; a CI log that keeps only its tail would show "1 failure" and not which assertion.
   This recap comes after ExUnit's summary (it prints when the formatters stop, after
-  ExUnit's own formatter has printed): for each failure (at most #{5}) the test, its file
-  and line, and the last #{30} lines of its report (each cut at #{400} characters) — for a Node suite run by
+  ExUnit's own formatter has printed): for each failure (at most #{@max_failures}) the test,
+  its file and line, and the last #{@max_lines} lines of its report (each cut at
+  #{@max_line_chars} characters) — for a Node suite run by
   `test/e2e/external_test.exs`, the failing subtests and their errors.
   """
   use GenServer
 
-  @max_failures 5
-  @max_lines 30
-  @max_line_chars 400
-
   @impl true
-  def init(opts), do: {:ok, %{failures: [], opts: opts}}
+  def init(_opts), do: {:ok, %{failures: []}}
 
   @impl true
   def handle_cast({:test_finished, %ExUnit.Test{state: {:failed, failures}} = test}, state),
