@@ -119,15 +119,32 @@ defmodule NeptunusWeb.HeaderDeadline do
 
   def handle_info(_other, state), do: {:noreply, state}
 
-  # A statistic of a connection process's TCP socket (nil: no plain TCP socket, e.g. TLS,
-  # whose socket belongs to the ssl processes).
-  defp socket_stat(pid, stat) do
-    with {:links, links} <- Process.info(pid, :links),
-         port when is_port(port) <- Enum.find(links, &tcp_port?/1),
-         {:ok, [{^stat, n}]} <- :inet.getstat(port, [stat]) do
+  @doc """
+  The bytes sent so far on the TCP socket of yaws' connection process `pid`, or nil when it
+  has none (it ended). Over plain TCP the socket's port is linked to the process; over TLS
+  it belongs to ssl's connection process, which monitors its owner.
+  """
+  @spec sent_bytes(pid()) :: non_neg_integer() | nil
+  def sent_bytes(pid) do
+    with port when is_port(port) <- tcp_port(pid) || tls_tcp_port(pid),
+         {:ok, [send_oct: n]} <- :inet.getstat(port, [:send_oct]) do
       n
     else
       _ -> nil
+    end
+  end
+
+  defp tls_tcp_port(pid) do
+    case Process.info(pid, :monitored_by) do
+      {:monitored_by, pids} -> Enum.find_value(pids, &(is_pid(&1) and tcp_port(&1)))
+      nil -> nil
+    end
+  end
+
+  defp tcp_port(pid) do
+    case Process.info(pid, :links) do
+      {:links, links} -> Enum.find(links, &tcp_port?/1)
+      nil -> nil
     end
   end
 
@@ -165,7 +182,7 @@ defmodule NeptunusWeb.HeaderDeadline do
           case phase(stack) do
             nil -> nil
             :headers -> {:headers, Keyword.get(dictionary, :request_start_time)}
-            :request_line -> {:request_line, socket_stat(pid, :send_oct)}
+            :request_line -> {:request_line, sent_bytes(pid)}
           end
         end
 

@@ -103,6 +103,56 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
     assert lasted < 2 * timeout, "closed after #{lasted} ms"
   end
 
+  @tag :tmp_dir
+  test "the bytes sent on a connection are read over TCP and over TLS", %{tmp_dir: dir} do
+    # over TLS the TCP socket belongs to ssl's connection process, not to yaws' acceptor
+    tls = Neptunus.Test.Cluster.Netns.certificates!(dir, ["127.0.0.1"])
+    {:ok, _} = Application.ensure_all_started(:ssl)
+
+    tcp = {:gen_tcp, [], []}
+    ssl = {:ssl, Map.to_list(Map.take(tls, [:certfile, :keyfile])), [verify: :verify_none]}
+
+    for {transport, listen_opts, connect_opts} <- [tcp, ssl] do
+      {:ok, listener} = transport.listen(0, [:binary, active: false] ++ listen_opts)
+      {:ok, {_, port}} = sockname(transport, listener)
+      test = self()
+
+      acceptor =
+        spawn_link(fn ->
+          {:ok, socket} = accept(transport, listener)
+          send(test, :accepted)
+          {:ok, "ask"} = transport.recv(socket, 3, 5_000)
+          :ok = transport.send(socket, "answer")
+          send(test, :answered)
+          transport.recv(socket, 0, 5_000)
+        end)
+
+      {:ok, client} =
+        transport.connect(~c"127.0.0.1", port, [:binary, active: false] ++ connect_opts)
+
+      assert_receive :accepted, 5_000
+      before = HeaderDeadline.sent_bytes(acceptor)
+      assert is_integer(before), "#{transport}: no socket found"
+
+      :ok = transport.send(client, "ask")
+      assert_receive :answered, 5_000
+      assert HeaderDeadline.sent_bytes(acceptor) > before, "#{transport}: the answer not counted"
+
+      transport.close(client)
+      transport.close(listener)
+    end
+  end
+
+  defp sockname(:gen_tcp, listener), do: :inet.sockname(listener)
+  defp sockname(:ssl, listener), do: :ssl.sockname(listener)
+
+  defp accept(:gen_tcp, listener), do: :gen_tcp.accept(listener, 5_000)
+
+  defp accept(:ssl, listener) do
+    {:ok, socket} = :ssl.transport_accept(listener, 5_000)
+    :ssl.handshake(socket, 5_000)
+  end
+
   defp connect! do
     port = Application.fetch_env!(:neptunus, :endpoint).port
     {:ok, socket} = :gen_tcp.connect(~c"127.0.0.1", port, [:binary, active: false])
