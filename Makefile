@@ -5,7 +5,7 @@ SHELL := /bin/bash
 .DEFAULT_GOAL := help
 
 APT_PACKAGES := elixir erlang-dev erlang-src erlang-yaws erlang-jiffy erlang-proper \
-                erlang-dialyzer socat chromium gcc libc6-dev python3 python3-venv
+                erlang-dialyzer socat chromium gcc libc6-dev python3 python3-venv openssl
 YAWS_DIR := $(firstword $(wildcard /usr/lib/yaws-*))
 ASSETS_STAMP := assets/node_modules/.package-lock.json
 # pymavlink, for the MAVLink interoperability tests only, in a project-local virtualenv
