@@ -743,10 +743,15 @@ defmodule NeptunusWeb.WireSchema do
        [
          gains: {:tuning_gains, essential: true},
          defaults: {:tuning_gains, essential: true},
-         ranges:
-           {{:map, {:list, :number}},
-            essential: true, doc: "`{kp: [0, 20], ki: [0, 5], kd: [0, 20]}`"},
+         ranges: {:tuning_ranges, essential: true},
          model: {:string, essential: true}
+       ]},
+    tuning_ranges:
+      {:object, "Each gain's range, `[min, max]`.",
+       [
+         kp: {{:list, :number}, essential: true, doc: "[0, 20]"},
+         ki: {{:list, :number}, essential: true, doc: "[0, 5]"},
+         kd: {{:list, :number}, essential: true, doc: "[0, 20]"}
        ]},
     step_request:
       {:object, "A step to try on the vehicle's simulator model.",
@@ -763,8 +768,10 @@ defmodule NeptunusWeb.WireSchema do
          target: {:number, essential: true},
          band: {:number, essential: true, doc: "5 cm or 2°"},
          t: {{:list, :number}, unit: "s", essential: true},
-         setpoint: {{:list, :number}, essential: true},
-         reference: {{:list, :number}, essential: true},
+         setpoint:
+           {{:list, {:or_null, :number}}, essential: true, doc: "null while no autopilot holds"},
+         reference:
+           {{:list, {:or_null, :number}}, essential: true, doc: "null while no autopilot holds"},
          value: {{:list, :number}, essential: true, doc: "the true depth or heading"},
          output: {{:list, :number}, essential: true, doc: "the axis' thruster command"},
          overshoot: {:number, essential: true, doc: "past the target, m or rad"},

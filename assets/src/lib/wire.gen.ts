@@ -2104,8 +2104,7 @@ export const decodeTuningChange = (json: unknown): TuningChange | null => readTu
 export interface TuningInfo {
   readonly gains: TuningGains;
   readonly defaults: TuningGains;
-  /** `{kp: [0, 20], ki: [0, 5], kd: [0, 20]}` */
-  readonly ranges: Readonly<Record<string, readonly number[]>>;
+  readonly ranges: TuningRanges;
   readonly model: string;
 }
 
@@ -2113,7 +2112,7 @@ function readTuningInfo(json: unknown): TuningInfo | undefined {
   if (!isRecord(json)) return undefined;
   const gains = readTuningGains(json["gains"]);
   const defaults = readTuningGains(json["defaults"]);
-  const ranges = readMap(json["ranges"], (item) => readList(item, readNumber));
+  const ranges = readTuningRanges(json["ranges"]);
   const model = readString(json["model"]);
   if (
     gains === undefined ||
@@ -2131,6 +2130,31 @@ function readTuningInfo(json: unknown): TuningInfo | undefined {
 }
 
 export const decodeTuningInfo = (json: unknown): TuningInfo | null => readTuningInfo(json) ?? null;
+
+/** Each gain's range, `[min, max]`. */
+export interface TuningRanges {
+  /** [0, 20] */
+  readonly kp: readonly number[];
+  /** [0, 5] */
+  readonly ki: readonly number[];
+  /** [0, 20] */
+  readonly kd: readonly number[];
+}
+
+function readTuningRanges(json: unknown): TuningRanges | undefined {
+  if (!isRecord(json)) return undefined;
+  const kp = readList(json["kp"], readNumber);
+  const ki = readList(json["ki"], readNumber);
+  const kd = readList(json["kd"], readNumber);
+  if (kp === undefined || ki === undefined || kd === undefined) return undefined;
+  return {
+    kp,
+    ki,
+    kd,
+  };
+}
+
+export const decodeTuningRanges = (json: unknown): TuningRanges | null => readTuningRanges(json) ?? null;
 
 /** A step to try on the vehicle's simulator model. */
 export interface StepRequest {
@@ -2164,8 +2188,10 @@ export interface StepResponse {
   readonly band: number;
   /** s */
   readonly t: readonly number[];
-  readonly setpoint: readonly number[];
-  readonly reference: readonly number[];
+  /** null while no autopilot holds */
+  readonly setpoint: readonly (number | null)[];
+  /** null while no autopilot holds */
+  readonly reference: readonly (number | null)[];
   /** the true depth or heading */
   readonly value: readonly number[];
   /** the axis' thruster command */
@@ -2183,8 +2209,8 @@ function readStepResponse(json: unknown): StepResponse | undefined {
   const target = readNumber(json["target"]);
   const band = readNumber(json["band"]);
   const t = readList(json["t"], readNumber);
-  const setpoint = readList(json["setpoint"], readNumber);
-  const reference = readList(json["reference"], readNumber);
+  const setpoint = readList(json["setpoint"], (item) => (item === null ? null : readNumber(item)));
+  const reference = readList(json["reference"], (item) => (item === null ? null : readNumber(item)));
   const value = readList(json["value"], readNumber);
   const output = readList(json["output"], readNumber);
   const overshoot = readNumber(json["overshoot"]);
