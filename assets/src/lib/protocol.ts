@@ -11,6 +11,9 @@
  */
 
 import * as wire from "./wire.gen";
+import { isRecord } from "./wire_runtime";
+
+export { isRecord };
 
 export type SimState = wire.SimState;
 export type MotionCommand = wire.MotionCommand;
@@ -192,12 +195,8 @@ export interface ControlState extends ControlSettings {
 }
 
 /** `control_granted` and the `granted` reply of `request_control` / `take_control`. */
-export interface Grant {
-  readonly epoch: number;
-  readonly pilot: HelmPilot;
+export interface Grant extends Omit<wire.Grant, "control"> {
   readonly control: ControlState;
-  readonly deadman_ms: number;
-  readonly heartbeat_ms: number;
 }
 
 export type ControlReply =
@@ -246,10 +245,6 @@ export interface PresenceEntry {
 // Decoders: the generated ones, or the views above built from them.
 
 type Json = Record<string, unknown>;
-
-export function isRecord(value: unknown): value is Json {
-  return typeof value === "object" && value !== null && !Array.isArray(value);
-}
 
 export const decodeMotionCommand = wire.decodeMotionCommand;
 export const decodeThrusters = wire.decodeThrusters;
@@ -464,7 +459,7 @@ export function decodeHelm(value: unknown): Helm | null {
 
 export function decodeGrant(value: unknown): Grant | null {
   const g = wire.decodeGrant(value);
-  return g && { epoch: g.epoch, pilot: g.pilot, control: controlState(g.control), deadman_ms: g.deadman_ms, heartbeat_ms: g.heartbeat_ms };
+  return g && { ...g, control: controlState(g.control) };
 }
 
 export function decodeControlReply(value: unknown): ControlReply | null {

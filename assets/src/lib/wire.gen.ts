@@ -10,52 +10,7 @@
 // element that does not decode does not decode. Fields the schema does not name are
 // ignored. Units are SI (m, m/s, rad, rad/s, V, A, s); angles are radians.
 
-type Json = Readonly<Record<string, unknown>>;
-
-function isRecord(json: unknown): json is Json {
-  return typeof json === "object" && json !== null && !Array.isArray(json);
-}
-
-function readNumber(json: unknown): number | undefined {
-  return typeof json === "number" && Number.isFinite(json) ? json : undefined;
-}
-
-function readInteger(json: unknown): number | undefined {
-  return typeof json === "number" && Number.isInteger(json) ? json : undefined;
-}
-
-function readString(json: unknown): string | undefined {
-  return typeof json === "string" ? json : undefined;
-}
-
-function readBoolean(json: unknown): boolean | undefined {
-  return typeof json === "boolean" ? json : undefined;
-}
-
-function readEnum<const T extends readonly (string | number)[]>(json: unknown, values: T): T[number] | undefined {
-  return values.find((value) => value === json);
-}
-
-function readList<T>(json: unknown, read: (item: unknown) => T | undefined): readonly T[] | undefined {
-  if (!Array.isArray(json)) return undefined;
-  const out: T[] = [];
-  for (const item of json) {
-    const value = read(item);
-    if (value === undefined) return undefined;
-    out.push(value);
-  }
-  return out;
-}
-
-function readMap<T>(json: unknown, read: (item: unknown) => T | undefined): Readonly<Record<string, T>> | undefined {
-  if (!isRecord(json)) return undefined;
-  const out: Record<string, T> = {};
-  for (const [key, item] of Object.entries(json)) {
-    const value = read(item);
-    if (value !== undefined) out[key] = value;
-  }
-  return out;
-}
+import { isRecord, readNumber, readInteger, readString, readBoolean, readEnum, readList, readMap } from "./wire_runtime";
 
 /**
  * The `telemetry` broadcast on `vehicle:<id>`: the vehicle's latest state, 20 Hz (a stable shape;

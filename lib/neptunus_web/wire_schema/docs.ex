@@ -104,24 +104,14 @@ defmodule NeptunusWeb.WireSchema.Docs do
     [heading(object), sentence(object.doc), "\n\n", body, "\n"]
   end
 
-  defp payload(%{kind: :enum} = enum) do
-    [
-      heading(enum),
-      sentence(enum.doc),
-      " One of ",
-      Enum.map_join(enum.values, ", ", &literal/1),
-      ".\n\n"
-    ]
-  end
+  defp payload(%{kind: kind} = definition) when kind in [:enum, :union] do
+    choices =
+      case definition do
+        %{values: values} -> Enum.map_join(values, ", ", &literal/1)
+        %{types: types} -> Enum.map_join(types, ", ", &type/1)
+      end
 
-  defp payload(%{kind: :union} = union) do
-    [
-      heading(union),
-      sentence(union.doc),
-      " One of ",
-      Enum.map_join(union.types, ", ", &type/1),
-      ".\n\n"
-    ]
+    [heading(definition), sentence(definition.doc), " One of ", choices, ".\n\n"]
   end
 
   defp heading(%{name: name}), do: ~s|<a id="wire-#{name}"></a>\n#### `#{name}`\n|

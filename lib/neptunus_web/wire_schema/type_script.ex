@@ -4,7 +4,8 @@ defmodule NeptunusWeb.WireSchema.TypeScript do
   union, or a string/number literal type) for every definition, and its decoder
   `decodeX(value: unknown): X | null` following the schema's one rule for missing, null and
   malformed fields (see `NeptunusWeb.WireSchema`); then each topic's events and commands as
-  interfaces, with tables of their decoders.
+  interfaces, with tables of their decoders. The readers it is written with (`readNumber`,
+  `readList`, …) are hand-written TypeScript, `assets/src/lib/wire_runtime.ts`.
 
   The output depends on the schema only (in its order), so it is the same on every machine;
   `mix neptunus.gen.wire` writes it and the wire schema test compares it with the committed
@@ -15,8 +16,9 @@ defmodule NeptunusWeb.WireSchema.TypeScript do
 
   @path "assets/src/lib/wire.gen.ts"
 
-  # identifiers the generated code uses for itself, and words TypeScript reserves
-  @taken ~w(json isRecord readNumber readInteger readString readBoolean readList readMap readEnum)
+  # the readers of wire_runtime.ts, the generated code's parameter, and words TypeScript reserves
+  @runtime ~w(isRecord readNumber readInteger readString readBoolean readEnum readList readMap)
+  @taken ["json" | @runtime]
   @reserved ~w(break case catch class const continue debugger default delete do else enum
                export extends false finally for function if import in instanceof new null
                return super switch this throw true try typeof var void while with)
@@ -28,14 +30,8 @@ defmodule NeptunusWeb.WireSchema.TypeScript do
   @doc "The file's text."
   @spec generate() :: String.t()
   def generate do
-    definitions = WireSchema.definitions()
-
-    IO.iodata_to_binary([
-      header(),
-      runtime(),
-      Enum.map(definitions, &definition/1),
-      messages()
-    ])
+    body = IO.iodata_to_binary([Enum.map(WireSchema.definitions(), &definition/1), messages()])
+    header() <> imports(body) <> body
   end
 
   defp header do
@@ -55,56 +51,10 @@ defmodule NeptunusWeb.WireSchema.TypeScript do
     """
   end
 
-  defp runtime do
-    """
-    type Json = Readonly<Record<string, unknown>>;
-
-    function isRecord(json: unknown): json is Json {
-      return typeof json === "object" && json !== null && !Array.isArray(json);
-    }
-
-    function readNumber(json: unknown): number | undefined {
-      return typeof json === "number" && Number.isFinite(json) ? json : undefined;
-    }
-
-    function readInteger(json: unknown): number | undefined {
-      return typeof json === "number" && Number.isInteger(json) ? json : undefined;
-    }
-
-    function readString(json: unknown): string | undefined {
-      return typeof json === "string" ? json : undefined;
-    }
-
-    function readBoolean(json: unknown): boolean | undefined {
-      return typeof json === "boolean" ? json : undefined;
-    }
-
-    function readEnum<const T extends readonly (string | number)[]>(json: unknown, values: T): T[number] | undefined {
-      return values.find((value) => value === json);
-    }
-
-    function readList<T>(json: unknown, read: (item: unknown) => T | undefined): readonly T[] | undefined {
-      if (!Array.isArray(json)) return undefined;
-      const out: T[] = [];
-      for (const item of json) {
-        const value = read(item);
-        if (value === undefined) return undefined;
-        out.push(value);
-      }
-      return out;
-    }
-
-    function readMap<T>(json: unknown, read: (item: unknown) => T | undefined): Readonly<Record<string, T>> | undefined {
-      if (!isRecord(json)) return undefined;
-      const out: Record<string, T> = {};
-      for (const [key, item] of Object.entries(json)) {
-        const value = read(item);
-        if (value !== undefined) out[key] = value;
-      }
-      return out;
-    }
-
-    """
+  # the readers the generated code uses, from the hand-written wire_runtime.ts
+  defp imports(body) do
+    used = Enum.filter(@runtime, &String.contains?(body, &1 <> "("))
+    "import { #{Enum.join(used, ", ")} } from \"./wire_runtime\";\n\n"
   end
 
   # --- definitions ---------------------------------------------------------------------------
