@@ -120,7 +120,8 @@ defmodule NeptunusWeb.WireSchema.Docs do
 
   # --- rendering -----------------------------------------------------------------------------
 
-  # a message's payload: the fields of a small object at a glance, else its type
+  # a message's payload: the fields of a small object at a glance (their types linked), else
+  # its type
   defp shape(name) when is_atom(name) do
     if WireSchema.primitive?(name) do
       type(name)
@@ -137,7 +138,7 @@ defmodule NeptunusWeb.WireSchema.Docs do
               "#{key}: #{value}"
             end)
 
-          "{#{inner}} ([#{name}](#wire-#{name}))"
+          "{#{inner}}"
 
         _ ->
           type(name)
