@@ -40,6 +40,12 @@ defmodule NeptunusWeb.WireConformanceTest do
 
     fleet = join!("fleet")
     assert Enum.any?(fleet.join["vehicles"], &(&1["id"] == id))
+
+    # /api/health lists the same vehicles
+    url = ~c"http://127.0.0.1:#{NeptunusWeb.Test.Wire.port()}/api/health"
+    {:ok, {{_, 200, _}, _, body}} = :httpc.request(:get, {url, []}, [], [])
+    {:ok, %{"vehicles" => vehicles}} = Neptunus.JSON.decode(IO.iodata_to_binary(body))
+    conform!(:health, {:list, :fleet_vehicle}, vehicles)
     log = join!("log:" <> id)
 
     # the helm: a grant, a request denied and one accepted, a release
