@@ -155,12 +155,12 @@ export class NeptunusClient {
       if (reply) handlers.vehicles?.(reply.vehicles);
       else handlers.protocolError?.("vehicles", payload);
     });
-    for (const [event, reachable] of [
-      ["unreachable", false],
-      ["reachable", true],
+    for (const [event, decode, reachable] of [
+      ["unreachable", wire.decodeUnreachable, false],
+      ["reachable", wire.decodeReachable, true],
     ] as const) {
       channel.on(event, (payload: unknown) => {
-        const decoded = wire.FLEET_EVENT_DECODERS[event](payload);
+        const decoded = decode(payload);
         if (decoded) handlers.reachability?.(decoded.id, reachable);
         else handlers.protocolError?.(event, payload);
       });
@@ -332,12 +332,12 @@ export class VehicleChannel {
       if (answer) handlers.vehicleAnswer?.(answer);
       else handlers.protocolError?.("vehicle_answer", payload);
     });
-    for (const [event, reachable] of [
-      ["unreachable", false],
-      ["reachable", true],
+    for (const [event, decode, reachable] of [
+      ["unreachable", wire.decodeUnreachable, false],
+      ["reachable", wire.decodeReachable, true],
     ] as const) {
       this.channel.on(event, (payload: unknown) => {
-        const decoded = wire.VEHICLE_EVENT_DECODERS[event](payload);
+        const decoded = decode(payload);
         if (decoded) handlers.reachability?.(reachable, decoded.node);
         else handlers.protocolError?.(event, payload);
       });
