@@ -151,7 +151,7 @@ defmodule NeptunusWeb.WireConformanceTest do
 
     NeptunusWeb.Test.Wire.secure!(secret, users)
     token = &NeptunusWeb.Auth.Token.sign(&1, secret, System.os_time(:second), 600)
-    topic = "vehicle:" <> start_vehicle!("wire-sec", %{takeover_ms: 300})
+    topic = "vehicle:" <> start_vehicle!("wire-sec", %{helm: [takeover_ms: 300]})
 
     ada = join!(topic, %{"token" => token.("ada")})
     main = join!(topic, %{"token" => token.("main")})
