@@ -42,7 +42,7 @@ defmodule NeptunusWeb.API do
 
   See `NeptunusWeb.Auth` and docs/API.md.
   """
-  import NeptunusWeb.Yaws
+  import NeptunusWeb.Endpoint.Yaws
 
   require Logger
 
@@ -245,7 +245,7 @@ defmodule NeptunusWeb.API do
     end
   end
 
-  defp recording_dir, do: NeptunusWeb.Settings.get().recording_dir
+  defp recording_dir, do: NeptunusWeb.Endpoint.Settings.get().recording_dir
 
   # Every node's recordings (a vehicle's: its node's), each with its node: a vehicle on
   # another node of the fleet records there, and its recordings are listed, exported and
@@ -553,7 +553,7 @@ defmodule NeptunusWeb.API do
   end
 
   defp stream_body(socket, lines) do
-    NeptunusWeb.Yaws.await_stream(
+    NeptunusWeb.Endpoint.Yaws.await_stream(
       socket,
       fn yaws ->
         case deliver(socket, lines) do

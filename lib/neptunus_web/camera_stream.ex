@@ -16,7 +16,7 @@ defmodule NeptunusWeb.CameraStream do
   its frames come through this node's relay of that camera (`NeptunusWeb.CameraRelay`), so
   they cross between the nodes once per frame, not once per viewer.
   """
-  import NeptunusWeb.Yaws
+  import NeptunusWeb.Endpoint.Yaws
 
   alias Neptunus.{Fleet, PubSub}
   alias Neptunus.Camera.MJPEG
@@ -59,7 +59,7 @@ defmodule NeptunusWeb.CameraStream do
   end
 
   defp start(id, socket) do
-    NeptunusWeb.Yaws.await_stream(
+    NeptunusWeb.Endpoint.Yaws.await_stream(
       socket,
       fn yaws ->
         pubsub = subscribe(id)

@@ -21,7 +21,7 @@ defmodule NeptunusWeb.Socket do
   expired token (see `NeptunusWeb.Auth`). A refused upgrade is the only refusal that closes
   anything: who may *command* is decided per command by the vehicle's helm.
 
-  The settings below are `NeptunusWeb.Settings`, read when the connection starts.
+  The settings below are `NeptunusWeb.Endpoint.Settings`, read when the connection starts.
 
   Liveness: a connection silent for 60 s (`idle_timeout_ms`; the phoenix
   client heartbeats every 30 s) is closed with 1000 "heartbeat timeout". A client that
@@ -74,7 +74,7 @@ defmodule NeptunusWeb.Socket do
   """
   require Logger
 
-  import NeptunusWeb.Yaws
+  import NeptunusWeb.Endpoint.Yaws
 
   alias Neptunus.PubSub
   alias NeptunusWeb.{Auth, Presence}
@@ -163,7 +163,7 @@ defmodule NeptunusWeb.Socket do
 
   @doc false
   def init([_arg, %{user: user}]) do
-    settings = NeptunusWeb.Settings.get()
+    settings = NeptunusWeb.Endpoint.Settings.get()
     idle_timeout_ms = settings.idle_timeout_ms
 
     flow =
@@ -453,7 +453,7 @@ defmodule NeptunusWeb.Socket do
   # backlog then forms in the mailbox, where stale telemetry is dropped, instead of in a
   # send buffer that the kernel grows to megabytes: seconds of old data for the client.
   defp limit_unsent(sock) do
-    case {:os.type(), NeptunusWeb.Settings.get().unsent_bytes} do
+    case {:os.type(), NeptunusWeb.Endpoint.Settings.get().unsent_bytes} do
       {{:unix, :linux}, bytes} when is_integer(bytes) and bytes > 0 and sock != nil ->
         # best effort: a kernel without the option only keeps the larger buffer
         _ = setopts(sock, [{:raw, @ipproto_tcp, @tcp_notsent_lowat, <<bytes::native-32>>}])

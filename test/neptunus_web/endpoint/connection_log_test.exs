@@ -1,7 +1,7 @@
-defmodule NeptunusWeb.ConnectionLogTest do
+defmodule NeptunusWeb.Endpoint.ConnectionLogTest do
   use ExUnit.Case, async: true
 
-  alias NeptunusWeb.ConnectionLog
+  alias NeptunusWeb.Endpoint.ConnectionLog
 
   doctest ConnectionLog
 

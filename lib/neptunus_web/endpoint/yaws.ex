@@ -1,12 +1,13 @@
-defmodule NeptunusWeb.Yaws do
+defmodule NeptunusWeb.Endpoint.Yaws do
   @moduledoc """
   What the modules yaws calls (`NeptunusWeb.API`, `NeptunusWeb.Socket`,
-  `NeptunusWeb.CameraStream`, `NeptunusWeb.Guard`) share: yaws' records, extracted from its header
-  (`erl_libs/yaws-*/include/yaws_api.hrl`), and helpers that read a request from them.
+  `NeptunusWeb.CameraStream`, `NeptunusWeb.Endpoint.Guard`) share: yaws' records, extracted
+  from its header (`erl_libs/yaws-*/include/yaws_api.hrl`), and helpers that read a request
+  from them.
   """
   require Record
 
-  @hrl Path.wildcard(Path.join([__DIR__, "../../erl_libs/yaws-*/include/yaws_api.hrl"]))
+  @hrl Path.wildcard(Path.join([__DIR__, "../../../erl_libs/yaws-*/include/yaws_api.hrl"]))
        |> List.first() ||
          raise("yaws headers not found in erl_libs/: run `make setup`")
 

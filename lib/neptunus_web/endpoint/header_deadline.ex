@@ -1,4 +1,4 @@
-defmodule NeptunusWeb.HeaderDeadline do
+defmodule NeptunusWeb.Endpoint.HeaderDeadline do
   @moduledoc """
   Closes a connection that takes longer than `NeptunusWeb.Endpoint.header_timeout_ms/0` to
   send a request's head, or to start its next request on a kept-alive connection.
@@ -14,9 +14,9 @@ defmodule NeptunusWeb.HeaderDeadline do
   after every request, so on a kept-alive connection only its answers tell one wait from the
   next (empty lines, which yaws skips with a fresh read timeout, send nothing). A process
   seen reading the same head (same phase, same request) for its `deadline/3` is killed: its
-  socket closes, and yaws counts the connection as gone (`NeptunusWeb.ConnectionLog` counts
-  it for the log). A connection that makes progress (its next request, its headers complete) starts a
-  fresh deadline; WebSocket and streaming connections never read a head and are never
+  socket closes, and yaws counts the connection as gone (`NeptunusWeb.Endpoint.ConnectionLog`
+  counts it for the log). A connection that makes progress (its next request, its headers
+  complete) starts a fresh deadline; WebSocket and streaming connections never read a head and are never
   touched.
 
   The decision is `sweep/4`, a pure function; this process only observes and kills. It runs
@@ -47,14 +47,15 @@ defmodule NeptunusWeb.HeaderDeadline do
   connections to remember and those to close. A connection is closed when it has been
   reading the same head for its timeout or more; one no longer reading a head is forgotten.
 
-      iex> {seen, []} = NeptunusWeb.HeaderDeadline.sweep(%{}, [{:a, {:headers, 1}}], 0, 5000)
-      iex> {_, []} = NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 4999, 5000)
-      iex> NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 5000, 5000)
+      iex> alias NeptunusWeb.Endpoint.HeaderDeadline
+      iex> {seen, []} = HeaderDeadline.sweep(%{}, [{:a, {:headers, 1}}], 0, 5000)
+      iex> {_, []} = HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 4999, 5000)
+      iex> HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 5000, 5000)
       {%{}, [:a]}
-      iex> NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 2}}], 5000, 5000)
+      iex> HeaderDeadline.sweep(seen, [{:a, {:headers, 2}}], 5000, 5000)
       {%{a: {{:headers, 2}, 5000}}, []}
       iex> longer = fn {:headers, _} -> 6000 end
-      iex> {_, []} = NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 5000, longer)
+      iex> {_, []} = HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 5000, longer)
   """
   @spec sweep(
           %{term() => {term(), integer()}},
@@ -87,9 +88,9 @@ defmodule NeptunusWeb.HeaderDeadline do
   yaws does not (empty lines, which yaws skips with a fresh read timeout). Headers are read
   line by line, each read bounded by yaws, the whole by the timeout.
 
-      iex> NeptunusWeb.HeaderDeadline.deadline({:request_line, 0}, 5000, 1000)
+      iex> NeptunusWeb.Endpoint.HeaderDeadline.deadline({:request_line, 0}, 5000, 1000)
       6000
-      iex> NeptunusWeb.HeaderDeadline.deadline({:headers, {1, 2, 3}}, 5000, 1000)
+      iex> NeptunusWeb.Endpoint.HeaderDeadline.deadline({:headers, {1, 2, 3}}, 5000, 1000)
       5000
   """
   @spec deadline(key(), pos_integer(), pos_integer()) :: pos_integer()
@@ -112,7 +113,7 @@ defmodule NeptunusWeb.HeaderDeadline do
     {seen, expired} = sweep(state.seen, reading_heads(), now, timeout_of)
 
     Enum.each(expired, &Process.exit(&1, :kill))
-    NeptunusWeb.ConnectionLog.closed_slow(length(expired))
+    NeptunusWeb.Endpoint.ConnectionLog.closed_slow(length(expired))
     schedule(state)
     {:noreply, %{state | seen: seen}}
   end

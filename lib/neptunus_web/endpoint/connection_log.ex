@@ -1,4 +1,4 @@
-defmodule NeptunusWeb.ConnectionLog do
+defmodule NeptunusWeb.Endpoint.ConnectionLog do
   @moduledoc """
   Counts the connections the endpoint closes to protect itself, and says so in the log in
   one line at most every `:report_ms` (10 s) instead of one line per connection.
@@ -7,8 +7,8 @@ defmodule NeptunusWeb.ConnectionLog do
   `max_connections`; under a flood
   that is thousands of lines a second, which would bury everything else and fill the
   journal. A primary logger filter (`filter/2`, installed while this process runs) drops
-  that message and counts it; `NeptunusWeb.HeaderDeadline` counts the connections it closes
-  for a slow head (`closed_slow/1`). Every second this process looks at the counts; when
+  that message and counts it; `NeptunusWeb.Endpoint.HeaderDeadline` counts the connections it
+  closes for a slow head (`closed_slow/1`). Every second this process looks at the counts; when
   there are some and the last report is `:report_ms` old, it logs one warning with both
   and starts counting again (`flush/0`: at once).
   """
@@ -67,9 +67,9 @@ defmodule NeptunusWeb.ConnectionLog do
   The report line for `refused` connections closed beyond the limit and `slow` ones closed
   for a slow head, or nil when both are 0.
 
-      iex> NeptunusWeb.ConnectionLog.report(0, 0)
+      iex> NeptunusWeb.Endpoint.ConnectionLog.report(0, 0)
       nil
-      iex> NeptunusWeb.ConnectionLog.report(120, 3)
+      iex> NeptunusWeb.Endpoint.ConnectionLog.report(120, 3)
       "closed 123 connections: 120 beyond the connection limit, 3 slower than the header timeout"
   """
   @spec report(non_neg_integer(), non_neg_integer()) :: String.t() | nil

@@ -1,7 +1,7 @@
-defmodule NeptunusWeb.HeaderDeadlineTest do
+defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
   use ExUnit.Case, async: true
 
-  alias NeptunusWeb.HeaderDeadline
+  alias NeptunusWeb.Endpoint.HeaderDeadline
 
   import ExUnit.CaptureLog
 
@@ -64,7 +64,7 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
       capture_log(fn ->
         lines = drip(trickler, div(timeout, 5), &"X-#{&1}: 1\r\n")
         assert lines < 30, "the trickler sent #{lines} lines and was never closed"
-        NeptunusWeb.ConnectionLog.flush()
+        NeptunusWeb.Endpoint.ConnectionLog.flush()
       end)
 
     # counted for the log, in one line
