@@ -17,15 +17,8 @@ defmodule NeptunusWeb.Endpoint.Guard do
   """
   import NeptunusWeb.Endpoint.Yaws
 
-  require Record
-
   alias Neptunus.JSON
   alias NeptunusWeb.Auth
-
-  @hrl Path.wildcard(Path.join([__DIR__, "../../../erl_libs/yaws-*/include/yaws_api.hrl"]))
-       |> List.first()
-
-  Record.defrecordp(:rewrite_response, Record.extract(:rewrite_response, from: @hrl))
 
   @csp Enum.join(
          [

@@ -22,8 +22,19 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadline do
   The decision is `sweep/4`, a pure function; this process only observes and kills. It runs
   in `NeptunusWeb.Endpoint`'s supervisor after yaws, and never fails on a process that ends
   while it looks.
+
+  It reads yaws' internals (how yaws' acceptor starts, its functions on the stack, its
+  `request_start_time` in the process dictionary): it starts only on a yaws version it was
+  written for and refuses any other with a message (see
+  `NeptunusWeb.Endpoint.Yaws`, "Modules that read yaws' internals").
   """
   use GenServer
+
+  alias NeptunusWeb.Endpoint.Yaws
+
+  # the yaws versions whose connection processes this module was written to read
+  @yaws_versions ["2.1.1"]
+  @reads "the stacks and process dictionaries of its connection processes"
 
   @typedoc """
   What a connection process is reading: the request line and the bytes sent on its socket
@@ -38,6 +49,11 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadline do
 
   @type t :: %__MODULE__{timeout_ms: pos_integer(), interval_ms: pos_integer(), seen: seen()}
 
+  @doc """
+  Starts the deadline. Options: `:timeout_ms` (required), `:interval_ms` (between sweeps;
+  default a quarter of the timeout, 10..1000 ms), `:yaws_version` (the yaws to check;
+  default the one running).
+  """
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts), do: GenServer.start_link(__MODULE__, opts, name: __MODULE__)
 
@@ -99,11 +115,13 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadline do
 
   @impl true
   def init(opts) do
-    timeout = Keyword.fetch!(opts, :timeout_ms)
-    interval = Keyword.get(opts, :interval_ms, min(1_000, max(div(timeout, 4), 10)))
-    state = %__MODULE__{timeout_ms: timeout, interval_ms: interval}
-    schedule(state)
-    {:ok, state}
+    with :ok <- Yaws.supported(__MODULE__, @yaws_versions, @reads, opts) do
+      timeout = Keyword.fetch!(opts, :timeout_ms)
+      interval = Keyword.get(opts, :interval_ms, min(1_000, max(div(timeout, 4), 10)))
+      state = %__MODULE__{timeout_ms: timeout, interval_ms: interval}
+      schedule(state)
+      {:ok, state}
+    end
   end
 
   @impl true

@@ -3,6 +3,8 @@ defmodule NeptunusWeb.Endpoint.YawsTest do
 
   import NeptunusWeb.Endpoint.Yaws
 
+  doctest NeptunusWeb.Endpoint.Yaws
+
   alias Neptunus.Test.Properties
 
   defp headers_with(other), do: headers(host: ~c"127.0.0.1:4000", other: other)
