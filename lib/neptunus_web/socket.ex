@@ -16,10 +16,12 @@ defmodule NeptunusWeb.Socket do
   Connection parameters (query string): `vsn` must be `2.x`; `token` is the login token
   (`POST /api/login`; required in secure mode unless anonymous observers are allowed);
   `name` is the display name in local mode (trimmed to 40 characters; default
-  `guest-XXXX`). The upgrade is refused with HTTP 403 `{"error": reason}` for an `Origin`
-  (or, in local mode, a `Host`) that is not allowed and with 401 for a missing, invalid or
-  expired token (see `NeptunusWeb.Auth`). A refused upgrade is the only refusal that closes
-  anything: who may *command* is decided per command by the vehicle's helm.
+  `guest-XXXX`). Who may connect is decided as for every WebSocket endpoint
+  (`NeptunusWeb.WebSocket.Upgrade`): the upgrade is refused with HTTP 403 `{"error": reason}`
+  for an `Origin` (or, in local mode, a `Host`) that is not allowed and with 401 for a
+  missing, invalid or expired token (see `NeptunusWeb.Auth`). A refused upgrade is the only
+  refusal that closes anything: who may *command* is decided per command by the vehicle's
+  helm.
 
   The settings below are `NeptunusWeb.Endpoint.Settings`, read when the connection starts.
 
@@ -77,7 +79,8 @@ defmodule NeptunusWeb.Socket do
   import NeptunusWeb.Endpoint.Yaws
 
   alias Neptunus.PubSub
-  alias NeptunusWeb.{Auth, Presence}
+  alias NeptunusWeb.Presence
+  alias NeptunusWeb.WebSocket.Upgrade
   alias NeptunusWeb.Channels.{FleetChannel, LogChannel, VehicleChannel}
   alias NeptunusWeb.Socket.{FlowControl, Router, WsFrame}
 
@@ -113,48 +116,21 @@ defmodule NeptunusWeb.Socket do
   @doc false
   def out(arg) do
     path = arg(arg, :server_path) |> to_string()
-    params = query(arg)
 
     cond do
       path != "/socket/websocket" ->
-        http_error(404, "no such socket endpoint: #{path}")
+        Upgrade.refuse(404, "no such socket endpoint: #{path}")
 
-      not String.starts_with?(Map.get(params, "vsn", ""), "2.") ->
-        http_error(400, "unsupported protocol version: use vsn=2.0.0")
+      not String.starts_with?(Map.get(query(arg), "vsn", ""), "2.") ->
+        Upgrade.refuse(400, "unsupported protocol version: use vsn=2.0.0")
 
       true ->
-        upgrade(arg, params)
+        Upgrade.upgrade(arg, __MODULE__, %{},
+          hibernate_after: @hibernate_after_ms,
+          max_frame_size: @max_message_bytes,
+          max_message_size: @max_message_bytes
+        )
     end
-  end
-
-  defp upgrade(arg, params) do
-    headers = arg(arg, :headers)
-
-    request = %{
-      origin: header(headers, "origin"),
-      host: text(headers(headers, :host)),
-      token: params["token"],
-      name: params["name"]
-    }
-
-    case Auth.connect(request) do
-      {:ok, user} ->
-        opts = [
-          {:callback, {:basic, %{user: user}}},
-          {:hibernate_after, @hibernate_after_ms},
-          {:max_frame_size, @max_message_bytes},
-          {:max_message_size, @max_message_bytes}
-        ]
-
-        {:websocket, __MODULE__, opts}
-
-      {:error, status, reason} ->
-        http_error(status, reason)
-    end
-  end
-
-  defp http_error(status, reason) do
-    [{:status, status}, {:content, ~c"application/json", Neptunus.JSON.encode!(%{error: reason})}]
   end
 
   # yaws WebSocket callbacks (basic mode). yaws does not catch exceptions from handle_info
