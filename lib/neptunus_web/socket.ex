@@ -80,16 +80,14 @@ defmodule NeptunusWeb.Socket do
 
   alias Neptunus.PubSub
   alias NeptunusWeb.Presence
-  alias NeptunusWeb.WebSocket.Upgrade
+  alias NeptunusWeb.WebSocket.{Transport, Upgrade}
   alias NeptunusWeb.Channels.{FleetChannel, LogChannel, VehicleChannel}
   alias NeptunusWeb.Socket.{FlowControl, Router, WsFrame}
 
   @routes [{"fleet", FleetChannel}, {"vehicle:*", VehicleChannel}, {"log:*", LogChannel}]
 
-  @ipproto_tcp 6
   # see "Memory"
   @fullsweep_after 0
-  @tcp_notsent_lowat 25
   @max_message_bytes 65_536
   # how often to look for the presence server while it restarts
   @presence_retry_ms 20
@@ -103,7 +101,7 @@ defmodule NeptunusWeb.Socket do
             flow: NeptunusWeb.Socket.FlowControl.t(),
             last_seen_ms: integer(),
             idle_timeout_ms: pos_integer(),
-            sock: port() | {:ssl, :ssl.sslsocket()} | nil,
+            sock: NeptunusWeb.WebSocket.Transport.socket() | nil,
             pubsub: reference() | nil,
             presence: reference() | nil
           }
@@ -167,8 +165,9 @@ defmodule NeptunusWeb.Socket do
   def handle_open(ws_state, state) do
     # The upgrade leaves garbage behind; collecting it now keeps an idle connection small.
     send(self(), :gc)
-    sock = ws_state(ws_state, :sock)
-    limit_unsent(sock)
+    sock = Transport.socket(ws_state)
+    # the backlog of a slow client forms in the mailbox, where FlowControl drops it
+    Transport.limit_unsent(sock, NeptunusWeb.Endpoint.Settings.get().unsent_bytes)
     {:ok, %{state | sock: sock}}
   end
 
@@ -310,7 +309,7 @@ defmodule NeptunusWeb.Socket do
 
   defp handle_other(:check_idle, state) do
     cond do
-      not connected?(state) ->
+      not Transport.connected?(state.sock) ->
         gone(state)
 
       now_ms() - state.last_seen_ms > state.idle_timeout_ms ->
@@ -365,16 +364,13 @@ defmodule NeptunusWeb.Socket do
   # A broadcast frame, shared with every other connection that receives it: sent as the
   # header and that binary, not through yaws, which would copy it (see "Memory"). The result
   # is ignored as yaws ignores it: a socket closed by the send timeout is found by
-  # `connected?/1`, one the client closed by yaws.
+  # `Transport.connected?/1`, one the client closed by yaws.
   defp push(%State{sock: nil} = state, frame), do: {:reply, {:text, frame}, state}
 
   defp push(%State{sock: sock} = state, frame) do
-    _ = send_data(sock, WsFrame.text(frame))
+    _ = Transport.write(sock, WsFrame.text(frame))
     {:noreply, state}
   end
-
-  defp send_data({:ssl, sock}, data), do: :ssl.send(sock, data)
-  defp send_data(sock, data), do: :gen_tcp.send(sock, data)
 
   defp reply(state, []), do: {:noreply, state}
   defp reply(state, frames), do: {:reply, Enum.map(frames, &{:text, &1}), state}
@@ -403,7 +399,7 @@ defmodule NeptunusWeb.Socket do
 
   # Behind: a send may have waited for the client until the send timeout closed the socket.
   defp shed(state) do
-    if connected?(state) do
+    if Transport.connected?(state.sock) do
       {flow, report} = FlowControl.dropped(state.flow, now_ms())
 
       case report do
@@ -423,29 +419,6 @@ defmodule NeptunusWeb.Socket do
       gone(state)
     end
   end
-
-  # Linux: the kernel takes a frame only while less than `unsent_bytes` of this
-  # connection's earlier frames wait there unsent (TCP_NOTSENT_LOWAT). On a slow link the
-  # backlog then forms in the mailbox, where stale telemetry is dropped, instead of in a
-  # send buffer that the kernel grows to megabytes: seconds of old data for the client.
-  defp limit_unsent(sock) do
-    case {:os.type(), NeptunusWeb.Endpoint.Settings.get().unsent_bytes} do
-      {{:unix, :linux}, bytes} when is_integer(bytes) and bytes > 0 and sock != nil ->
-        # best effort: a kernel without the option only keeps the larger buffer
-        _ = setopts(sock, [{:raw, @ipproto_tcp, @tcp_notsent_lowat, <<bytes::native-32>>}])
-        :ok
-
-      _ ->
-        :ok
-    end
-  end
-
-  defp setopts({:ssl, sock}, opts), do: :ssl.setopts(sock, opts)
-  defp setopts(sock, opts), do: :inet.setopts(sock, opts)
-
-  defp connected?(%State{sock: nil}), do: true
-  defp connected?(%State{sock: {:ssl, sock}}), do: match?({:ok, _}, :ssl.peername(sock))
-  defp connected?(%State{sock: sock}), do: match?({:ok, _}, :inet.peername(sock))
 
   # The socket is closed under yaws (the send timeout): end the connection now.
   defp gone(state) do
