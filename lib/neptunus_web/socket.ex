@@ -42,16 +42,11 @@ defmodule NeptunusWeb.Socket do
   a topic the connection has left (still in flight, or from a paced broadcast's later
   slice) are dropped.
 
-  Restarts of the PubSub scope and of the presence server (see `Neptunus.PubSub`, "When the
-  scope restarts"): the connection watches both from its first join. When the scope stops,
-  the connection's subscriptions are gone and its client may have missed any broadcast (a
-  `stopped`, a `helm`, a presence diff); only a rejoin gives a client the whole state again,
-  so the connection closes with 1012 "service restart", and the phoenix client reconnects
-  and rejoins (a pilot's channel is left like on any close: the helm is freed and the vehicle
-  stops, `pilot_disconnected`). When the presence server stops, the connection waits for the
-  new one and sends each joined channel `:presence_restarted` (see `NeptunusWeb.Channel`):
-  the vehicle channel tracks again and pushes a fresh `presence_state`. A join while either
-  is restarting is refused with "server restarting: join again" (the client retries).
+  Restarts of the PubSub scope and of the presence server: the connection watches both from
+  its first join (`NeptunusWeb.Socket.Watch`). When the scope stops, the connection closes
+  with 1012 "service restart" and the phoenix client reconnects and rejoins; when the
+  presence server stops, the connection waits for the new one and its channels track again.
+  A join while either is restarting is refused with "server restarting: join again".
 
   ## Memory
 
@@ -79,18 +74,16 @@ defmodule NeptunusWeb.Socket do
   import NeptunusWeb.Endpoint.Yaws
 
   alias Neptunus.PubSub
-  alias NeptunusWeb.Presence
   alias NeptunusWeb.WebSocket.{Transport, Upgrade}
   alias NeptunusWeb.Channels.{FleetChannel, LogChannel, VehicleChannel}
-  alias NeptunusWeb.Socket.{FlowControl, Router, WsFrame}
+  alias NeptunusWeb.Presence
+  alias NeptunusWeb.Socket.{FlowControl, Router, Watch, WsFrame}
 
   @routes [{"fleet", FleetChannel}, {"vehicle:*", VehicleChannel}, {"log:*", LogChannel}]
 
   # see "Memory"
   @fullsweep_after 0
   @max_message_bytes 65_536
-  # how often to look for the presence server while it restarts
-  @presence_retry_ms 20
   # an idle connection (nothing received for this long) hibernates (see "Memory")
   @hibernate_after_ms 1_000
 
@@ -102,11 +95,10 @@ defmodule NeptunusWeb.Socket do
             last_seen_ms: integer(),
             idle_timeout_ms: pos_integer(),
             sock: NeptunusWeb.WebSocket.Transport.socket() | nil,
-            pubsub: reference() | nil,
-            presence: reference() | nil
+            watch: NeptunusWeb.Socket.Watch.t()
           }
     @enforce_keys [:router, :flow, :last_seen_ms, :idle_timeout_ms]
-    defstruct [:router, :flow, :last_seen_ms, :idle_timeout_ms, :sock, :pubsub, :presence]
+    defstruct [:router, :flow, :last_seen_ms, :idle_timeout_ms, :sock, watch: %Watch{}]
   end
 
   # yaws appmod: upgrade /socket/websocket
@@ -227,10 +219,8 @@ defmodule NeptunusWeb.Socket do
   end
 
   defp carry_out({:watch, msg}, state) do
-    case watch(state) do
-      {:ok, state} -> {:answer, {:watched, msg, :ok}, state}
-      :restarting -> {:answer, {:watched, msg, :restarting}, state}
-    end
+    {result, watch} = Watch.watch(state.watch, Router.topics(state.router))
+    {:answer, {:watched, msg, result}, %{state | watch: watch}}
   end
 
   defp carry_out({:subscribe, msg, frame}, state) do
@@ -274,24 +264,6 @@ defmodule NeptunusWeb.Socket do
     state
   end
 
-  # Watches the PubSub scope and the presence server from the first join on (see the
-  # moduledoc): :restarting while either is down.
-  defp watch(%State{pubsub: nil} = state) do
-    case PubSub.monitor() do
-      {:ok, ref} -> watch(%{state | pubsub: ref})
-      {:error, :not_running} -> :restarting
-    end
-  end
-
-  defp watch(%State{presence: nil} = state) do
-    case Presence.monitor() do
-      {:ok, ref} -> {:ok, presence_back(state, ref)}
-      {:error, :not_running} -> :restarting
-    end
-  end
-
-  defp watch(state), do: {:ok, state}
-
   # Messages to the connection process
 
   # The helm's grant and loss of control, on their way to the vehicle channel: a connection
@@ -321,44 +293,36 @@ defmodule NeptunusWeb.Socket do
     end
   end
 
-  # The PubSub scope stopped: every subscription of this connection is gone.
-  defp handle_other({:DOWN, ref, :process, _pid, _reason}, %State{pubsub: ref} = state),
-    do: {:close, {1012, "service restart"}, %{state | pubsub: nil}}
+  # The PubSub scope or the presence server stopped (Watch).
+  defp handle_other({:DOWN, ref, :process, _pid, _reason} = msg, state) do
+    case Watch.down(state.watch, ref) do
+      # every subscription of this connection is gone
+      {:scope_stopped, watch} ->
+        {:close, {1012, "service restart"}, %{state | watch: watch}}
 
-  # The presence server stopped: its presences are gone; track again once it is back.
-  defp handle_other({:DOWN, ref, :process, _pid, _reason}, %State{presence: ref} = state),
-    do: handle_other(:presence_back?, %{state | presence: nil})
+      # its presences are gone: track again once it is back
+      {:presence_stopped, watch} ->
+        handle_other(:presence_back?, %{state | watch: watch})
 
-  defp handle_other(:presence_back?, %State{presence: nil} = state) do
-    case Presence.monitor() do
-      {:ok, ref} ->
-        {:noreply, presence_back(state, ref)}
-
-      {:error, :not_running} ->
-        Process.send_after(self(), :presence_back?, @presence_retry_ms)
-        {:noreply, state}
+      :other ->
+        ignored(msg, state)
     end
   end
 
-  defp handle_other(:presence_back?, state), do: {:noreply, state}
+  defp handle_other(:presence_back?, state),
+    do:
+      {:noreply, %{state | watch: Watch.presence_back(state.watch, Router.topics(state.router))}}
 
   defp handle_other(:gc, state) do
     :erlang.garbage_collect()
     {:noreply, state}
   end
 
-  defp handle_other(msg, state) do
+  defp handle_other(msg, state), do: ignored(msg, state)
+
+  defp ignored(msg, state) do
     Logger.debug("socket ignored message #{inspect(msg)}")
     {:noreply, state}
-  end
-
-  # A presence server is watched again: the joined channels track again (none on the first
-  # join; after a restart, whichever of a join and the retry finds the new server first).
-  defp presence_back(state, ref) do
-    for topic <- Router.topics(state.router),
-        do: send(self(), {:channel_info, topic, :presence_restarted})
-
-    %{state | presence: ref}
   end
 
   # A broadcast frame, shared with every other connection that receives it: sent as the
