@@ -1,17 +1,26 @@
 defmodule NeptunusWeb.Socket do
   @moduledoc """
   A Phoenix Channels v2 WebSocket connection, served by yaws (`/socket/websocket`): one
-  process per connection. This module is the process shell; the decisions are pure:
+  process per connection. This module is the process shell: yaws' WebSocket callbacks, and
+  carrying out what these decide:
 
-    * `NeptunusWeb.Socket.Router` — the Channels protocol and the joined channels: what to
-      answer to each frame and which effects (subscribe, leave, log) to carry out;
-    * `NeptunusWeb.Socket.FlowControl` — the process priority (the pilot's `:high` within
-      its frame budget) and which telemetry frames to drop for a slow client.
+    * `NeptunusWeb.WebSocket.Upgrade` — who may open the connection (as for every WebSocket
+      endpoint of the node);
+    * `NeptunusWeb.Socket.Router` (pure) — the Channels protocol and the joined channels:
+      what to answer to each frame and which effects (watch, subscribe, leave, log) to carry
+      out;
+    * `NeptunusWeb.Socket.FlowControl` (pure) — the process priority (the pilot's `:high`
+      within its frame budget), which telemetry frames to drop for a slow client, and the
+      effects of both (priority, the pilot's telemetry first, log lines);
+    * `NeptunusWeb.Socket.Watch` — the monitors of the PubSub scope and the presence server,
+      and what their restarts mean;
+    * `NeptunusWeb.WebSocket.Transport` — the socket itself: frames written without a copy,
+      `TCP_NOTSENT_LOWAT`, whether the client is still there.
 
-  The shell upgrades the HTTP request, runs yaws' WebSocket callbacks, feeds the router and
-  the flow control, and carries out their answers: it sends the frames, subscribes and
-  unsubscribes, sets the process priority, sets the socket's options, checks that the
-  client is alive, and watches the PubSub scope and the presence server.
+  The shell feeds the router and the flow control the client's frames, the channels'
+  messages and the clock, sends the frames they answer and carries out their effects in
+  order (`Router`'s requests for a watch or a subscription are answered with a message to
+  the router), checks the client's liveness, and keeps its own memory small.
 
   Connection parameters (query string): `vsn` must be `2.x`; `token` is the login token
   (`POST /api/login`; required in secure mode unless anonymous observers are allowed);
@@ -166,7 +175,8 @@ defmodule NeptunusWeb.Socket do
   @doc false
   def handle_message({:text, data}, state) do
     now = now_ms()
-    state = %{state | last_seen_ms: now} |> count_frame(now)
+    {flow, effects} = FlowControl.frame_received(state.flow, now, name(state))
+    state = carry_out_all(effects, %{state | last_seen_ms: now, flow: flow})
     guarded(state, fn -> route(state, {:text, data}) end)
   end
 
@@ -182,9 +192,19 @@ defmodule NeptunusWeb.Socket do
   @doc false
   def handle_info({:pubsub_frame, topic, event, frame}, state) do
     cond do
-      not Router.joined?(state.router, topic) -> {:noreply, state}
-      FlowControl.deliver?(state.flow, event, waiting()) -> push(state, frame)
-      true -> shed(state)
+      not Router.joined?(state.router, topic) ->
+        {:noreply, state}
+
+      FlowControl.deliver?(state.flow, event, waiting()) ->
+        push(state, frame)
+
+      # behind: a send may have waited for the client until the send timeout closed the socket
+      not Transport.connected?(state.sock) ->
+        gone(state)
+
+      true ->
+        {flow, effects} = FlowControl.telemetry_dropped(state.flow, now_ms(), name(state))
+        {:noreply, carry_out_all(effects, %{state | flow: flow})}
     end
   end
 
@@ -193,7 +213,7 @@ defmodule NeptunusWeb.Socket do
   @doc false
   def terminate(reason, state) do
     {router, _frames, effects} = Router.handle_message(state.router, {:closed, reason})
-    Enum.reduce(effects, %{state | router: router}, &carry_out_effect/2)
+    carry_out_all(effects, %{state | router: router})
     :ok
   end
 
@@ -264,6 +284,18 @@ defmodule NeptunusWeb.Socket do
     state
   end
 
+  defp carry_out_effect({:priority, priority}, state) do
+    Process.flag(:priority, priority)
+    state
+  end
+
+  defp carry_out_effect({:prioritize, topic, first?}, state) do
+    PubSub.prioritize(topic, first?)
+    state
+  end
+
+  defp carry_out_all(effects, state), do: Enum.reduce(effects, state, &carry_out_effect/2)
+
   # Messages to the connection process
 
   # The helm's grant and loss of control, on their way to the vehicle channel: a connection
@@ -271,10 +303,8 @@ defmodule NeptunusWeb.Socket do
   # any other runs at :low (FlowControl).
   defp handle_other({:channel_info, topic, {:helm, event, _}} = msg, state)
        when event in ["control_granted", "control_lost"] do
-    granted? = event == "control_granted"
-    PubSub.prioritize(topic, granted?)
-    state = set_priority(state, FlowControl.piloting(state.flow, topic, granted?))
-    route(state, msg)
+    {flow, effects} = FlowControl.control_changed(state.flow, topic, event == "control_granted")
+    route(carry_out_all(effects, %{state | flow: flow}), msg)
   end
 
   defp handle_other({:channel_info, _topic, _msg} = msg, state), do: route(state, msg)
@@ -361,59 +391,17 @@ defmodule NeptunusWeb.Socket do
     waiting
   end
 
-  # Behind: a send may have waited for the client until the send timeout closed the socket.
-  defp shed(state) do
-    if Transport.connected?(state.sock) do
-      {flow, report} = FlowControl.dropped(state.flow, now_ms())
-
-      case report do
-        {:report, count, since_ms} ->
-          Logger.info(
-            "#{inspect(state.router.user.name)} reads slower than its telemetry arrives: " <>
-              "dropped #{count} stale telemetry frame(s)" <>
-              if(since_ms == nil, do: "", else: " in the last #{div(since_ms, 1000)} s")
-          )
-
-        nil ->
-          :ok
-      end
-
-      {:noreply, %{state | flow: flow}}
-    else
-      gone(state)
-    end
-  end
-
   # The socket is closed under yaws (the send timeout): end the connection now.
   defp gone(state) do
     Logger.info(
-      "#{inspect(state.router.user.name)}'s client read nothing for " <>
+      "#{inspect(name(state))}'s client read nothing for " <>
         "#{NeptunusWeb.Endpoint.send_timeout_ms()} ms: connection closed"
     )
 
     {:close, {1000, "send timeout"}, state}
   end
 
-  # Priority (see FlowControl)
-
-  defp count_frame(state, now) do
-    {flow, verdict} = FlowControl.frame(state.flow, now)
-
-    if verdict == :over_budget,
-      do:
-        Logger.warning(
-          "pilot #{inspect(state.router.user.name)} sends more than #{flow.frame_limit} " <>
-            "frames/s: its connection runs at :normal for the rest of this second"
-        )
-
-    set_priority(state, flow)
-  end
-
-  defp set_priority(state, flow) do
-    priority = FlowControl.priority(flow)
-    if priority != FlowControl.priority(state.flow), do: Process.flag(:priority, priority)
-    %{state | flow: flow}
-  end
+  defp name(state), do: state.router.user.name
 
   defp now_ms, do: Neptunus.Clock.monotonic_ms()
 end
