@@ -46,7 +46,8 @@ defmodule NeptunusWeb.API do
 
   require Logger
 
-  alias Neptunus.{JSON, Recording}
+  alias Neptunus.JSON
+  alias Neptunus.Recording.Pull
   alias NeptunusWeb.Auth
 
   @max_body 4096
@@ -245,241 +246,46 @@ defmodule NeptunusWeb.API do
     end
   end
 
-  defp recording_dir, do: NeptunusWeb.Endpoint.Settings.get().recording_dir
+  # each node's recordings directory, read on that node
+  @dir {NeptunusWeb.Endpoint.Settings, :recording_dir, []}
 
-  # Every node's recordings (a vehicle's: its node's), each with its node: a vehicle on
-  # another node of the fleet records there, and its recordings are listed, exported and
-  # deleted from any node.
+  @statuses %{invalid: 400, not_found: 404, conflict: 409, unreachable: 503, failed: 500}
+
+  defp refused({:error, kind, reason}), do: {Map.fetch!(@statuses, kind), %{error: reason}}
+
+  # Every node's recordings (a vehicle's: its node's), each with its node
+  # (Neptunus.Recording.Pull).
   defp recordings(arg) do
-    vehicle = Map.get(query(arg), "vehicle")
-
-    if vehicle != nil and not Recording.valid?(vehicle, "00000000-000000Z-1.log") do
-      {400, %{error: "vehicle must be a vehicle id"}}
-    else
-      nodes =
-        case vehicle && Neptunus.Fleet.vehicle_node(vehicle) do
-          nil -> Neptunus.Fleet.nodes()
-          {:ok, node} -> [node]
-          {:error, :unreachable} -> []
-        end
-
-      results = on_nodes(nodes, :local_recordings, [vehicle])
-      list = Enum.flat_map(results, & &1.recordings)
-      list = if length(results) > 1, do: Enum.sort_by(list, & &1.modified_at, :desc), else: list
-      {200, %{recording: Enum.any?(results, & &1.recording), recordings: list}}
+    case Pull.list(Map.get(query(arg), "vehicle"), @dir) do
+      {:ok, listing} -> {200, listing}
+      error -> refused(error)
     end
   end
 
-  @doc false
-  # This node's recordings (of one vehicle, or all), each with this node's name.
-  @spec local_recordings(String.t() | nil) :: %{recording: boolean(), recordings: [map()]}
-  def local_recordings(vehicle) do
-    case recording_dir() do
-      nil ->
-        %{recording: false, recordings: []}
-
-      dir ->
-        here = Atom.to_string(node())
-
-        %{
-          recording: true,
-          recordings: Enum.map(Recording.list(dir, vehicle), &Map.put(&1, :node, here))
-        }
-    end
-  end
-
-  # `fun(args)` of this module on each of `nodes` (this one directly); nodes that fail or do
-  # not answer within 5 s are left out.
-  defp on_nodes(nodes, fun, args) do
-    {here, remote} = Enum.split_with(nodes, &(&1 == node()))
-    local = if here == [], do: [], else: [apply(__MODULE__, fun, args)]
-
-    remote_results =
-      remote
-      |> :erpc.multicall(__MODULE__, fun, args, 5_000)
-      |> Enum.flat_map(fn
-        {:ok, result} -> [result]
-        _ -> []
-      end)
-
-    local ++ remote_results
-  end
-
-  # GET /api/recordings/<vehicle>/<name>?format=csv|jsonl&every=N&max=M, on the vehicle's
-  # node: planned there (`export_plan/3`), read there, streamed from here.
+  # GET /api/recordings/<vehicle>/<name>?format=csv|jsonl&every=N&max=M, planned and read on
+  # the vehicle's node, streamed from here.
   defp recording(arg, [vehicle, name]) do
-    params = query(arg)
-
-    case vehicle_call(vehicle, :export_plan, [vehicle, name, params]) do
-      {:ok, node, {:ok, plan}} when node == node() -> export(arg, plan, lines(plan))
-      {:ok, node, {:ok, plan}} -> export(arg, plan, remote_lines(node, plan))
-      {:ok, _node, {status, body}} -> {status, body}
-      {:error, response} -> response
+    case Pull.export(vehicle, name, query(arg), @dir) do
+      {:ok, plan, lines} -> export(arg, plan, lines)
+      error -> refused(error)
     end
   end
 
   defp recording(_arg, _parts), do: {404, %{error: "no such recording"}}
 
-  # `fun(args)` of this module on vehicle's node: `{:ok, node, result}`, or the response
-  # when that node is cut off.
-  defp vehicle_call(vehicle, fun, args) do
-    case Neptunus.Fleet.vehicle_node(vehicle) do
-      {:ok, node} when node == node() ->
-        {:ok, node, apply(__MODULE__, fun, args)}
-
-      {:ok, node} ->
-        {:ok, node, :erpc.call(node, __MODULE__, fun, args, 10_000)}
-
-      {:error, :unreachable} ->
-        {:error, {503, %{error: "vehicle unreachable: #{vehicle}"}}}
-    end
-  catch
-    :error, {:erpc, _} -> {:error, {503, %{error: "vehicle unreachable: #{vehicle}"}}}
-    :exit, {:timeout, _} -> {:error, {503, %{error: "vehicle unreachable: #{vehicle}"}}}
-  end
-
-  @typedoc "What an export reads, decided on the recording's node."
-  @type plan :: %{
-          path: Path.t(),
-          format: String.t(),
-          every: pos_integer(),
-          count: non_neg_integer(),
-          columns: term(),
-          file: String.t()
-        }
-
-  @doc false
-  # Checks an export's request against this node's recordings: `{:ok, plan}` or
-  # `{status, body}`.
-  @spec export_plan(String.t(), String.t(), map()) :: {:ok, plan()} | {pos_integer(), map()}
-  def export_plan(vehicle, name, params) do
-    dir = recording_dir()
-
-    with true <- dir != nil || {404, %{error: "recording is off on this server"}},
-         true <- Recording.valid?(vehicle, name) || {404, %{error: "no such recording"}},
-         path = Recording.path(dir, vehicle, name),
-         true <- File.regular?(path) || {404, %{error: "no such recording: #{vehicle}/#{name}"}},
-         {:ok, format} <- format(Map.get(params, "format", "csv")),
-         {:ok, every} <- every(Map.get(params, "every", "1")),
-         {:ok, max} <- max_rows(Map.get(params, "max")) do
-      # what the vehicle's recorder still buffers goes to disk first
-      Neptunus.Vehicle.Recorder.sync(vehicle)
-      # first pass: the columns and counts; the second pass (streamed) stops where this one
-      # did, though the recorder may have written more since
-      summary = path |> Recording.entries() |> Recording.scan()
-      every = if max, do: max(every, ceil_div(summary.telemetry, max)), else: every
-
-      {:ok,
-       %{
-         path: path,
-         format: format,
-         every: every,
-         count: summary.entries,
-         columns: summary.columns,
-         file: "#{vehicle}-#{Path.rootname(name)}"
-       }}
-    end
-  end
-
-  # The export's lines, read on this node.
-  defp lines(plan) do
-    entries = plan.path |> Recording.entries() |> Stream.take(plan.count)
-
-    case plan.format do
-      "csv" -> Recording.csv_stream(entries, plan.columns, plan.every)
-      "jsonl" -> Recording.json_lines_stream(entries, plan.every)
-    end
-  end
-
-  @remote_batch 256
-
-  # The export's lines, read on `node` by a process there that sends a batch of lines each
-  # time this one asks for more (so a slow client holds back the reading, not a mailbox).
-  defp remote_lines(node, plan) do
-    Stream.resource(
-      fn ->
-        pid = Node.spawn(node, __MODULE__, :serve_lines, [self(), plan])
-        {pid, Process.monitor(pid)}
-      end,
-      fn {pid, ref} = acc ->
-        send(pid, {:more, self()})
-
-        receive do
-          {:lines, ^pid, batch} -> {batch, acc}
-          {:done, ^pid} -> {:halt, acc}
-          {:DOWN, ^ref, :process, _, reason} -> :erlang.error({:recording_node, reason})
-        after
-          30_000 -> :erlang.error({:recording_node, :timeout})
-        end
-      end,
-      fn {pid, ref} ->
-        Process.demonitor(ref, [:flush])
-        Process.exit(pid, :kill)
-      end
-    )
-  end
-
-  @doc false
-  # On the recording's node: sends `to` the export's lines, a batch per `{:more, to}`, then
-  # `{:done, self()}`; ends when `to` does.
-  @spec serve_lines(pid(), plan()) :: :ok
-  def serve_lines(to, plan) do
-    ref = Process.monitor(to)
-
-    plan
-    |> lines()
-    |> Stream.chunk_every(@remote_batch)
-    |> Stream.concat([:done])
-    |> Enum.each(fn batch ->
-      receive do
-        {:more, ^to} ->
-          if batch == :done,
-            do: send(to, {:done, self()}),
-            else: send(to, {:lines, self(), batch})
-
-        {:DOWN, ^ref, :process, _, _} ->
-          exit(:normal)
-      end
-    end)
-  end
-
   # DELETE /api/recordings/<vehicle>/<name>: who may pilot may delete (local mode, a pilot or
   # the main station); never the file being written.
   defp delete_recording(arg, [vehicle, name]) do
     with :ok <- may_delete(arg),
-         {:ok, _node, response} <- vehicle_call(vehicle, :delete_local, [vehicle, name]) do
-      response
+         :ok <- Pull.delete(vehicle, name, @dir) do
+      {200, %{deleted: %{vehicle: vehicle, name: name}}}
     else
-      {:error, {status, body}} -> {status, body}
+      {:error, _, _} = error -> refused(error)
       {status, body} -> {status, body}
     end
   end
 
   defp delete_recording(_arg, _parts), do: {404, %{error: "no such recording"}}
-
-  @doc false
-  # Deletes a recording of this node (never the file being written): `{status, body}`.
-  @spec delete_local(String.t(), String.t()) :: {pos_integer(), map()}
-  def delete_local(vehicle, name) do
-    dir = recording_dir()
-
-    with true <- dir != nil || {404, %{error: "recording is off on this server"}},
-         true <- Recording.valid?(vehicle, name) || {404, %{error: "no such recording"}},
-         path = Recording.path(dir, vehicle, name),
-         true <- File.regular?(path) || {404, %{error: "no such recording: #{vehicle}/#{name}"}},
-         :ok <-
-           if(writing?(vehicle, path),
-             do: {409, %{error: "#{name} is being recorded now"}},
-             else: :ok
-           ),
-         :ok <- File.rm(path) do
-      Logger.info("recording #{Neptunus.Log.safe(vehicle)}/#{Neptunus.Log.safe(name)} deleted")
-      {200, %{deleted: %{vehicle: vehicle, name: name}}}
-    else
-      {:error, posix} when is_atom(posix) -> {500, %{error: "cannot delete: #{posix}"}}
-      {status, body} -> {status, body}
-    end
-  end
 
   defp may_delete(arg) do
     case Auth.session(token(arg)) do
@@ -497,30 +303,6 @@ defmodule NeptunusWeb.API do
 
       {:error, %{error: reason}} ->
         {401, %{error: reason}}
-    end
-  end
-
-  defp writing?(vehicle, path) do
-    Neptunus.Vehicle.Recorder.status(vehicle).file == path
-  catch
-    :exit, _ -> false
-  end
-
-  defp max_rows(nil), do: {:ok, nil}
-  defp max_rows(text), do: count("max", text)
-
-  defp ceil_div(a, b), do: max(1, div(a + b - 1, b))
-
-  defp format(format) when format in ["csv", "jsonl"], do: {:ok, format}
-  defp format(other), do: {400, %{error: "format must be csv or jsonl, got #{inspect(other)}"}}
-
-  defp every(text), do: count("every", text)
-
-  # a query parameter that counts entries
-  defp count(name, text) do
-    case Integer.parse(text) do
-      {n, ""} when n in 1..1_000_000 -> {:ok, n}
-      _ -> {400, %{error: "#{name} must be an integer in 1..1000000, got #{inspect(text)}"}}
     end
   end
 

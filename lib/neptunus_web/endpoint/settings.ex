@@ -83,6 +83,13 @@ defmodule NeptunusWeb.Endpoint.Settings do
   end
 
   @doc """
+  The directory of this node's recordings (nil: recording is off), from the stored settings:
+  where `Neptunus.Recording.Pull` finds them on each node.
+  """
+  @spec recording_dir() :: Path.t() | nil
+  def recording_dir, do: get().recording_dir
+
+  @doc """
   The URL the endpoint serves on (a wildcard bind address is named by its loopback).
 
       iex> settings = Neptunus.Config.Endpoint.web_settings!(endpoint: %{port: 4000, bind: {0, 0, 0, 0}})
