@@ -1,17 +1,17 @@
 defmodule NeptunusWeb.API do
   @moduledoc """
   The HTTP API under `/api` (a yaws appmod): the router. JSON in, JSON out; errors are
-  `{"error": reason}` with a 4xx status. Each resource is a module whose functions take the
-  request (yaws' `#arg{}`) and return the answer (`NeptunusWeb.API.Response`); its moduledoc
-  says what it takes and answers:
+  `{"error": reason}` with a 4xx status. Each resource is a module (`NeptunusWeb.API.*`)
+  whose functions take the request (yaws' `#arg{}`) and return the answer
+  (`NeptunusWeb.API.Response`); its moduledoc says what it takes and answers:
 
-  | Path                               | Methods             | Resource                     |
-  |------------------------------------|---------------------|------------------------------|
-  | `/api/health`                      | GET                 | `NeptunusWeb.API.Health`     |
-  | `/api/login`                       | POST                | `NeptunusWeb.API.Login`      |
-  | `/api/session`                     | GET                 | `NeptunusWeb.API.Session`    |
-  | `/api/recordings[/<vehicle>/<name>]` | GET, DELETE (one) | `NeptunusWeb.API.Recordings` |
-  | `/api/settings[/<key>]`            | GET, PUT/DELETE (one) | `NeptunusWeb.API.Settings` |
+  | Path                                 | Methods                       | Resource         |
+  |--------------------------------------|-------------------------------|------------------|
+  | `/api/health`                        | GET                           | `API.Health`     |
+  | `/api/login`                         | POST                          | `API.Login`      |
+  | `/api/session`                       | GET                           | `API.Session`    |
+  | `/api/recordings[/<vehicle>/<name>]` | GET; GET, DELETE for one      | `API.Recordings` |
+  | `/api/settings[/<key>]`              | GET; GET, PUT, DELETE for one | `API.Settings`   |
 
   A path not listed is answered 404, a method its path does not take 405 (naming those it
   takes). A resource that raises is answered 500 "internal error", and the error logged.
