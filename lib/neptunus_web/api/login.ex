@@ -7,7 +7,6 @@ defmodule NeptunusWeb.API.Login do
   """
   import NeptunusWeb.Endpoint.Yaws
 
-  alias Neptunus.JSON
   alias NeptunusWeb.API.Request
   alias NeptunusWeb.Auth
 
@@ -30,15 +29,10 @@ defmodule NeptunusWeb.API.Login do
   end
 
   defp body(arg) do
-    case arg(arg, :clidata) do
-      data when is_binary(data) and byte_size(data) <= @max_body ->
-        case JSON.decode(data) do
-          {:ok, json} -> {:ok, json}
-          {:error, _} -> {:error, 400, "body must be JSON: {\"name\": …, \"password\": …}"}
-        end
-
-      _ ->
-        {:error, 400, "body missing or too large"}
+    case Request.json_body(arg, @max_body) do
+      {:ok, json} -> {:ok, json}
+      {:error, {:json, _}} -> {:error, 400, "body must be JSON: {\"name\": …, \"password\": …}"}
+      {:error, :too_large} -> {:error, 400, "body missing or too large"}
     end
   end
 end

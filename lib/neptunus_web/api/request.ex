@@ -29,6 +29,26 @@ defmodule NeptunusWeb.API.Request do
   end
 
   @doc """
+  The request's body decoded as JSON, if it is at most `max_bytes` long: `{:error,
+  :too_large}` for a longer (or a missing) body, whose rest yaws has not read;
+  `{:error, {:json, reason}}` for a body that is not JSON.
+  """
+  @spec json_body(tuple(), pos_integer()) ::
+          {:ok, term()} | {:error, :too_large | {:json, String.t()}}
+  def json_body(arg, max_bytes) do
+    case arg(arg, :clidata) do
+      data when is_binary(data) and byte_size(data) <= max_bytes ->
+        case Neptunus.JSON.decode(data) do
+          {:ok, json} -> {:ok, json}
+          {:error, reason} -> {:error, {:json, reason}}
+        end
+
+      _ ->
+        {:error, :too_large}
+    end
+  end
+
+  @doc """
   Whether the request may see what observers see (recordings, the camera): local mode, a
   valid token (`Authorization: Bearer …` or `?token=`), or anonymous observers allowed.
   """

@@ -12,9 +12,6 @@ defmodule NeptunusWeb.API.Settings do
       (the previous value stays)
     * `DELETE /api/settings/<key>` → `{"deleted": key}` (also when none was stored)
   """
-  import NeptunusWeb.Endpoint.Yaws
-
-  alias Neptunus.JSON
   alias Neptunus.Settings.Rules
   alias NeptunusWeb.API.Request
 
@@ -52,26 +49,15 @@ defmodule NeptunusWeb.API.Settings do
   @spec update(tuple(), String.t()) :: NeptunusWeb.API.Response.t()
   def update(arg, key) do
     with_user(arg, fn scope ->
-      with {:ok, value} <- setting_body(arg) do
-        case Neptunus.Settings.put(scope, key, value) do
-          :ok -> {200, %{key: key, value: value}}
-          {:error, "cannot " <> _ = reason} -> {500, %{error: reason}}
-          {:error, reason} -> {400, %{error: reason}}
-        end
-      end
+      with {:ok, value} <- setting_body(arg),
+           do: stored(Neptunus.Settings.put(scope, key, value), %{key: key, value: value})
     end)
   end
 
   @doc "`DELETE /api/settings/<key>`: forgets one setting of the request's user."
   @spec delete(tuple(), String.t()) :: NeptunusWeb.API.Response.t()
   def delete(arg, key) do
-    with_user(arg, fn scope ->
-      case Neptunus.Settings.delete(scope, key) do
-        :ok -> {200, %{deleted: key}}
-        {:error, "cannot " <> _ = reason} -> {500, %{error: reason}}
-        {:error, reason} -> {400, %{error: reason}}
-      end
-    end)
+    with_user(arg, &stored(Neptunus.Settings.delete(&1, key), %{deleted: key}))
   end
 
   defp with_user(arg, fun) do
@@ -81,16 +67,23 @@ defmodule NeptunusWeb.API.Settings do
     end
   end
 
-  defp setting_body(arg) do
-    case arg(arg, :clidata) do
-      data when is_binary(data) and byte_size(data) <= @max_settings_body ->
-        case JSON.decode(data) do
-          {:ok, %{"value" => value} = body} when map_size(body) == 1 -> {:ok, value}
-          {:ok, _} -> {400, %{error: "body must be {\"value\": …}"}}
-          {:error, reason} -> {400, %{error: "body must be JSON {\"value\": …}: #{reason}"}}
-        end
+  # a change stored (answer), or why not: the store could not write (500) or refused (400)
+  defp stored(:ok, answer), do: {200, answer}
+  defp stored({:error, "cannot " <> _ = reason}, _answer), do: {500, %{error: reason}}
+  defp stored({:error, reason}, _answer), do: {400, %{error: reason}}
 
-      _ ->
+  defp setting_body(arg) do
+    case Request.json_body(arg, @max_settings_body) do
+      {:ok, %{"value" => value} = body} when map_size(body) == 1 ->
+        {:ok, value}
+
+      {:ok, _} ->
+        {400, %{error: "body must be {\"value\": …}"}}
+
+      {:error, {:json, reason}} ->
+        {400, %{error: "body must be JSON {\"value\": …}: #{reason}"}}
+
+      {:error, :too_large} ->
         # the rest of the body is not read: the connection cannot carry another request
         {413, %{error: "body must be at most #{@max_settings_body} bytes"},
          [{"Connection", "close"}]}
