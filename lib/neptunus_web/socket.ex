@@ -83,10 +83,10 @@ defmodule NeptunusWeb.Socket do
   import NeptunusWeb.Endpoint.Yaws
 
   alias Neptunus.PubSub
-  alias NeptunusWeb.WebSocket.{Transport, Upgrade}
   alias NeptunusWeb.Channels.{FleetChannel, LogChannel, VehicleChannel}
   alias NeptunusWeb.Presence
   alias NeptunusWeb.Socket.{FlowControl, Router, Watch, WsFrame}
+  alias NeptunusWeb.WebSocket.{Transport, Upgrade}
 
   @routes [{"fleet", FleetChannel}, {"vehicle:*", VehicleChannel}, {"log:*", LogChannel}]
 

@@ -216,10 +216,13 @@ defmodule NeptunusWeb.Socket.FlowControl do
 
       iex> alias NeptunusWeb.Socket.FlowControl
       iex> flow = FlowControl.new(pilot_frames_per_s: 1, backlog: 8)
-      iex> {flow, []} = FlowControl.frame_received(FlowControl.piloting(flow, "vehicle:a", true), 0, "ada")
-      iex> {_flow, [{:log, :warning, line}, {:priority, :normal}]} = FlowControl.frame_received(flow, 1, "ada")
+      iex> flow = FlowControl.piloting(flow, "vehicle:a", true)
+      iex> {flow, []} = FlowControl.frame_received(flow, 0, "ada")
+      iex> {_flow, [{:log, :warning, line}, {:priority, :normal}]} =
+      ...>   FlowControl.frame_received(flow, 1, "ada")
       iex> line
-      "pilot \\"ada\\" sends more than 1 frames/s: its connection runs at :normal for the rest of this second"
+      "pilot \\"ada\\" sends more than 1 frames/s: its connection runs at :normal " <>
+        "for the rest of this second"
   """
   @spec frame_received(t(), integer(), String.t()) :: {t(), [effect()]}
   def frame_received(%__MODULE__{} = flow, now_ms, who) do
@@ -269,7 +272,8 @@ defmodule NeptunusWeb.Socket.FlowControl do
       iex> {flow, []} = FlowControl.telemetry_dropped(flow, 1_000, "ada")
       iex> {_flow, [{:log, :info, later}]} = FlowControl.telemetry_dropped(flow, 61_000, "ada")
       iex> later
-      "\\"ada\\" reads slower than its telemetry arrives: dropped 2 stale telemetry frame(s) in the last 61 s"
+      "\\"ada\\" reads slower than its telemetry arrives: " <>
+        "dropped 2 stale telemetry frame(s) in the last 61 s"
   """
   @spec telemetry_dropped(t(), integer(), String.t()) :: {t(), [effect()]}
   def telemetry_dropped(%__MODULE__{} = flow, now_ms, who) do

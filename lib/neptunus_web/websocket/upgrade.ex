@@ -5,8 +5,8 @@ defmodule NeptunusWeb.WebSocket.Upgrade do
   here, and so does any other WebSocket endpoint, so that all of them let in exactly the same
   people:
 
-      # in the yaws appmod's out/1 (after checking its own path and parameters)
-      NeptunusWeb.WebSocket.Upgrade.upgrade(arg, MyHandler, %{vehicle: id}, hibernate_after: 1_000)
+      # in the yaws appmod's out/1, after checking its own path and parameters
+      Upgrade.upgrade(arg, __MODULE__, %{vehicle: id}, hibernate_after: 1_000)
 
   The request is authorised by `NeptunusWeb.Auth.connect/1` from its `Origin` and `Host`
   headers and its `token` and `name` query parameters: a foreign `Origin` (or, in local
@@ -18,7 +18,8 @@ defmodule NeptunusWeb.WebSocket.Upgrade do
   `handle_message/2`, `handle_info/2`, `terminate/2`); its `init([arg, state])` gets the
   state given here with the connection's `user` (`t:NeptunusWeb.Auth.user/0`) added. yaws
   closes with 1011 and logs nothing when a callback raises: guard the bodies. To send a
-  broadcast's shared binary without a copy per connection, see `NeptunusWeb.WebSocket.Transport`.
+  broadcast's shared binary without a copy per connection, see
+  `NeptunusWeb.WebSocket.Transport`.
   """
   import NeptunusWeb.Endpoint.Yaws
 

@@ -128,7 +128,7 @@ defmodule NeptunusWeb.Socket.FlowControlTest do
   end
 
   describe "effects for the connection to carry out" do
-    test "frames: nothing within the budget, the warning and :normal over it, :high again after" do
+    test "frames: nothing within budget, the warning and :normal over it, :high again after" do
       flow = pilot(2)
       {flow, []} = FlowControl.frame_received(flow, 0, "ada")
       {flow, []} = FlowControl.frame_received(flow, 10, "ada")

@@ -5,7 +5,7 @@ defmodule NeptunusWeb.Socket.WatchTest do
 
   alias NeptunusWeb.Socket.Watch
 
-  test "the first join watches both; the joined channels hear of a presence server watched anew" do
+  test "the first join watches both; joined channels hear of a presence server watched anew" do
     assert {:ok, %Watch{pubsub: pubsub, presence: presence} = watch} =
              Watch.watch(Watch.new(), [])
 
