@@ -16,8 +16,8 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadline do
   seen reading the same head (same phase, same request) for its `deadline/3` is killed: its
   socket closes, and yaws counts the connection as gone (`NeptunusWeb.Endpoint.ConnectionLog`
   counts it for the log). A connection that makes progress (its next request, its headers
-  complete) starts a fresh deadline; WebSocket and streaming connections never read a head and are never
-  touched.
+  complete) starts a fresh deadline; WebSocket and streaming connections never read a head
+  and are never touched.
 
   The decision is `sweep/4`, a pure function; this process only observes and kills. It runs
   in `NeptunusWeb.Endpoint`'s supervisor after yaws, and never fails on a process that ends
@@ -25,8 +25,8 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadline do
 
   It reads yaws' internals (how yaws' acceptor starts, its functions on the stack, its
   `request_start_time` in the process dictionary): it starts only on a yaws version it was
-  written for and refuses any other with a message (see
-  `NeptunusWeb.Endpoint.Yaws`, "Modules that read yaws' internals").
+  written for and refuses any other with a message (see `NeptunusWeb.Endpoint.Yaws`,
+  "Modules that read yaws' internals").
   """
   use GenServer
 
