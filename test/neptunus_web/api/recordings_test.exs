@@ -1,4 +1,4 @@
-defmodule NeptunusWeb.RecordingsAPITest do
+defmodule NeptunusWeb.API.RecordingsTest do
   # /api/recordings against the running endpoint; the recording directory is switched at run
   # time (the web settings, which the API reads at every request) and restored after each test.
   use ExUnit.Case, async: false

@@ -1,4 +1,4 @@
-defmodule NeptunusWeb.Settings do
+defmodule NeptunusWeb.Endpoint.Settings do
   @moduledoc """
   The web layer's settings: where the endpoint listens, its timeouts, the connections'
   flow control, the security configuration and the recordings directory.
@@ -83,10 +83,17 @@ defmodule NeptunusWeb.Settings do
   end
 
   @doc """
+  The directory of this node's recordings (nil: recording is off), from the stored settings:
+  where `Neptunus.Recording.Pull` finds them on each node.
+  """
+  @spec recording_dir() :: Path.t() | nil
+  def recording_dir, do: get().recording_dir
+
+  @doc """
   The URL the endpoint serves on (a wildcard bind address is named by its loopback).
 
       iex> settings = Neptunus.Config.Endpoint.web_settings!(endpoint: %{port: 4000, bind: {0, 0, 0, 0}})
-      iex> NeptunusWeb.Settings.url(settings)
+      iex> NeptunusWeb.Endpoint.Settings.url(settings)
       "http://127.0.0.1:4000"
   """
   @spec url(t()) :: String.t()

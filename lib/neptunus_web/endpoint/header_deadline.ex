@@ -1,4 +1,4 @@
-defmodule NeptunusWeb.HeaderDeadline do
+defmodule NeptunusWeb.Endpoint.HeaderDeadline do
   @moduledoc """
   Closes a connection that takes longer than `NeptunusWeb.Endpoint.header_timeout_ms/0` to
   send a request's head, or to start its next request on a kept-alive connection.
@@ -14,16 +14,27 @@ defmodule NeptunusWeb.HeaderDeadline do
   after every request, so on a kept-alive connection only its answers tell one wait from the
   next (empty lines, which yaws skips with a fresh read timeout, send nothing). A process
   seen reading the same head (same phase, same request) for its `deadline/3` is killed: its
-  socket closes, and yaws counts the connection as gone (`NeptunusWeb.ConnectionLog` counts
-  it for the log). A connection that makes progress (its next request, its headers complete) starts a
-  fresh deadline; WebSocket and streaming connections never read a head and are never
-  touched.
+  socket closes, and yaws counts the connection as gone (`NeptunusWeb.Endpoint.ConnectionLog`
+  counts it for the log). A connection that makes progress (its next request, its headers
+  complete) starts a fresh deadline; WebSocket and streaming connections never read a head
+  and are never touched.
 
   The decision is `sweep/4`, a pure function; this process only observes and kills. It runs
   in `NeptunusWeb.Endpoint`'s supervisor after yaws, and never fails on a process that ends
   while it looks.
+
+  It reads yaws' internals (how yaws' acceptor starts, its functions on the stack, its
+  `request_start_time` in the process dictionary): it starts only on a yaws version it was
+  written for and refuses any other with a message (see `NeptunusWeb.Endpoint.Yaws`,
+  "Modules that read yaws' internals").
   """
   use GenServer
+
+  alias NeptunusWeb.Endpoint.Yaws
+
+  # the yaws versions whose connection processes this module was written to read
+  @yaws_versions ["2.1.1"]
+  @reads "the stacks and process dictionaries of its connection processes"
 
   @typedoc """
   What a connection process is reading: the request line and the bytes sent on its socket
@@ -38,6 +49,11 @@ defmodule NeptunusWeb.HeaderDeadline do
 
   @type t :: %__MODULE__{timeout_ms: pos_integer(), interval_ms: pos_integer(), seen: seen()}
 
+  @doc """
+  Starts the deadline. Options: `:timeout_ms` (required), `:interval_ms` (between sweeps;
+  default a quarter of the timeout, 10..1000 ms), `:yaws_version` (the yaws to check;
+  default the one running).
+  """
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts), do: GenServer.start_link(__MODULE__, opts, name: __MODULE__)
 
@@ -47,14 +63,15 @@ defmodule NeptunusWeb.HeaderDeadline do
   connections to remember and those to close. A connection is closed when it has been
   reading the same head for its timeout or more; one no longer reading a head is forgotten.
 
-      iex> {seen, []} = NeptunusWeb.HeaderDeadline.sweep(%{}, [{:a, {:headers, 1}}], 0, 5000)
-      iex> {_, []} = NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 4999, 5000)
-      iex> NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 5000, 5000)
+      iex> alias NeptunusWeb.Endpoint.HeaderDeadline
+      iex> {seen, []} = HeaderDeadline.sweep(%{}, [{:a, {:headers, 1}}], 0, 5000)
+      iex> {_, []} = HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 4999, 5000)
+      iex> HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 5000, 5000)
       {%{}, [:a]}
-      iex> NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 2}}], 5000, 5000)
+      iex> HeaderDeadline.sweep(seen, [{:a, {:headers, 2}}], 5000, 5000)
       {%{a: {{:headers, 2}, 5000}}, []}
       iex> longer = fn {:headers, _} -> 6000 end
-      iex> {_, []} = NeptunusWeb.HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 5000, longer)
+      iex> {_, []} = HeaderDeadline.sweep(seen, [{:a, {:headers, 1}}], 5000, longer)
   """
   @spec sweep(
           %{term() => {term(), integer()}},
@@ -87,9 +104,9 @@ defmodule NeptunusWeb.HeaderDeadline do
   yaws does not (empty lines, which yaws skips with a fresh read timeout). Headers are read
   line by line, each read bounded by yaws, the whole by the timeout.
 
-      iex> NeptunusWeb.HeaderDeadline.deadline({:request_line, 0}, 5000, 1000)
+      iex> NeptunusWeb.Endpoint.HeaderDeadline.deadline({:request_line, 0}, 5000, 1000)
       6000
-      iex> NeptunusWeb.HeaderDeadline.deadline({:headers, {1, 2, 3}}, 5000, 1000)
+      iex> NeptunusWeb.Endpoint.HeaderDeadline.deadline({:headers, {1, 2, 3}}, 5000, 1000)
       5000
   """
   @spec deadline(key(), pos_integer(), pos_integer()) :: pos_integer()
@@ -98,11 +115,13 @@ defmodule NeptunusWeb.HeaderDeadline do
 
   @impl true
   def init(opts) do
-    timeout = Keyword.fetch!(opts, :timeout_ms)
-    interval = Keyword.get(opts, :interval_ms, min(1_000, max(div(timeout, 4), 10)))
-    state = %__MODULE__{timeout_ms: timeout, interval_ms: interval}
-    schedule(state)
-    {:ok, state}
+    with :ok <- Yaws.supported(__MODULE__, @yaws_versions, @reads, opts) do
+      timeout = Keyword.fetch!(opts, :timeout_ms)
+      interval = Keyword.get(opts, :interval_ms, min(1_000, max(div(timeout, 4), 10)))
+      state = %__MODULE__{timeout_ms: timeout, interval_ms: interval}
+      schedule(state)
+      {:ok, state}
+    end
   end
 
   @impl true
@@ -112,7 +131,7 @@ defmodule NeptunusWeb.HeaderDeadline do
     {seen, expired} = sweep(state.seen, reading_heads(), now, timeout_of)
 
     Enum.each(expired, &Process.exit(&1, :kill))
-    NeptunusWeb.ConnectionLog.closed_slow(length(expired))
+    NeptunusWeb.Endpoint.ConnectionLog.closed_slow(length(expired))
     schedule(state)
     {:noreply, %{state | seen: seen}}
   end

@@ -1,4 +1,4 @@
-defmodule NeptunusWeb.ConnectionLog do
+defmodule NeptunusWeb.Endpoint.ConnectionLog do
   @moduledoc """
   Counts the connections the endpoint closes to protect itself, and says so in the log in
   one line at most every `:report_ms` (10 s) instead of one line per connection.
@@ -7,14 +7,24 @@ defmodule NeptunusWeb.ConnectionLog do
   `max_connections`; under a flood
   that is thousands of lines a second, which would bury everything else and fill the
   journal. A primary logger filter (`filter/2`, installed while this process runs) drops
-  that message and counts it; `NeptunusWeb.HeaderDeadline` counts the connections it closes
-  for a slow head (`closed_slow/1`). Every second this process looks at the counts; when
+  that message and counts it; `NeptunusWeb.Endpoint.HeaderDeadline` counts the connections it
+  closes for a slow head (`closed_slow/1`). Every second this process looks at the counts; when
   there are some and the last report is `:report_ms` old, it logs one warning with both
   and starts counting again (`flush/0`: at once).
+
+  The filter matches the text of yaws' log message, which no interface promises: this
+  process starts only on a yaws version it was written for and refuses any other with a
+  message (see `NeptunusWeb.Endpoint.Yaws`, "Modules that read yaws' internals").
   """
   use GenServer
 
   require Logger
+
+  alias NeptunusWeb.Endpoint.Yaws
+
+  # the yaws versions whose log message this module was written to match
+  @yaws_versions ["2.1.1"]
+  @reads "the text of its log message for a connection closed beyond max_connections"
 
   @filter_id :neptunus_connection_log
   @yaws_max_connections ~c"Max connections reached - closing conn to ~s~n"
@@ -30,6 +40,11 @@ defmodule NeptunusWeb.ConnectionLog do
           last_report_ms: integer() | nil
         }
 
+  @doc """
+  Starts the log. Options: `:report_ms` (the least time between two reports, default
+  10 000), `:tick_ms` (how often to look, default 1 000), `:yaws_version` (the yaws to check;
+  default the one running).
+  """
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts), do: GenServer.start_link(__MODULE__, opts, name: __MODULE__)
 
@@ -67,9 +82,9 @@ defmodule NeptunusWeb.ConnectionLog do
   The report line for `refused` connections closed beyond the limit and `slow` ones closed
   for a slow head, or nil when both are 0.
 
-      iex> NeptunusWeb.ConnectionLog.report(0, 0)
+      iex> NeptunusWeb.Endpoint.ConnectionLog.report(0, 0)
       nil
-      iex> NeptunusWeb.ConnectionLog.report(120, 3)
+      iex> NeptunusWeb.Endpoint.ConnectionLog.report(120, 3)
       "closed 123 connections: 120 beyond the connection limit, 3 slower than the header timeout"
   """
   @spec report(non_neg_integer(), non_neg_integer()) :: String.t() | nil
@@ -82,20 +97,22 @@ defmodule NeptunusWeb.ConnectionLog do
 
   @impl true
   def init(opts) do
-    Process.flag(:trap_exit, true)
-    counters = :counters.new(2, [:write_concurrency])
-    :persistent_term.put({__MODULE__, :counters}, counters)
-    _ = :logger.remove_primary_filter(@filter_id)
-    :ok = :logger.add_primary_filter(@filter_id, {&__MODULE__.filter/2, counters})
+    with :ok <- Yaws.supported(__MODULE__, @yaws_versions, @reads, opts) do
+      Process.flag(:trap_exit, true)
+      counters = :counters.new(2, [:write_concurrency])
+      :persistent_term.put({__MODULE__, :counters}, counters)
+      _ = :logger.remove_primary_filter(@filter_id)
+      :ok = :logger.add_primary_filter(@filter_id, {&__MODULE__.filter/2, counters})
 
-    state = %__MODULE__{
-      counters: counters,
-      report_ms: Keyword.get(opts, :report_ms, 10_000),
-      tick_ms: Keyword.get(opts, :tick_ms, 1_000)
-    }
+      state = %__MODULE__{
+        counters: counters,
+        report_ms: Keyword.get(opts, :report_ms, 10_000),
+        tick_ms: Keyword.get(opts, :tick_ms, 1_000)
+      }
 
-    Process.send_after(self(), :tick, state.tick_ms)
-    {:ok, state}
+      Process.send_after(self(), :tick, state.tick_ms)
+      {:ok, state}
+    end
   end
 
   @impl true

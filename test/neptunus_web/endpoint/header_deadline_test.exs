@@ -1,13 +1,32 @@
-defmodule NeptunusWeb.HeaderDeadlineTest do
+defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
   use ExUnit.Case, async: true
 
-  alias NeptunusWeb.HeaderDeadline
+  alias NeptunusWeb.Endpoint.HeaderDeadline
 
   import ExUnit.CaptureLog
 
   doctest HeaderDeadline
 
   @timeout 5_000
+
+  test "refuses to start on a yaws it was not written for, and says what to check" do
+    log =
+      capture_log(fn ->
+        assert {:error, {:unsupported_yaws, message}} =
+                 GenServer.start(HeaderDeadline, timeout_ms: @timeout, yaws_version: "2.2.0")
+
+        assert message =~ "NeptunusWeb.Endpoint.HeaderDeadline reads yaws' internals"
+        assert message =~ "written for yaws 2.1.1; this node runs yaws 2.2.0"
+        assert message =~ "add that version to its @yaws_versions"
+      end)
+
+    assert log =~ "HeaderDeadline reads yaws' internals"
+  end
+
+  test "starts on the yaws this node runs" do
+    assert {:ok, pid} = GenServer.start(HeaderDeadline, timeout_ms: @timeout)
+    GenServer.stop(pid)
+  end
 
   test "a connection reading the same head is closed once the timeout has passed" do
     {seen, []} = HeaderDeadline.sweep(%{}, [{:a, {:request_line, nil}}], 1_000, @timeout)
@@ -64,7 +83,7 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
       capture_log(fn ->
         lines = drip(trickler, div(timeout, 5), &"X-#{&1}: 1\r\n")
         assert lines < 30, "the trickler sent #{lines} lines and was never closed"
-        NeptunusWeb.ConnectionLog.flush()
+        NeptunusWeb.Endpoint.ConnectionLog.flush()
       end)
 
     # counted for the log, in one line

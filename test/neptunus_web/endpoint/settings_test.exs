@@ -1,13 +1,13 @@
-defmodule NeptunusWeb.SettingsTest do
+defmodule NeptunusWeb.Endpoint.SettingsTest do
   # The web layer's settings: built from the configuration once, at boot
   # (Neptunus.Config.Endpoint.web_settings!/1), and read by the connections from
-  # NeptunusWeb.Settings, never from the application environment.
+  # NeptunusWeb.Endpoint.Settings, never from the application environment.
   use ExUnit.Case, async: true
 
   alias Neptunus.Config.Endpoint
-  alias NeptunusWeb.Settings
+  alias NeptunusWeb.Endpoint.Settings
 
-  doctest NeptunusWeb.Settings
+  doctest NeptunusWeb.Endpoint.Settings
 
   @endpoint %{port: 4000, bind: {127, 0, 0, 1}}
 

@@ -1,4 +1,4 @@
-defmodule NeptunusWeb.Guard do
+defmodule NeptunusWeb.Endpoint.Guard do
   @moduledoc """
   What the endpoint checks and adds on every HTTP request, whatever serves it (yaws' static
   files, the API, the camera, the WebSocket upgrade).
@@ -15,17 +15,10 @@ defmodule NeptunusWeb.Guard do
       only, never framed) and `X-Frame-Options: DENY` (the same for older browsers), so no
       other site can frame the operator page and trick a pilot into clicking.
   """
-  import NeptunusWeb.Yaws
-
-  require Record
+  import NeptunusWeb.Endpoint.Yaws
 
   alias Neptunus.JSON
   alias NeptunusWeb.Auth
-
-  @hrl Path.wildcard(Path.join([__DIR__, "../../erl_libs/yaws-*/include/yaws_api.hrl"]))
-       |> List.first()
-
-  Record.defrecordp(:rewrite_response, Record.extract(:rewrite_response, from: @hrl))
 
   @csp Enum.join(
          [
@@ -80,9 +73,10 @@ defmodule NeptunusWeb.Guard do
   The security headers for a response whose `Content-Type` is `content_type` (nil: none),
   as `{name, value}` pairs.
 
-      iex> NeptunusWeb.Guard.headers_for("text/html") |> Map.new() |> Map.take(["X-Frame-Options"])
+      iex> alias NeptunusWeb.Endpoint.Guard
+      iex> Guard.headers_for("text/html") |> Map.new() |> Map.take(["X-Frame-Options"])
       %{"X-Frame-Options" => "DENY"}
-      iex> NeptunusWeb.Guard.headers_for("application/json")
+      iex> Guard.headers_for("application/json")
       [{"X-Content-Type-Options", "nosniff"}, {"Referrer-Policy", "no-referrer"}]
   """
   @spec headers_for(String.t() | nil) :: [{String.t(), String.t()}]

@@ -1,7 +1,9 @@
-defmodule NeptunusWeb.ConnectionLogTest do
+defmodule NeptunusWeb.Endpoint.ConnectionLogTest do
   use ExUnit.Case, async: true
 
-  alias NeptunusWeb.ConnectionLog
+  import ExUnit.CaptureLog
+
+  alias NeptunusWeb.Endpoint.ConnectionLog
 
   doctest ConnectionLog
 
@@ -34,5 +36,20 @@ defmodule NeptunusWeb.ConnectionLogTest do
     end
 
     assert :counters.get(counters, 1) == 0
+  end
+
+  test "refuses to start on a yaws it was not written for, and leaves the running filter" do
+    log =
+      capture_log(fn ->
+        assert {:error, {:unsupported_yaws, message}} =
+                 GenServer.start(ConnectionLog, yaws_version: "2.0.6")
+
+        assert message =~ "NeptunusWeb.Endpoint.ConnectionLog reads yaws' internals"
+        assert message =~ "written for yaws 2.1.1; this node runs yaws 2.0.6"
+      end)
+
+    assert log =~ "ConnectionLog reads yaws' internals"
+    # the endpoint's own log still counts yaws' lines
+    assert :neptunus_connection_log in Keyword.keys(:logger.get_primary_config().filters)
   end
 end

@@ -1,4 +1,4 @@
-defmodule NeptunusWeb.SettingsAPITest do
+defmodule NeptunusWeb.API.SettingsTest do
   # /api/settings against the running endpoint and the node's settings store; each test uses
   # keys of its own and removes them, and restores the auth configuration.
   use ExUnit.Case, async: false
@@ -82,7 +82,7 @@ defmodule NeptunusWeb.SettingsAPITest do
     assert {400, %{"error" => "a value must be at most 8192 bytes" <> _}} =
              put("/api/settings/#{key}", too_long)
 
-    huge = String.duplicate("x", NeptunusWeb.API.max_settings_body())
+    huge = String.duplicate("x", NeptunusWeb.API.Settings.max_settings_body())
 
     assert {413, %{"error" => "body must be at most 10240 bytes"}} =
              put("/api/settings/#{key}", huge)

@@ -1,7 +1,9 @@
-defmodule NeptunusWeb.YawsTest do
+defmodule NeptunusWeb.Endpoint.YawsTest do
   use ExUnit.Case, async: true
 
-  import NeptunusWeb.Yaws
+  import NeptunusWeb.Endpoint.Yaws
+
+  doctest NeptunusWeb.Endpoint.Yaws
 
   alias Neptunus.Test.Properties
 
