@@ -6,7 +6,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   command out) and relays the answers. Payloads and error reasons: `docs/API.md`.
 
   Join reply (state snapshot): `%{vehicle, telemetry, helm, pilot, control, camera, settings,
-  session}` (`camera`: `%{url}` of the MJPEG stream, or nil; `settings`: the vehicle's view
+  session}` (`camera`: `%{codec, video, url}`, the video WebSocket's path and the MJPEG
+  stream's, see `Neptunus.Vehicle.Camera.info/1`, or nil; `settings`: the vehicle's view
   settings, `Neptunus.Vehicle.ViewSettings`),
   followed by `presence_state`. Joining never depends on control: observers join like
   pilots, and being refused control is an event, never a closed channel.
@@ -277,9 +278,9 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   end
 
   defp camera(id) do
-    case Neptunus.Vehicle.Camera.url(id) do
+    case Neptunus.Vehicle.Camera.info(id) do
       nil -> nil
-      url -> %{url: url}
+      %{codec: codec} = info -> %{info | codec: Atom.to_string(codec)}
     end
   end
 
