@@ -22,7 +22,8 @@ defmodule Neptunus.Camera.H264 do
   (6) or types 14–18 after a picture's slices start a new access unit, and so does a slice
   (1 or 5) whose `first_mb_in_slice` is 0 (the first slice of a new picture: its first bit
   after the NAL header is 1, `ue(v)` of 0). A picture is known complete only when the next
-  one starts.
+  one starts — as soon as the next one's first NAL unit shows its first two bytes
+  (`AccessUnits.next/2`).
   """
 
   import Bitwise
@@ -80,8 +81,8 @@ defmodule Neptunus.Camera.H264 do
   def split(buffer, scanned \\ 0) when is_binary(buffer) do
     case :binary.match(buffer, <<0, 0, 1>>) do
       :nomatch ->
-        # keep up to two trailing zeros: they may begin a start code
-        keep = trailing_zeros(buffer, 2)
+        # keep up to three trailing zeros: they may begin a (4-byte) start code
+        keep = trailing_zeros(buffer, 3)
         {[], binary_part(buffer, byte_size(buffer) - keep, keep), byte_size(buffer) - keep}
 
       {start, 3} ->
@@ -388,6 +389,21 @@ defmodule Neptunus.Camera.H264 do
         {%__MODULE__{nals: [nal | au.nals], slice?: au.slice? or H264.slice?(nal)}, nil}
       end
     end
+
+    @doc """
+    Looks at the beginning of the next NAL unit (`head`: its first bytes, at least its header
+    and the next; the rest of it not arrived yet): if it starts a new access unit, the one in
+    progress is complete now — returned, and no longer in progress — rather than when the
+    next NAL unit ends.
+    """
+    @spec next(t(), binary()) :: {t(), [H264.nal()] | nil}
+    def next(%__MODULE__{} = au, <<_, _, _::binary>> = head) do
+      if H264.starts_access_unit?(head, au.slice?),
+        do: {new(), Enum.reverse(au.nals)},
+        else: {au, nil}
+    end
+
+    def next(au, _head), do: {au, nil}
 
     @doc "The access unit in progress, if it holds a picture (end of stream)."
     @spec flush(t()) :: {t(), [H264.nal()] | nil}

@@ -12,6 +12,9 @@ defmodule Neptunus.Camera.Stream do
       codec profile within it (a new SPS, or JPEG images of another size);
     * `{:frame, Neptunus.Camera.Frame.t()}` — one picture, its binary built once.
 
+  An Annex B picture is known complete when the next one's first NAL unit begins (its first
+  two bytes tell), an FLV picture when its last byte arrives.
+
   H.264: a keyframe (IDR picture) always goes out with the SPS and PPS in front of it (ffmpeg
   sends them apart, in the FLV decoder configuration; a camera may send them only once), so
   a viewer can start at any keyframe. Access unit delimiters are dropped; pictures before
@@ -163,15 +166,11 @@ defmodule Neptunus.Camera.Stream do
 
     {aus, s, out} =
       Enum.reduce(nals, {aus, s, []}, fn nal, {aus, s, out} ->
-        case AccessUnits.push(aus, nal) do
-          {aus, nil} ->
-            {aus, s, out}
-
-          {aus, au} ->
-            {s, out} = picture(s, au, H264.keyframe?(au), nil, now_us, out)
-            {aus, s, out}
-        end
+        aus |> AccessUnits.push(nal) |> access_unit(s, out, now_us)
       end)
+
+    # the next NAL unit's first bytes may already say that the picture before it is whole
+    {aus, s, out} = aus |> AccessUnits.next(after_start_code(rest)) |> access_unit(s, out, now_us)
 
     s = %{s | demux: {rest, aus}, skipped_bytes: s.skipped_bytes + skipped}
     {:ok, s, Enum.reverse(out)}
@@ -183,6 +182,17 @@ defmodule Neptunus.Camera.Stream do
     {s, out} = Enum.reduce(jpegs, {s, []}, &jpeg(&1, &2, now_us))
     {:ok, s, Enum.reverse(out)}
   end
+
+  defp access_unit({aus, nil}, s, out, _now_us), do: {aus, s, out}
+
+  defp access_unit({aus, au}, s, out, now_us) do
+    {s, out} = picture(s, au, H264.keyframe?(au), nil, now_us, out)
+    {aus, s, out}
+  end
+
+  defp after_start_code(<<0, 0, 0, 1, head::binary>>), do: head
+  defp after_start_code(<<0, 0, 1, head::binary>>), do: head
+  defp after_start_code(_rest), do: <<>>
 
   defp flv_event({:parameter_sets, sps, pps}, {s, out}, _now_us),
     do: {%{s | sps: List.last(sps) || s.sps, pps: if(pps == [], do: s.pps, else: pps)}, out}
