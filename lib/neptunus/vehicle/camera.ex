@@ -185,7 +185,7 @@ defmodule Neptunus.Vehicle.Camera do
   The pictures a snapshot decodes: `{:ok, %{codec: :h264, frames: [annexb]}}` (the
   keyframe, with SPS and PPS, and every frame after it up to the newest), `{:ok, %{codec:
   :mjpeg, frames: [jpeg]}}` (the newest image) with the stream's `width` and `height`, or
-  `{:error, reason}`.
+  `{:error, reason}`; `source` describes the camera (`Neptunus.Camera.Source.describe/1`).
   """
   @spec pictures(String.t()) :: {:ok, map()} | {:error, String.t()}
   def pictures(id) do
@@ -580,7 +580,8 @@ defmodule Neptunus.Vehicle.Camera do
          codec: String.to_existing_atom(info.codec),
          frames: frames,
          width: info.width,
-         height: info.height
+         height: info.height,
+         source: Source.describe(state.source)
        }}
     else
       {:error, "the camera is #{phase_name(state.phase)}: no picture now"}
