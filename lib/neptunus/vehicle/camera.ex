@@ -258,6 +258,7 @@ defmodule Neptunus.Vehicle.Camera do
 
   def handle_info({port, {:data, <<?e, line::binary>>}}, %State{port: port} = state) do
     limit = if state.phase == :probing, do: 200, else: @error_lines
+    line = Source.redact(line, state.source)
     {:noreply, %{state | errors: Enum.take([line | state.errors], limit)}}
   end
 

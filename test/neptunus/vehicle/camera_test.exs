@@ -219,6 +219,65 @@ defmodule Neptunus.Vehicle.CameraTest do
     end
   end
 
+  describe "RTSP (a local RTSP server, ffmpeg its client as with an IP camera)" do
+    setup do
+      file = Path.join(System.tmp_dir!(), "rtsp-#{System.unique_integer([:positive])}.h264")
+
+      {_, 0} =
+        System.cmd(
+          "ffmpeg",
+          ~w(-nostdin -loglevel error -f lavfi -i testsrc=size=320x240:rate=15 -frames:v 30
+             -c:v libx264 -preset ultrafast -tune zerolatency -pix_fmt yuv420p -g 15 -bf 0
+             -f h264) ++ [file]
+        )
+
+      {nals, rest, 0} = H264.split(File.read!(file))
+      File.rm!(file)
+
+      {acc, aus} =
+        Enum.reduce(nals ++ [H264.flush(rest)], {H264.AccessUnits.new(), []}, fn nal,
+                                                                                 {acc, aus} ->
+          case H264.AccessUnits.push(acc, nal) do
+            {acc, nil} -> {acc, aus}
+            {acc, au} -> {acc, [au | aus]}
+          end
+        end)
+
+      {_, last} = H264.AccessUnits.flush(acc)
+
+      aus =
+        Enum.reverse([last | aus])
+        |> Enum.map(fn au -> Enum.reject(au, &(H264.type(&1) == 9)) end)
+
+      {:ok, server, port} = Neptunus.Test.RTSPServer.start(aus, 15)
+      on_exit(fn -> if Process.alive?(server), do: Neptunus.Test.RTSPServer.stop(server) end)
+      {:ok, server: server, url: "rtsp://user:secret@127.0.0.1:#{port}/stream"}
+    end
+
+    test "the camera's H.264 passed through; when the camera goes away, said and started again",
+         %{server: server, url: url} do
+      {:ok, source} = Source.parse(url)
+      id = start!(source)
+
+      assert_receive {:pubsub, _, "stream",
+                      %{codec: "h264", width: 320, height: 240, source: "rtsp", avc: "avc1." <> _}},
+                     15_000
+
+      frames = for _ <- 1..20, do: next_frame(10_000)
+      assert hd(frames).keyframe
+      assert Enum.map(frames, & &1.seq) == Enum.to_list(hd(frames).seq..(hd(frames).seq + 19))
+      assert Enum.count(frames, & &1.keyframe) >= 1
+
+      Neptunus.Test.RTSPServer.stop(server)
+      event = camera_event("restarting", 20_000)
+      assert event.reason =~ "exited" or event.reason =~ "no picture"
+      # the password never shows (ffmpeg names the URL in its errors)
+      refute event.reason =~ "secret"
+      assert Source.redact("#{url}: refused", source) =~ "user:***@"
+      assert %{state: "restarting"} = Camera.status(id)
+    end
+  end
+
   describe "the simulated camera" do
     defp sim!(opts \\ []) do
       {:ok, source} = Source.parse("sim@384x216@10")
