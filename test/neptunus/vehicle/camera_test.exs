@@ -399,6 +399,31 @@ defmodule Neptunus.Vehicle.CameraTest do
       assert mean(lit, from) > mean(dark, from) + 5
     end
 
+    test "the laser shows as red dots on the seabed only while it is on" do
+      id = sim!()
+      _ = Camera.view(id)
+      on = pose(z: 8.0, theta: -0.6, laser: 1.0)
+      {keyframe, _} = picture_at(id, on)
+      {keyframe_off, _} = picture_at(id, %{on | laser: 0.0})
+      assert red_pixels(Frame.payload(keyframe)) > 4
+      assert red_pixels(Frame.payload(keyframe_off)) == 0
+    end
+
+    defp red_pixels(annexb) do
+      file = Path.join(System.tmp_dir!(), "sim-#{System.unique_integer([:positive])}.h264")
+      File.write!(file, annexb)
+
+      {rgb, 0} =
+        System.cmd(
+          "ffmpeg",
+          ~w(-nostdin -loglevel error -f h264 -i) ++
+            [file] ++ ~w(-frames:v 1 -f rawvideo -pix_fmt rgb24 -)
+        )
+
+      File.rm(file)
+      for <<r, g, b <- rgb>>, r > g + 50 and r > b + 50, reduce: 0, do: (n -> n + 1)
+    end
+
     test "stops rendering when nobody watches any more" do
       id = sim!(linger_ms: 200)
       _ = Camera.view(id)
