@@ -8,6 +8,8 @@
 # (Neptunus.Camera.Source.command/2), feeds it a pose at 100 Hz (the simulator's rate) and cuts
 # its output into frames (Neptunus.Camera.Stream), without the web endpoint.
 
+Code.require_file("support/proc.exs", __DIR__)
+
 defmodule Bench.SimCamera do
   alias Neptunus.Camera.{Frame, Pose, Source, Stream}
 
@@ -209,26 +211,14 @@ defmodule Bench.SimCamera do
   end
 
   # CPU seconds (user + system) of an OS process and its threads
-  defp cpu(pid) do
-    fields =
-      "/proc/#{pid}/stat" |> File.read!() |> String.split(") ") |> List.last() |> String.split()
-
-    ticks = String.to_integer(Enum.at(fields, 11)) + String.to_integer(Enum.at(fields, 12))
-    ticks / 100
-  end
+  defp cpu(pid), do: Bench.Proc.cpu_ticks(pid) / 100
 
   defp machine do
-    ["cpu" | values] =
-      "/proc/stat" |> File.read!() |> String.split("\n") |> hd() |> String.split()
-
-    values = Enum.map(values, &String.to_integer/1)
-    idle = Enum.at(values, 3) + Enum.at(values, 4)
-    total = Enum.sum(values)
-    %{busy: total - idle, total: total}
+    {busy, total} = Bench.Proc.machine_ticks()
+    %{busy: busy, total: total}
   end
 
-  defp loadavg,
-    do: "/proc/loadavg" |> File.read!() |> String.split() |> Enum.take(3) |> Enum.join(" ")
+  defp loadavg, do: Bench.Proc.loadavg()
 end
 
 Bench.SimCamera.main(System.argv())

@@ -166,7 +166,8 @@ defmodule Neptunus.Vehicle.CameraTest do
       assert_receive {:pubsub, _, "stream", %{codec: "h264", width: 320, source: "v4l2"}}, 10_000
       frame = next_frame(10_000)
       assert frame.keyframe and String.starts_with?(Frame.payload(frame), <<0, 0, 0, 1, 0x67>>)
-      assert %{codec: :auto} = Camera.info(id)
+      # probed: the pages are told the codec it sends
+      assert %{codec: :h264, url: nil} = Camera.info(id)
     end
 
     test "an MJPEG webcam's MJPEG; forced H.264 it lacks is refused with what it offers" do
