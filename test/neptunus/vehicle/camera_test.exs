@@ -319,20 +319,20 @@ defmodule Neptunus.Vehicle.CameraTest do
       end
     end
 
-    defp decode(annexb) do
+    # the first picture of `annexb`, decoded to raw pixels of `pix_fmt` (gray, rgb24)
+    defp decode(annexb, pix_fmt \\ "gray") do
       file = Path.join(System.tmp_dir!(), "sim-#{System.unique_integer([:positive])}.h264")
       File.write!(file, annexb)
 
-      {grey, 0} =
+      {pixels, 0} =
         System.cmd(
           "ffmpeg",
           ~w(-nostdin -loglevel error -f h264 -i) ++
-            [file] ++
-            ~w(-frames:v 1 -f rawvideo -pix_fmt gray -)
+            [file] ++ ~w(-frames:v 1 -f rawvideo -pix_fmt #{pix_fmt} -)
         )
 
       File.rm(file)
-      grey
+      pixels
     end
 
     # the render time the picture shows in its corner (ms since the epoch, mod 2^48)
@@ -411,18 +411,9 @@ defmodule Neptunus.Vehicle.CameraTest do
     end
 
     defp red_pixels(annexb) do
-      file = Path.join(System.tmp_dir!(), "sim-#{System.unique_integer([:positive])}.h264")
-      File.write!(file, annexb)
-
-      {rgb, 0} =
-        System.cmd(
-          "ffmpeg",
-          ~w(-nostdin -loglevel error -f h264 -i) ++
-            [file] ++ ~w(-frames:v 1 -f rawvideo -pix_fmt rgb24 -)
-        )
-
-      File.rm(file)
-      for <<r, g, b <- rgb>>, r > g + 50 and r > b + 50, reduce: 0, do: (n -> n + 1)
+      for <<r, g, b <- decode(annexb, "rgb24")>>, r > g + 50 and r > b + 50, reduce: 0 do
+        n -> n + 1
+      end
     end
 
     test "stops rendering when nobody watches any more" do
