@@ -13,4 +13,7 @@
 #
 # After ExUnit's summary, Neptunus.Test.FailureRecap repeats which tests failed and the end
 # of their reports (a CI log often keeps only its tail).
-ExUnit.start(exclude: [:target, :firmware], formatters: [ExUnit.CLIFormatter, Neptunus.Test.FailureRecap])
+ExUnit.start(
+  exclude: [:target, :firmware],
+  formatters: [ExUnit.CLIFormatter, Neptunus.Test.FailureRecap]
+)

@@ -3,7 +3,9 @@ defmodule NeptunusWeb.API do
   The HTTP API under `/api` (a yaws appmod). JSON in, JSON out; errors are
   `{"error": reason}` with a 4xx status.
 
-    * `GET /api/health` → `{"status": "ok", "version": v, "vehicles": [{"id", "board", "node", "status", "helm", "pilot", "link", "depth", "heading", "recording"}]}`
+    * `GET /api/health` → `{"status": "ok", "version": v, "vehicles": [{"id", "board", "node", "status", "helm", "pilot", "link", "depth", "heading", "recording"}]}`,
+      and on an SD-card image `"firmware_update": {"result": "updated" | "rolled-back", "version", "reason", ...}`
+      (`Neptunus.FirmwareRecord`)
       (every vehicle of the fleet, `Neptunus.Fleet.directory/0`)
     * `POST /api/login` `{"name", "password"}` → `{"token", "expires_at", "user": {"name",
       "role"}}`; 400 in local mode or for a malformed body, 401 for a wrong name or password,
@@ -69,12 +71,18 @@ defmodule NeptunusWeb.API do
   # The body of `GET /api/health` (see the moduledoc).
   @spec health() :: map()
   defp health do
-    %{
+    body = %{
       status: "ok",
       version: Application.spec(:neptunus, :vsn) |> to_string(),
       # every vehicle of the fleet, with its node (unreachable ones too)
       vehicles: Neptunus.Fleet.directory()
     }
+
+    # on an SD-card image: the last firmware update, kept or rolled back (and why)
+    case Neptunus.FirmwareRecord.read(Application.get_env(:neptunus, :firmware_record)) do
+      nil -> body
+      record -> Map.put(body, :firmware_update, record)
+    end
   end
 
   defp route(:GET, "/api/health", _arg), do: {200, health()}

@@ -6,7 +6,8 @@
 //   NEPTUNUS_URL=https://127.0.0.1:PORT NEPTUNUS_PASSWORD=... NEPTUNUS_VEHICLE=rov node dive.mjs
 //
 // Prints one JSON line {"ok": true, ...}; exits 1 with the reason otherwise. Every wait has a
-// deadline and the socket is closed at the end.
+// deadline and the socket is closed at the end. With --hold it takes the helm, prints
+// "holding" and keeps it (heartbeats) until its standard input closes.
 
 import https from "node:https";
 import { createRequire } from "node:module";
@@ -111,6 +112,18 @@ try {
   await reply(channel.join(), "join");
   const grant = await reply(channel.push("request_control", {}), "request_control");
   const epoch = grant.grant.epoch;
+  if (process.argv.includes("--hold")) {
+    const beat = setInterval(() => channel.push("heartbeat", {}), 200);
+    console.log("holding");
+    await new Promise((resolve) => {
+      process.stdin.on("end", resolve);
+      process.stdin.on("close", resolve);
+      process.stdin.resume();
+    });
+    clearInterval(beat);
+    socket.disconnect();
+    process.exit(0);
+  }
   const timer = setInterval(() => {
     channel.push("thrust", { mode: "motion", surge: 0.5, heave: 0, yaw: 0, epoch });
     channel.push("heartbeat", {});
