@@ -319,7 +319,26 @@ defmodule Neptunus.FirmwareTest do
       "chardev:console"
     ]
 
-    Port.open({:spawn_executable, qemu}, [:binary, :exit_status, :stderr_to_stdout, args: args])
+    # qemu under a shell that kills it when this test's VM goes away (the port's input
+    # closes): no emulated board outlives a failed or interrupted run
+    wrapper = ~S"""
+    "$@" </dev/null & qemu=$!
+    echo "qemu $qemu"
+    cat >/dev/null
+    kill -9 "$qemu" 2>/dev/null
+    wait "$qemu"
+    """
+
+    port =
+      Port.open({:spawn_executable, System.find_executable("bash")}, [
+        :binary,
+        :exit_status,
+        :stderr_to_stdout,
+        args: ["-c", wrapper, "qemu", qemu | args]
+      ])
+
+    [_, pid] = Regex.run(~r/qemu (\d+)/, receive_line!(port, ~r/qemu \d+\n/, 30_000))
+    {port, pid}
   end
 
   # every console file of this test, in the order they were made
@@ -329,19 +348,14 @@ defmodule Neptunus.FirmwareTest do
     |> Enum.map_join(&File.read!/1)
   end
 
-  defp kill!(qemu) do
-    case Port.info(qemu, :os_pid) do
-      {:os_pid, pid} ->
-        System.cmd("kill", ["-9", "#{pid}"])
+  # The power goes: qemu killed (its shell then exits).
+  defp kill!({port, pid}) do
+    System.cmd("kill", ["-9", pid])
 
-        receive do
-          {^qemu, {:exit_status, _}} -> :ok
-        after
-          30_000 -> flunk("qemu did not die")
-        end
-
-      nil ->
-        :ok
+    receive do
+      {^port, {:exit_status, _}} -> :ok
+    after
+      30_000 -> flunk("qemu did not die")
     end
   end
 
