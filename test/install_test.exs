@@ -81,13 +81,7 @@ defmodule Neptunus.InstallTest do
       root = Path.join(dir, "root")
       File.mkdir_p!(root)
 
-      # a systemctl that records its calls
-      bin = Path.join(dir, "bin")
-      File.mkdir_p!(bin)
-      calls = Path.join(dir, "systemctl.calls")
-      File.write!(Path.join(bin, "systemctl"), "#!/bin/sh\necho \"$*\" >> #{calls}\n")
-      File.chmod!(Path.join(bin, "systemctl"), 0o755)
-      env = [{"PATH", bin <> ":" <> System.get_env("PATH")}]
+      {calls, env} = recording_systemctl(dir)
 
       assert {out, 1} = install(["--root", root, "--no-user", "--timeout", "1", tarball], env)
       assert out =~ "did not become healthy within 1s"
@@ -136,12 +130,7 @@ defmodule Neptunus.InstallTest do
       tarball = tar!(fake_release(dir, "9.9.9"), Path.join(dir, "fake.tar.gz"))
       root = Path.join(dir, "root")
       File.mkdir_p!(root)
-      bin = Path.join(dir, "bin")
-      File.mkdir_p!(bin)
-      calls = Path.join(dir, "systemctl.calls")
-      File.write!(Path.join(bin, "systemctl"), "#!/bin/sh\necho \"$*\" >> #{calls}\n")
-      File.chmod!(Path.join(bin, "systemctl"), 0o755)
-      env = [{"PATH", bin <> ":" <> System.get_env("PATH")}]
+      {calls, env} = recording_systemctl(dir)
 
       assert {out, 0} = install(["--root", root, "--no-user", "--no-start", tarball], env)
       assert out =~ "installed neptunus 9.9.9 (not started: --no-start)"
@@ -150,6 +139,16 @@ defmodule Neptunus.InstallTest do
       assert File.exists?(Path.join(root, "etc/neptunus.env"))
       refute File.exists?(calls)
     end
+  end
+
+  # A systemctl on PATH that records its calls: the file of calls, the environment to use.
+  defp recording_systemctl(dir) do
+    bin = Path.join(dir, "bin")
+    File.mkdir_p!(bin)
+    calls = Path.join(dir, "systemctl.calls")
+    File.write!(Path.join(bin, "systemctl"), "#!/bin/sh\necho \"$*\" >> #{calls}\n")
+    File.chmod!(Path.join(bin, "systemctl"), 0o755)
+    {calls, [{"PATH", bin <> ":" <> System.get_env("PATH")}]}
   end
 
   # A release that never becomes healthy: the layout neptunus-install looks for, a bin/neptunus
