@@ -80,12 +80,16 @@ defmodule Neptunus.FirmwareTest do
     assert "boot.scr" in files and "neptunus-boot.txt" in files
 
     mlo = boot_file!(disk, "MLO")
-    # the GP header of an AM335x SPL: image size, then the load address in the internal RAM
-    <<size::little-32, load::little-32, _::binary>> = mlo
+    # an AM335x first stage for an SD card: the ROM's 512-byte table of contents (its
+    # CHSETTINGS item), then the GP header: the image's size and its load address in the
+    # internal RAM
+    assert binary_part(mlo, 0x14, 10) == "CHSETTINGS"
+    <<_toc::binary-size(512), size::little-32, load::little-32, _::binary>> = mlo
     assert load == 0x402F0400
-    assert size > 0 and size <= byte_size(mlo) - 8
-    # U-Boot proper: a legacy image or a FIT
-    assert <<0x27, 0x05, 0x19, 0x56, _::binary>> = boot_file!(disk, "u-boot.img")
+    assert size > 0 and size <= byte_size(mlo) - 512
+    # U-Boot proper: a FIT image (or a legacy one)
+    assert <<magic::big-32, _::binary>> = boot_file!(disk, "u-boot.img")
+    assert magic in [0xD00DFEED, 0x27051956]
     # the A/B script, compiled with mkimage
     assert <<0x27, 0x05, 0x19, 0x56, _::binary>> = script = boot_file!(disk, "boot.scr")
     assert script =~ "neptunus-boot.txt" and script =~ "fatwrite"
