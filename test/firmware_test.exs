@@ -139,6 +139,10 @@ defmodule Neptunus.FirmwareTest do
     assert "authorized_keys.applied" in boot_applied and "neptunus.env.applied" in boot_applied
 
     cert = cert_fingerprint(vm)
+    # an update has 300 s to become healthy on a board; the emulated one on a loaded build
+    # machine needed more than that to start Neptunus after a reboot (a kept update was
+    # judged unhealthy and rolled back): give it 20 min (the broken update gets 60 s below)
+    ssh!(vm, "echo 1200 > /data/etc/firmware-health-timeout")
     ssh!(vm, "echo 'from the first firmware' > /data/neptunus/marker")
 
     # --- 2. a dive through the phoenix JS client --------------------------------------------
