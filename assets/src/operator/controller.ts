@@ -32,16 +32,13 @@ import { GamepadPoller } from "../input/gamepad";
 import type { GamepadOptions } from "../input/gamepad";
 import { KeyboardInput, keyboardDemand } from "../input/keyboard";
 import { TouchTracker, touchDemand } from "../input/touch";
-import type { TouchControl, TouchState } from "../input/touch";
+import type { TouchControl } from "../input/touch";
 import { beep } from "../lib/beep";
 import { TelemetryClock } from "../lib/clock";
-import type { TelemetryState } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
 import { formDegrees, formValue } from "../lib/forms";
 import { heartbeatMsOf, isPilot, seenView, stampOf } from "../lib/helm";
-import type { HelmView } from "../lib/helm";
 import { LatencyTracker } from "../lib/latency";
-import type { LatencySummary } from "../lib/latency";
 import {
   loadGamepadOptions,
   loadInputMode,
@@ -52,90 +49,21 @@ import {
 } from "../lib/prefs";
 import type { Rotation } from "../lib/prefs";
 import { cameraWithToken } from "../lib/protocol";
-import type {
-  AuthMode,
-  CameraInfo,
-  ControlMode,
-  ControlSettings,
-  LinkStatus,
-  PresenceEntry,
-  Role,
-  RunMode,
-  Telemetry,
-  VehicleInfo,
-} from "../lib/protocol";
+import type { ControlMode, ControlSettings, RunMode, Telemetry } from "../lib/protocol";
 import { PageSession, browserSessionEnv } from "../lib/session";
 import { GAMEPAD_MAPPING_KEY, SettingsClient, notKept } from "../lib/settings";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
 import type { ConnectionStatus, FleetHandlers, VehicleChannel } from "../lib/vehicle_client";
 import { withReachability } from "./fleet";
-import { HEADSET_OFF, HeadsetInput } from "./headset";
-import type { HeadsetState } from "./headset";
+import { HeadsetInput } from "./headset";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
+import { controlModeOf, initialState, withField, withMessage, withStatus, withTelemetry, withoutMessage } from "./state";
+import type { FieldName, FieldStatus, OperatorState } from "./state";
 
-export type { TelemetryState };
-export type FieldName =
-  | "control_mode"
-  | "run_mode"
-  | "depth"
-  | "heading"
-  | "gain"
-  | "lights"
-  | "laser"
-  | "tilt"
-  | "rotation"
-  | "headset";
-
-/** Where the button mapping stands: read from the server, saved, or why not. */
-export interface MappingStatus {
-  readonly state: "loading" | "default" | "stored" | "saving" | "saved" | "not_kept" | "error";
-  readonly text: string;
-}
-
-export interface FieldStatus {
-  readonly state: "busy" | "ok" | "error";
-  readonly text: string;
-}
-
-export interface OperatorState {
-  readonly status: ConnectionStatus;
-  /** when the connection was lost (ms, performance clock), for "reconnecting for N s" */
-  readonly disconnectedAt: number | null;
-  readonly vehicleId: string | null;
-  /** every vehicle of the fleet, for the picker (empty until listed) */
-  readonly fleet: readonly VehicleInfo[];
-  readonly banner: { readonly mode: AuthMode; readonly user: { readonly name: string; readonly role: Role } | null } | null;
-  readonly helm: HelmView;
-  readonly pilotName: string | null;
-  readonly presence: readonly PresenceEntry[];
-  readonly telemetry: Telemetry | null;
-  readonly telemetryState: TelemetryState;
-  readonly telemetryAgeMs: number;
-  readonly control: ControlSettings | null;
-  readonly link: LinkStatus | null;
-  readonly latency: LatencySummary;
-  readonly camera: CameraInfo | null;
-  readonly rotation: Rotation;
-  readonly inputMode: InputMode;
-  readonly gamepad: { readonly id: string; readonly armed: boolean } | null;
-  readonly gamepadOptions: GamepadOptions;
-  readonly buttonMapping: ButtonMapping;
-  readonly mappingStatus: MappingStatus;
-  /** the action the editor assigns to the next button pressed (null: none) */
-  readonly learning: ButtonAction | null;
-  /** the last button pressed and what it did */
-  readonly lastPress: { readonly button: number; readonly action: ButtonAction | null } | null;
-  readonly touch: TouchState;
-  readonly headset: HeadsetState;
-  /** the last demand this page sent */
-  readonly sent: ThrustDemand | null;
-  readonly message: { readonly text: string; readonly kind: MessageKind; readonly source: string | null };
-  readonly fields: Readonly<Partial<Record<FieldName, FieldStatus>>>;
-  /** the last stop the vehicle made (reason, ms since the epoch) */
-  readonly lastStop: { readonly reason: string; readonly at: number } | null;
-}
+// the views read the page's state from here too (state.ts defines it)
+export type { FieldName, FieldStatus, MappingStatus, OperatorState, TelemetryState } from "./state";
 
 const RETRY_MS = 2000;
 const PING_MS = 1000;
@@ -189,37 +117,7 @@ export class OperatorController {
   constructor(params: URLSearchParams) {
     this.params = params;
     const touchFirst = touchFirstDevice();
-    this.store = new Store<OperatorState>({
-      status: "connecting",
-      disconnectedAt: null,
-      vehicleId: null,
-      fleet: [],
-      banner: null,
-      helm: seenView(INITIAL_REACTIONS.helm, 0),
-      pilotName: null,
-      presence: [],
-      telemetry: null,
-      telemetryState: "none",
-      telemetryAgeMs: 0,
-      control: null,
-      link: null,
-      latency: this.latency.summary,
-      camera: null,
-      rotation: 0,
-      inputMode: loadInputMode(storage(), touchFirst),
-      gamepad: null,
-      gamepadOptions: loadGamepadOptions(storage()),
-      buttonMapping: DEFAULT_MAPPING,
-      mappingStatus: { state: "loading", text: "" },
-      learning: null,
-      lastPress: null,
-      touch: this.touch.current,
-      headset: HEADSET_OFF,
-      sent: null,
-      message: { text: "", kind: "info", source: null },
-      fields: {},
-      lastStop: null,
-    });
+    this.store = new Store<OperatorState>(initialState(loadInputMode(storage(), touchFirst), loadGamepadOptions(storage())));
     this.keyboard = new KeyboardInput({
       onHeld: (held) => {
         this.heldKeys = held;
@@ -269,7 +167,7 @@ export class OperatorController {
 
   /** The control mode the vehicle is in (motion until a server says otherwise). */
   get controlMode(): string {
-    return this.state.telemetry?.control?.mode ?? this.state.control?.mode ?? "motion";
+    return controlModeOf(this.state);
   }
 
   // ------------------------------------------------------------------------------------------
@@ -313,11 +211,7 @@ export class OperatorController {
   }
 
   private setStatus(status: ConnectionStatus): void {
-    const was = this.state.status;
-    this.store.update({
-      status,
-      disconnectedAt: status === "connected" ? null : was === "connected" || this.state.disconnectedAt === null ? performance.now() : this.state.disconnectedAt,
-    });
+    this.store.update(withStatus(this.state, status, performance.now()));
   }
 
   private async chooseVehicle(client: NeptunusClient): Promise<string> {
@@ -427,12 +321,7 @@ export class OperatorController {
   // Vehicle events
 
   private onTelemetry(t: Telemetry): void {
-    this.store.update({
-      telemetry: t,
-      ...this.clock.received(t.sent_at, performance.now(), Date.now()),
-      ...(t.control ? { control: t.control } : {}),
-      ...(t.link ? { link: t.link } : {}),
-    });
+    this.store.update(withTelemetry(t, this.clock.received(t.sent_at, performance.now(), Date.now())));
   }
 
   // ------------------------------------------------------------------------------------------
@@ -835,18 +724,18 @@ export class OperatorController {
   }
 
   private setField(field: FieldName, state: FieldStatus["state"], text: string): void {
-    this.store.update((s) => ({ fields: { ...s.fields, [field]: { state, text } } }));
+    this.store.update((s) => withField(s, field, state, text));
   }
 
   // ------------------------------------------------------------------------------------------
   // Messages
 
   showMessage(text: string, kind: MessageKind, source: string | null = null): void {
-    this.store.update({ message: { text, kind, source } });
+    this.store.update(withMessage(text, kind, source));
   }
 
   clearMessage(source: string): void {
-    if (this.state.message.source === source) this.showMessage("", "info", null);
+    this.store.update(withoutMessage(this.state, source));
   }
 
   private refused(what: string, err: unknown): void {
