@@ -24,7 +24,7 @@
  *   lib/settings.ts); the editor assigns an action to the next button pressed.
  */
 
-import { accepts, demandEqual, stickMode } from "../input/demand";
+import { demandEqual, stickMode } from "../input/demand";
 import type { InputMode, ThrustDemand } from "../input/demand";
 import { ACTION_LABELS, DEFAULT_MAPPING, REPEATING, actionFor, assign, buttonCommand, encodeMapping, parseMapping, unassign, withRepeatMs } from "../input/buttons";
 import type { ButtonAction, ButtonMapping } from "../input/buttons";
@@ -58,6 +58,7 @@ import type { ConnectionStatus, FleetHandlers, VehicleChannel } from "../lib/veh
 import { withReachability } from "./fleet";
 import { HeadsetInput } from "./headset";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
+import { routeDemand } from "./routing";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
 import { controlModeOf, initialState, withField, withMessage, withStatus, withTelemetry, withoutMessage } from "./state";
 import type { FieldName, FieldStatus, OperatorState } from "./state";
@@ -416,22 +417,24 @@ export class OperatorController {
   // ------------------------------------------------------------------------------------------
   // Input
 
-  /** A demand from `source`: sent when it is from the selected input mode and new. */
+  /** A demand from `source`: sent, ignored or blocked as `routeDemand` says. */
   private demand(source: InputMode, demand: ThrustDemand): void {
-    if (!accepts(this.state.inputMode, source, this.controlMode)) return;
-    if (demandEqual(demand, this.state.sent)) return;
     const vehicle = this.vehicle;
-    if (!vehicle || !vehicle.joined) {
-      this.dispatch({ type: "thrust_blocked", why: "not_connected" });
-      return;
-    }
-    const stamp = stampOf(this.reactions.helm);
-    if (stamp === null) {
-      this.dispatch({ type: "thrust_blocked", why: "not_in_control" });
+    const context = {
+      selected: this.state.inputMode,
+      controlMode: this.controlMode,
+      sent: this.state.sent,
+      joined: vehicle !== null && vehicle.joined,
+      epoch: stampOf(this.reactions.helm),
+    };
+    const route = routeDemand(context, source, demand);
+    if (route.kind === "ignore") return;
+    if (route.kind === "blocked" || vehicle === null) {
+      this.dispatch({ type: "thrust_blocked", why: route.kind === "blocked" ? route.why : "not_connected" });
       return;
     }
     this.store.update({ sent: demand });
-    const push = demand.kind === "motion" ? vehicle.thrust(demand.axes, stamp) : vehicle.thrustManual(demand.thrusters, stamp);
+    const push = demand.kind === "motion" ? vehicle.thrust(demand.axes, route.epoch) : vehicle.thrustManual(demand.thrusters, route.epoch);
     push.then(
       () => this.dispatch({ type: "thrust_sent" }),
       (err: unknown) => {
