@@ -24,15 +24,10 @@
  *   lib/settings.ts); the editor assigns an action to the next button pressed.
  */
 
-import { demandEqual, stickMode } from "../input/demand";
-import type { InputMode, ThrustDemand } from "../input/demand";
+import type { InputMode } from "../input/demand";
 import { ACTION_LABELS, DEFAULT_MAPPING, REPEATING, actionFor, assign, buttonCommand, encodeMapping, parseMapping, unassign, withRepeatMs } from "../input/buttons";
 import type { ButtonAction, ButtonMapping } from "../input/buttons";
-import { GamepadPoller } from "../input/gamepad";
 import type { GamepadOptions } from "../input/gamepad";
-import { KeyboardInput, keyboardDemand } from "../input/keyboard";
-import { TouchTracker, touchDemand } from "../input/touch";
-import type { TouchControl } from "../input/touch";
 import { beep } from "../lib/beep";
 import { TelemetryClock } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
@@ -43,8 +38,6 @@ import {
   loadGamepadOptions,
   loadInputMode,
   loadRotation,
-  saveGamepadOptions,
-  saveInputMode,
   parseRotation,
 } from "../lib/prefs";
 import type { Rotation } from "../lib/prefs";
@@ -57,8 +50,8 @@ import { CommandError, NeptunusClient } from "../lib/vehicle_client";
 import type { ConnectionStatus, FleetHandlers, VehicleChannel } from "../lib/vehicle_client";
 import { withReachability } from "./fleet";
 import { HeadsetInput } from "./headset";
+import { PilotInput } from "./pilot_input";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
-import { routeDemand } from "./routing";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
 import { controlModeOf, initialState, withField, withMessage, withStatus, withTelemetry, withoutMessage } from "./state";
 import type { FieldName, FieldStatus, OperatorState } from "./state";
@@ -100,9 +93,8 @@ export class OperatorController {
   /** the helm as seen, the heartbeat, the takeover warning: see reactions.ts */
   private reactions: ReactionState = INITIAL_REACTIONS;
   private readonly latency = new LatencyTracker();
-  private readonly keyboard: KeyboardInput;
-  private readonly touch = new TouchTracker();
-  private readonly gamepad: GamepadPoller;
+  /** keyboard, touch sticks and gamepad → thrust */
+  readonly input: PilotInput;
   private readonly headset: HeadsetInput;
   private readonly session: PageSession;
   private client: NeptunusClient | null = null;
@@ -110,37 +102,32 @@ export class OperatorController {
   /** how old the newest telemetry is, on the server's clock */
   private readonly clock = new TelemetryClock(() => this.vehicle);
   private heartbeat: number | null = null;
-  private heldKeys: ReadonlySet<string> = new Set();
   private readonly settings: SettingsClient;
   /** the brightness the lights come back to when a button turns them on */
   private lightsOn = 255;
 
   constructor(params: URLSearchParams) {
     this.params = params;
-    const touchFirst = touchFirstDevice();
-    this.store = new Store<OperatorState>(initialState(loadInputMode(storage(), touchFirst), loadGamepadOptions(storage())));
-    this.keyboard = new KeyboardInput({
-      onHeld: (held) => {
-        this.heldKeys = held;
-        const mode = stickMode(this.controlMode);
-        if (mode) this.demand("keyboard", keyboardDemand(held, mode));
-        else if (held.size > 0) this.showMessage(`Control mode ${this.controlMode}: keys are ignored.`, "warn", "command");
+    const prefs = storage();
+    this.store = new Store<OperatorState>(initialState(loadInputMode(prefs, touchFirstDevice()), loadGamepadOptions(prefs)));
+    this.input = new PilotInput({
+      get: () => this.state,
+      update: (patch) => this.store.update(patch),
+      controlMode: () => this.controlMode,
+      vehicle: () => this.vehicle,
+      epoch: () => stampOf(this.reactions.helm),
+      dispatch: (event) => this.dispatch(event),
+      showMessage: (text, kind, source) => this.showMessage(text, kind, source),
+      buttons: {
+        press: (button) => this.onButton(button),
+        repeats: (button) => {
+          const action = actionFor(this.state.buttonMapping, button);
+          return action !== null && REPEATING.has(action);
+        },
+        repeatMs: () => this.state.buttonMapping.repeatMs,
       },
-    });
-    this.gamepad = new GamepadPoller({
-      source: { getGamepads: () => (typeof navigator.getGamepads === "function" ? navigator.getGamepads() : []) },
-      mode: () => stickMode(this.controlMode) ?? "motion",
-      options: () => this.store.get().gamepadOptions,
-      onDemand: (d) => {
-        if (stickMode(this.controlMode)) this.demand("gamepad", d);
-      },
-      onPad: (pad) => this.store.update({ gamepad: pad }),
-      onPress: (button) => this.onButton(button),
-      repeats: (button) => {
-        const action = actionFor(this.state.buttonMapping, button);
-        return action !== null && REPEATING.has(action);
-      },
-      repeatMs: () => this.state.buttonMapping.repeatMs,
+      gamepads: { getGamepads: () => (typeof navigator.getGamepads === "function" ? navigator.getGamepads() : []) },
+      storage: prefs,
     });
     this.headset = new HeadsetInput({
       get: () => this.state.headset,
@@ -175,7 +162,6 @@ export class OperatorController {
   // Start-up and connection
 
   async start(): Promise<void> {
-    this.keyboard.attach(window);
     window.addEventListener("blur", () => this.safetyStop("window lost focus"));
     document.addEventListener("visibilitychange", () => {
       if (document.visibilityState === "hidden") this.safetyStop("page hidden");
@@ -185,7 +171,7 @@ export class OperatorController {
     window.setInterval(() => this.pingIfWatching(), PING_MS);
     window.setInterval(() => this.clock.read(), CLOCK_MS);
     // buttons act in every input mode; the sticks only in gamepad mode (`accepts`)
-    this.gamepad.start();
+    this.input.start(window);
 
     const session = await this.session.authenticate();
     if (session === null) return; // leaving for the login page
@@ -338,7 +324,7 @@ export class OperatorController {
   private perform(effect: Effect): void {
     switch (effect.type) {
       case "reset_inputs":
-        this.resetInputs();
+        this.input.reset();
         return;
       case "heartbeat":
         if (effect.on) this.startHeartbeat();
@@ -417,42 +403,6 @@ export class OperatorController {
   // ------------------------------------------------------------------------------------------
   // Input
 
-  /** A demand from `source`: sent, ignored or blocked as `routeDemand` says. */
-  private demand(source: InputMode, demand: ThrustDemand): void {
-    const vehicle = this.vehicle;
-    const context = {
-      selected: this.state.inputMode,
-      controlMode: this.controlMode,
-      sent: this.state.sent,
-      joined: vehicle !== null && vehicle.joined,
-      epoch: stampOf(this.reactions.helm),
-    };
-    const route = routeDemand(context, source, demand);
-    if (route.kind === "ignore") return;
-    if (route.kind === "blocked" || vehicle === null) {
-      this.dispatch({ type: "thrust_blocked", why: route.kind === "blocked" ? route.why : "not_connected" });
-      return;
-    }
-    this.store.update({ sent: demand });
-    const push = demand.kind === "motion" ? vehicle.thrust(demand.axes, route.epoch) : vehicle.thrustManual(demand.thrusters, route.epoch);
-    push.then(
-      () => this.dispatch({ type: "thrust_sent" }),
-      (err: unknown) => {
-        if (demandEqual(this.state.sent, demand)) this.store.update({ sent: null });
-        this.refused("Thrust", err);
-      },
-    );
-  }
-
-  /** Forgets held keys, fingers and the pad's deflection: only fresh input counts. */
-  private resetInputs(): void {
-    this.keyboard.reset("reset", false);
-    this.heldKeys = new Set();
-    this.touch.reset();
-    this.gamepad.reset();
-    this.store.update({ touch: this.touch.current, sent: null });
-  }
-
   /** Stops the vehicle for `reason` (when we pilot) and forgets every input. */
   safetyStop(reason: string): void {
     this.dispatch({ type: "safety_stop", reason, joined: this.vehicle?.joined ?? false });
@@ -466,14 +416,12 @@ export class OperatorController {
   setInputMode(mode: InputMode): void {
     if (mode === this.state.inputMode) return;
     this.safetyStop("input mode changed");
-    this.store.update({ inputMode: mode });
-    saveInputMode(storage(), mode);
+    this.input.select(mode);
     if (mode !== "headset") this.headset.stop();
   }
 
   setGamepadOptions(options: GamepadOptions): void {
-    this.store.update({ gamepadOptions: options });
-    saveGamepadOptions(storage(), options);
+    this.input.setGamepadOptions(options);
   }
 
   // ------------------------------------------------------------------------------------------
@@ -579,25 +527,6 @@ export class OperatorController {
     });
   }
 
-  touchDown(id: number, control: TouchControl, x: number, y: number, cx: number, cy: number, radius: number): void {
-    if (this.touch.down(id, control, x, y, cx, cy, radius)) this.touchChanged();
-  }
-
-  touchMove(id: number, x: number, y: number): void {
-    if (this.touch.move(id, x, y)) this.touchChanged();
-  }
-
-  touchUp(id: number): void {
-    if (this.touch.up(id)) this.touchChanged();
-  }
-
-  private touchChanged(): void {
-    const state = this.touch.current;
-    this.store.update({ touch: state });
-    const mode = stickMode(this.controlMode);
-    if (mode) this.demand("touch", touchDemand(state, mode));
-  }
-
   // ------------------------------------------------------------------------------------------
   // Headset
 
@@ -692,12 +621,12 @@ export class OperatorController {
   }
 
   setControlMode(mode: ControlMode): void {
-    this.resetInputs();
+    this.input.reset();
     this.setting("control_mode", (v) => v.setControlMode(mode));
   }
 
   setRunMode(mode: RunMode): void {
-    this.resetInputs();
+    this.input.reset();
     this.setting("run_mode", (v) => v.setRunMode(mode));
   }
 
@@ -743,10 +672,5 @@ export class OperatorController {
 
   private refused(what: string, err: unknown): void {
     this.dispatch({ type: "refused", what, reason: reasonOf(err) });
-  }
-
-  /** Keys held now (for the on-screen key hints). */
-  get keysHeld(): ReadonlySet<string> {
-    return this.heldKeys;
   }
 }
