@@ -25,8 +25,8 @@
  */
 
 import type { InputMode } from "../input/demand";
-import { ACTION_LABELS, DEFAULT_MAPPING, REPEATING, actionFor, assign, buttonCommand, encodeMapping, parseMapping, unassign, withRepeatMs } from "../input/buttons";
-import type { ButtonAction, ButtonMapping } from "../input/buttons";
+import { ACTION_LABELS } from "../input/buttons";
+import type { ButtonAction, ButtonCommand } from "../input/buttons";
 import type { GamepadOptions } from "../input/gamepad";
 import { beep } from "../lib/beep";
 import { TelemetryClock } from "../lib/clock";
@@ -44,11 +44,12 @@ import type { Rotation } from "../lib/prefs";
 import { cameraWithToken } from "../lib/protocol";
 import type { ControlMode, ControlSettings, RunMode, Telemetry } from "../lib/protocol";
 import { PageSession, browserSessionEnv } from "../lib/session";
-import { GAMEPAD_MAPPING_KEY, SettingsClient, notKept } from "../lib/settings";
+import { SettingsClient } from "../lib/settings";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
 import type { ConnectionStatus, FleetHandlers, VehicleChannel } from "../lib/vehicle_client";
 import { withReachability } from "./fleet";
+import { GamepadButtons } from "./gamepad_buttons";
 import { HeadsetInput } from "./headset";
 import { PilotInput } from "./pilot_input";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
@@ -57,7 +58,7 @@ import { controlModeOf, initialState, withField, withMessage, withStatus, withTe
 import type { FieldName, FieldStatus, OperatorState } from "./state";
 
 // the views read the page's state from here too (state.ts defines it)
-export type { FieldName, FieldStatus, MappingStatus, OperatorState, TelemetryState } from "./state";
+export type { FieldName, FieldStatus, OperatorState, TelemetryState } from "./state";
 
 const RETRY_MS = 2000;
 const PING_MS = 1000;
@@ -95,6 +96,8 @@ export class OperatorController {
   private readonly latency = new LatencyTracker();
   /** keyboard, touch sticks and gamepad → thrust */
   readonly input: PilotInput;
+  /** the gamepad's buttons and the editor of their mapping */
+  readonly buttons: GamepadButtons;
   private readonly headset: HeadsetInput;
   private readonly session: PageSession;
   private client: NeptunusClient | null = null;
@@ -102,14 +105,22 @@ export class OperatorController {
   /** how old the newest telemetry is, on the server's clock */
   private readonly clock = new TelemetryClock(() => this.vehicle);
   private heartbeat: number | null = null;
-  private readonly settings: SettingsClient;
-  /** the brightness the lights come back to when a button turns them on */
-  private lightsOn = 255;
 
   constructor(params: URLSearchParams) {
     this.params = params;
     const prefs = storage();
     this.store = new Store<OperatorState>(initialState(loadInputMode(prefs, touchFirstDevice()), loadGamepadOptions(prefs)));
+    this.session = new PageSession(
+      browserSessionEnv((reason) =>
+        reason === null ? this.clearMessage("session") : this.showMessage(`Cannot reach the server: ${reason}`, "warn", "session"),
+      ),
+    );
+    this.buttons = new GamepadButtons({
+      get: () => this.state,
+      update: (patch) => this.store.update(patch),
+      settings: new SettingsClient(() => this.session.token),
+      perform: (command, action) => this.onButtonCommand(command, action),
+    });
     this.input = new PilotInput({
       get: () => this.state,
       update: (patch) => this.store.update(patch),
@@ -118,14 +129,7 @@ export class OperatorController {
       epoch: () => stampOf(this.reactions.helm),
       dispatch: (event) => this.dispatch(event),
       showMessage: (text, kind, source) => this.showMessage(text, kind, source),
-      buttons: {
-        press: (button) => this.onButton(button),
-        repeats: (button) => {
-          const action = actionFor(this.state.buttonMapping, button);
-          return action !== null && REPEATING.has(action);
-        },
-        repeatMs: () => this.state.buttonMapping.repeatMs,
-      },
+      buttons: this.buttons,
       gamepads: { getGamepads: () => (typeof navigator.getGamepads === "function" ? navigator.getGamepads() : []) },
       storage: prefs,
     });
@@ -141,12 +145,6 @@ export class OperatorController {
       onControl: (control) => this.store.update({ control }),
       onResult: (error) => (error === null ? this.setField("headset", "ok", "") : this.setField("headset", "error", error)),
     });
-    this.session = new PageSession(
-      browserSessionEnv((reason) =>
-        reason === null ? this.clearMessage("session") : this.showMessage(`Cannot reach the server: ${reason}`, "warn", "session"),
-      ),
-    );
-    this.settings = new SettingsClient(() => this.session.token);
   }
 
   private get state(): OperatorState {
@@ -176,7 +174,7 @@ export class OperatorController {
     const session = await this.session.authenticate();
     if (session === null) return; // leaving for the login page
     this.store.update({ banner: { mode: session.mode, user: session.user } });
-    void this.loadMapping();
+    void this.buttons.load();
     const token = this.session.token;
     const name = displayName(this.params);
     const client = new NeptunusClient({
@@ -427,19 +425,8 @@ export class OperatorController {
   // ------------------------------------------------------------------------------------------
   // Gamepad buttons
 
-  private onButton(button: number): void {
-    const learning = this.state.learning;
-    if (learning !== null) {
-      this.store.update({ learning: null, lastPress: { button, action: learning } });
-      this.saveMapping(assign(this.state.buttonMapping, learning, button));
-      return;
-    }
-    const action = actionFor(this.state.buttonMapping, button);
-    this.store.update({ lastPress: { button, action } });
-    if (action === null) return;
-    const control = this.state.control;
-    if (control?.lights != null && control.lights > 0) this.lightsOn = control.lights;
-    const command = buttonCommand(action, control, this.lightsOn);
+  /** What a pressed button's action asks for (gamepad_buttons.ts), carried out. */
+  private onButtonCommand(command: ButtonCommand, action: ButtonAction): void {
     switch (command.kind) {
       case "stop":
         this.stop();
@@ -467,64 +454,6 @@ export class OperatorController {
         this.showMessage(`${ACTION_LABELS[action]}: ${command.why}.`, "info", "button");
         return;
     }
-  }
-
-  /** The editor: the next button pressed gets `action` (again: cancel). */
-  learnButton(action: ButtonAction | null): void {
-    this.store.update((s) => ({ learning: s.learning === action ? null : action }));
-  }
-
-  unassignButton(action: ButtonAction): void {
-    this.saveMapping(unassign(this.state.buttonMapping, action));
-  }
-
-  setRepeatMs(ms: number): void {
-    this.saveMapping(withRepeatMs(this.state.buttonMapping, ms));
-  }
-
-  /** Back to the default mapping (the stored one is deleted on the server). */
-  resetMapping(): void {
-    this.store.update({ buttonMapping: DEFAULT_MAPPING, learning: null, mappingStatus: { state: "saving", text: "Resetting…" } });
-    this.settings.delete(GAMEPAD_MAPPING_KEY).then(
-      () => this.store.update({ mappingStatus: { state: "default", text: "Default mapping." } }),
-      (err: unknown) => this.mappingError(err),
-    );
-  }
-
-  private async loadMapping(): Promise<void> {
-    try {
-      const stored = await this.settings.get(GAMEPAD_MAPPING_KEY);
-      // the pilot changed the mapping while we asked: theirs wins (and is being saved)
-      if (this.state.mappingStatus.state !== "loading") return;
-      if (stored === undefined) {
-        this.store.update({ mappingStatus: { state: "default", text: "Default mapping." } });
-        return;
-      }
-      const parsed = parseMapping(stored);
-      if (parsed.ok) this.store.update({ buttonMapping: parsed.mapping, mappingStatus: { state: "stored", text: "Your mapping, from the server." } });
-      else this.store.update({ mappingStatus: { state: "error", text: `Your stored mapping cannot be used (${parsed.reason}): the default applies.` } });
-    } catch (err) {
-      this.mappingError(err);
-    }
-  }
-
-  private saveMapping(mapping: ButtonMapping): void {
-    this.store.update({ buttonMapping: mapping, mappingStatus: { state: "saving", text: "Saving…" } });
-    this.settings.put(GAMEPAD_MAPPING_KEY, encodeMapping(mapping)).then(
-      () => {
-        // a later change may have been saved meanwhile: only the newest says "saved"
-        if (this.state.buttonMapping === mapping) this.store.update({ mappingStatus: { state: "saved", text: "Saved on the server." } });
-      },
-      (err: unknown) => this.mappingError(err),
-    );
-  }
-
-  private mappingError(err: unknown): void {
-    this.store.update({
-      mappingStatus: notKept(err)
-        ? { state: "not_kept", text: "Not kept: log in to keep your mapping (it applies on this page until you leave)." }
-        : { state: "error", text: `Not saved: ${reasonOf(err)}` },
-    });
   }
 
   // ------------------------------------------------------------------------------------------

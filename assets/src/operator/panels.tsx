@@ -220,10 +220,10 @@ function ButtonMapEditor({ s, c }: Props): preact.JSX.Element {
                   {learning ? "press a button…" : button === undefined ? "—" : buttonName(button)}
                 </td>
                 <td class="buttons">
-                  <button type="button" id={`assign-${action}`} aria-pressed={learning} onClick={() => c.learnButton(action)}>
+                  <button type="button" id={`assign-${action}`} aria-pressed={learning} onClick={() => c.buttons.learn(action)}>
                     {learning ? "Cancel" : "Assign"}
                   </button>
-                  <button type="button" id={`unassign-${action}`} title="No button" disabled={button === undefined} onClick={() => c.unassignButton(action)}>
+                  <button type="button" id={`unassign-${action}`} title="No button" disabled={button === undefined} onClick={() => c.buttons.unassign(action)}>
                     ×
                   </button>
                 </td>
@@ -242,10 +242,10 @@ function ButtonMapEditor({ s, c }: Props): preact.JSX.Element {
             max={String(REPEAT_MS.max)}
             step="50"
             value={m.repeatMs}
-            onChange={(e) => c.setRepeatMs(Number((e.currentTarget as HTMLInputElement).value))}
+            onChange={(e) => c.buttons.setRepeatMs(Number((e.currentTarget as HTMLInputElement).value))}
           />
         </label>
-        <button type="button" id="mapping-reset" data-testid="mapping-reset" onClick={() => c.resetMapping()}>
+        <button type="button" id="mapping-reset" data-testid="mapping-reset" onClick={() => c.buttons.reset()}>
           Reset to default
         </button>
       </div>

@@ -16,6 +16,8 @@ import type { TouchState } from "../input/touch";
 import type { TelemetryState } from "../lib/clock";
 import { seenView } from "../lib/helm";
 import type { HelmView } from "../lib/helm";
+import { KEPT_LOADING } from "../lib/kept_setting";
+import type { KeptStatus } from "../lib/kept_setting";
 import type { LatencySummary } from "../lib/latency";
 import type { Rotation } from "../lib/prefs";
 import type { AuthMode, CameraInfo, ControlSettings, LinkStatus, PresenceEntry, Role, Telemetry, VehicleInfo } from "../lib/protocol";
@@ -39,12 +41,6 @@ export type FieldName =
   | "tilt"
   | "rotation"
   | "headset";
-
-/** Where the button mapping stands: read from the server, saved, or why not. */
-export interface MappingStatus {
-  readonly state: "loading" | "default" | "stored" | "saving" | "saved" | "not_kept" | "error";
-  readonly text: string;
-}
 
 export interface FieldStatus {
   readonly state: "busy" | "ok" | "error";
@@ -81,7 +77,8 @@ export interface OperatorState {
   readonly gamepad: { readonly id: string; readonly armed: boolean } | null;
   readonly gamepadOptions: GamepadOptions;
   readonly buttonMapping: ButtonMapping;
-  readonly mappingStatus: MappingStatus;
+  /** where the button mapping stands: read from the server, saved, or why not */
+  readonly mappingStatus: KeptStatus;
   /** the action the editor assigns to the next button pressed (null: none) */
   readonly learning: ButtonAction | null;
   /** the last button pressed and what it did */
@@ -124,7 +121,7 @@ export function initialState(inputMode: InputMode, gamepadOptions: GamepadOption
     gamepad: null,
     gamepadOptions,
     buttonMapping: DEFAULT_MAPPING,
-    mappingStatus: { state: "loading", text: "" },
+    mappingStatus: KEPT_LOADING,
     learning: null,
     lastPress: null,
     touch: TOUCH_REST,
