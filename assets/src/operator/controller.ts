@@ -31,18 +31,11 @@ import type { GamepadOptions } from "../input/gamepad";
 import { beep } from "../lib/beep";
 import { TelemetryClock } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
-import { formDegrees, formValue } from "../lib/forms";
 import { heartbeatMsOf, isPilot, seenView, stampOf } from "../lib/helm";
 import { LatencyTracker } from "../lib/latency";
-import {
-  loadGamepadOptions,
-  loadInputMode,
-  loadRotation,
-  parseRotation,
-} from "../lib/prefs";
-import type { Rotation } from "../lib/prefs";
+import { loadGamepadOptions, loadInputMode, loadRotation, parseRotation } from "../lib/prefs";
 import { cameraWithToken } from "../lib/protocol";
-import type { ControlMode, ControlSettings, RunMode, Telemetry } from "../lib/protocol";
+import type { Telemetry } from "../lib/protocol";
 import { PageSession, browserSessionEnv } from "../lib/session";
 import { SettingsClient } from "../lib/settings";
 import { Store } from "../lib/store";
@@ -54,8 +47,9 @@ import { HeadsetInput } from "./headset";
 import { PilotInput } from "./pilot_input";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
-import { controlModeOf, initialState, withField, withMessage, withStatus, withTelemetry, withoutMessage } from "./state";
-import type { FieldName, FieldStatus, OperatorState } from "./state";
+import { SettingsFields } from "./settings_fields";
+import { controlModeOf, initialState, withMessage, withStatus, withTelemetry, withoutMessage } from "./state";
+import type { OperatorState } from "./state";
 
 // the views read the page's state from here too (state.ts defines it)
 export type { FieldName, FieldStatus, OperatorState, TelemetryState } from "./state";
@@ -98,6 +92,8 @@ export class OperatorController {
   readonly input: PilotInput;
   /** the gamepad's buttons and the editor of their mapping */
   readonly buttons: GamepadButtons;
+  /** the settings fields: control and run mode, autopilots, gain, lights, laser, tilt, rotation */
+  readonly fields: SettingsFields;
   private readonly headset: HeadsetInput;
   private readonly session: PageSession;
   private client: NeptunusClient | null = null;
@@ -121,6 +117,12 @@ export class OperatorController {
       settings: new SettingsClient(() => this.session.token),
       perform: (command, action) => this.onButtonCommand(command, action),
     });
+    this.fields = new SettingsFields({
+      get: () => this.state,
+      update: (patch) => this.store.update(patch),
+      vehicle: () => this.vehicle,
+      resetInputs: () => this.input.reset(),
+    });
     this.input = new PilotInput({
       get: () => this.state,
       update: (patch) => this.store.update(patch),
@@ -143,7 +145,7 @@ export class OperatorController {
       },
       nowMs: () => performance.now(),
       onControl: (control) => this.store.update({ control }),
-      onResult: (error) => (error === null ? this.setField("headset", "ok", "") : this.setField("headset", "error", error)),
+      onResult: (error) => (error === null ? this.fields.mark("headset", "ok", "") : this.fields.mark("headset", "error", error)),
     });
   }
 
@@ -442,12 +444,12 @@ export class OperatorController {
         return;
       case "set": {
         const { field, value } = command;
-        this.setting(field, (v) => v.setValue(`set_${field}`, value));
+        this.fields.set(field, value);
         return;
       }
       case "autopilot": {
         const { axis, action: hold } = command;
-        this.setAutopilot(axis, hold);
+        this.fields.setAutopilot(axis, hold);
         return;
       }
       case "none":
@@ -527,65 +529,6 @@ export class OperatorController {
 
   signOut(): void {
     this.session.signOut();
-  }
-
-  // ------------------------------------------------------------------------------------------
-  // Settings
-
-  /**
-   * The vehicle's camera rotation, for every page: stored on the server (the pilot or the main
-   * station may change it); every page turns its image when the server says so.
-   */
-  setRotation(rotation: Rotation): void {
-    const vehicle = this.vehicle;
-    if (vehicle === null) return;
-    this.setField("rotation", "busy", "…");
-    vehicle.setCameraRotation(rotation).then(
-      (settings) => {
-        this.store.update({ rotation: parseRotation(settings.camera_rotation) });
-        this.setField("rotation", "ok", "✓");
-      },
-      (err: unknown) => this.setField("rotation", "error", reasonOf(err)),
-    );
-  }
-
-  setControlMode(mode: ControlMode): void {
-    this.input.reset();
-    this.setting("control_mode", (v) => v.setControlMode(mode));
-  }
-
-  setRunMode(mode: RunMode): void {
-    this.input.reset();
-    this.setting("run_mode", (v) => v.setRunMode(mode));
-  }
-
-  /** gain, lights, laser: the value as typed; tilt typed in degrees. */
-  setValue(field: "gain" | "lights" | "laser" | "tilt", text: string): void {
-    const value = field === "tilt" ? formDegrees(text) : formValue(text);
-    this.setting(field, (v) => v.setValue(`set_${field}`, value));
-  }
-
-  /** Depth (m) or heading (typed in degrees): a value, "hold" (keep the current) or off. */
-  setAutopilot(axis: "depth" | "heading", action: "set" | "hold" | "off", text = ""): void {
-    const value = action === "off" ? null : action === "hold" ? "hold" : axis === "heading" ? formDegrees(text) : formValue(text);
-    this.setting(axis, (v) => v.autopilot(axis === "depth" ? { depth: value } : { heading: value }));
-  }
-
-  private setting(field: FieldName, send: (v: VehicleChannel) => Promise<ControlSettings>): void {
-    const vehicle = this.vehicle;
-    if (!vehicle) return;
-    this.setField(field, "busy", "…");
-    send(vehicle).then(
-      (control) => {
-        this.store.update({ control });
-        this.setField(field, "ok", "✓");
-      },
-      (err: unknown) => this.setField(field, "error", reasonOf(err)),
-    );
-  }
-
-  private setField(field: FieldName, state: FieldStatus["state"], text: string): void {
-    this.store.update((s) => withField(s, field, state, text));
   }
 
   // ------------------------------------------------------------------------------------------

@@ -320,7 +320,7 @@ function AutopilotField(props: {
       data-testid={`${axis}-form`}
       onSubmit={(e) => {
         e.preventDefault();
-        c.setAutopilot(axis, "set", text);
+        c.fields.setAutopilot(axis, "set", text);
       }}
     >
       <label for={`${axis}-input`}>
@@ -342,10 +342,10 @@ function AutopilotField(props: {
         <button type="submit" id={`${axis}-set`} disabled={props.disabled}>
           Set
         </button>
-        <button type="button" id={`${axis}-hold`} disabled={props.disabled} onClick={() => c.setAutopilot(axis, "hold")}>
+        <button type="button" id={`${axis}-hold`} disabled={props.disabled} onClick={() => c.fields.setAutopilot(axis, "hold")}>
           Hold
         </button>
-        <button type="button" id={`${axis}-off`} disabled={props.disabled} onClick={() => c.setAutopilot(axis, "off")}>
+        <button type="button" id={`${axis}-off`} disabled={props.disabled} onClick={() => c.fields.setAutopilot(axis, "off")}>
           Off
         </button>
       </span>
@@ -380,7 +380,7 @@ export function SettingsPanel({ s, c }: Props): preact.JSX.Element {
           value={isControlMode(ctl?.mode) ? ctl.mode : null}
           disabled={off}
           label={(m) => CONTROL_LABELS[m]}
-          onSelect={(m) => c.setControlMode(m)}
+          onSelect={(m) => c.fields.setControlMode(m)}
         />
         <FieldStatusText s={s} field="control_mode" />
         {dpNote(ctl) !== null && (
@@ -397,7 +397,7 @@ export function SettingsPanel({ s, c }: Props): preact.JSX.Element {
           value={isRunMode(ctl?.run_mode) ? ctl.run_mode : null}
           disabled={off}
           label={(m) => RUN_LABELS[m]}
-          onSelect={(m) => c.setRunMode(m)}
+          onSelect={(m) => c.fields.setRunMode(m)}
         />
         <FieldStatusText s={s} field="run_mode" />
       </div>
@@ -405,10 +405,10 @@ export function SettingsPanel({ s, c }: Props): preact.JSX.Element {
       <AutopilotField s={s} c={c} axis="depth" disabled={off} current={ap?.depth == null ? "off" : `${fmt(ap.depth, 2)} m`} />
       <AutopilotField s={s} c={c} axis="heading" disabled={off} current={ap?.heading == null ? "off" : `${formatHeading(ap.heading)}°`} />
       <h3>Settings</h3>
-      <ValueField s={s} field="gain" label="Gain" hint="0..1" disabled={off} current={fmt(ctl?.gain, 2)} onSet={(t) => c.setValue("gain", t)} />
-      <ValueField s={s} field="lights" label="Lights" hint="0..255" disabled={off} current={fmt(ctl?.lights, 0)} onSet={(t) => c.setValue("lights", t)} />
-      <ValueField s={s} field="laser" label="Laser" hint="0..255" disabled={off} current={fmt(ctl?.laser, 0)} onSet={(t) => c.setValue("laser", t)} />
-      <ValueField s={s} field="tilt" label="Camera tilt" hint="° ±45" disabled={off} current={ctl?.tilt == null ? "—" : `${formatDeg(ctl.tilt, true)}°`} onSet={(t) => c.setValue("tilt", t)} />
+      <ValueField s={s} field="gain" label="Gain" hint="0..1" disabled={off} current={fmt(ctl?.gain, 2)} onSet={(t) => c.fields.setTyped("gain", t)} />
+      <ValueField s={s} field="lights" label="Lights" hint="0..255" disabled={off} current={fmt(ctl?.lights, 0)} onSet={(t) => c.fields.setTyped("lights", t)} />
+      <ValueField s={s} field="laser" label="Laser" hint="0..255" disabled={off} current={fmt(ctl?.laser, 0)} onSet={(t) => c.fields.setTyped("laser", t)} />
+      <ValueField s={s} field="tilt" label="Camera tilt" hint="° ±45" disabled={off} current={ctl?.tilt == null ? "—" : `${formatDeg(ctl.tilt, true)}°`} onSet={(t) => c.fields.setTyped("tilt", t)} />
       <div class="setting-row">
         <label class="setting-label" for="rotation">
           Image rotation
@@ -418,7 +418,7 @@ export function SettingsPanel({ s, c }: Props): preact.JSX.Element {
           data-testid="rotation"
           disabled={off}
           value={String(s.rotation)}
-          onChange={(e) => c.setRotation(parseRotation((e.currentTarget as HTMLSelectElement).value))}
+          onChange={(e) => c.fields.setRotation(parseRotation((e.currentTarget as HTMLSelectElement).value))}
         >
           {ROTATIONS.map((r) => (
             <option key={r} value={String(r)}>
