@@ -270,10 +270,10 @@ function VehiclePanel({ s, c }: { s: OperatorState; c: OperatorController }): pr
         <Readout label="Mode" id="vehicle-mode" value={m.mode ?? PLACEHOLDER} />
       </dl>
       <div class="helm-actions" hidden={!pilot}>
-        <button type="button" id="arm" data-testid="arm" disabled={m.armed || !s.link.up} onClick={() => c.arm(true)}>
+        <button type="button" id="arm" data-testid="arm" disabled={m.armed || !s.link.up} onClick={() => c.helm.arm(true)}>
           Arm
         </button>
-        <button type="button" id="disarm" data-testid="disarm" disabled={!m.armed} onClick={() => c.arm(false)}>
+        <button type="button" id="disarm" data-testid="disarm" disabled={!m.armed} onClick={() => c.helm.arm(false)}>
           Disarm
         </button>
       </div>

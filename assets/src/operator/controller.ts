@@ -32,7 +32,6 @@ import { beep } from "../lib/beep";
 import { TelemetryClock } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
 import { heartbeatMsOf, isPilot, seenView, stampOf } from "../lib/helm";
-import { LatencyTracker } from "../lib/latency";
 import { loadGamepadOptions, loadInputMode, loadRotation, parseRotation } from "../lib/prefs";
 import { cameraWithToken } from "../lib/protocol";
 import type { Telemetry } from "../lib/protocol";
@@ -44,6 +43,8 @@ import type { ConnectionStatus, FleetHandlers, VehicleChannel } from "../lib/veh
 import { withReachability } from "./fleet";
 import { GamepadButtons } from "./gamepad_buttons";
 import { HeadsetInput } from "./headset";
+import { Heartbeat } from "./heartbeat";
+import { HelmCommands } from "./helm_commands";
 import { PilotInput } from "./pilot_input";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
@@ -55,7 +56,6 @@ import type { OperatorState } from "./state";
 export type { FieldName, FieldStatus, OperatorState, TelemetryState } from "./state";
 
 const RETRY_MS = 2000;
-const PING_MS = 1000;
 /** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
 const CLOCK_MS = 10_000;
 const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
@@ -87,20 +87,22 @@ export class OperatorController {
   private readonly params: URLSearchParams;
   /** the helm as seen, the heartbeat, the takeover warning: see reactions.ts */
   private reactions: ReactionState = INITIAL_REACTIONS;
-  private readonly latency = new LatencyTracker();
   /** keyboard, touch sticks and gamepad → thrust */
   readonly input: PilotInput;
   /** the gamepad's buttons and the editor of their mapping */
   readonly buttons: GamepadButtons;
   /** the settings fields: control and run mode, autopilots, gain, lights, laser, tilt, rotation */
   readonly fields: SettingsFields;
+  /** request, take, release and hand over control; arm and disarm */
+  readonly helm: HelmCommands;
+  /** the pilot's heartbeat and the round-trip latency */
+  private readonly heartbeat: Heartbeat;
   private readonly headset: HeadsetInput;
   private readonly session: PageSession;
   private client: NeptunusClient | null = null;
   private vehicle: VehicleChannel | null = null;
   /** how old the newest telemetry is, on the server's clock */
   private readonly clock = new TelemetryClock(() => this.vehicle);
-  private heartbeat: number | null = null;
 
   constructor(params: URLSearchParams) {
     this.params = params;
@@ -116,6 +118,19 @@ export class OperatorController {
       update: (patch) => this.store.update(patch),
       settings: new SettingsClient(() => this.session.token),
       perform: (command, action) => this.onButtonCommand(command, action),
+    });
+    this.helm = new HelmCommands({
+      vehicle: () => this.vehicle,
+      dispatch: (event) => this.dispatch(event),
+      showMessage: (text, kind, source) => this.showMessage(text, kind, source),
+    });
+    this.heartbeat = new Heartbeat({
+      update: (patch) => this.store.update(patch),
+      vehicle: () => this.vehicle,
+      piloting: () => isPilot(this.reactions.helm),
+      intervalMs: () => heartbeatMsOf(this.reactions.helm),
+      ping: () => (this.client !== null && this.state.status === "connected" ? this.client.ping() : null),
+      refused: (reason) => this.dispatch({ type: "heartbeat_refused", reason }),
     });
     this.fields = new SettingsFields({
       get: () => this.state,
@@ -168,7 +183,7 @@ export class OperatorController {
     });
     window.addEventListener("pagehide", () => this.safetyStop("page closed"));
     window.setInterval(() => this.tick(), 250);
-    window.setInterval(() => this.pingIfWatching(), PING_MS);
+    this.heartbeat.start();
     window.setInterval(() => this.clock.read(), CLOCK_MS);
     // buttons act in every input mode; the sticks only in gamepad mode (`accepts`)
     this.input.start(window);
@@ -278,7 +293,7 @@ export class OperatorController {
         this.store.update({ link });
         this.dispatch({ type: "link", up: link.up });
       },
-      vehicleAnswer: (answer) => this.vehicleAnswer(answer.command, answer.ok ? null : (answer.reason ?? "refused")),
+      vehicleAnswer: (answer) => this.helm.answered(answer.command, answer.ok ? null : (answer.reason ?? "refused")),
       // the vehicle runs on another node of the fleet, now cut off from this one (or back)
       reachability: (reachable, node) => {
         if (reachable) this.clearMessage("unreachable");
@@ -327,12 +342,10 @@ export class OperatorController {
         this.input.reset();
         return;
       case "heartbeat":
-        if (effect.on) this.startHeartbeat();
-        else this.stopHeartbeat();
+        this.heartbeat.pilot(effect.on);
         return;
       case "reset_latency":
-        this.latency.reset();
-        this.store.update({ latency: this.latency.summary });
+        this.heartbeat.resetLatency();
         return;
       case "send_stop": {
         const { reason, announce } = effect;
@@ -365,39 +378,6 @@ export class OperatorController {
     // stale telemetry ages on screen; the clock is read as soon as the vehicle is joined
     const stale = this.clock.tick(performance.now());
     if (stale !== null) this.store.update(stale);
-  }
-
-  // ------------------------------------------------------------------------------------------
-  // Heartbeat and latency
-
-  private startHeartbeat(): void {
-    if (this.heartbeat !== null) return;
-    this.heartbeat = window.setInterval(() => {
-      const vehicle = this.vehicle;
-      if (!vehicle || !vehicle.joined || !isPilot(this.reactions.helm)) return;
-      vehicle.heartbeat().then(
-        (rtt) => this.addLatency(rtt),
-        (err: unknown) => this.dispatch({ type: "heartbeat_refused", reason: reasonOf(err) }),
-      );
-    }, heartbeatMsOf(this.reactions.helm));
-  }
-
-  private stopHeartbeat(): void {
-    if (this.heartbeat !== null) window.clearInterval(this.heartbeat);
-    this.heartbeat = null;
-  }
-
-  private pingIfWatching(): void {
-    if (this.reactions.heartbeat || !this.client || this.state.status !== "connected") return;
-    this.client.ping().then(
-      (rtt) => this.addLatency(rtt),
-      () => undefined,
-    );
-  }
-
-  private addLatency(rtt: number): void {
-    this.latency.add(rtt);
-    this.store.update({ latency: this.latency.summary });
   }
 
   // ------------------------------------------------------------------------------------------
@@ -434,10 +414,10 @@ export class OperatorController {
         this.stop();
         return;
       case "request_control":
-        this.requestControl();
+        this.helm.request();
         return;
       case "release_control":
-        this.releaseControl();
+        this.helm.release();
         return;
       case "input_gamepad":
         this.setInputMode("gamepad");
@@ -474,59 +454,6 @@ export class OperatorController {
     this.headset.capture();
   }
 
-  // ------------------------------------------------------------------------------------------
-  // Helm actions
-
-  requestControl(): void {
-    this.vehicle
-      ?.requestControl()
-      .then((reply) => {
-        if (reply.status === "pending") this.dispatch({ type: "request_pending" });
-      })
-      .catch((err: unknown) => this.refused("Request", err));
-  }
-
-  takeControl(): void {
-    this.vehicle
-      ?.takeControl()
-      .then((reply) => {
-        if (reply.status === "takeover") this.dispatch({ type: "takeover_started", countdownMs: reply.countdown_ms });
-      })
-      .catch((err: unknown) => this.refused("Take control", err));
-  }
-
-  releaseControl(): void {
-    this.vehicle?.releaseControl().catch((err: unknown) => this.refused("Release", err));
-  }
-
-  answerRequest(accept: boolean): void {
-    this.vehicle
-      ?.answerRequest(accept)
-      .then(() => this.dispatch({ type: "answered" }))
-      .catch((err: unknown) => this.refused("Answer", err));
-  }
-
-  /** Arms (`true`) or disarms a mavlink vehicle; the vehicle's answer is shown as a message. */
-  arm(arm: boolean): void {
-    const command = arm ? "arm" : "disarm";
-    this.vehicle
-      ?.arm(arm)
-      .then((reply) => {
-        if (reply === "ok") this.vehicleAnswer(command, null);
-        else this.showMessage(`${arm ? "Arming" : "Disarming"}: waiting for the vehicle…`, "info", "arm");
-      })
-      .catch((err: unknown) => this.vehicleAnswer(command, reasonOf(err)));
-  }
-
-  private vehicleAnswer(command: string, refusal: string | null): void {
-    if (command !== "arm" && command !== "disarm") {
-      if (refusal !== null) this.showMessage(`The vehicle refused ${command}: ${refusal}`, "error", "arm");
-      return;
-    }
-    if (refusal === null) this.showMessage(command === "arm" ? "Vehicle armed" : "Vehicle disarmed", "info", "arm");
-    else this.showMessage(`${command === "arm" ? "Arm" : "Disarm"} refused: ${refusal}`, "error", "arm");
-  }
-
   signOut(): void {
     this.session.signOut();
   }
@@ -540,9 +467,5 @@ export class OperatorController {
 
   clearMessage(source: string): void {
     this.store.update(withoutMessage(this.state, source));
-  }
-
-  private refused(what: string, err: unknown): void {
-    this.dispatch({ type: "refused", what, reason: reasonOf(err) });
   }
 }

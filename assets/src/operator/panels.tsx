@@ -37,13 +37,13 @@ export function HelmPanel({ s, c }: Props): preact.JSX.Element {
         {v.summary}
       </p>
       <div class="helm-actions">
-        <button type="button" id="request-control" data-testid="request-control" disabled={!v.canRequest} hidden={v.me !== "watching"} onClick={() => c.requestControl()}>
+        <button type="button" id="request-control" data-testid="request-control" disabled={!v.canRequest} hidden={v.me !== "watching"} onClick={() => c.helm.request()}>
           Request control
         </button>
-        <button type="button" id="take-control" data-testid="take-control" hidden={!v.canTake} onClick={() => c.takeControl()}>
+        <button type="button" id="take-control" data-testid="take-control" hidden={!v.canTake} onClick={() => c.helm.take()}>
           Take control
         </button>
-        <button type="button" id="release-control" data-testid="release-control" hidden={!v.canRelease} onClick={() => c.releaseControl()}>
+        <button type="button" id="release-control" data-testid="release-control" hidden={!v.canRelease} onClick={() => c.helm.release()}>
           {v.releaseLabel}
         </button>
         <button type="button" id="stop" class="stop" data-testid="stop" hidden={v.me !== "pilot"} onClick={() => c.stop()}>
@@ -55,10 +55,10 @@ export function HelmPanel({ s, c }: Props): preact.JSX.Element {
           <strong id="requester">{v.prompt?.from.name ?? "—"}</strong> requests control{" "}
           <span id="request-left">{v.prompt ? `(${Math.ceil(v.prompt.remainingMs / 1000)} s)` : ""}</span>
         </p>
-        <button type="button" id="accept-request" data-testid="accept-request" onClick={() => c.answerRequest(true)}>
+        <button type="button" id="accept-request" data-testid="accept-request" onClick={() => c.helm.answer(true)}>
           Hand over
         </button>
-        <button type="button" id="deny-request" data-testid="deny-request" onClick={() => c.answerRequest(false)}>
+        <button type="button" id="deny-request" data-testid="deny-request" onClick={() => c.helm.answer(false)}>
           Keep control
         </button>
       </div>
