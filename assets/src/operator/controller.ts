@@ -38,31 +38,25 @@ import type { Telemetry } from "../lib/protocol";
 import { PageSession, browserSessionEnv } from "../lib/session";
 import { SettingsClient } from "../lib/settings";
 import { Store } from "../lib/store";
-import { CommandError, NeptunusClient } from "../lib/vehicle_client";
-import type { ConnectionStatus, FleetHandlers, VehicleChannel } from "../lib/vehicle_client";
-import { withReachability } from "./fleet";
+import { NeptunusClient } from "../lib/vehicle_client";
+import type { VehicleChannel, VehicleHandlers } from "../lib/vehicle_client";
 import { GamepadButtons } from "./gamepad_buttons";
 import { HeadsetInput } from "./headset";
 import { Heartbeat } from "./heartbeat";
 import { HelmCommands } from "./helm_commands";
+import { OperatorConnection } from "./connection";
 import { PilotInput } from "./pilot_input";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
 import { SettingsFields } from "./settings_fields";
-import { controlModeOf, initialState, withMessage, withStatus, withTelemetry, withoutMessage } from "./state";
+import { controlModeOf, initialState, withMessage, withTelemetry, withoutMessage } from "./state";
 import type { OperatorState } from "./state";
 
 // the views read the page's state from here too (state.ts defines it)
 export type { FieldName, FieldStatus, OperatorState, TelemetryState } from "./state";
 
-const RETRY_MS = 2000;
 /** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
 const CLOCK_MS = 10_000;
-const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
-
-function sleep(ms: number): Promise<void> {
-  return new Promise((resolve) => setTimeout(resolve, ms));
-}
 
 function storage(): Storage | null {
   try {
@@ -72,19 +66,12 @@ function storage(): Storage | null {
   }
 }
 
-/** `?name=`, else none: the server then names us `guest-XXXX`. */
-function displayName(params: URLSearchParams): string | undefined {
-  const name = (params.get("name") ?? "").trim().slice(0, 40);
-  return name === "" ? undefined : name;
-}
-
 function touchFirstDevice(): boolean {
   return typeof window.matchMedia === "function" && window.matchMedia("(pointer: coarse)").matches;
 }
 
 export class OperatorController {
   readonly store: Store<OperatorState>;
-  private readonly params: URLSearchParams;
   /** the helm as seen, the heartbeat, the takeover warning: see reactions.ts */
   private reactions: ReactionState = INITIAL_REACTIONS;
   /** keyboard, touch sticks and gamepad → thrust */
@@ -97,15 +84,15 @@ export class OperatorController {
   readonly helm: HelmCommands;
   /** the pilot's heartbeat and the round-trip latency */
   private readonly heartbeat: Heartbeat;
-  private readonly headset: HeadsetInput;
+  /** head tracking: heading setpoint and camera tilt */
+  readonly headset: HeadsetInput;
   private readonly session: PageSession;
-  private client: NeptunusClient | null = null;
-  private vehicle: VehicleChannel | null = null;
+  /** the socket and the vehicle's channel */
+  private readonly connection: OperatorConnection;
   /** how old the newest telemetry is, on the server's clock */
   private readonly clock = new TelemetryClock(() => this.vehicle);
 
   constructor(params: URLSearchParams) {
-    this.params = params;
     const prefs = storage();
     this.store = new Store<OperatorState>(initialState(loadInputMode(prefs, touchFirstDevice()), loadGamepadOptions(prefs)));
     this.session = new PageSession(
@@ -129,7 +116,10 @@ export class OperatorController {
       vehicle: () => this.vehicle,
       piloting: () => isPilot(this.reactions.helm),
       intervalMs: () => heartbeatMsOf(this.reactions.helm),
-      ping: () => (this.client !== null && this.state.status === "connected" ? this.client.ping() : null),
+      ping: () => {
+        const client = this.connection.client;
+        return client !== null && this.state.status === "connected" ? client.ping() : null;
+      },
       refused: (reason) => this.dispatch({ type: "heartbeat_refused", reason }),
     });
     this.fields = new SettingsFields({
@@ -162,10 +152,28 @@ export class OperatorController {
       onControl: (control) => this.store.update({ control }),
       onResult: (error) => (error === null ? this.fields.mark("headset", "ok", "") : this.fields.mark("headset", "error", error)),
     });
+    this.connection = new OperatorConnection(
+      {
+        get: () => this.state,
+        update: (patch) => this.store.update(patch),
+        showMessage: (text, kind, source) => this.showMessage(text, kind, source),
+        clearMessage: (source) => this.clearMessage(source),
+        recheck: () => void this.session.recheck(),
+        client: (options) => new NeptunusClient(options),
+        opening: (id) => this.opening(id),
+        events: this.vehicleEvents(),
+        nowMs: () => performance.now(),
+      },
+      params,
+    );
   }
 
   private get state(): OperatorState {
     return this.store.get();
+  }
+
+  private get vehicle(): VehicleChannel | null {
+    return this.connection.vehicle;
   }
 
   /** The control mode the vehicle is in (motion until a server says otherwise). */
@@ -192,75 +200,20 @@ export class OperatorController {
     if (session === null) return; // leaving for the login page
     this.store.update({ banner: { mode: session.mode, user: session.user } });
     void this.buttons.load();
-    const token = this.session.token;
-    const name = displayName(this.params);
-    const client = new NeptunusClient({
-      ...(session.mode === "local" && name !== undefined ? { name } : {}),
-      ...(token !== null ? { token } : {}),
-    });
-    this.client = client;
-    client.socket.onClose(() => {
-      if (!this.vehicle) this.setStatus("disconnected");
-    });
-    client.socket.onOpen(() => {
-      if (!this.vehicle) this.setStatus("connecting");
-    });
-    // a refused upgrade (expired or revoked token) looks like a network error from here
-    client.socket.onError(() => void this.session.recheck());
-    client.connect();
-    const id = await this.chooseVehicle(client);
-    this.openVehicle(client, id);
+    await this.connection.open({ mode: session.mode, token: this.session.token });
   }
 
-  private setStatus(status: ConnectionStatus): void {
-    this.store.update(withStatus(this.state, status, performance.now()));
-  }
-
-  private async chooseVehicle(client: NeptunusClient): Promise<string> {
-    const requested = this.params.get("vehicle");
-    if (requested !== null) {
-      // the picker's list; the requested vehicle opens whatever it says
-      client.fleet(undefined, this.fleetHandlers()).then(
-        (fleet) => this.store.update({ fleet: fleet.vehicles }),
-        () => undefined,
-      );
-      if (VEHICLE_ID.test(requested)) return requested;
-      this.showMessage(`Invalid vehicle id in the address: "${requested}"`, "error");
-      return new Promise<string>(() => undefined); // nothing to connect to
-    }
-    for (;;) {
-      try {
-        const fleet = await client.fleet(undefined, this.fleetHandlers());
-        // the first vehicle that can be reached (one whose node of the fleet is cut off cannot be joined)
-        const first = fleet.vehicles.find((v) => v.status !== "unreachable") ?? fleet.vehicles[0];
-        this.store.update({ fleet: fleet.vehicles });
-        if (first) {
-          this.clearMessage("fleet");
-          return first.id;
-        }
-        this.showMessage("The server has no vehicles.", "warn", "fleet");
-      } catch (err) {
-        this.showMessage(`Cannot list vehicles: ${reasonOf(err)}`, "warn", "fleet");
-      }
-      await sleep(RETRY_MS);
-    }
-  }
-
-  /** The fleet overview follows the directory's updates. */
-  private fleetHandlers(): FleetHandlers {
-    return {
-      vehicles: (vehicles) => this.store.update({ fleet: vehicles }),
-      reachability: (id, reachable) => this.store.update({ fleet: withReachability(this.state.fleet, id, reachable) }),
-      protocolError: (what, payload) => console.warn(`neptunus: unexpected fleet ${what} payload`, payload),
-    };
-  }
-
-  private openVehicle(client: NeptunusClient, id: string): void {
+  /** The vehicle `id` is about to be joined. */
+  private opening(id: string): void {
     document.title = `Neptunus — ${id}`;
     // the camera rotation is the vehicle's (the server's settings); the browser's earlier
     // per-vehicle choice shows only until the server's comes (an older server sends none)
     this.store.update({ vehicleId: id, rotation: loadRotation(storage(), id) });
-    const vehicle = client.vehicle(id, {
+  }
+
+  /** What the page does with the vehicle's events. */
+  private vehicleEvents(): VehicleHandlers {
+    return {
       snapshot: (snapshot) => {
         if (snapshot.settings) this.store.update({ rotation: parseRotation(snapshot.settings.camera_rotation) });
         this.dispatch({ type: "joined", helm: snapshot.helm, session: snapshot.session, atMs: performance.now() });
@@ -301,22 +254,12 @@ export class OperatorController {
       },
       presence: (entries) => this.store.update({ presence: entries }),
       status: (status) => {
-        this.setStatus(status);
         if (status !== "connected") this.dispatch({ type: "disconnected" });
       },
       protocolError: (what, payload) => {
         console.warn(`neptunus: unexpected ${what} payload`, payload);
       },
-    });
-    this.vehicle = vehicle;
-    this.setStatus(vehicle.status);
-    vehicle.join().catch((err: unknown) => {
-      this.showMessage(`Cannot join vehicle ${id}: ${reasonOf(err)}`, "error", "join");
-      if (err instanceof CommandError && err.kind !== "timeout") {
-        // Refused (unknown vehicle, bad reply): the client would retry forever; stop asking.
-        void vehicle.leave().then(() => this.setStatus("disconnected"));
-      }
-    });
+    };
   }
 
   // ------------------------------------------------------------------------------------------
@@ -436,22 +379,6 @@ export class OperatorController {
         this.showMessage(`${ACTION_LABELS[action]}: ${command.why}.`, "info", "button");
         return;
     }
-  }
-
-  // ------------------------------------------------------------------------------------------
-  // Headset
-
-  startHeadset(): Promise<void> {
-    return this.headset.start();
-  }
-
-  stopHeadset(): void {
-    this.headset.stop();
-  }
-
-  /** Takes the current head direction as straight ahead at the vehicle's current heading. */
-  captureHeadReference(): void {
-    this.headset.capture();
   }
 
   signOut(): void {

@@ -177,13 +177,13 @@ export function InputPanel({ s, c }: Props): preact.JSX.Element {
             {h.angles && ` · yaw ${formatDeg(h.angles.yaw, true)}° pitch ${formatDeg(h.angles.pitch, true)}°`}
           </p>
           <div class="helm-actions">
-            <button type="button" id="headset-start" onClick={() => void c.startHeadset()}>
+            <button type="button" id="headset-start" onClick={() => void c.headset.start()}>
               {h.status === "off" || h.status === "error" ? "Start head tracking" : "Restart"}
             </button>
-            <button type="button" id="headset-reference" disabled={h.angles === null} onClick={() => c.captureHeadReference()}>
+            <button type="button" id="headset-reference" disabled={h.angles === null} onClick={() => c.headset.capture()}>
               Set reference
             </button>
-            <button type="button" id="headset-stop" hidden={h.status === "off"} onClick={() => c.stopHeadset()}>
+            <button type="button" id="headset-stop" hidden={h.status === "off"} onClick={() => c.headset.stop()}>
               Stop
             </button>
           </div>
