@@ -1,33 +1,32 @@
 /**
- * The operator page's logic (no DOM building here: the Preact view renders `store`).
+ * The operator page's logic (no DOM building here: the Preact view renders `store`), as a
+ * composition of parts, each with a host that gives it what it needs of the page:
  *
- * - Connects (login in secure mode, banner in local mode), joins the vehicle, follows its
- *   telemetry, helm, presence and link; reconnects on its own (the phoenix client) and says so
- *   while disconnected.
- * - Input: keyboard (table 7.1), touch sticks, gamepad (table 7.2, polled on animation frames)
- *   and headset (heading setpoint and camera tilt). Only the selected input mode drives the
- *   vehicle; a demand is sent when it changes, as absolute values stamped with our grant's
- *   epoch (`thrust` motion or manual).
- * - Helm: request / answer / take / release; heartbeat every `heartbeat_ms` while piloting,
- *   whose replies give the round-trip latency (watchers measure it with the socket's ping).
- * - Safety: window blur, a hidden page, closing it or changing the input mode sends `stop` (and
- *   shows it); after any stop, loss of control or grant every input is forgotten — only a fresh
- *   press, touch or stick movement moves the vehicle. Safety stops and a takeover beep.
- *   These reactions are decided by `react` (reactions.ts, pure); this class carries out its
- *   effects (`perform`). Session handling is `PageSession` (lib/session.ts), head tracking
- *   `HeadsetInput` (headset.ts).
- * - Settings (control mode, run mode, autopilot, gain, lights, laser, tilt) go to the server as
- *   typed; its `error` reason is shown beside the field.
- * - Gamepad buttons (input/buttons.ts): the pad is read in every input mode (its sticks drive
- *   only in gamepad mode); each press runs its action once (steps repeat while held, at most
- *   every `repeatMs`). The mapping is the user's, kept on the server (`gamepad.mapping`,
- *   lib/settings.ts); the editor assigns an action to the next button pressed.
+ * - `state.ts`: the page's state and the pure operations on it (the `Store` holds it);
+ * - `connection.ts`: the socket (login in secure mode, banner in local mode), the vehicle's
+ *   choice and channel; the phoenix client reconnects on its own and the page says so;
+ * - `pilot_input.ts`: keyboard (table 7.1), touch sticks, gamepad (table 7.2) → thrust, routed
+ *   by `routeDemand` (routing.ts, pure): only the selected input mode drives, absolute values
+ *   stamped with our grant's epoch, sent when they change;
+ * - `gamepad_buttons.ts`: each press runs its action once (steps repeat while held); the
+ *   pilot's mapping is kept on the server and edited on the page;
+ * - `settings_fields.ts`: control mode, run mode, autopilots, gain, lights, laser, tilt and
+ *   the camera rotation go to the server as typed; its `error` reason is shown beside the field;
+ * - `helm_commands.ts`: request / take / release / answer control, arm / disarm;
+ * - `heartbeat.ts`: the pilot's heartbeat every `heartbeat_ms`, the round-trip latency;
+ * - `headset.ts`: head tracking → heading setpoint and camera tilt.
+ *
+ * What the helm, stops and the connection mean for the page is decided by `react`
+ * (reactions.ts, pure); this class feeds it the vehicle's events, the page's own stops and the
+ * replies, and carries out its effects (`perform`) with the parts. Safety: window blur, a
+ * hidden page, closing it or changing the input mode sends `stop`; after any stop, loss of
+ * control or grant every input is forgotten — only a fresh press, touch or stick movement
+ * moves the vehicle. Session handling is `PageSession` (lib/session.ts).
  */
 
 import type { InputMode } from "../input/demand";
 import { ACTION_LABELS } from "../input/buttons";
 import type { ButtonAction, ButtonCommand } from "../input/buttons";
-import type { GamepadOptions } from "../input/gamepad";
 import { beep } from "../lib/beep";
 import { TelemetryClock } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
@@ -40,11 +39,11 @@ import { SettingsClient } from "../lib/settings";
 import { Store } from "../lib/store";
 import { NeptunusClient } from "../lib/vehicle_client";
 import type { VehicleChannel, VehicleHandlers } from "../lib/vehicle_client";
+import { OperatorConnection } from "./connection";
 import { GamepadButtons } from "./gamepad_buttons";
 import { HeadsetInput } from "./headset";
 import { Heartbeat } from "./heartbeat";
 import { HelmCommands } from "./helm_commands";
-import { OperatorConnection } from "./connection";
 import { PilotInput } from "./pilot_input";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
@@ -177,12 +176,9 @@ export class OperatorController {
   }
 
   /** The control mode the vehicle is in (motion until a server says otherwise). */
-  get controlMode(): string {
+  private get controlMode(): string {
     return controlModeOf(this.state);
   }
-
-  // ------------------------------------------------------------------------------------------
-  // Start-up and connection
 
   async start(): Promise<void> {
     window.addEventListener("blur", () => this.safetyStop("window lost focus"));
@@ -210,6 +206,9 @@ export class OperatorController {
     // per-vehicle choice shows only until the server's comes (an older server sends none)
     this.store.update({ vehicleId: id, rotation: loadRotation(storage(), id) });
   }
+
+  // ------------------------------------------------------------------------------------------
+  // The vehicle's events
 
   /** What the page does with the vehicle's events. */
   private vehicleEvents(): VehicleHandlers {
@@ -261,9 +260,6 @@ export class OperatorController {
       },
     };
   }
-
-  // ------------------------------------------------------------------------------------------
-  // Vehicle events
 
   private onTelemetry(t: Telemetry): void {
     this.store.update(withTelemetry(t, this.clock.received(t.sent_at, performance.now(), Date.now())));
@@ -324,7 +320,7 @@ export class OperatorController {
   }
 
   // ------------------------------------------------------------------------------------------
-  // Input
+  // The page's own commands
 
   /** Stops the vehicle for `reason` (when we pilot) and forgets every input. */
   safetyStop(reason: string): void {
@@ -336,6 +332,7 @@ export class OperatorController {
     this.dispatch({ type: "pilot_stop" });
   }
 
+  /** The input mode that drives: the vehicle stops first, head tracking stops when left. */
   setInputMode(mode: InputMode): void {
     if (mode === this.state.inputMode) return;
     this.safetyStop("input mode changed");
@@ -343,12 +340,9 @@ export class OperatorController {
     if (mode !== "headset") this.headset.stop();
   }
 
-  setGamepadOptions(options: GamepadOptions): void {
-    this.input.setGamepadOptions(options);
+  signOut(): void {
+    this.session.signOut();
   }
-
-  // ------------------------------------------------------------------------------------------
-  // Gamepad buttons
 
   /** What a pressed button's action asks for (gamepad_buttons.ts), carried out. */
   private onButtonCommand(command: ButtonCommand, action: ButtonAction): void {
@@ -379,10 +373,6 @@ export class OperatorController {
         this.showMessage(`${ACTION_LABELS[action]}: ${command.why}.`, "info", "button");
         return;
     }
-  }
-
-  signOut(): void {
-    this.session.signOut();
   }
 
   // ------------------------------------------------------------------------------------------

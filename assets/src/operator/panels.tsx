@@ -147,7 +147,7 @@ export function InputPanel({ s, c }: Props): preact.JSX.Element {
                 value={s.gamepadOptions.deadband}
                 onChange={(e) => {
                   const v = Number((e.currentTarget as HTMLInputElement).value);
-                  if (v >= 0 && v <= 0.5) c.setGamepadOptions({ ...s.gamepadOptions, deadband: v });
+                  if (v >= 0 && v <= 0.5) c.input.setGamepadOptions({ ...s.gamepadOptions, deadband: v });
                 }}
               />
             </label>
@@ -162,7 +162,7 @@ export function InputPanel({ s, c }: Props): preact.JSX.Element {
                 value={s.gamepadOptions.expo}
                 onChange={(e) => {
                   const v = Number((e.currentTarget as HTMLInputElement).value);
-                  if (v >= 0 && v <= 1) c.setGamepadOptions({ ...s.gamepadOptions, expo: v });
+                  if (v >= 0 && v <= 1) c.input.setGamepadOptions({ ...s.gamepadOptions, expo: v });
                 }}
               />
             </label>
