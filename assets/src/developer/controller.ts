@@ -12,7 +12,7 @@
 import { LogBook, entryFromRecordedEvent, entryFromServerLog, linkEntry, recorded, stopEntry, telemetryChanges, telemetryFacts } from "../logger/model";
 import type { NewEntry, TelemetryFacts } from "../logger/model";
 import { SeriesRecorder } from "../plots/recorder";
-import { flattenNumeric } from "../plots/series";
+import { flattenNumeric, wrapPeriod } from "../plots/series";
 import { deleteRecording, fetchRecording, fetchRecordings } from "../lib/recordings";
 import type { ParsedRecording, RecordingInfo, RecordingList } from "../lib/recordings";
 import { decodeTelemetry } from "../lib/protocol";
@@ -114,7 +114,8 @@ export class DevController {
 
   constructor(params: URLSearchParams, capacity?: number) {
     this.params = params;
-    this.recorder = new SeriesRecorder(capacity);
+    // angles that wrap (headings) also get their continuous line, for the plots
+    this.recorder = new SeriesRecorder(capacity, wrapPeriod);
     this.store = new Store<DevState>({
       status: "connecting",
       vehicleId: null,
