@@ -1,44 +1,15 @@
 // The operator page's connection against the in-process stand-in server
 // (test/support/fake_server.mjs), over real WebSockets (`ws`).
-import { afterAll, afterEach, beforeAll, describe, expect, it } from "vitest";
-import WebSocket from "ws";
-import { startFakeServer } from "../support/fake_server.mjs";
-import type { FakeServer } from "../support/fake_server.mjs";
+import { describe, expect, it } from "vitest";
 import type { VehicleSnapshot } from "../../src/lib/protocol";
-import { NeptunusClient } from "../../src/lib/vehicle_client";
 import type { NeptunusClientOptions } from "../../src/lib/vehicle_client";
 import { OperatorConnection, displayName, firstVehicle } from "../../src/operator/connection";
 import type { Identity } from "../../src/operator/connection";
 import { initialState } from "../../src/operator/state";
 import type { OperatorState } from "../../src/operator/state";
+import { eventually, useStandIn } from "./stand_in";
 
-let server: FakeServer;
-const clients: NeptunusClient[] = [];
-
-beforeAll(async () => {
-  server = await startFakeServer(0);
-});
-
-afterEach(async () => {
-  await Promise.all(clients.splice(0).map((c) => c.disconnect()));
-});
-
-afterAll(async () => {
-  await server.close();
-});
-
-function eventually<T>(get: () => T | undefined | false, ms = 3000): Promise<T> {
-  return new Promise((resolve, reject) => {
-    const deadline = Date.now() + ms;
-    const poll = (): void => {
-      const v = get();
-      if (v !== undefined && v !== false) resolve(v);
-      else if (Date.now() > deadline) reject(new Error("timed out"));
-      else setTimeout(poll, 10);
-    };
-    poll();
-  });
-}
+const standIn = useStandIn();
 
 const local: Identity = { mode: "local", token: null };
 
@@ -59,9 +30,7 @@ function harness(query: string) {
       recheck: () => undefined,
       client: (o) => {
         options.push(o);
-        const c = new NeptunusClient({ ...o, endpoint: `${server.url.replace(/^http/, "ws")}/socket`, transport: WebSocket });
-        clients.push(c);
-        return c;
+        return standIn.client(o);
       },
       opening: (id) => opened.push(id),
       events: { snapshot: (s) => snapshots.push(s) },

@@ -4,6 +4,7 @@
  * was typed (settings_fields.ts) and shows its status beside it.
  */
 
+import type { ComponentChildren } from "preact";
 import { useState } from "preact/hooks";
 import { ROTATIONS, parseRotation } from "../../lib/prefs";
 import { CONTROL_MODES, RUN_MODES } from "../../lib/protocol";
@@ -13,7 +14,7 @@ import type { OperatorController } from "../controller";
 import { dpNote } from "../dp";
 import { fmt, formatDeg } from "../format";
 import type { ValueField as ValueFieldName } from "../settings_fields";
-import type { OperatorState } from "../state";
+import type { FieldName, OperatorState } from "../state";
 import type { PanelProps } from "./panel";
 import { FieldStatusText, Panel, Segmented } from "./panel";
 
@@ -106,6 +107,29 @@ function AutopilotField(props: {
   );
 }
 
+/** A setting chosen among a few (control mode, run mode), with its status. */
+function ChoiceRow<T extends string>(props: {
+  s: OperatorState;
+  label: string;
+  name: string;
+  field: FieldName;
+  options: readonly T[];
+  value: T | null;
+  disabled: boolean;
+  labels: Readonly<Record<T, string>>;
+  onSelect: (v: T) => void;
+  children?: ComponentChildren;
+}): preact.JSX.Element {
+  return (
+    <div class="setting-row">
+      <span class="setting-label">{props.label}</span>
+      <Segmented name={props.name} options={props.options} value={props.value} disabled={props.disabled} label={(m) => props.labels[m]} onSelect={props.onSelect} />
+      <FieldStatusText s={props.s} field={props.field} />
+      {props.children}
+    </div>
+  );
+}
+
 const CONTROL_LABELS: Readonly<Record<ControlMode, string>> = { motion: "Motion", manual: "Manual", dp: "DP" };
 const RUN_LABELS: Readonly<Record<RunMode, string>> = { normal: "Normal", simulator: "Simulator" };
 
@@ -124,35 +148,34 @@ export function SettingsPanel({ s, c }: PanelProps): preact.JSX.Element {
   return (
     <Panel title="Vehicle" id="settings" class="settings">
       {!pilot && <p class="note">Request control to change these.</p>}
-      <div class="setting-row">
-        <span class="setting-label">Control mode</span>
-        <Segmented
-          name="control-mode"
-          options={CONTROL_MODES}
-          value={isControlMode(ctl?.mode) ? ctl.mode : null}
-          disabled={off}
-          label={(m) => CONTROL_LABELS[m]}
-          onSelect={(m) => c.fields.setControlMode(m)}
-        />
-        <FieldStatusText s={s} field="control_mode" />
+      <ChoiceRow
+        s={s}
+        label="Control mode"
+        name="control-mode"
+        field="control_mode"
+        options={CONTROL_MODES}
+        value={isControlMode(ctl?.mode) ? ctl.mode : null}
+        disabled={off}
+        labels={CONTROL_LABELS}
+        onSelect={(m) => c.fields.setControlMode(m)}
+      >
         {dpNote(ctl) !== null && (
           <p class="note" data-testid="dp-note">
             {dpNote(ctl)}
           </p>
         )}
-      </div>
-      <div class="setting-row">
-        <span class="setting-label">Run mode</span>
-        <Segmented
-          name="run-mode"
-          options={RUN_MODES}
-          value={isRunMode(ctl?.run_mode) ? ctl.run_mode : null}
-          disabled={off}
-          label={(m) => RUN_LABELS[m]}
-          onSelect={(m) => c.fields.setRunMode(m)}
-        />
-        <FieldStatusText s={s} field="run_mode" />
-      </div>
+      </ChoiceRow>
+      <ChoiceRow
+        s={s}
+        label="Run mode"
+        name="run-mode"
+        field="run_mode"
+        options={RUN_MODES}
+        value={isRunMode(ctl?.run_mode) ? ctl.run_mode : null}
+        disabled={off}
+        labels={RUN_LABELS}
+        onSelect={(m) => c.fields.setRunMode(m)}
+      />
       <h3>Autopilot</h3>
       <AutopilotField s={s} c={c} axis="depth" disabled={off} current={ap?.depth == null ? "off" : `${fmt(ap.depth, 2)} m`} />
       <AutopilotField s={s} c={c} axis="heading" disabled={off} current={ap?.heading == null ? "off" : `${formatHeading(ap.heading)}°`} />
