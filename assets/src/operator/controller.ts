@@ -51,8 +51,8 @@ import { SettingsFields } from "./settings_fields";
 import { controlModeOf, initialState, withMessage, withTelemetry, withoutMessage } from "./state";
 import type { OperatorState } from "./state";
 
-// the views read the page's state from here too (state.ts defines it)
-export type { FieldName, FieldStatus, OperatorState, TelemetryState } from "./state";
+// the views (app, hud) take the page's state type from here too; state.ts defines it
+export type { OperatorState } from "./state";
 
 /** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
 const CLOCK_MS = 10_000;
