@@ -181,6 +181,8 @@ export class OperatorController {
   }
 
   async start(): Promise<void> {
+    // the keys (table 7.1) and the pad: its buttons act in every input mode, its sticks only in gamepad mode
+    this.input.start(window);
     window.addEventListener("blur", () => this.safetyStop("window lost focus"));
     document.addEventListener("visibilitychange", () => {
       if (document.visibilityState === "hidden") this.safetyStop("page hidden");
@@ -189,8 +191,6 @@ export class OperatorController {
     window.setInterval(() => this.tick(), 250);
     this.heartbeat.start();
     window.setInterval(() => this.clock.read(), CLOCK_MS);
-    // buttons act in every input mode; the sticks only in gamepad mode (`accepts`)
-    this.input.start(window);
 
     const session = await this.session.authenticate();
     if (session === null) return; // leaving for the login page
