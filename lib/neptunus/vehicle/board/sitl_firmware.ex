@@ -477,7 +477,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
 
   @doc """
   The firmware's split of a command (`strtok` at spaces, commas, parentheses and `;`): the
-  name and the argument tokens as received. The SITL board's own parser (the server's
+  name and the argument tokens as received (`Neptunus.Protocol.OpenROV.call/1`, which the
+  board link uses to know the echo a command gets). The SITL board's own parser (the server's
   `Neptunus.Protocol.OpenROV.parse_command/1` knows only the commands the server sends).
 
       iex> Neptunus.Vehicle.Board.SITL.Firmware.tokens("mtrmod1(100, 100,150);")
@@ -486,12 +487,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
       {"", []}
   """
   @spec tokens(binary()) :: {binary(), [binary()]}
-  def tokens(text) when is_binary(text) do
-    case String.split(text, [" ", ",", "(", ")", ";"], trim: true) |> Enum.reject(&(&1 == "")) do
-      [name | args] -> {name, args}
-      [] -> {"", []}
-    end
-  end
+  def tokens(text) when is_binary(text), do: OpenROV.call(text)
 
   @doc """
   C's `atoi` into the AVR's 16-bit `int`: leading spaces, a sign, digits; anything else
