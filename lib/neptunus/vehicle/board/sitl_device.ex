@@ -13,9 +13,13 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   the firmware as they arrive (its 64-byte receive buffer drops what overflows: `rx_dropped`).
 
   `reset/1` reboots the board (as a USB Arduino that resets) without touching the simulated
-  vehicle: the firmware starts again from millis 0 and the physics keep going. If the port
-  program exits, this process stops and is restarted with a new pair at the same link path: to
-  the board link that is a hangup followed by a board that comes back.
+  vehicle: the firmware starts again from millis 0 and the physics keep going. With
+  `reset_on_open: true` it reboots the same way whenever the line is opened (the port program
+  reports every open of the pty's slave end), as a USB Arduino does when its DTR line drops;
+  with `:bootloader_ms` every reboot first runs a bootloader that loses what arrives (see
+  `Neptunus.Vehicle.Board.SITL.Firmware`). If the port program exits, this process stops and
+  is restarted with a new pair at the same link path: to the board link that is a hangup
+  followed by a board that comes back.
   """
   use GenServer
 
@@ -36,6 +40,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
             periodic: Neptunus.Periodic.t(),
             skipped_steps: non_neg_integer(),
             rx_dropped: non_neg_integer(),
+            reset_on_open: boolean(),
+            opens: non_neg_integer(),
             resets: non_neg_integer()
           }
     @enforce_keys [:id, :port, :pty, :sim, :firmware, :periodic]
@@ -48,11 +54,14 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
       :periodic,
       skipped_steps: 0,
       rx_dropped: 0,
+      reset_on_open: false,
+      opens: 0,
       resets: 0
     ]
   end
 
-  @firmware_opts [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms]
+  @firmware_opts [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms] ++
+                   [:bootloader_ms]
 
   @doc """
   Options: `:id` and `:link` (path for the pty's slave end) required; `:hz` (default
@@ -60,7 +69,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   `Neptunus.OS`); the firmware's
   (`Neptunus.Vehicle.Board.SITL.Firmware.new/2`): `:firmware` (`:openrov_25` default or
   `:openrov_30`), `:wiring` (`Neptunus.Wiring`, default the thesis'), `:deadman_ms` (2000),
-  `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20); `:initial` and
+  `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20), `:bootloader_ms`
+  (0); `:reset_on_open` (false: the board reboots whenever the line is opened); `:initial` and
   `:sim` (options of `Neptunus.Sim.new/1`, over the default `noise: true` — realistic sensors
   with wild points — and a fresh seed).
   """
@@ -72,7 +82,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
 
   @doc """
   The device's state: the simulation (truth), the firmware, the pty path, `rx_dropped` (bytes
-  the board's receive buffer lost), `resets` (board resets by `reset/1`).
+  the board's receive buffer lost), `opens` (times the line was opened), `resets` (board
+  resets by `reset/1` or, with `reset_on_open`, by an open).
   """
   @spec state(String.t()) :: State.t()
   def state(id), do: GenServer.call(Neptunus.Fleet.via(__MODULE__, id), :state)
@@ -117,7 +128,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
            pty: pty,
            sim: Sim.new(sim_opts(opts, hz)),
            firmware: Firmware.reset(firmware, Neptunus.Clock.monotonic_ms()),
-           periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick))
+           periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick)),
+           reset_on_open: Keyword.get(opts, :reset_on_open, false) == true
          }}
 
       {^port, {:data, "e" <> why}} ->
@@ -142,20 +154,21 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   @impl true
   def handle_call(:state, _from, state), do: {:reply, state, state}
 
-  def handle_call(:reset, _from, state) do
+  def handle_call(:reset, _from, state), do: {:reply, :ok, reboot(state)}
+
+  # what the old firmware wrote up to now goes out first, then the new one boots
+  defp reboot(state) do
     now = Neptunus.Clock.monotonic_ms()
-    # what the old firmware wrote up to now goes out first, then the new one boots
     {firmware, out} = Firmware.tick(state.firmware, now)
     state = send_bytes(state, out)
     firmware = Firmware.reset(firmware, now)
 
-    {:reply, :ok,
-     %{
-       state
-       | firmware: firmware,
-         sim: Sim.command(state.sim, firmware.thrusters),
-         resets: state.resets + 1
-     }}
+    %{
+      state
+      | firmware: firmware,
+        sim: Sim.command(state.sim, firmware.thrusters),
+        resets: state.resets + 1
+    }
   end
 
   @impl true
@@ -163,6 +176,12 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     now = Neptunus.Clock.monotonic_ms()
     {firmware, reply} = Firmware.receive(state.firmware, bytes, now)
     {:noreply, send_bytes(apply_firmware(state, firmware), reply)}
+  end
+
+  # the line was opened (the pty's slave end): a USB Arduino resets (DTR)
+  def handle_info({port, {:data, "O"}}, %State{port: port} = state) do
+    state = %{state | opens: state.opens + 1}
+    {:noreply, if(state.reset_on_open, do: reboot(state), else: state)}
   end
 
   def handle_info({port, {:data, _other}}, %State{port: port} = state), do: {:noreply, state}
