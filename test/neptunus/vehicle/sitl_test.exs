@@ -346,7 +346,19 @@ defmodule Neptunus.Vehicle.SITLTest do
 
         id = start_sitl(%{firmware: unquote(profile), reset_on_open: true, bootloader_ms: window})
 
-        # the pilot drives forward at once, while the board is still in its bootloader
+        # the pilot drives forward at once, while the board is still in its bootloader, and
+        # again once it has started (a stick moved, an autopilot's next output)
+        {:ok, _} = Control.thrust(id, motion(0.8, 0, 0))
+
+        wait_until(
+          fn ->
+            fw = SITL.Device.state(id).firmware
+            SITL.Firmware.millis(fw, Neptunus.Clock.monotonic_ms()) > fw.setup_ms
+          end,
+          "the board's start",
+          5_000
+        )
+
         {:ok, _} = Control.thrust(id, motion(0.8, 0, 0))
 
         wait_until(
