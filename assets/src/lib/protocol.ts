@@ -187,6 +187,14 @@ export interface BoardLinkDetails {
   readonly firmware_mismatch: boolean;
   readonly commands_sent: number | null;
   readonly commands_confirmed: number | null;
+  /** whether the board confirmed (echoed) every setting sent to it; null: not reported */
+  readonly board_settings: "confirmed" | "pending" | "failed" | null;
+  /** the settings it has not confirmed: mtrmod1, mtrmod2 (motor modifiers), lights, laser, tilt */
+  readonly board_settings_pending: readonly string[];
+  /** why a setting failed (past the bound of writes), else null */
+  readonly board_settings_reason: string | null;
+  /** thrust other than neutral is held (sent as neutral) until the motor modifiers are confirmed */
+  readonly thrust_held: boolean;
 }
 
 export interface WildPoints {
@@ -494,6 +502,9 @@ function decodeBoardLinkDetails(value: Record<string, unknown>): BoardLinkDetail
   const num = (v: unknown): number | null => (typeof v === "number" && Number.isFinite(v) ? v : null);
   const armed = value["board_deadman_armed"];
   const detected = value["detected_firmware"];
+  const settings = value["board_settings"];
+  const pending: unknown = value["board_settings_pending"];
+  const reason = value["board_settings_reason"];
   return {
     rtt_ms: num(value["rtt_ms"]),
     pong_age_ms: num(value["pong_age_ms"]),
@@ -503,6 +514,10 @@ function decodeBoardLinkDetails(value: Record<string, unknown>): BoardLinkDetail
     firmware_mismatch: value["firmware_mismatch"] === true,
     commands_sent: num(value["commands_sent"]),
     commands_confirmed: num(value["commands_confirmed"]),
+    board_settings: settings === "confirmed" || settings === "pending" || settings === "failed" ? settings : null,
+    board_settings_pending: Array.isArray(pending) ? pending.filter((p): p is string => typeof p === "string") : [],
+    board_settings_reason: typeof reason === "string" ? reason : null,
+    thrust_held: value["thrust_held"] === true,
   };
 }
 

@@ -20,7 +20,9 @@ defmodule Neptunus.Vehicle.Telemetry do
                      position: %{x, y, heading, phase, distance, output} | nil},
         link: %{up, reason, rtt_ms, pong_age_ms, board_uptime_ms, board_deadman_armed,
                 firmware, detected_firmware, firmware_mismatch,
-                commands_sent, commands_confirmed},   # all but up, reason only from a board link
+                commands_sent, commands_confirmed, board_settings,
+                board_settings_pending, board_settings_reason,
+                thrust_held},   # all but up, reason only from a board link
         recording: %{on, error},            # from the vehicle's recorder
         camera: %{running, fps, error}}     # only for a vehicle with a camera
 
