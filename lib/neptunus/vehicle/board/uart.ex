@@ -105,7 +105,7 @@ defmodule Neptunus.Vehicle.Board.UART do
             keepalive_timeout_ms: pos_integer(),
             ping_n: non_neg_integer(),
             demand: Neptunus.Allocation.thrusters(),
-            confirm_timer: reference() | nil,
+            confirm_timer: {reference(), integer()} | nil,
             counters: %{atom() => non_neg_integer()}
           }
     @enforce_keys [
@@ -287,8 +287,12 @@ defmodule Neptunus.Vehicle.Board.UART do
 
         state =
           case verdict do
-            :send -> go_us(state, us)
-            :hold -> go(state, Allocation.neutral())
+            :send ->
+              go_us(state, us)
+
+            :hold ->
+              Navigation.command(state.id, Allocation.neutral())
+              go(state, Allocation.neutral())
           end
 
         {:noreply, perform(state, actions)}
@@ -357,7 +361,8 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   def handle_info(:confirm, state) do
     {board_link, actions} = BoardLink.tick(state.board_link, now_ms())
-    {:noreply, perform(%{state | board_link: board_link, confirm_timer: nil}, actions)}
+    state = %{state | board_link: board_link, confirm_timer: nil}
+    {:noreply, state |> perform(actions) |> confirm_timer()}
   end
 
   # The port is linked to us (we trap exits); its exit_status message does the work.
@@ -522,22 +527,32 @@ defmodule Neptunus.Vehicle.Board.UART do
   # confirmed, a timer asks it again.
   defp perform(state, []), do: state
 
-  defp perform(state, actions) do
-    state = Enum.reduce(actions, state, &board_action/2)
+  defp perform(state, actions),
+    do: actions |> Enum.reduce(state, &board_action/2) |> confirm_timer()
 
+  # one timer, for the earliest time the core has something to do (a stale one is harmless:
+  # the core does nothing before its time)
+  defp confirm_timer(state) do
     case {BoardLink.next_tick_at(state.board_link), state.confirm_timer} do
       {nil, _} ->
         state
 
-      {at, nil} ->
-        %{state | confirm_timer: Process.send_after(self(), :confirm, max(at - now_ms(), 0))}
-
-      {_at, _timer} ->
+      {at, {_ref, armed_at}} when armed_at <= at ->
         state
+
+      {at, timer} ->
+        if timer, do: Process.cancel_timer(elem(timer, 0))
+        ref = Process.send_after(self(), :confirm, max(at - now_ms(), 0))
+        %{state | confirm_timer: {ref, at}}
     end
   end
 
-  defp board_action(:neutral, state), do: go(state, Allocation.neutral())
+  # navigation's model follows what the motors get (Board.go/2 told it the demand)
+  defp board_action(:neutral, state) do
+    Navigation.command(state.id, Allocation.neutral())
+    go(state, Allocation.neutral())
+  end
+
   defp board_action({:send, key, command}, state), do: command(state, key, command)
 
   defp board_action({:board_reset, reason}, state) do
@@ -578,6 +593,7 @@ defmodule Neptunus.Vehicle.Board.UART do
   defp board_action(:release, state) do
     log_entry(state, "info", "board settings confirmed: the held thrust goes to the board")
     report_link(state)
+    Navigation.command(state.id, state.demand)
     go(state, state.demand)
   end
 
