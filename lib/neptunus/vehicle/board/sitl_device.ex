@@ -10,7 +10,10 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   (`Neptunus.Periodic`, at most #{20} catch-up steps per tick); at each step it gives the
   firmware the simulator's reading, runs the firmware's loop up to now, sends what it wrote and
   drives the simulator with the thrusters the firmware's ESC pulses give. Received bytes go to
-  the firmware as they arrive (its 64-byte receive buffer drops what overflows: `rx_dropped`).
+  the firmware at the time they were read from the pty (the port program stamps each read,
+  `NEPTUNUS_UART_RX_STAMPS`), and each step first takes what has arrived: a busy machine that
+  runs this process late does not pile up in the board's 64-byte receive buffer what a real
+  board would have read in between (it drops what overflows: `rx_dropped`).
 
   `reset/1` reboots the board (as a USB Arduino that resets) without touching the simulated
   vehicle: the firmware starts again from millis 0 and the physics keep going. With
@@ -41,6 +44,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
             skipped_steps: non_neg_integer(),
             rx_dropped: non_neg_integer(),
             reset_on_open: boolean(),
+            rx_stamp_ms: integer() | nil,
             opens: non_neg_integer(),
             resets: non_neg_integer()
           }
@@ -55,6 +59,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
       skipped_steps: 0,
       rx_dropped: 0,
       reset_on_open: false,
+      rx_stamp_ms: nil,
       opens: 0,
       resets: 0
     ]
@@ -113,7 +118,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
         {:packet, 2},
         :exit_status,
         :use_stdio,
-        {:env, Neptunus.OS.port_env(Keyword.get(opts, :os_time_slice_ns))},
+        {:env,
+         [{~c"NEPTUNUS_UART_RX_STAMPS", ~c"1"}] ++
+           Neptunus.OS.port_env(Keyword.get(opts, :os_time_slice_ns))},
         args: ["pty", link]
       ])
 
@@ -121,16 +128,21 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     # device, as a real board's device node exists before the server starts.
     receive do
       {^port, {:data, "o" <> pty}} ->
-        {:ok,
-         %State{
-           id: id,
-           port: port,
-           pty: pty,
-           sim: Sim.new(sim_opts(opts, hz)),
-           firmware: Firmware.reset(firmware, Neptunus.Clock.monotonic_ms()),
-           periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick)),
-           reset_on_open: Keyword.get(opts, :reset_on_open, false) == true
-         }}
+        # the board was powered before anyone opened its line, as a real one is: its boot
+        # output waits in the pty, where the opener drops it (a new session's stale input)
+        {firmware, boot} = Firmware.started(firmware, Neptunus.Clock.monotonic_ms())
+
+        state = %State{
+          id: id,
+          port: port,
+          pty: pty,
+          sim: Sim.new(sim_opts(opts, hz)),
+          firmware: firmware,
+          periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick)),
+          reset_on_open: Keyword.get(opts, :reset_on_open, false) == true
+        }
+
+        {:ok, send_bytes(state, boot)}
 
       {^port, {:data, "e" <> why}} ->
         {:stop, {:pty, why}}
@@ -172,17 +184,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   end
 
   @impl true
-  def handle_info({port, {:data, "r" <> bytes}}, %State{port: port} = state) do
-    now = Neptunus.Clock.monotonic_ms()
-    {firmware, reply} = Firmware.receive(state.firmware, bytes, now)
-    {:noreply, send_bytes(apply_firmware(state, firmware), reply)}
-  end
-
-  # the line was opened (the pty's slave end): a USB Arduino resets (DTR)
-  def handle_info({port, {:data, "O"}}, %State{port: port} = state) do
-    state = %{state | opens: state.opens + 1}
-    {:noreply, if(state.reset_on_open, do: reboot(state), else: state)}
-  end
+  def handle_info({port, {:data, frame}}, %State{port: port} = state)
+      when binary_part(frame, 0, 1) in ["r", "t", "O"],
+      do: {:noreply, line_frame(frame, state)}
 
   def handle_info({port, {:data, _other}}, %State{port: port} = state), do: {:noreply, state}
 
@@ -191,6 +195,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   end
 
   def handle_info(:tick, state) do
+    # what the line brought before now is read before the loop runs past it
+    state = take_line_frames(state)
     now_native = Neptunus.Clock.monotonic_native()
     {due, periodic} = Periodic.advance(state.periodic, now_native)
     steps = min(due, @max_catch_up)
@@ -215,6 +221,49 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     }
 
     {:noreply, send_bytes(state, out)}
+  end
+
+  # Bytes from the line at the time they were read (the stamp before them), an open of the
+  # line (a USB Arduino resets on it: DTR)
+  defp line_frame("t" <> ns, state) do
+    case Integer.parse(ns) do
+      {ns, ""} -> %{state | rx_stamp_ms: vm_ms(ns)}
+      _ -> state
+    end
+  end
+
+  defp line_frame("r" <> bytes, state) do
+    now = Neptunus.Clock.monotonic_ms()
+    at = min(state.rx_stamp_ms || now, now)
+    {firmware, reply} = Firmware.receive(state.firmware, bytes, at)
+    send_bytes(apply_firmware(%{state | rx_stamp_ms: nil}, firmware), reply)
+  end
+
+  defp line_frame("O", state) do
+    state = %{state | opens: state.opens + 1}
+    if state.reset_on_open, do: reboot(state), else: state
+  end
+
+  defp take_line_frames(%State{port: port} = state) do
+    receive do
+      {^port, {:data, frame}} when binary_part(frame, 0, 1) in ["r", "t", "O"] ->
+        take_line_frames(line_frame(frame, state))
+    after
+      0 -> state
+    end
+  end
+
+  # A CLOCK_MONOTONIC time (ns, the port program's stamp) on the node's clock (ms): the VM's
+  # monotonic time runs on the OS's monotonic clock, offset (and possibly slewed a little, so
+  # the offset is taken now); nil (the bytes count as read now) where that is not
+  # CLOCK_MONOTONIC
+  defp vm_ms(os_ns) do
+    source = :erlang.system_info(:os_monotonic_time_source)
+
+    if Keyword.get(source, :clock_id) == :CLOCK_MONOTONIC do
+      os_now_ns = System.convert_time_unit(Keyword.fetch!(source, :time), :native, :nanosecond)
+      Neptunus.Clock.monotonic_ms() - div(os_now_ns - os_ns, 1_000_000)
+    end
   end
 
   defp apply_firmware(state, firmware) do

@@ -345,6 +345,17 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
     }
   end
 
+  @doc """
+  The board as it is at `now` when it was powered long enough before to have started: booted
+  (`reset/2`) its bootloader and setup before `now`, its boot output written (returned) and its
+  loop about to run.
+  """
+  @spec started(t(), integer()) :: {t(), binary()}
+  def started(%__MODULE__{} = fw, now) do
+    bootloader_ms = Keyword.get(fw.options, :bootloader_ms, 0)
+    fw |> reset(now - bootloader_ms - fw.setup_ms) |> tick(now)
+  end
+
   @doc "The board's `millis()` at clock time `now`."
   @spec millis(t(), integer()) :: integer()
   def millis(%__MODULE__{boot_at_ms: boot_at_ms}, now), do: now - boot_at_ms

@@ -65,18 +65,19 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
   end
 
   test "reset_on_open: every open of the line reboots the board into its bootloader, which loses what arrives" do
-    {id, port} = start_device(reset_on_open: true, bootloader_ms: 300)
-    # our open of the line rebooted it; what is written at once is lost
-    wait_until(fn -> Device.state(id).resets == 1 end, "the open seen", 2_000)
+    {id, port} = start_device(reset_on_open: true, bootloader_ms: 1_000)
+    # our open of the line rebooted it; what we write at once is lost (the open is told to
+    # the board before the bytes that follow it)
     write(port, "ligt(77);")
 
     wait_until(
       fn -> Device.state(id).firmware.boot_lost >= 9 end,
       "lost in the bootloader",
-      2_000
+      3_000
     )
 
-    out = recv_until(port, &(&1 =~ "boot:1;\r\n"), 2_000)
+    assert Device.state(id).resets == 1
+    out = recv_until(port, &(&1 =~ "boot:1;\r\n"), 3_000)
     assert out =~ "log:init on primary addresses;\r\nboot:1;\r\n"
     write(port, "ligt(78);")
     wait_until(fn -> Device.state(id).firmware.lights == 78 end, "after the boot", 2_000)
