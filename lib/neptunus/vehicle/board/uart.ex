@@ -617,14 +617,7 @@ defmodule Neptunus.Vehicle.Board.UART do
   end
 
   # an entry for the developer page's logger (category link) and the recording
-  defp log_entry(state, level, message) do
-    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
-      category: "link",
-      level: level,
-      message: message,
-      at: Neptunus.Clock.wall_ms()
-    })
-  end
+  defp log_entry(state, level, message), do: Telemetry.log(state.id, "link", level, message)
 
   # Navigation starts its measurements afresh: nothing read before is trusted.
   defp board_reset(state, reason), do: Navigation.board_reset(state.id, reason)
