@@ -71,9 +71,12 @@ defmodule Neptunus.Protocol.BoardLink do
   answers `:hold`: the shell writes a neutral `go()` instead), action `{:hold, reason}` when a
   hold begins. When the modifiers are confirmed, action `:release`: the shell writes the
   demand it holds (the latest; a neutral demand ends the hold). A demand standing when the
-  board restarts is held the same way, so a board reset mid-dive stops the vehicle until the
-  settings are confirmed again. A hold cannot last silently: the settings' summary and
-  `thrust_held` are in the link status, and a failed setting has its reason.
+  board resets is held the same way, so a board reset mid-dive stops the vehicle until the
+  settings are confirmed again, and then it goes on. A new link (`opened/2`) and a deadman
+  recovery start neutral instead: a demand from before them is not resumed, the next one is
+  (the board link's rule: the next link starts neutral). A hold cannot last silently: the
+  settings' summary and `thrust_held` are in the link status, and a failed setting has its
+  reason.
   """
 
   alias Neptunus.Protocol.OpenROV
@@ -224,9 +227,12 @@ defmodule Neptunus.Protocol.BoardLink do
   """
   @spec opened(t(), integer()) :: {t(), [action()]}
   def opened(%__MODULE__{} = l, now) do
+    # a new link starts neutral: no demand from before it is resumed
     l = %{
       l
       | up: true,
+        demanding: false,
+        held: false,
         outstanding: [],
         rtt_ms: nil,
         pong_at_ms: nil,
@@ -329,7 +335,15 @@ defmodule Neptunus.Protocol.BoardLink do
         {l, []}
 
       reason ->
-        l = %{l | tripped: nil, deadman_recoveries: l.deadman_recoveries + 1}
+        # the board stopped on its own: it starts neutral, as a new link does
+        l = %{
+          l
+          | tripped: nil,
+            deadman_recoveries: l.deadman_recoveries + 1,
+            demanding: false,
+            held: false
+        }
+
         restart(l, now, [{:deadman_recovery, reason}])
     end
   end

@@ -295,12 +295,13 @@ defmodule Neptunus.Protocol.BoardLinkTest do
       assert l.demanding
     end
 
-    test "a demand made while the link is down is held from the open, not before" do
+    test "a new link starts neutral: a demand from before the open is not resumed, the next one is held" do
       l = link()
       {l, :hold, []} = BoardLink.demand(l, false)
       {l, actions} = BoardLink.opened(l, 100)
-      assert [:neutral, {:send, :mtrmod1, _}, {:send, :mtrmod2, _}, {:hold, _}] = actions
-
+      assert [:neutral, {:send, :mtrmod1, _}, {:send, :mtrmod2, _}] = actions
+      refute l.held
+      {l, :hold, [{:hold, _}]} = BoardLink.demand(l, false)
       {l, [{:settings, _}]} = BoardLink.event(l, echo("mtrmod2(100,100,100);"), 110)
       assert l.held
 
@@ -340,7 +341,7 @@ defmodule Neptunus.Protocol.BoardLinkTest do
       assert l.resets == 1
     end
 
-    test "a board reset mid-dive and a deadman recovery: the vehicle stops until they are confirmed again" do
+    test "a board reset mid-dive stops the vehicle until they are confirmed again; a deadman recovery starts neutral" do
       {l, _} = BoardLink.opened(link(), 0)
       l = confirm_all(l, 5)
       {l, :send, []} = BoardLink.demand(l, false)
@@ -368,15 +369,17 @@ defmodule Neptunus.Protocol.BoardLinkTest do
       {l, []} = BoardLink.event(l, pong(190_000), 2_100)
       {l, actions} = BoardLink.event(l, pong(193_000), 5_100)
 
+      # the board stopped on its own: it starts neutral, the standing demand is not resumed
       assert [
                {:deadman_recovery, _},
                :neutral,
                {:send, _, _},
                {:send, _, _},
-               {:settings, _},
-               {:hold, _}
+               {:settings, _}
              ] = actions
 
+      refute BoardLink.status(l, 5_100).thrust_held
+      {l, :hold, [{:hold, _}]} = BoardLink.demand(l, false)
       assert BoardLink.status(l, 5_100).thrust_held
     end
 

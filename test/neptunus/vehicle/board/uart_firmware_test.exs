@@ -275,6 +275,8 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
          ctx do
       PubSub.subscribe(Telemetry.log_topic(ctx.id))
       start_uart(ctx, firmware: :openrov_25, confirm_retry: 30, confirm_attempts: 3)
+      # (a demand from before the link opened would not count: a new link starts neutral)
+      assert_receive {:pubsub, _, "link", %{up: true}}, 2_000
       Board.go(ctx.id, %{port: 0.4, vertical: 0.0, starboard: 0.4})
 
       assert_receive {:pubsub, _, "log", %{category: "link", level: "warning", message: held}},
