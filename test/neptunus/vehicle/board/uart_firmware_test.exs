@@ -26,7 +26,10 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
       ping_interval: 100,
       keepalive_timeout: 60_000,
       reopen_min: 20,
-      reopen_max: 200
+      reopen_max: 200,
+      # the fake board echoes when the test says so: no retries meanwhile, however slow the
+      # machine (the tests of the retries say how often they want them)
+      confirm_retry: 60_000
     ]
 
     start_supervised!({UART, Keyword.merge(defaults, opts)})
@@ -143,8 +146,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
   end
 
   test "the board's uptime going backwards: its whole state is sent again", ctx do
-    # (this board echoes nothing: no retries within the test)
-    start_uart(ctx, firmware: :openrov_30, confirm_retry: 60_000)
+    start_uart(ctx, firmware: :openrov_30)
     recv_framed(ctx.board, 3)
     UART.lights(ctx.id, 80)
     UART.tilt(ctx.id, 0.0)
@@ -174,7 +176,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
 
   test "deadman recovery: icmd:stop seen, the next pong clears it and the state is sent again",
        ctx do
-    start_uart(ctx, firmware: :openrov_30, confirm_retry: 60_000)
+    start_uart(ctx, firmware: :openrov_30)
     recv_framed(ctx.board, 3)
     UART.lights(ctx.id, 120)
     recv_framed(ctx.board, 1)
@@ -244,7 +246,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
 
     test "the firmware's start-up line (boot:1) is a board reset: state again, thrust held until confirmed",
          ctx do
-      start_uart(ctx, firmware: :openrov_25, confirm_retry: 5_000)
+      start_uart(ctx, firmware: :openrov_25)
       recv_framed_or_plain(ctx.board, :openrov_25, 3)
       UART.tilt(ctx.id, 0.0)
       recv_framed_or_plain(ctx.board, :openrov_25, 1)

@@ -33,7 +33,10 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
       ping_interval: 50,
       keepalive_timeout: 300,
       reopen_min: 20,
-      reopen_max: 200
+      reopen_max: 200,
+      # the fake board echoes when the test says so: no retries meanwhile, however slow the
+      # machine (the tests of the retries say how often they want them)
+      confirm_retry: 60_000
     ]
 
     start_supervised!({UART, Keyword.merge(defaults, opts)})
