@@ -31,6 +31,10 @@ describe("a field that is not essential", () => {
       firmware_mismatch: null,
       commands_sent: null,
       commands_confirmed: null,
+      board_settings: null,
+      board_settings_pending: null,
+      board_settings_reason: null,
+      thrust_held: null,
       mavlink: null,
     });
   });
@@ -71,7 +75,8 @@ describe("maps, lists, unions, enums", () => {
   });
 
   it("a union is the first of its types that decodes", () => {
-    expect(wire.decodePilotCommand({ surge: 1, heave: 0, yaw: 0 })).toEqual({ surge: 1, heave: 0, yaw: 0 });
+    expect(wire.decodePilotCommand({ surge: 1, heave: 0, yaw: 0 })).toEqual({ surge: 1, heave: 0, yaw: 0, sway: null });
+    expect(wire.decodePilotCommand({ surge: 1, heave: 0, yaw: 0, sway: -0.5 })?.sway).toBe(-0.5);
     expect(wire.decodePilotCommand({ port: 1, vertical: 0, starboard: 0, extra: 1 })).toEqual({ port: 1, vertical: 0, starboard: 0 });
     expect(wire.decodePilotCommand({ port: 1 })).toBeNull();
     const pending = wire.decodeControlReply({ status: "pending", timeout_ms: 10000 });

@@ -40,7 +40,7 @@ defmodule Neptunus.Vehicle.Control do
 
   require Logger
 
-  alias Neptunus.{Allocation, Fleet, Periodic, PID, PubSub, Settings}
+  alias Neptunus.{Fleet, Periodic, PID, PubSub, Settings}
   alias Neptunus.Control.{Autopilot, Command, Core, Tuning}
   alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
 
@@ -218,18 +218,17 @@ defmodule Neptunus.Vehicle.Control do
     control = Keyword.get(opts, :control, [])
     hz = Keyword.get(control, :hz, @default_hz)
 
-    run_modes =
-      case Board.type(id) do
-        nil -> [:normal]
-        :simulated -> [:normal]
-        _real -> [:normal, :simulator]
-      end
+    # what the vehicle can do (its board's declaration); a control started on its own, outside
+    # a vehicle, drives the three-thruster vehicle
+    capabilities = Board.capabilities(id) || %{Board.thesis_capabilities() | real: false}
+    run_modes = if capabilities.real, do: [:normal, :simulator], else: [:normal]
 
     core =
       control
       |> Keyword.take([:gains, :stale_after, :deadband, :dp, :reference])
       |> Keyword.update(:gains, stored_gains(id), &Tuning.merge(Map.new(&1), stored_gains(id)))
       |> Keyword.merge(gain: Keyword.get(opts, :gain, @default_gain), run_modes: run_modes)
+      |> Keyword.merge(axes: capabilities.axes, allocation: capabilities.allocation)
       |> Core.new()
 
     state = %State{
@@ -247,7 +246,7 @@ defmodule Neptunus.Vehicle.Control do
 
   @impl true
   def handle_continue(:neutral, state) do
-    Board.go(state.id, Allocation.neutral())
+    Board.go(state.id, Core.neutral(state.core))
     {:noreply, publish(state)}
   end
 
@@ -331,8 +330,9 @@ defmodule Neptunus.Vehicle.Control do
     Logger.info("vehicle #{state.id}: #{text}")
   end
 
-  defp act({:go, thrusters}, %State{simulator: nil} = state) do
-    Board.go(state.id, thrusters)
+  # thruster values or the demand, as the board's allocation says (Control.Core.output/1)
+  defp act({:go, output}, %State{simulator: nil} = state) do
+    Board.go(state.id, output)
     state
   end
 
