@@ -2532,7 +2532,10 @@ export interface VehicleCommands {
   /**
    * the pilot: `mode` must be the control mode; `epoch` the stamp from the grant (see
    * [Helm](#helm)). Motion mode uses the thesis' allocation (eq. 9.3) with gain k (default 0.5):
-   * `port = sat(k(X + M))`, `vertical = sat(kZ)`, `starboard = sat(k(X − M))`
+   * `port = sat(k(X + M))`, `vertical = sat(kZ)`, `starboard = sat(k(X − M))`; a vehicle that
+   * allocates itself (ArduSub) gets the body-frame demand k·(surge, sway, heave, yaw) instead
+   * (docs/MAVLINK.md). `sway` only on a vehicle with `sway` in its axes (the snapshot's
+   * `vehicle.axes`): elsewhere `this vehicle has no sway …`
    */
   readonly thrust: { readonly payload: Thrust; readonly reply: ThrustReply };
   /**
