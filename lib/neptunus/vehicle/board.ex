@@ -149,7 +149,14 @@ defmodule Neptunus.Vehicle.Board do
   """
   @callback vet(command :: term()) :: :ok | {:error, String.t()}
 
-  @optional_callbacks keepalive: 1,
+  @doc """
+  The keys of the details its `link_status/1` reports beyond `up` and `reason`, which
+  telemetry carries under `link` (each one in the wire schema's `link_status`).
+  """
+  @callback link_details() :: [atom()]
+
+  @optional_callbacks link_details: 0,
+                      keepalive: 1,
                       link_status: 1,
                       lights: 2,
                       laser: 2,
@@ -165,28 +172,18 @@ defmodule Neptunus.Vehicle.Board do
   }
 
   @doc """
-  The board link's liveness details a board with a link reports with its state (`up`,
-  `reason`) and telemetry carries under `link` (see `Neptunus.Vehicle.Board.UART.link_status/1`
+  The board link's details every board with a link reports with its state (`up`, `reason`)
+  and telemetry carries under `link`: the union of the boards' `link_details/0` (see
+  `Neptunus.Vehicle.Board.UART.link_status/1`, `Neptunus.Vehicle.Board.MAVLink.link_status/1`
   and docs/API.md).
   """
   @spec link_details() :: [atom()]
   def link_details do
-    [
-      :rtt_ms,
-      :pong_age_ms,
-      :board_uptime_ms,
-      :board_deadman_armed,
-      :firmware,
-      :detected_firmware,
-      :firmware_mismatch,
-      :commands_sent,
-      :commands_confirmed,
-      :board_settings,
-      :board_settings_pending,
-      :board_settings_reason,
-      :thrust_held,
-      :mavlink
-    ]
+    @boards
+    |> Map.values()
+    |> Enum.filter(&(Code.ensure_loaded?(&1) and function_exported?(&1, :link_details, 0)))
+    |> Enum.flat_map(& &1.link_details())
+    |> Enum.uniq()
   end
 
   @doc "The implementation module for a configured board type (or a module implementing this behaviour)."

@@ -112,6 +112,11 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       autopilots: :vehicle
     }
 
+  @doc "The details `link_status/1` reports (telemetry's `link`): the round trip and the vehicle."
+  @impl Board
+  @spec link_details() :: [atom()]
+  def link_details, do: [:rtt_ms, :mavlink]
+
   @doc "The body-frame demand (`Neptunus.Control.Demand`): MANUAL_CONTROL (`Core.go/3`)."
   @impl Board
   @spec go(String.t(), Neptunus.Control.Demand.t()) :: :ok

@@ -68,6 +68,10 @@ defmodule Neptunus.Vehicle.Board.SITL do
   def go(id, thrusters), do: UART.go(id, thrusters)
 
   @impl Board
+  @spec link_details() :: [atom()]
+  def link_details, do: UART.link_details()
+
+  @impl Board
   @spec keepalive(String.t()) :: :ok
   def keepalive(id), do: UART.keepalive(id)
 

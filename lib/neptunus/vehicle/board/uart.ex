@@ -631,7 +631,26 @@ defmodule Neptunus.Vehicle.Board.UART do
   # Navigation starts its measurements afresh: nothing read before is trusted.
   defp board_reset(state, reason), do: Navigation.board_reset(state.id, reason)
 
-  @link_report Board.link_details()
+  @link_report [
+    :rtt_ms,
+    :pong_age_ms,
+    :board_uptime_ms,
+    :board_deadman_armed,
+    :firmware,
+    :detected_firmware,
+    :firmware_mismatch,
+    :commands_sent,
+    :commands_confirmed,
+    :board_settings,
+    :board_settings_pending,
+    :board_settings_reason,
+    :thrust_held
+  ]
+
+  @doc "The details `link_status/1` reports (telemetry's `link`): the board link's liveness."
+  @impl Board
+  @spec link_details() :: [atom()]
+  def link_details, do: @link_report
 
   defp report_link(state) do
     {up, reason} = state.announced || {state.link == :up, state.reason}
