@@ -164,12 +164,43 @@ defmodule Neptunus.Vehicle.Board do
                       command: 3,
                       vet: 1
 
-  @boards %{
-    simulated: Neptunus.Vehicle.Board.Simulated,
-    uart: Neptunus.Vehicle.Board.UART,
-    sitl: Neptunus.Vehicle.Board.SITL,
-    mavlink: Neptunus.Vehicle.Board.MAVLink
-  }
+  # The boards, once: type => {module, how NEPTUNUS_VEHICLES names it (nil: by its type alone;
+  # else the syntax of its spec, which Neptunus.Config.Vehicles parses)}
+  @registry [
+    simulated: {Neptunus.Vehicle.Board.Simulated, nil},
+    sitl: {Neptunus.Vehicle.Board.SITL, nil},
+    uart: {Neptunus.Vehicle.Board.UART, "uart:DEVICE[@BAUD]"},
+    mavlink: {Neptunus.Vehicle.Board.MAVLink, "mavlink:…"}
+  ]
+  @boards Map.new(@registry, fn {type, {module, _spec}} -> {type, module} end)
+
+  @doc """
+  How `NEPTUNUS_VEHICLES` names each board, in order: the type alone (`simulated`) or the
+  syntax of its spec (`uart:DEVICE[@BAUD]`).
+
+      iex> Neptunus.Vehicle.Board.syntaxes()
+      ["simulated", "sitl", "uart:DEVICE[@BAUD]", "mavlink:…"]
+  """
+  @spec syntaxes() :: [String.t()]
+  def syntaxes, do: for({type, {_m, spec}} <- @registry, do: spec || Atom.to_string(type))
+
+  @doc """
+  The board type configured by `name` alone (a board without a spec), or `:error`.
+
+      iex> Neptunus.Vehicle.Board.named("sitl")
+      {:ok, :sitl}
+      iex> Neptunus.Vehicle.Board.named("uart")
+      :error
+  """
+  @spec named(String.t()) :: {:ok, atom()} | :error
+  def named(name) do
+    case Enum.find(@registry, fn {type, {_m, spec}} ->
+           spec == nil and Atom.to_string(type) == name
+         end) do
+      {type, _} -> {:ok, type}
+      nil -> :error
+    end
+  end
 
   @doc """
   The board link's details every board with a link reports with its state (`up`, `reason`)
