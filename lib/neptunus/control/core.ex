@@ -760,21 +760,21 @@ defmodule Neptunus.Control.Core do
     %{port: sat(k * p.port), vertical: sat(k * p.vertical), starboard: sat(k * p.starboard)}
   end
 
-  # the pilot alone: the thesis' eq. 9.3 exactly
-  def mix(%__MODULE__{
-        mode: :motion,
-        gain: k,
-        pilot: p,
-        depth: %{state: ds},
-        heading: %{state: hs}
-      })
-      when ds != :holding and hs != :holding,
-      do: Allocation.motion(p, k)
-
   def mix(%__MODULE__{} = core) do
-    %{surge: surge, heave: heave, yaw: yaw} = body_demand(core)
-    Allocation.motion(%{surge: surge, heave: heave, yaw: yaw}, 1.0)
+    if pilot_alone?(core) do
+      # the thesis' eq. 9.3 exactly
+      Allocation.motion(core.pilot, core.gain)
+    else
+      %{surge: surge, heave: heave, yaw: yaw} = body_demand(core)
+      Allocation.motion(%{surge: surge, heave: heave, yaw: yaw}, 1.0)
+    end
   end
+
+  # motion mode with no autopilot holding: the pilot's command alone
+  defp pilot_alone?(%__MODULE__{mode: :motion, depth: %{state: ds}, heading: %{state: hs}}),
+    do: ds != :holding and hs != :holding
+
+  defp pilot_alone?(_core), do: false
 
   # The body-frame demand of the current mode, pilot command, autopilots and DP (deadband
   # compensated where an autopilot or DP drives the axis). The three-thruster allocation
@@ -782,17 +782,16 @@ defmodule Neptunus.Control.Core do
   # scales the pilot's axes, once, here.
   defp body_demand(%__MODULE__{mode: :manual}), do: Demand.zero()
 
-  defp body_demand(%__MODULE__{
-         mode: :motion,
-         gain: k,
-         pilot: p,
-         depth: %{state: ds},
-         heading: %{state: hs}
-       })
-       when ds != :holding and hs != :holding,
-       do: %{surge: k * p.surge, sway: k * sway(p), heave: k * p.heave, yaw: k * p.yaw}
+  defp body_demand(core) do
+    if pilot_alone?(core) do
+      %{gain: k, pilot: p} = core
+      %{surge: k * p.surge, sway: k * sway(p), heave: k * p.heave, yaw: k * p.yaw}
+    else
+      assisted_demand(core)
+    end
+  end
 
-  defp body_demand(%__MODULE__{mode: mode, gain: k, pilot: p} = core) do
+  defp assisted_demand(%__MODULE__{mode: mode, gain: k, pilot: p} = core) do
     {surge, sway, pilot_k} =
       case {mode, core.dp} do
         {:dp, %DP{output: output}} -> {compensate(output, core), 0.0, 0.0}
