@@ -9,6 +9,12 @@ defmodule Neptunus.Vehicle.Control do
   A validated command the board's vehicle cannot fly (`Neptunus.Vehicle.Board.vet/2`, e.g.
   manual per-thruster mode on an ArduSub vehicle) is refused with the board's reason.
 
+  What the vehicle can do comes from its board (`Neptunus.Vehicle.Board.capabilities/1`): the
+  axes the pilot may command (a thrust in another is refused), whether the three-thruster
+  allocation is ours (the board gets thruster values) or the vehicle's (it gets the body-frame
+  demand, `Neptunus.Control.Core.output/1`), and whether run mode simulator exists (a real
+  vehicle).
+
   It decides nothing about *who* may command: `Neptunus.Vehicle.Helm` authorises every
   command and is the only caller of `thrust/2`, `command/3` and `stop/2` (tests aside).
 
