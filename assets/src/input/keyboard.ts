@@ -179,6 +179,8 @@ export interface KeyboardInputOptions {
    * `reset()`), with why. No key is held afterwards; `onHeld` is not called for this.
    */
   readonly onReset?: (reason: string) => void;
+  /** The vehicle can sway: Z and C are keys of ours too (default: they are not). */
+  readonly sway?: () => boolean;
 }
 
 function isKeyEventLike(event: Event): event is Event & KeyEventLike {
@@ -213,9 +215,10 @@ export class KeyboardInput {
     return this.held;
   }
 
-  /** Returns true when the event was ours (a motion key, or a sway key). */
+  /** Returns true when the event was ours (a motion key, or a sway key on a vehicle that sways). */
   handleKeyDown(event: KeyEventLike): boolean {
-    if (!keyToAxis(event.code) && !keyToSway(event.code)) return false;
+    const sway = this.options.sway ? this.options.sway() : false;
+    if (!keyToAxis(event.code) && !(sway && keyToSway(event.code))) return false;
     if (event.ctrlKey === true || event.metaKey === true || event.altKey === true) return false;
     if (isEditableTarget(event.target)) return false;
     event.preventDefault?.();

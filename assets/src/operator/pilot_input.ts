@@ -81,6 +81,7 @@ export class PilotInput {
         if (mode) this.demand("keyboard", keyboardDemand(held, mode, this.sway()));
         else if (held.size > 0) host.showMessage(`Control mode ${controlMode}: keys are ignored.`, "warn", "command");
       },
+      sway: () => this.sway(),
     });
     this.gamepad = new GamepadPoller({
       source: host.gamepads,

@@ -48,12 +48,15 @@ describe("keyboard: Z and C sway, on a vehicle that has it", () => {
     expect(keyboardDemand(keys("KeyC"), "manual", true)).toEqual({ kind: "manual", thrusters: { port: 0, vertical: 0, starboard: 0 } });
   });
 
-  it("the keyboard tracks the sway keys (held, released)", () => {
+  it("the keyboard tracks the sway keys (held, released) on a vehicle that sways only", () => {
     const seen: ReadonlySet<string>[] = [];
-    const input = new KeyboardInput({ onHeld: (held) => seen.push(held) });
+    const input = new KeyboardInput({ onHeld: (held) => seen.push(held), sway: () => true });
     expect(input.handleKeyDown({ code: "KeyC" })).toBe(true);
     expect(input.handleKeyUp({ code: "KeyC" })).toBe(true);
     expect(seen.map((s) => [...s])).toEqual([["KeyC"], []]);
+    const thesis = new KeyboardInput({ onHeld: (held) => seen.push(held) });
+    expect(thesis.handleKeyDown({ code: "KeyZ" })).toBe(false);
+    expect(seen).toHaveLength(2);
   });
 });
 
