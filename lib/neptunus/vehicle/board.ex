@@ -6,7 +6,7 @@ defmodule Neptunus.Vehicle.Board do
   A board process is registered as `Neptunus.Fleet.via(Neptunus.Vehicle.Board, id)` whatever
   its implementation, and
 
-    * declares what its vehicle can do (`capabilities/2`, see `t:capabilities/0`): the
+    * declares what its vehicle can do (the `capabilities/1` callback, `t:capabilities/0`): the
       body-frame axes it can be commanded in, and where the demand becomes thruster
       commands;
     * accepts `go/2` — for a board whose allocation is ours (`:thesis`) thruster values in
