@@ -221,13 +221,14 @@ defmodule NeptunusWeb.WireSchema do
        ]},
     pilot_command:
       {:one_of, [:motion_command, :thruster_outputs],
-       "The pilot's command in the control mode's terms: motion `{surge, heave, yaw}`, manual `{port, vertical, starboard}`."},
+       "The pilot's command in the control mode's terms: motion `{surge, heave, yaw}` (and `sway` on a vehicle that has it), manual `{port, vertical, starboard}`."},
     motion_command:
       {:object, "A motion command: each axis in [-1, 1].",
        [
          surge: {:number, essential: true, doc: "forward"},
          heave: {:number, essential: true, doc: "down"},
-         yaw: {:number, essential: true, doc: "to starboard"}
+         yaw: {:number, essential: true, doc: "to starboard"},
+         sway: {:number, optional: true, doc: "to starboard; only when the pilot sent it"}
        ]},
     thruster_outputs:
       {:object,
@@ -390,6 +391,11 @@ defmodule NeptunusWeb.WireSchema do
             doc: "each output as a thruster value, (µs − 1500)/400; null: not driven"},
          control: {:manual_control, doc: "the MANUAL_CONTROL being sent"},
          disarm_pending: {:boolean, doc: "a disarm after pilot loss is pending"},
+         pilot_gain:
+           {:number,
+            null: true,
+            doc:
+              "ArduSub's joystick gain (its `PilotGain`), divided out of MANUAL_CONTROL so that only ours applies; null until the vehicle sends it"},
          frames_received: :integer,
          frames_lost: {:integer, doc: "from the vehicle's sequence numbers"},
          loss: {:number, doc: "frames lost / (received + lost)"}
@@ -508,8 +514,19 @@ defmodule NeptunusWeb.WireSchema do
        [
          id: {:string, essential: true},
          board: {:string, essential: true, doc: "`simulated`, `uart`, `sitl`, `mavlink`"},
-         node: {:string, doc: "the node of the fleet it runs on"}
+         node: {:string, doc: "the node of the fleet it runs on"},
+         axes:
+           {{:list, :axis},
+            doc:
+              "the body-frame axes the vehicle can be commanded in (its board's): the pilot's inputs offer these; the three-thruster vehicle has `surge`, `heave`, `yaw`, an ArduSub vehicle `sway` too"},
+         autopilots:
+           {{:enum, ~w(neptunus vehicle)},
+            doc:
+              "whose depth and heading hold `autopilot` drives: Neptunus' own, or the vehicle's flight modes (ArduSub)"}
        ]},
+    axis:
+      {:enum, ~w(surge sway heave yaw roll pitch),
+       "A body-frame axis: surge forward, sway to starboard, heave down, yaw bow to starboard, roll, pitch."},
     pilot: {:object, "Who pilots.", [name: {:string, essential: true}]},
     camera_info:
       {:object, "Where the camera can be watched (see [Video](#video)).",
@@ -680,6 +697,10 @@ defmodule NeptunusWeb.WireSchema do
          surge: {:number, essential: true, doc: "[-1, 1]"},
          heave: {:number, essential: true, doc: "[-1, 1]"},
          yaw: {:number, essential: true, doc: "[-1, 1]"},
+         sway:
+           {:number,
+            optional: true,
+            doc: "[-1, 1], to starboard: a vehicle with `sway` in its axes; elsewhere only 0"},
          epoch: {:integer, essential: true, doc: "the stamp from the grant"}
        ]},
     thrust_manual:
@@ -965,7 +986,7 @@ defmodule NeptunusWeb.WireSchema do
       reply: :thrust_reply,
       who: @pilot,
       doc:
-        "`mode` must be the control mode; `epoch` the stamp from the grant (see [Helm](#helm)). Motion mode uses the thesis' allocation (eq. 9.3) with gain k (default 0.5): `port = sat(k(X + M))`, `vertical = sat(kZ)`, `starboard = sat(k(X − M))`",
+        "`mode` must be the control mode; `epoch` the stamp from the grant (see [Helm](#helm)). Motion mode uses the thesis' allocation (eq. 9.3) with gain k (default 0.5): `port = sat(k(X + M))`, `vertical = sat(kZ)`, `starboard = sat(k(X − M))`; a vehicle that allocates itself (ArduSub) gets the body-frame demand k·(surge, sway, heave, yaw) instead (docs/MAVLINK.md). `sway` only on a vehicle with `sway` in its axes (the snapshot's `vehicle.axes`): elsewhere `this vehicle has no sway …`",
       errors:
         "`stale_command`, `missing field: epoch`, `thrust mode manual does not match control mode motion`, `surge must be a number in [-1, 1], got …`, see [Error reasons](#error-reasons)"
     },

@@ -55,6 +55,16 @@ test("a mavlink vehicle: link, mode, arm, drive, stop, disarm from the operator 
     }
     await until(() => thrusterValues(page), (t) => t.port === 0 && t.starboard === 0, WAIT_MS, "thrusters back to 0 after W");
 
+    // an ArduSub vehicle sways: the page shows the axis, C strafes to starboard
+    await page.locator("#cmd-sway").waitFor();
+    await page.keyboard.down("KeyC");
+    try {
+      await until(() => num(page, "#cmd-sway"), (v) => v > 0, WAIT_MS, "commanded sway > 0 while C is held");
+    } finally {
+      await page.keyboard.up("KeyC");
+    }
+    await until(() => num(page, "#cmd-sway"), (v) => v === 0, WAIT_MS, "sway back to 0 after C");
+
     // stop, then disarm
     await page.locator("#stop").click();
     await page.locator("#disarm:enabled").click();

@@ -51,6 +51,12 @@ defmodule NeptunusWeb.MAVLinkE2ETest do
       1_000
     )
 
+    FakeArduSub.expect!(
+      fake,
+      &(&1["event"] == "manual_control" and &1["y"] > 0 and &1["armed"] == true),
+      1_000
+    )
+
     FakeArduSub.expect!(fake, &(&1["event"] == "armed" and &1["armed"] == false), 1_000)
   end
 end

@@ -36,6 +36,15 @@ defmodule NeptunusWeb.MAVLinkWireTest do
   defp client(topic, name), do: client!(topic, %{"name" => name})
   defp push(c, event, payload \\ %{}), do: push_and_reply(c.ws, c.jr, c.topic, event, payload)
 
+  # ArduSub's joystick gain heard by the board (it divides it out of MANUAL_CONTROL)
+  defp gain_heard!(id, gain, left \\ 500) do
+    cond do
+      Neptunus.Vehicle.Board.link_status(id).mavlink.pilot_gain == gain -> :ok
+      left == 0 -> flunk("the board did not hear ArduSub's PilotGain #{gain}")
+      true -> Process.sleep(10) && gain_heard!(id, gain, left - 1)
+    end
+  end
+
   defp pilot(topic) do
     ada = client(topic, "Ada")
     {"ok", %{"grant" => %{"epoch" => epoch}}} = push(ada, "request_control")
@@ -64,18 +73,20 @@ defmodule NeptunusWeb.MAVLinkWireTest do
 
   test "the pilot arms, drives and sees MANUAL_CONTROL; a stop sends neutral at once", ctx do
     %{fake: fake, topic: topic} = ctx
+    gain_heard!(ctx.id, 0.5)
     ada = pilot(topic)
     arm!(ada, fake)
 
-    # gain 0.5: surge 0.8 → 0.4 → x 400; heave 0.4 (down) → z 400; yaw −0.2 → r −100
+    # our gain 0.5: surge 0.8 → 0.4, heave 0.4 (down) → 0.2, yaw −0.2 → −0.1; ArduSub's own
+    # joystick gain (0.5, its PilotGain) is divided out: x 800, z 300, r −200
     payload = %{"mode" => "motion", "surge" => 0.8, "heave" => 0.4, "yaw" => -0.2}
     assert {"ok", _} = push(ada, "thrust", Map.put(payload, "epoch", ada.epoch))
 
     assert %{"armed" => true} =
-             manual_control!(fake, &(&1["x"] == 400 and &1["z"] == 400 and &1["r"] == -100))
+             manual_control!(fake, &(&1["x"] == 800 and &1["z"] == 300 and &1["r"] == -200))
 
     # still sent at the pilot's values while piloted (10 Hz)
-    manual_control!(fake, &(&1["x"] == 400))
+    manual_control!(fake, &(&1["x"] == 800))
 
     assert {"ok", _} = push(ada, "stop")
     manual_control!(fake, &(&1["x"] == 0 and &1["z"] == 500 and &1["r"] == 0))
@@ -83,6 +94,74 @@ defmodule NeptunusWeb.MAVLinkWireTest do
     # and the page sees the armed vehicle in telemetry
     assert %{"link" => %{"mavlink" => %{"armed" => true, "mode" => "MANUAL"}}} =
              event!(ada.ws, "telemetry", &get_in(&1, ["link", "mavlink", "armed"]))
+  end
+
+  test "an ArduSub pilot strafes; one gain: the motors move by the demand", ctx do
+    %{fake: fake, topic: topic} = ctx
+    gain_heard!(ctx.id, 0.5)
+    ada = pilot(topic)
+
+    assert %{"axes" => ["surge", "sway", "heave", "yaw"], "autopilots" => "vehicle"} =
+             ada.snapshot["vehicle"]
+
+    arm!(ada, fake)
+
+    # gain 0.5 (ours), sway 0.6 → demand 0.3 → y 600 at ArduSub's gain 0.5; its vectored
+    # frame's horizontal motors are ±lateral: 1500 ± 400·0.3
+    payload = %{"mode" => "motion", "surge" => 0.0, "sway" => 0.6, "heave" => 0.0, "yaw" => 0.0}
+
+    assert {"ok", %{"command" => %{"sway" => 0.6}}} =
+             push(ada, "thrust", Map.put(payload, "epoch", ada.epoch))
+
+    beating!(ada, fake, &manual_control?(&1, y: 600, x: 0))
+    assert servos!(ada) == [1620, 1380, 1620, 1380, 1500, 1500]
+
+    # surge 1 and yaw 1 together: ArduSub mixes them, nothing saturates on our side
+    payload = %{payload | "surge" => 1.0, "sway" => 0.0, "yaw" => 1.0}
+    assert {"ok", _} = push(ada, "thrust", Map.put(payload, "epoch", ada.epoch))
+    beating!(ada, fake, &manual_control?(&1, x: 1000, r: 1000, y: 0))
+
+    # ArduSub's gain stepped up to 1 (its gain buttons): the command follows, same thrust
+    FakeArduSub.tell(fake, %{gain: 1.0})
+    beating!(ada, fake, &manual_control?(&1, x: 500, r: 500))
+  end
+
+  defp manual_control?(report, values),
+    do:
+      report["event"] == "manual_control" and
+        Enum.all?(values, fn {k, v} -> report[Atom.to_string(k)] == v end)
+
+  # the fake's next report for which `pred` is true, the pilot's heartbeat keeping the deadman
+  # away meanwhile
+  defp beating!(c, fake, pred, tries \\ 50) do
+    assert {"ok", _} = push(c, "heartbeat")
+
+    case FakeArduSub.expect(fake, pred, 100) do
+      {:ok, report} -> report
+      :timeout when tries > 0 -> beating!(c, fake, pred, tries - 1)
+      :timeout -> flunk("the fake ArduSub did not report what was expected in time")
+    end
+  end
+
+  # the vehicle's motor outputs 1..6 in telemetry once they settle on a new command
+  defp servos!(c, tries \\ 100) do
+    # the pilot's heartbeat keeps the deadman away meanwhile
+    assert {"ok", _} = push(c, "heartbeat")
+
+    servos =
+      c.ws
+      |> event!(
+        "telemetry",
+        &match?([_, _, _, _, _, _ | _], get_in(&1, ["link", "mavlink", "servo_us"]))
+      )
+      |> get_in(["link", "mavlink", "servo_us"])
+      |> Enum.take(6)
+
+    cond do
+      servos != [1500, 1500, 1500, 1500, 1500, 1500] -> servos
+      tries == 0 -> servos
+      true -> servos!(c, tries - 1)
+    end
   end
 
   test "disarm; only the pilot arms", %{fake: fake, topic: topic} do

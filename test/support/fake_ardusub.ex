@@ -59,7 +59,16 @@ defmodule Neptunus.Test.FakeArduSub do
   failure after `timeout` ms.
   """
   @spec expect!(%{port: port()}, (map() -> boolean()), timeout()) :: map()
-  def expect!(%{port: port} = fake, pred, timeout \\ 5_000) do
+  def expect!(fake, pred, timeout \\ 5_000) do
+    case expect(fake, pred, timeout) do
+      {:ok, report} -> report
+      :timeout -> flunk("the fake ArduSub did not report what was expected in time")
+    end
+  end
+
+  @doc "As `expect!/3`, but `:timeout` when nothing fitting came in `timeout` ms."
+  @spec expect(%{port: port()}, (map() -> boolean()), timeout()) :: {:ok, map()} | :timeout
+  def expect(%{port: port} = fake, pred, timeout) do
     deadline = System.monotonic_time(:millisecond) + timeout
     wait(fake, port, pred, deadline)
   end
@@ -70,12 +79,12 @@ defmodule Neptunus.Test.FakeArduSub do
     receive do
       {^port, {:data, {:eol, line}}} ->
         report = :jiffy.decode(line, [:return_maps])
-        if pred.(report), do: report, else: wait(fake, port, pred, deadline)
+        if pred.(report), do: {:ok, report}, else: wait(fake, port, pred, deadline)
 
       {^port, {:exit_status, n}} ->
         flunk("the fake ArduSub exited (#{n})")
     after
-      left -> flunk("the fake ArduSub did not report what was expected in time")
+      left -> :timeout
     end
   end
 

@@ -18,8 +18,10 @@ datagram, as ArduSub's UDP server does) or, with --tcp, accepts one TCP connecti
   disarming a disarmed vehicle answers FAILED. MAV_CMD_DO_SET_MODE (176) with a known Sub
   mode answers ACCEPTED (else DENIED); other commands UNSUPPORTED.
 * MANUAL_CONTROL only from system 255 with target 1 (others ignored, as ArduSub does), acted on
-  only while armed: x/r/z (z 500 neutral) drive the vectored frame's six motors with the
-  joystick gain 0.5 (SERVO_OUTPUT_RAW, neutral 1500) and a toy motion (depth, heading).
+  only while armed: x/y/z/r (z 500 neutral) drive the vectored frame's six motors scaled by the
+  joystick gain (JS_GAIN_DEFAULT 0.5 unless told otherwise; SERVO_OUTPUT_RAW, neutral 1500,
+  ±400 µs at gain 1) and a toy motion (depth, heading). The gain is reported as
+  NAMED_VALUE_FLOAT `PilotGain` with SYS_STATUS (the EXTENDED_STATUS stream), as ArduSub does.
 * Failsafes: 3 s without pilot input (MANUAL_CONTROL) while armed → STATUSTEXT "Lost manual
   control", neutral, disarm (FS_PILOT_INPUT=2); once it has heard system 255, 5 s without its
   HEARTBEAT → "MYGCS: 255, heartbeat lost", disarm (FS_GCS_ENABLE=2).
@@ -27,8 +29,9 @@ datagram, as ArduSub's UDP server does) or, with --tcp, accepts one TCP connecti
 What it receives and does is reported on stdout as JSON lines (`{"event": ...}`): `listening`
 (with `port`), `manual_control` (x y z r buttons, sysid, target, armed), `command` (command,
 params, result), `heartbeat` (the GCS's), `armed` (true/false, why), `failsafe` (what),
-`request_data_stream`, `mode`. Lines on stdin are JSON commands: `{"refuse_arm": TEXT}` (or
-null to accept again), `{"quit": true}`.
+`request_data_stream`, `mode`, `gain`. Lines on stdin are JSON commands: `{"refuse_arm": TEXT}`
+(or null to accept again), `{"gain": G}` (the joystick gain, as ArduSub's gain buttons set it),
+`{"quit": true}`.
 """
 
 import argparse
@@ -49,7 +52,7 @@ SUB_MODES = {0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 7
 GCS_SYSID = 255
 PILOT_TIMEOUT = 3.0
 GCS_TIMEOUT = 5.0
-JS_GAIN = 0.5
+JS_GAIN_DEFAULT = 0.5
 # vectored frame: (yaw, throttle, forward, lateral) factors of motors 1..6
 FACTORS = [(1, 0, -1, 1), (-1, 0, -1, -1), (-1, 0, 1, 1), (1, 0, 1, -1), (0, -1, 0, 0),
            (0, -1, 0, 0)]
@@ -128,6 +131,7 @@ class FakeSub:
         self.armed = False
         self.mode = 19
         self.refuse_arm = None
+        self.gain = JS_GAIN_DEFAULT
         self.control = {"x": 0, "y": 0, "z": 500, "r": 0}
         self.pilot_at = None
         self.pilot_failsafe = False
@@ -256,7 +260,7 @@ class FakeSub:
         outs = []
         for yaw, thr, fwd, lat in FACTORS:
             v = yaw * c["r"] + thr * throttle + fwd * c["x"] + lat * c["y"]
-            outs.append(int(max(1100, min(1900, 1500 + 400 * JS_GAIN * v / 1000))))
+            outs.append(int(max(1100, min(1900, 1500 + 400 * self.gain * v / 1000))))
         return outs, c
 
     def step(self, now):
@@ -264,8 +268,8 @@ class FakeSub:
         self.last_step = now
         _, c = self.motors()
         # toy motion: 0.5 m/s at full heave, 0.5 rad/s at full yaw
-        self.depth = max(0.0, self.depth - 0.5 * JS_GAIN * (c["z"] - 500) / 500 * dt)
-        self.heading = (self.heading + 0.5 * JS_GAIN * c["r"] / 1000 * dt) % (2 * math.pi)
+        self.depth = max(0.0, self.depth - 0.5 * self.gain * (c["z"] - 500) / 500 * dt)
+        self.heading = (self.heading + 0.5 * self.gain * c["r"] / 1000 * dt) % (2 * math.pi)
 
     def heartbeat(self):
         base = 1 | 16 | 64 | (128 if self.armed else 0)
@@ -291,6 +295,7 @@ class FakeSub:
         elif kind == "sys_status":
             self.send(mavlink.MAVLink_sys_status_message(0, 0, 0, 200, 15800, 150, 80, 0, 0, 0, 0,
                                                          0, 0))
+            self.send(mavlink.MAVLink_named_value_float_message(t, b"PilotGain", self.gain))
         elif kind == "scaled_pressure":
             self.send(mavlink.MAVLink_scaled_pressure_message(
                 t, 1030.0 + 98.1 * self.depth, 0.0, 1500))
@@ -335,6 +340,9 @@ def main():
                         if "refuse_arm" in order:
                             sub.refuse_arm = order["refuse_arm"]
                             report("refuse_arm", text=sub.refuse_arm)
+                        if "gain" in order:
+                            sub.gain = max(0.1, min(1.0, float(order["gain"])))
+                            report("gain", gain=sub.gain)
             else:
                 data = link.read(sock)
                 if data:

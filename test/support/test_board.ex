@@ -9,7 +9,8 @@ defmodule Neptunus.Vehicle.Board.Test do
   Messages to `report_to` (required):
 
     * `{:board, id, {:started, thrusters}}` — the board (re)started, thrusters neutral
-    * `{:board, id, {:go, thrusters}}` — every `go` cast, as received
+    * `{:board, id, {:go, thrusters}}` — every `go` cast, as received (the demand for a
+      vehicle whose `capabilities` say `allocation: :vehicle`)
     * `{:board, id, :keepalive}` — every keepalive from control
     * `{:board, id, {:lights | :laser | :tilt, value}}` — every lights, laser, tilt command
 
@@ -29,6 +30,18 @@ defmodule Neptunus.Vehicle.Board.Test do
     id = Keyword.fetch!(opts, :id)
     GenServer.start_link(__MODULE__, opts, name: Board.via(id))
   end
+
+  @doc """
+  The three-thruster vehicle's, unless the vehicle's options say otherwise
+  (`capabilities: %{...}`, merged over them: e.g. `%{axes: [:surge, :sway, :heave, :yaw],
+  allocation: :vehicle}` for a vehicle that allocates itself, whose `go` gets the demand).
+  """
+  @impl Board
+  def capabilities(opts),
+    do: Map.merge(Board.thesis_capabilities(), Map.new(Keyword.get(opts, :capabilities, %{})))
+
+  @impl Board
+  def go(id, output), do: GenServer.cast(Board.via(id), {:go, output})
 
   @impl Board
   def keepalive(id), do: GenServer.cast(Board.via(id), :keepalive)

@@ -1,8 +1,10 @@
 /**
  * What every input device produces: a thrust demand in the current control mode, with absolute
- * values — motion axes (surge, heave, yaw) or manual thruster commands (port, vertical,
- * starboard), each in [-1, 1] — and which device made it. The page sends a demand only when it
- * comes from the selected input mode (`accepts`) and differs from the last one sent.
+ * values — motion axes (surge, heave, yaw, and sway on a vehicle that has it) or manual
+ * thruster commands (port, vertical, starboard), each in [-1, 1] — and which device made it.
+ * The page sends a demand only when it comes from the selected input mode (`accepts`) and
+ * differs from the last one sent. A motion demand carries `sway` only when it is not 0 (no
+ * sway and sway 0 are the same demand).
  */
 
 import type { MotionAxes, ThrusterCommands } from "./keyboard";
@@ -46,8 +48,15 @@ export function quantize(value: number): number {
   return q === 0 ? 0 : q; // no negative zero on the wire
 }
 
-export function motionDemand(surge: number, heave: number, yaw: number): ThrustDemand {
-  return { kind: "motion", axes: { surge: quantize(surge), heave: quantize(heave), yaw: quantize(yaw) } };
+export function motionDemand(surge: number, heave: number, yaw: number, sway = 0): ThrustDemand {
+  const axes = { surge: quantize(surge), heave: quantize(heave), yaw: quantize(yaw) };
+  const w = quantize(sway);
+  return { kind: "motion", axes: w === 0 ? axes : { ...axes, sway: w } };
+}
+
+/** Whether a vehicle with these body-frame axes (its snapshot's; null: not known) can sway. */
+export function canSway(axes: readonly string[] | null): boolean {
+  return axes !== null && axes.includes("sway");
 }
 
 export function manualDemand(port: number, vertical: number, starboard: number): ThrustDemand {
@@ -60,7 +69,12 @@ export function manualDemand(port: number, vertical: number, starboard: number):
 export function demandEqual(a: ThrustDemand | null, b: ThrustDemand | null): boolean {
   if (a === null || b === null) return a === b;
   if (a.kind === "motion" && b.kind === "motion") {
-    return a.axes.surge === b.axes.surge && a.axes.heave === b.axes.heave && a.axes.yaw === b.axes.yaw;
+    return (
+      a.axes.surge === b.axes.surge &&
+      a.axes.heave === b.axes.heave &&
+      a.axes.yaw === b.axes.yaw &&
+      (a.axes.sway ?? 0) === (b.axes.sway ?? 0)
+    );
   }
   if (a.kind === "manual" && b.kind === "manual") {
     const x = a.thrusters;

@@ -13,6 +13,10 @@
  *   LT               —                 vertical −          [0, 1]
  *   RT               —                 vertical +          [0, 1]
  *
+ * A vehicle that can sway (ArduSub) is flown in motion mode with the layout its pilots know
+ * (QGroundControl's and BlueOS' defaults): left stick Y heave (up: ascend), left stick X yaw,
+ * right stick Y surge, right stick X sway (right: to starboard).
+ *
  * Every axis goes through a deadband (default 0.1, rescaled so the output starts at 0 at the
  * edge of the band) and an expo curve (default 0: linear). After a reset (safety stop, loss
  * of control) the pad is disarmed until every input is back in its deadband, so a stick held
@@ -81,15 +85,22 @@ function trigger(pad: PadSnapshot, index: number): number {
   return Math.min(1, Math.max(0, v));
 }
 
-/** Table 7.2: the demand of one gamepad reading in control mode `mode`. */
+/**
+ * Table 7.2: the demand of one gamepad reading in control mode `mode` (with `sway`, a vehicle
+ * that can sway: the ArduSub layout in motion mode, see the module's comment).
+ */
 export function gamepadDemand(
   pad: PadSnapshot,
   mode: StickMode,
   options: GamepadOptions = DEFAULT_GAMEPAD_OPTIONS,
+  sway = false,
 ): ThrustDemand {
   const ly = shape(axis(pad, AXIS.leftY), options);
   const rx = shape(axis(pad, AXIS.rightX), options);
   const ry = shape(axis(pad, AXIS.rightY), options);
+  if (mode === "motion" && sway) {
+    return motionDemand(-ry, ly, shape(axis(pad, AXIS.leftX), options), rx);
+  }
   if (mode === "motion") {
     return motionDemand(-ry, ly, rx);
   }
@@ -98,9 +109,10 @@ export function gamepadDemand(
   return manualDemand(-ly, rt - lt, -ry);
 }
 
-/** True when every input table 7.2 uses is inside its deadband. */
-export function padAtRest(pad: PadSnapshot, options: GamepadOptions = DEFAULT_GAMEPAD_OPTIONS): boolean {
+/** True when every input table 7.2 uses (and the left stick's X, with `sway`) is inside its deadband. */
+export function padAtRest(pad: PadSnapshot, options: GamepadOptions = DEFAULT_GAMEPAD_OPTIONS, sway = false): boolean {
   const inputs = [
+    sway ? axis(pad, AXIS.leftX) : 0,
     axis(pad, AXIS.leftY),
     axis(pad, AXIS.rightX),
     axis(pad, AXIS.rightY),
@@ -136,12 +148,12 @@ export class GamepadArming {
     this.armed = false;
   }
 
-  step(pad: PadSnapshot, mode: StickMode, options: GamepadOptions = DEFAULT_GAMEPAD_OPTIONS): ThrustDemand {
+  step(pad: PadSnapshot, mode: StickMode, options: GamepadOptions = DEFAULT_GAMEPAD_OPTIONS, sway = false): ThrustDemand {
     if (!this.armed) {
-      if (!padAtRest(pad, options)) return neutralDemand(mode);
+      if (!padAtRest(pad, options, sway)) return neutralDemand(mode);
       this.armed = true;
     }
-    return gamepadDemand(pad, mode, options);
+    return gamepadDemand(pad, mode, options, sway);
   }
 }
 
@@ -153,6 +165,8 @@ export interface GamepadPollerOptions {
   readonly source: GamepadSource;
   readonly mode: () => StickMode;
   readonly options: () => GamepadOptions;
+  /** The vehicle can sway: the ArduSub layout (default: it cannot). */
+  readonly sway?: () => boolean;
   /** A new demand (only on change). */
   readonly onDemand: (demand: ThrustDemand) => void;
   /** The pad that is read, or null (for the view). */
@@ -223,7 +237,8 @@ export class GamepadPoller {
       this.lastArmed = this.arming.isArmed;
       this.o.onPad(id === null ? null : { id, armed: this.arming.isArmed });
     }
-    const demand = pad ? this.arming.step(pad, mode, this.o.options()) : neutralDemand(mode);
+    const sway = this.o.sway ? this.o.sway() : false;
+    const demand = pad ? this.arming.step(pad, mode, this.o.options(), sway) : neutralDemand(mode);
     if (this.arming.isArmed !== this.lastArmed) {
       this.lastArmed = this.arming.isArmed;
       this.o.onPad(id === null ? null : { id, armed: this.arming.isArmed });

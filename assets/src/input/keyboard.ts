@@ -9,6 +9,8 @@
  *   E  − heave               A  port thruster backward
  *   D  + yaw                 E  starboard thruster forward
  *   A  − yaw                 D  starboard thruster backward
+ *   C  + sway (starboard)
+ *   Z  − sway (port)         — sway only on a vehicle that has it (an ArduSub vehicle)
  *
  * An axis is the sum of its held keys, so opposing keys held together cancel to 0.
  */
@@ -23,6 +25,8 @@ export interface MotionAxes {
   readonly surge: number;
   readonly heave: number;
   readonly yaw: number;
+  /** to starboard; absent: 0 (a vehicle without sway never gets it) */
+  readonly sway?: number;
 }
 
 export interface ThrusterCommands {
@@ -68,6 +72,24 @@ function lookup<T extends string>(
   code: string,
 ): Binding<T> | undefined {
   return Object.prototype.hasOwnProperty.call(map, code) ? map[code] : undefined;
+}
+
+/** Sway, below the yaw keys: a vehicle that can sway (not in table 7.1, which has none). */
+export const SWAY_KEYMAP: Readonly<Record<string, Binding<"sway">>> = Object.freeze({
+  KeyC: { target: "sway", sign: 1 },
+  KeyZ: { target: "sway", sign: -1 },
+});
+
+/** The sway a key drives (`SWAY_KEYMAP`), or `undefined`. */
+export function keyToSway(code: string): Binding<"sway"> | undefined {
+  return lookup(SWAY_KEYMAP, code);
+}
+
+/** Sway of a set of held keys, -1, 0 or 1. */
+export function swayFromKeys(held: ReadonlySet<string>): number {
+  let sway = 0;
+  for (const code of held) sway += keyToSway(code)?.sign ?? 0;
+  return sway;
 }
 
 /** The motion axis a key drives, or `undefined` for keys we do not use. */
@@ -157,6 +179,8 @@ export interface KeyboardInputOptions {
    * `reset()`), with why. No key is held afterwards; `onHeld` is not called for this.
    */
   readonly onReset?: (reason: string) => void;
+  /** The vehicle can sway: Z and C are keys of ours too (default: they are not). */
+  readonly sway?: () => boolean;
 }
 
 function isKeyEventLike(event: Event): event is Event & KeyEventLike {
@@ -191,9 +215,10 @@ export class KeyboardInput {
     return this.held;
   }
 
-  /** Returns true when the event was ours (a motion key). */
+  /** Returns true when the event was ours (a motion key, or a sway key on a vehicle that sways). */
   handleKeyDown(event: KeyEventLike): boolean {
-    if (!keyToAxis(event.code)) return false;
+    const sway = this.options.sway ? this.options.sway() : false;
+    if (!keyToAxis(event.code) && !(sway && keyToSway(event.code))) return false;
     if (event.ctrlKey === true || event.metaKey === true || event.altKey === true) return false;
     if (isEditableTarget(event.target)) return false;
     event.preventDefault?.();
@@ -252,13 +277,14 @@ export class KeyboardInput {
 }
 
 /**
- * The demand of the held keys in control mode `mode`: table 7.1's motion column (axes) or its
- * manual column (thrusters). Values are absolute: -1, 0 or 1 per axis.
+ * The demand of the held keys in control mode `mode`: table 7.1's motion column (axes, and
+ * sway from Z/C when the vehicle `sway`s) or its manual column (thrusters). Values are
+ * absolute: -1, 0 or 1 per axis.
  */
-export function keyboardDemand(held: ReadonlySet<string>, mode: StickMode): ThrustDemand {
+export function keyboardDemand(held: ReadonlySet<string>, mode: StickMode, sway = false): ThrustDemand {
   if (mode === "motion") {
     const a = axesFromKeys(held);
-    return motionDemand(a.surge, a.heave, a.yaw);
+    return motionDemand(a.surge, a.heave, a.yaw, sway ? swayFromKeys(held) : 0);
   }
   const t = thrustersFromKeys(held);
   return manualDemand(t.port, t.vertical, t.starboard);

@@ -7,6 +7,9 @@
  *   right stick   up/down: surge, left/right: yaw   up/down: starboard thruster (up: +)
  *   buttons       —                            vertical + / vertical −
  *
+ * On a vehicle that can sway, motion mode uses the ArduSub layout (as the gamepad): left stick
+ * up/down heave, left/right yaw; right stick up/down surge, left/right sway.
+ *
  * Same directions as the gamepad (table 7.2). Values are absolute; lifting a finger returns its
  * control to 0. The page keeps the browser's own touch gestures off the pad (`touch-action:
  * none`, no selection, no long-press callout) so piloting neither scrolls nor zooms.
@@ -56,8 +59,11 @@ export function stickVector(dx: number, dy: number, radius: number): StickVector
   return { x: fx === 0 ? 0 : fx, y: fy === 0 ? 0 : fy };
 }
 
-/** The demand of the touch controls in control mode `mode`. */
-export function touchDemand(state: TouchState, mode: StickMode): ThrustDemand {
+/** The demand of the touch controls in control mode `mode` (`sway`: the vehicle can sway). */
+export function touchDemand(state: TouchState, mode: StickMode, sway = false): ThrustDemand {
+  if (mode === "motion" && sway) {
+    return motionDemand(state.right.y, -state.left.y, state.left.x, state.right.x);
+  }
   if (mode === "motion") {
     return motionDemand(state.right.y, -state.left.y, state.right.x);
   }

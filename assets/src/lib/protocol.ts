@@ -16,7 +16,8 @@ import { isRecord } from "./wire_runtime";
 export { isRecord };
 
 export type SimState = wire.SimState;
-export type MotionCommand = wire.MotionCommand;
+/** A motion command; `sway` only from a vehicle that has it (absent or null: none). */
+export type MotionCommand = Omit<wire.MotionCommand, "sway"> & { readonly sway?: number | null };
 export type ThrusterOutputs = wire.ThrusterOutputs;
 export type Thrusters = wire.Thrusters;
 export type ControlMode = wire.ControlMode;
@@ -48,6 +49,11 @@ export interface VehicleInfo {
   readonly status?: string;
   /** the fleet's directory (topic `fleet`) says these; absent from a snapshot or an older server */
   readonly detail?: FleetDetail;
+  /**
+   * the body-frame axes it can be commanded in (a snapshot says; absent from the directory or
+   * an older server: surge, heave, yaw)
+   */
+  readonly axes?: readonly wire.Axis[];
 }
 
 /** What the fleet's directory says of a vehicle (nulls: unknown, or its node is cut off). */
@@ -294,7 +300,13 @@ function controlState(c: wire.ControlState): ControlState {
 }
 
 function motionOnly(command: wire.PilotCommand | null): MotionCommand | null {
-  return command !== null && "surge" in command ? command : null;
+  return command !== null && "surge" in command ? withSway(command) : null;
+}
+
+/** A motion command with `sway` only when the vehicle's command has one (no `sway: null`). */
+function withSway(command: wire.MotionCommand): MotionCommand {
+  const { surge, heave, yaw, sway } = command;
+  return sway === null ? { surge, heave, yaw } : { surge, heave, yaw, sway };
 }
 
 function autopilotLoop(loop: wire.AutopilotLoop | null): AutopilotLoop | null {
@@ -415,13 +427,22 @@ export function decodeVehicleInfo(value: unknown): VehicleInfo | null {
   const v = wire.decodeFleetVehicle(value);
   if (v === null || !isRecord(value)) return null;
   const detail = decodeFleetDetail(value);
+  const axes = decodeAxes(value["axes"]);
   return {
     id: v.id,
     board: v.board,
+    ...(axes ? { axes } : {}),
     ...(v.node !== null ? { node: v.node } : {}),
     ...(v.status !== null ? { status: v.status } : {}),
     ...(detail ? { detail } : {}),
   };
+}
+
+/** A list of body-frame axes (a snapshot's `vehicle.axes`), or null when it is not one. */
+function decodeAxes(value: unknown): readonly wire.Axis[] | null {
+  if (!Array.isArray(value)) return null;
+  const axes = value.map(wire.decodeAxis);
+  return axes.every((a): a is wire.Axis => a !== null) ? axes : null;
 }
 
 const FLEET_DETAIL_KEYS = ["helm", "pilot", "link", "depth", "heading", "recording"];
@@ -487,7 +508,8 @@ export function decodeControlReply(value: unknown): ControlReply | null {
 /** `thrust` and `stop` replies; the pulse widths, when the server sends them, are dropped. */
 export function decodeThrustReply(value: unknown): ThrustReply | null {
   if (!isRecord(value)) return null;
-  const command = wire.decodePilotCommand(value["command"]);
+  const pilot = wire.decodePilotCommand(value["command"]);
+  const command = pilot !== null && "surge" in pilot ? withSway(pilot) : pilot;
   const thrusters = wire.decodeThrusterOutputs(value["thrusters"]);
   return command && thrusters ? { command, thrusters } : null;
 }

@@ -426,13 +426,16 @@ export class VehicleChannel {
    * (the server refuses other epochs with `stale_command`).
    */
   thrust(
-    command: MotionCommand,
+    command: Omit<MotionCommand, "sway"> & { readonly sway?: number | null },
     epoch: number,
     timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS,
   ): Promise<ThrustReply> {
+    const { surge, heave, yaw, sway } = command;
+    // sway only where given (a vehicle without sway refuses any but 0)
+    const axes = typeof sway === "number" ? { surge, heave, yaw, sway } : { surge, heave, yaw };
     return this.command(
       "thrust",
-      { mode: "motion", surge: command.surge, heave: command.heave, yaw: command.yaw, epoch },
+      { mode: "motion", ...axes, epoch },
       decodeThrustReply,
       timeoutMs,
     );

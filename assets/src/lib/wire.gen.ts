@@ -309,8 +309,8 @@ function readSimState(json: unknown): SimState | undefined {
 export const decodeSimState = (json: unknown): SimState | null => readSimState(json) ?? null;
 
 /**
- * The pilot's command in the control mode's terms: motion `{surge, heave, yaw}`, manual `{port,
- * vertical, starboard}`.
+ * The pilot's command in the control mode's terms: motion `{surge, heave, yaw}` (and `sway` on a
+ * vehicle that has it), manual `{port, vertical, starboard}`.
  */
 export type PilotCommand = MotionCommand | ThrusterOutputs;
 
@@ -328,6 +328,8 @@ export interface MotionCommand {
   readonly heave: number;
   /** to starboard */
   readonly yaw: number;
+  /** to starboard; only when the pilot sent it; absent from some payloads */
+  readonly sway: number | null;
 }
 
 function readMotionCommand(json: unknown): MotionCommand | undefined {
@@ -340,6 +342,7 @@ function readMotionCommand(json: unknown): MotionCommand | undefined {
     surge,
     heave,
     yaw,
+    sway: readNumber(json["sway"]) ?? null,
   };
 }
 
@@ -715,6 +718,11 @@ export interface MavlinkStatus {
   readonly control: ManualControl | null;
   /** a disarm after pilot loss is pending */
   readonly disarm_pending: boolean | null;
+  /**
+   * ArduSub's joystick gain (its `PilotGain`), divided out of MANUAL_CONTROL so that only ours
+   * applies; null until the vehicle sends it
+   */
+  readonly pilot_gain: number | null;
   readonly frames_received: number | null;
   /** from the vehicle's sequence numbers */
   readonly frames_lost: number | null;
@@ -735,6 +743,7 @@ function readMavlinkStatus(json: unknown): MavlinkStatus | undefined {
     thrusters: readList(json["thrusters"], (item) => (item === null ? null : readNumber(item))) ?? null,
     control: readManualControl(json["control"]) ?? null,
     disarm_pending: readBoolean(json["disarm_pending"]) ?? null,
+    pilot_gain: readNumber(json["pilot_gain"]) ?? null,
     frames_received: readInteger(json["frames_received"]) ?? null,
     frames_lost: readInteger(json["frames_lost"]) ?? null,
     loss: readNumber(json["loss"]) ?? null,
@@ -1118,6 +1127,16 @@ export interface VehicleInfo {
   readonly board: string;
   /** the node of the fleet it runs on */
   readonly node: string | null;
+  /**
+   * the body-frame axes the vehicle can be commanded in (its board's): the pilot's inputs offer
+   * these; the three-thruster vehicle has `surge`, `heave`, `yaw`, an ArduSub vehicle `sway` too
+   */
+  readonly axes: readonly Axis[] | null;
+  /**
+   * whose depth and heading hold `autopilot` drives: Neptunus' own, or the vehicle's flight modes
+   * (ArduSub)
+   */
+  readonly autopilots: "neptunus" | "vehicle" | null;
 }
 
 function readVehicleInfo(json: unknown): VehicleInfo | undefined {
@@ -1129,10 +1148,25 @@ function readVehicleInfo(json: unknown): VehicleInfo | undefined {
     id,
     board,
     node: readString(json["node"]) ?? null,
+    axes: readList(json["axes"], readAxis) ?? null,
+    autopilots: readEnum(json["autopilots"], ["neptunus", "vehicle"] as const) ?? null,
   };
 }
 
 export const decodeVehicleInfo = (json: unknown): VehicleInfo | null => readVehicleInfo(json) ?? null;
+
+/**
+ * A body-frame axis: surge forward, sway to starboard, heave down, yaw bow to starboard, roll,
+ * pitch.
+ */
+export const AXIS_VALUES = ["surge", "sway", "heave", "yaw", "roll", "pitch"] as const;
+export type Axis = (typeof AXIS_VALUES)[number];
+
+function readAxis(json: unknown): Axis | undefined {
+  return readEnum(json, AXIS_VALUES);
+}
+
+export const decodeAxis = (json: unknown): Axis | null => readAxis(json) ?? null;
 
 /** Who pilots. */
 export interface Pilot {
@@ -1689,6 +1723,11 @@ export interface ThrustMotion {
   readonly heave: number;
   /** [-1, 1] */
   readonly yaw: number;
+  /**
+   * [-1, 1], to starboard: a vehicle with `sway` in its axes; elsewhere only 0; absent from some
+   * payloads
+   */
+  readonly sway: number | null;
   /** the stamp from the grant */
   readonly epoch: number;
 }
@@ -1713,6 +1752,7 @@ function readThrustMotion(json: unknown): ThrustMotion | undefined {
     surge,
     heave,
     yaw,
+    sway: readNumber(json["sway"]) ?? null,
     epoch,
   };
 }
@@ -2492,7 +2532,10 @@ export interface VehicleCommands {
   /**
    * the pilot: `mode` must be the control mode; `epoch` the stamp from the grant (see
    * [Helm](#helm)). Motion mode uses the thesis' allocation (eq. 9.3) with gain k (default 0.5):
-   * `port = sat(k(X + M))`, `vertical = sat(kZ)`, `starboard = sat(k(X − M))`
+   * `port = sat(k(X + M))`, `vertical = sat(kZ)`, `starboard = sat(k(X − M))`; a vehicle that
+   * allocates itself (ArduSub) gets the body-frame demand k·(surge, sway, heave, yaw) instead
+   * (docs/MAVLINK.md). `sway` only on a vehicle with `sway` in its axes (the snapshot's
+   * `vehicle.axes`): elsewhere `this vehicle has no sway …`
    */
   readonly thrust: { readonly payload: Thrust; readonly reply: ThrustReply };
   /**

@@ -1,7 +1,7 @@
 /** The operator page (Preact): header, camera with HUD and touch sticks, the panels (panels/), the message bar. */
 
 import { useEffect, useState } from "preact/hooks";
-import { stickMode } from "../input/demand";
+import { canSway, stickMode } from "../input/demand";
 import { fetchRollbackNotice } from "../lib/firmware";
 import { useStore } from "../lib/use_store";
 import type { OperatorController, OperatorState } from "./controller";
@@ -138,7 +138,7 @@ export function App({ controller }: { controller: OperatorController }): preact.
           <Camera camera={s.camera} rotation={s.rotation} status={s.telemetry?.camera_status ?? null}>
             <Hud s={s} />
             <StopBanner s={s} />
-            {s.inputMode === "touch" && <TouchPad controller={controller} touch={s.touch} mode={mode} />}
+            {s.inputMode === "touch" && <TouchPad controller={controller} touch={s.touch} mode={mode} sway={canSway(s.axes)} />}
           </Camera>
           <div class="readout-grid">
             <NavigationPanel s={s} />

@@ -131,6 +131,7 @@ export class OperatorController {
       get: () => this.state,
       update: (patch) => this.store.update(patch),
       controlMode: () => this.controlMode,
+      axes: () => this.state.axes,
       vehicle: () => this.vehicle,
       epoch: () => stampOf(this.reactions.helm),
       dispatch: (event) => this.dispatch(event),
@@ -218,6 +219,7 @@ export class OperatorController {
         this.dispatch({ type: "joined", helm: snapshot.helm, session: snapshot.session, atMs: performance.now() });
         this.store.update({
           pilotName: snapshot.pilot?.name ?? null,
+          axes: snapshot.vehicle.axes ?? null,
           camera: cameraWithToken(snapshot.camera, this.session.token),
           control: snapshot.control,
           sent: null,

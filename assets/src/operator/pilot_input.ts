@@ -11,7 +11,7 @@
  * input mode and pad options are kept in the browser (lib/prefs.ts).
  */
 
-import { demandEqual, stickMode } from "../input/demand";
+import { canSway, demandEqual, stickMode } from "../input/demand";
 import type { InputMode, ThrustDemand } from "../input/demand";
 import { GamepadPoller } from "../input/gamepad";
 import type { GamepadOptions, GamepadSource } from "../input/gamepad";
@@ -48,6 +48,8 @@ export interface PilotInputHost {
   readonly update: (patch: Partial<Pick<OperatorState, InputFields>>) => void;
   /** the control mode the vehicle is in */
   readonly controlMode: () => string;
+  /** the body-frame axes the vehicle can be commanded in (null: not known, surge/heave/yaw) */
+  readonly axes?: () => readonly string[] | null;
   /** the vehicle's channel, once opened */
   readonly vehicle: () => ThrustVehicle | null;
   /** the helm epoch our thrust carries; null when we do not pilot */
@@ -76,14 +78,16 @@ export class PilotInput {
       onHeld: (held) => {
         const controlMode = host.controlMode();
         const mode = stickMode(controlMode);
-        if (mode) this.demand("keyboard", keyboardDemand(held, mode));
+        if (mode) this.demand("keyboard", keyboardDemand(held, mode, this.sway()));
         else if (held.size > 0) host.showMessage(`Control mode ${controlMode}: keys are ignored.`, "warn", "command");
       },
+      sway: () => this.sway(),
     });
     this.gamepad = new GamepadPoller({
       source: host.gamepads,
       mode: () => stickMode(host.controlMode()) ?? "motion",
       options: () => host.get().gamepadOptions,
+      sway: () => this.sway(),
       onDemand: (d) => {
         if (stickMode(host.controlMode())) this.demand("gamepad", d);
       },
@@ -136,7 +140,12 @@ export class PilotInput {
     const state = this.touch.current;
     this.host.update({ touch: state });
     const mode = stickMode(this.host.controlMode());
-    if (mode) this.demand("touch", touchDemand(state, mode));
+    if (mode) this.demand("touch", touchDemand(state, mode, this.sway()));
+  }
+
+  /** The vehicle can sway: the inputs offer it (the ArduSub layout on the sticks). */
+  private sway(): boolean {
+    return canSway(this.host.axes ? this.host.axes() : null);
   }
 
   private demand(source: InputMode, demand: ThrustDemand): void {
@@ -144,7 +153,14 @@ export class PilotInput {
     const vehicle = host.vehicle();
     const s = host.get();
     const route = routeDemand(
-      { selected: s.inputMode, controlMode: host.controlMode(), sent: s.sent, joined: vehicle?.joined ?? false, epoch: host.epoch() },
+      {
+        selected: s.inputMode,
+        controlMode: host.controlMode(),
+        sent: s.sent,
+        joined: vehicle?.joined ?? false,
+        epoch: host.epoch(),
+        axes: host.axes ? host.axes() : null,
+      },
       source,
       demand,
     );
@@ -155,7 +171,7 @@ export class PilotInput {
         host.dispatch({ type: "thrust_blocked", why: route.why });
         return;
       case "send":
-        if (vehicle !== null) this.send(vehicle, demand, route.epoch);
+        if (vehicle !== null) this.send(vehicle, route.demand, route.epoch);
         return;
     }
   }

@@ -8,14 +8,16 @@
  *
  * 1. Only the selected input mode drives, only in a control mode that takes stick input
  *    (motion, manual: not DP), and the headset never sends thrust (`accepts`): else ignored.
- * 2. A demand equal to the last one sent is ignored (demands are absolute values: sending it
+ * 2. The demand keeps only the axes the vehicle has (`fitDemand`: a sway on a vehicle that
+ *    cannot sway is left out — the server would refuse it).
+ * 3. A demand equal to the last one sent is ignored (demands are absolute values: sending it
  *    again changes nothing; after any stop the last one sent is forgotten).
- * 3. Without a joined channel: blocked, `not_connected`.
- * 4. Without the helm (no epoch to stamp the command with): blocked, `not_in_control`.
- * 5. Else sent, with the epoch.
+ * 4. Without a joined channel: blocked, `not_connected`.
+ * 5. Without the helm (no epoch to stamp the command with): blocked, `not_in_control`.
+ * 6. Else sent, with the epoch.
  */
 
-import { accepts, demandEqual } from "../input/demand";
+import { accepts, canSway, demandEqual, motionDemand } from "../input/demand";
 import type { InputMode, ThrustDemand } from "../input/demand";
 
 /** What the page knows when a demand arrives. */
@@ -30,6 +32,18 @@ export interface RoutingContext {
   readonly joined: boolean;
   /** the helm epoch our thrust carries; null when we do not pilot */
   readonly epoch: number | null;
+  /**
+   * the body-frame axes the vehicle can be commanded in (its snapshot's); absent or null: not
+   * known, the three-thruster vehicle's (surge, heave, yaw)
+   */
+  readonly axes?: readonly string[] | null;
+}
+
+/** `demand` with only the axes of a vehicle with `axes` (rule 2). */
+export function fitDemand(demand: ThrustDemand, axes: readonly string[] | null): ThrustDemand {
+  if (demand.kind !== "motion" || demand.axes.sway === undefined || canSway(axes)) return demand;
+  const { surge, heave, yaw } = demand.axes;
+  return motionDemand(surge, heave, yaw);
 }
 
 export type Route =
@@ -37,8 +51,9 @@ export type Route =
   | { readonly kind: "blocked"; readonly why: "not_connected" | "not_in_control" }
   | { readonly kind: "send"; readonly demand: ThrustDemand; readonly epoch: number };
 
-export function routeDemand(ctx: RoutingContext, source: InputMode, demand: ThrustDemand): Route {
+export function routeDemand(ctx: RoutingContext, source: InputMode, given: ThrustDemand): Route {
   if (!accepts(ctx.selected, source, ctx.controlMode)) return { kind: "ignore", why: "not_selected" };
+  const demand = fitDemand(given, ctx.axes ?? null);
   if (demandEqual(demand, ctx.sent)) return { kind: "ignore", why: "unchanged" };
   if (!ctx.joined) return { kind: "blocked", why: "not_connected" };
   if (ctx.epoch === null) return { kind: "blocked", why: "not_in_control" };

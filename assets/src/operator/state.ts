@@ -59,6 +59,11 @@ export interface OperatorState {
   /** when the connection was lost (ms, performance clock), for "reconnecting for N s" */
   readonly disconnectedAt: number | null;
   readonly vehicleId: string | null;
+  /**
+   * the body-frame axes the vehicle can be commanded in (its snapshot's): the inputs offer
+   * these and the page shows them; null until joined (then: surge, heave, yaw)
+   */
+  readonly axes: readonly string[] | null;
   /** every vehicle of the fleet, for the picker (empty until listed) */
   readonly fleet: readonly VehicleInfo[];
   readonly banner: { readonly mode: AuthMode; readonly user: { readonly name: string; readonly role: Role } | null } | null;
@@ -104,6 +109,7 @@ export function initialState(inputMode: InputMode, gamepadOptions: GamepadOption
     status: "connecting",
     disconnectedAt: null,
     vehicleId: null,
+    axes: null,
     fleet: [],
     banner: null,
     helm: seenView(INITIAL_REACTIONS.helm, 0),

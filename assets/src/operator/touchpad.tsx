@@ -12,6 +12,8 @@ interface PadProps {
   readonly controller: OperatorController;
   readonly touch: TouchState;
   readonly mode: StickMode | null;
+  /** the vehicle can sway: the ArduSub layout in motion mode (input/touch.ts) */
+  readonly sway?: boolean;
 }
 
 function handlers(controller: OperatorController, control: TouchControl): Record<string, (e: PointerEvent) => void> {
@@ -74,7 +76,13 @@ function PadButton(props: { controller: OperatorController; id: "up" | "down"; h
   );
 }
 
-export function TouchPad({ controller, touch, mode }: PadProps): preact.JSX.Element {
+/** The sticks' labels: what each drives in `mode` on this vehicle. */
+export function stickLabels(mode: StickMode, sway: boolean): { readonly left: string; readonly right: string } {
+  if (mode === "manual") return { left: "port ↕", right: "starboard ↕" };
+  return sway ? { left: "heave ↕ · yaw ↔", right: "surge ↕ · sway ↔" } : { left: "heave ↕", right: "surge ↕ · yaw ↔" };
+}
+
+export function TouchPad({ controller, touch, mode, sway = false }: PadProps): preact.JSX.Element {
   if (mode === null) {
     return (
       <div class="touchpad disabled" data-testid="touchpad">
@@ -82,8 +90,7 @@ export function TouchPad({ controller, touch, mode }: PadProps): preact.JSX.Elem
       </div>
     );
   }
-  const left = mode === "motion" ? "heave ↕" : "port ↕";
-  const right = mode === "motion" ? "surge ↕ · yaw ↔" : "starboard ↕";
+  const { left, right } = stickLabels(mode, sway);
   return (
     <div class="touchpad" data-testid="touchpad" data-mode={mode}>
       <Stick controller={controller} id="left" value={touch.left} label={left} />

@@ -19,7 +19,7 @@ function pad(surge = 0, pressed: number | null = null): Gamepad {
   return { ...snapshot, id: "Xbox pad", connected: true, mapping: "standard" } as unknown as Gamepad;
 }
 
-function harness(options: { mode?: InputMode; controlMode?: string; refuse?: string } = {}) {
+function harness(options: { mode?: InputMode; controlMode?: string; refuse?: string; axes?: readonly string[] } = {}) {
   let state: OperatorState = initialState(options.mode ?? "keyboard", { deadband: 0, expo: 0 });
   let controlMode = options.controlMode ?? "motion";
   let epoch: number | null = 4;
@@ -54,6 +54,7 @@ function harness(options: { mode?: InputMode; controlMode?: string; refuse?: str
       state = { ...state, ...patch };
     },
     controlMode: () => controlMode,
+    axes: () => options.axes ?? null,
     vehicle: () => vehicle,
     epoch: () => epoch,
     dispatch: (event) => events.push(event),
@@ -210,5 +211,38 @@ describe("PilotInput: the operator's choices", () => {
     expect(h.state().gamepadOptions).toEqual({ deadband: 0.2, expo: 0.5 });
     expect([...h.saved.values()]).toContain("gamepad");
     expect(h.saved.size).toBe(2);
+  });
+});
+
+describe("PilotInput: the vehicle's axes", () => {
+  const ARDUSUB = ["surge", "sway", "heave", "yaw"];
+
+  it("on a vehicle that sways, C strafes to starboard (and W with it)", () => {
+    const h = harness({ axes: ARDUSUB });
+    h.down("KeyC");
+    h.down("KeyW");
+    expect(h.sent).toEqual([
+      { kind: "motion", axes: { surge: 0, heave: 0, yaw: 0, sway: 1 }, epoch: 4 },
+      { kind: "motion", axes: { surge: 1, heave: 0, yaw: 0, sway: 1 }, epoch: 4 },
+    ]);
+  });
+
+  it("on the three-thruster vehicle, C does nothing", () => {
+    const h = harness();
+    h.down("KeyC");
+    expect(h.sent).toEqual([]);
+  });
+
+  it("the gamepad's right stick X sways on a vehicle that sways, yaws elsewhere", () => {
+    const stick = (rx: number): Gamepad => {
+      const buttons = Array.from({ length: 17 }, () => ({ value: 0, pressed: false }));
+      return { axes: [0, 0, rx, 0], buttons, id: "Xbox pad", connected: true, mapping: "standard" } as unknown as Gamepad;
+    };
+    const sways = harness({ mode: "gamepad", axes: ARDUSUB });
+    sways.frame(stick(0.5));
+    expect(sways.sent).toEqual([{ kind: "motion", axes: { surge: 0, heave: 0, yaw: 0, sway: 0.5 }, epoch: 4 }]);
+    const yaws = harness({ mode: "gamepad" });
+    yaws.frame(stick(0.5));
+    expect(yaws.sent).toEqual([{ kind: "motion", axes: { surge: 0, heave: 0, yaw: 0.5 }, epoch: 4 }]);
   });
 });

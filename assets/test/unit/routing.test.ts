@@ -1,7 +1,7 @@
 import { describe, expect, it } from "vitest";
 import { INPUT_MODES, NEUTRAL_MANUAL, NEUTRAL_MOTION, manualDemand, motionDemand } from "../../src/input/demand";
 import type { InputMode, ThrustDemand } from "../../src/input/demand";
-import { routeDemand } from "../../src/operator/routing";
+import { fitDemand, routeDemand } from "../../src/operator/routing";
 import type { Route, RoutingContext } from "../../src/operator/routing";
 
 const forward = motionDemand(0.5, 0, 0);
@@ -115,5 +115,30 @@ describe("routeDemand over every combination", () => {
   it("covers every answer", () => {
     const answers = new Set(cases.map(({ route }) => (route.kind === "send" ? "send" : `${route.kind}:${route.why}`)));
     expect([...answers].sort()).toEqual(["blocked:not_connected", "blocked:not_in_control", "ignore:not_selected", "ignore:unchanged", "send"]);
+  });
+});
+
+describe("routeDemand: only the axes the vehicle has", () => {
+  const strafe = motionDemand(0.5, 0, 0, -0.5);
+
+  it("a vehicle that sways gets the sway", () => {
+    const ctx = { ...piloting, axes: ["surge", "sway", "heave", "yaw"] };
+    expect(routeDemand(ctx, "keyboard", strafe)).toEqual({ kind: "send", demand: strafe, epoch: 7 });
+  });
+
+  it("a vehicle that cannot (or not known) gets the rest of the demand without it", () => {
+    for (const ctx of [{ ...piloting, axes: ["surge", "heave", "yaw"] }, { ...piloting, axes: null }, piloting]) {
+      expect(routeDemand(ctx, "keyboard", strafe)).toEqual({ kind: "send", demand: forward, epoch: 7 });
+    }
+  });
+
+  it("a sway alone on such a vehicle is no new demand", () => {
+    const ctx = { ...piloting, axes: ["surge", "heave", "yaw"], sent: NEUTRAL_MOTION };
+    expect(routeDemand(ctx, "keyboard", motionDemand(0, 0, 0, 1))).toEqual({ kind: "ignore", why: "unchanged" });
+  });
+
+  it("fitDemand leaves manual demands and demands without sway as they are", () => {
+    expect(fitDemand(port, null)).toBe(port);
+    expect(fitDemand(forward, null)).toBe(forward);
   });
 });

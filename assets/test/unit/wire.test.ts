@@ -75,7 +75,9 @@ describe("maps, lists, unions, enums", () => {
   });
 
   it("a union is the first of its types that decodes", () => {
-    expect(wire.decodePilotCommand({ surge: 1, heave: 0, yaw: 0 })).toEqual({ surge: 1, heave: 0, yaw: 0 });
+    expect(wire.decodePilotCommand({ surge: 1, heave: 0, yaw: 0 })).toEqual({ surge: 1, heave: 0, yaw: 0, sway: null });
+    const strafe = wire.decodePilotCommand({ surge: 1, heave: 0, yaw: 0, sway: -0.5 });
+    expect(strafe !== null && "sway" in strafe ? strafe.sway : undefined).toBe(-0.5);
     expect(wire.decodePilotCommand({ port: 1, vertical: 0, starboard: 0, extra: 1 })).toEqual({ port: 1, vertical: 0, starboard: 0 });
     expect(wire.decodePilotCommand({ port: 1 })).toBeNull();
     const pending = wire.decodeControlReply({ status: "pending", timeout_ms: 10000 });

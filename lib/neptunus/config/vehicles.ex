@@ -105,7 +105,6 @@ defmodule Neptunus.Config.Vehicles do
           | {:serial, String.t(), pos_integer()}
 
   @default_vehicles "neptunus-1=simulated"
-  @boards %{"simulated" => :simulated, "sitl" => :sitl}
   @bauds [1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 921_600]
 
   @doc """
@@ -405,7 +404,7 @@ defmodule Neptunus.Config.Vehicles do
               "NEPTUNUS_VEHICLES",
               spec,
               "a known board in #{inspect(pair)}: one of " <>
-                "#{Enum.join(Map.keys(@boards), ", ")}, uart:DEVICE[@BAUD], mavlink:…"
+                Enum.join(Neptunus.Vehicle.Board.syntaxes(), ", ")
             )
         end
 
@@ -433,7 +432,7 @@ defmodule Neptunus.Config.Vehicles do
   end
 
   defp board(name) do
-    with {:ok, board} <- Map.fetch(@boards, name), do: {:ok, %{board: board}}
+    with {:ok, board} <- Neptunus.Vehicle.Board.named(name), do: {:ok, %{board: board}}
   end
 
   defp serial(device_baud) do

@@ -7,7 +7,7 @@ defmodule Neptunus.Control.Command do
   | Event | Payload | Command |
   |---|---|---|
   | `set_control_mode` | `{mode: "motion" \\| "manual" \\| "dp"}` | `{:set_control_mode, mode}` |
-  | `thrust` | `{mode: "motion", surge, heave, yaw}` or `{mode: "manual", port, vertical, starboard}`, each in [-1, 1] | `{:thrust, :motion, %{surge, heave, yaw}}` / `{:thrust, :manual, %{port, vertical, starboard}}` |
+  | `thrust` | `{mode: "motion", surge, heave, yaw, sway?}` or `{mode: "manual", port, vertical, starboard}`, each in [-1, 1] (`sway` to starboard, on a vehicle that has it) | `{:thrust, :motion, %{surge, heave, yaw}}` (with `sway` when given) / `{:thrust, :manual, %{port, vertical, starboard}}` |
   | `set_gain` | `{value}` in [0, 1] | `{:set_gain, k}` |
   | `set_lights`, `set_laser` | `{value}` integer 0..255 | `{:set_lights, n}`, `{:set_laser, n}` |
   | `set_tilt` | `{value}` rad in [−π/4, π/4] | `{:set_tilt, rad}` |
@@ -43,7 +43,13 @@ defmodule Neptunus.Control.Command do
   @type setpoint :: :unchanged | :hold | nil | float()
   @type t ::
           {:set_control_mode, control_mode()}
-          | {:thrust, :motion, %{surge: float(), heave: float(), yaw: float()}}
+          | {:thrust, :motion,
+             %{
+               required(:surge) => float(),
+               required(:heave) => float(),
+               required(:yaw) => float(),
+               optional(:sway) => float()
+             }}
           | {:thrust, :manual, %{port: float(), vertical: float(), starboard: float()}}
           | {:set_gain, float()}
           | {:set_lights, 0..255}
@@ -74,10 +80,10 @@ defmodule Neptunus.Control.Command do
   end
 
   def validate("thrust", %{"mode" => "motion"} = payload),
-    do: axes(payload, :motion, ~w(surge heave yaw))
+    do: axes(payload, :motion, ~w(surge heave yaw), ~w(sway))
 
   def validate("thrust", %{"mode" => "manual"} = payload),
-    do: axes(payload, :manual, ~w(port vertical starboard))
+    do: axes(payload, :manual, ~w(port vertical starboard), [])
 
   def validate("thrust", %{"mode" => mode}),
     do: {:error, "mode must be \"motion\" or \"manual\", got #{V.show(mode)}"}
@@ -120,9 +126,11 @@ defmodule Neptunus.Control.Command do
     end
   end
 
-  defp axes(payload, mode, keys) do
-    with :ok <- V.object(payload, "", ["mode" | keys]) do
-      Enum.reduce_while(keys, {:ok, %{}}, fn key, {:ok, acc} ->
+  defp axes(payload, mode, keys, optional) do
+    given = Enum.filter(optional, &Map.has_key?(payload, &1))
+
+    with :ok <- V.object(payload, "", ["mode" | keys], optional) do
+      Enum.reduce_while(keys ++ given, {:ok, %{}}, fn key, {:ok, acc} ->
         case V.required(payload, "", key, &V.number(&1, &2, min: -1, max: 1)) do
           {:ok, x} -> {:cont, {:ok, Map.put(acc, String.to_atom(key), x)}}
           error -> {:halt, error}

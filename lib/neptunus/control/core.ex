@@ -75,7 +75,7 @@ defmodule Neptunus.Control.Core do
   """
 
   alias Neptunus.Allocation
-  alias Neptunus.Control.{Autopilot, Command, DP}
+  alias Neptunus.Control.{Autopilot, Command, Demand, DP}
 
   @handover_reasons ["control_transferred", "main_station_takeover"]
   @deadband_ramp 0.02
@@ -106,17 +106,26 @@ defmodule Neptunus.Control.Core do
     stale_after: 1.0,
     deadband: 0.05,
     dp_opts: [],
-    waiting: %{depth: nil, heading: nil}
+    waiting: %{depth: nil, heading: nil},
+    axes: [:surge, :heave, :yaw],
+    allocation: :thesis,
+    demand: %{surge: 0.0, sway: 0.0, heave: 0.0, yaw: 0.0}
   ]
 
   @type action ::
-          {:go, Allocation.thrusters()}
+          {:go, output()}
           | {:stopped, String.t()}
           | {:lights, 0..255}
           | {:laser, 0..255}
           | {:tilt, float()}
           | {:run_mode, Command.run_mode(), %{depth: float(), heading: float()} | nil}
           | {:notice, String.t()}
+
+  @typedoc """
+  What a `{:go, output}` action commands: the three thrusters (allocation `:thesis`, and
+  always in run mode simulator) or the body-frame demand (allocation `:vehicle`).
+  """
+  @type output :: Allocation.thrusters() | Demand.t()
 
   @typedoc """
   * `mode`, `gain`, `lights`, `laser`, `tilt` (rad), `run_mode` — as set by the pilot;
@@ -128,6 +137,10 @@ defmodule Neptunus.Control.Core do
   * `thrusters` — the output in force
   * `waiting` — per autopilot, why it gives no output now (its measurement initialising or
     stale, no current estimate), nil when it acts or is off
+  * `axes` — the body-frame axes the vehicle can be commanded in (the board's,
+    `Neptunus.Vehicle.Board.capabilities/1`); `allocation` — where the demand becomes
+    thruster commands: `:thesis` here (eq. 9.3), `:vehicle` on the vehicle (ArduSub)
+  * `demand` — the body-frame demand in force (`Neptunus.Control.Demand`)
   """
   @type t :: %__MODULE__{
           mode: Command.control_mode(),
@@ -148,7 +161,10 @@ defmodule Neptunus.Control.Core do
           stale_after: float(),
           deadband: float(),
           dp_opts: keyword(),
-          waiting: %{depth: String.t() | nil, heading: String.t() | nil}
+          waiting: %{depth: String.t() | nil, heading: String.t() | nil},
+          axes: [Demand.axis()],
+          allocation: :thesis | :vehicle,
+          demand: Demand.t()
         }
 
   @doc """
@@ -158,7 +174,9 @@ defmodule Neptunus.Control.Core do
   (s), `deadband` (the thrusters' deadband the autopilot outputs skip, default 0.05 — the
   vehicle files' and a typical ESC's; 0 turns compensation off), `dp` (`return_radius`,
   `capture_radius`), `reference` (`%{depth: [rate:, accel:], heading: …}`: the setpoint
-  reference limits, SI and rad, default `Neptunus.Control.Autopilot.default_limits/0`).
+  reference limits, SI and rad, default `Neptunus.Control.Autopilot.default_limits/0`),
+  `axes` (the vehicle's body-frame axes, default `[:surge, :heave, :yaw]`) and `allocation`
+  (`:thesis`, the default, or `:vehicle`; see `t:t/0`).
   """
   @spec new(keyword()) :: t()
   def new(opts \\ []) do
@@ -177,7 +195,9 @@ defmodule Neptunus.Control.Core do
       heading: Autopilot.new(:heading, gains.heading, references[:heading]),
       stale_after: Keyword.get(opts, :stale_after, 1.0) * 1.0,
       deadband: Keyword.get(opts, :deadband, 0.05) * 1.0,
-      dp_opts: Keyword.get(opts, :dp, [])
+      dp_opts: Keyword.get(opts, :dp, []),
+      axes: Keyword.get(opts, :axes, [:surge, :heave, :yaw]),
+      allocation: Keyword.get(opts, :allocation, :thesis)
     }
   end
 
@@ -238,17 +258,27 @@ defmodule Neptunus.Control.Core do
   end
 
   def command(core, {:thrust, :motion, values}, _now) do
-    # a release re-captures at the latest estimate (the stick moved the vehicle there)
-    estimate = core.estimate
+    # an axis the vehicle does not have may only be zero (and is left out)
+    {missing, values} = Map.split(values, Map.keys(values) -- axes(core))
 
-    core = %{
-      core
-      | pilot: values,
-        depth: pilot_axis(core.depth, values.heave, estimate, :depth, :depth_rate),
-        heading: pilot_axis(core.heading, values.yaw, estimate, :heading, :yaw_rate)
-    }
+    case Enum.find(missing, fn {_axis, v} -> v != 0 end) do
+      nil ->
+        # a release re-captures at the latest estimate (the stick moved the vehicle there)
+        estimate = core.estimate
 
-    {:ok, core, []} |> remix()
+        core = %{
+          core
+          | pilot: values,
+            depth: pilot_axis(core.depth, values.heave, estimate, :depth, :depth_rate),
+            heading: pilot_axis(core.heading, values.yaw, estimate, :heading, :yaw_rate)
+        }
+
+        {:ok, core, []} |> remix()
+
+      {axis, _} ->
+        {:error,
+         "this vehicle has no #{axis} (its axes: #{Enum.join(axes(core), ", ")}): send 0 or leave it out"}
+    end
   end
 
   def command(core, {:set_gain, k}, _now), do: {:ok, %{core | gain: k}, []} |> remix()
@@ -346,8 +376,8 @@ defmodule Neptunus.Control.Core do
   @spec stop(t(), String.t()) :: {t(), [action()]}
   def stop(core, reason) when reason in @handover_reasons do
     core = release_pilot(%{core | pilot: zero(core.mode)})
-    thrusters = mix(core)
-    {%{core | thrusters: thrusters}, [{:go, thrusters}, {:stopped, reason}]}
+    core = %{core | thrusters: mix(core), demand: body_demand(core)}
+    {core, [{:go, output(core)}, {:stopped, reason}]}
   end
 
   def stop(core, reason), do: safety_stop(core, reason)
@@ -495,11 +525,10 @@ defmodule Neptunus.Control.Core do
   end
 
   defp emit(core) do
-    thrusters = mix(core)
-
-    if thrusters == core.thrusters,
-      do: {core, []},
-      else: {%{core | thrusters: thrusters}, [{:go, thrusters}]}
+    before = output(core)
+    core = %{core | thrusters: mix(core), demand: body_demand(core)}
+    output = output(core)
+    if output == before, do: {core, []}, else: {core, [{:go, output}]}
   end
 
   # --- views ---------------------------------------------------------------------------------
@@ -562,8 +591,15 @@ defmodule Neptunus.Control.Core do
 
   # The pilot's command goes to zero and the thrusters neutral (control-mode change).
   defp pilot_stop(core, reason) do
-    core = release_pilot(%{core | pilot: zero(core.mode), thrusters: Allocation.neutral()})
-    {core, [{:go, Allocation.neutral()}, {:stopped, reason}]}
+    core = %{
+      core
+      | pilot: zero(core.mode),
+        thrusters: Allocation.neutral(),
+        demand: Demand.zero()
+    }
+
+    core = release_pilot(core)
+    {core, [{:go, output(core)}, {:stopped, reason}]}
   end
 
   defp safety_stop(core, reason) do
@@ -574,10 +610,11 @@ defmodule Neptunus.Control.Core do
         depth: Autopilot.disengage(core.depth),
         heading: Autopilot.disengage(core.heading),
         waiting: %{depth: nil, heading: nil},
-        thrusters: Allocation.neutral()
+        thrusters: Allocation.neutral(),
+        demand: Demand.zero()
     }
 
-    {core, [{:go, Allocation.neutral()}, {:stopped, reason}]}
+    {core, [{:go, output(core)}, {:stopped, reason}]}
   end
 
   # the pilot let go of every axis: overridden autopilots re-capture
@@ -675,9 +712,46 @@ defmodule Neptunus.Control.Core do
 
   # recompute the output and always command it (a command re-sends the thrust)
   defp remix({:ok, core, actions}) do
-    thrusters = mix(core)
-    {:ok, %{core | thrusters: thrusters}, actions ++ [{:go, thrusters}]}
+    core = %{core | thrusters: mix(core), demand: body_demand(core)}
+    {:ok, core, actions ++ [{:go, output(core)}]}
   end
+
+  @doc """
+  What goes to the board now (the `{:go, output}` actions): the three thrusters where the
+  allocation is ours (`:thesis`, and always in run mode simulator: the simulator is the
+  three-thruster vehicle), else the body-frame demand, each axis in [-1, 1].
+  """
+  @spec output(t()) :: output()
+  def output(core) do
+    case allocation(core) do
+      :thesis -> core.thrusters
+      :vehicle -> Demand.saturate(core.demand)
+    end
+  end
+
+  @doc "Nothing commanded, in the terms of `output/1`."
+  @spec neutral(t()) :: output()
+  def neutral(core) do
+    case allocation(core) do
+      :thesis -> Allocation.neutral()
+      :vehicle -> Demand.zero()
+    end
+  end
+
+  @doc """
+  The body-frame axes the pilot may command now: the vehicle's (`axes` of `new/1`), or the
+  three-thruster vehicle's surge, heave and yaw in run mode simulator.
+  """
+  @spec axes(t()) :: [Demand.axis()]
+  def axes(%__MODULE__{run_mode: :simulator}), do: [:surge, :heave, :yaw]
+  def axes(%__MODULE__{axes: axes}), do: axes
+
+  defp allocation(%__MODULE__{run_mode: :simulator}), do: :thesis
+  defp allocation(%__MODULE__{allocation: allocation}), do: allocation
+
+  @doc "The body-frame demand in force (surge, sway, heave, yaw; zero in manual mode)."
+  @spec demand(t()) :: Demand.t()
+  def demand(%__MODULE__{demand: demand}), do: demand
 
   @doc false
   # The thruster output of the current mode, pilot command and autopilot outputs.
@@ -686,23 +760,43 @@ defmodule Neptunus.Control.Core do
     %{port: sat(k * p.port), vertical: sat(k * p.vertical), starboard: sat(k * p.starboard)}
   end
 
-  # the pilot alone: the thesis' eq. 9.3 exactly
-  def mix(%__MODULE__{
-        mode: :motion,
-        gain: k,
-        pilot: p,
-        depth: %{state: ds},
-        heading: %{state: hs}
-      })
-      when ds != :holding and hs != :holding,
-      do: Allocation.motion(p, k)
+  def mix(%__MODULE__{} = core) do
+    if pilot_alone?(core) do
+      # the thesis' eq. 9.3 exactly
+      Allocation.motion(core.pilot, core.gain)
+    else
+      %{surge: surge, heave: heave, yaw: yaw} = body_demand(core)
+      Allocation.motion(%{surge: surge, heave: heave, yaw: yaw}, 1.0)
+    end
+  end
 
-  def mix(%__MODULE__{mode: mode, gain: k, pilot: p} = core) do
-    {surge, pilot_k} =
+  # motion mode with no autopilot holding: the pilot's command alone
+  defp pilot_alone?(%__MODULE__{mode: :motion, depth: %{state: ds}, heading: %{state: hs}}),
+    do: ds != :holding and hs != :holding
+
+  defp pilot_alone?(_core), do: false
+
+  # The body-frame demand of the current mode, pilot command, autopilots and DP (deadband
+  # compensated where an autopilot or DP drives the axis). The three-thruster allocation
+  # takes its surge, heave and yaw; a vehicle that can sway takes it all. One gain, `k`,
+  # scales the pilot's axes, once, here.
+  defp body_demand(%__MODULE__{mode: :manual}), do: Demand.zero()
+
+  defp body_demand(core) do
+    if pilot_alone?(core) do
+      %{gain: k, pilot: p} = core
+      %{surge: k * p.surge, sway: k * sway(p), heave: k * p.heave, yaw: k * p.yaw}
+    else
+      assisted_demand(core)
+    end
+  end
+
+  defp assisted_demand(%__MODULE__{mode: mode, gain: k, pilot: p} = core) do
+    {surge, sway, pilot_k} =
       case {mode, core.dp} do
-        {:dp, %DP{output: output}} -> {compensate(output, core), 0.0}
-        {:dp, nil} -> {0.0, 0.0}
-        _ -> {k * p.surge, k}
+        {:dp, %DP{output: output}} -> {compensate(output, core), 0.0, 0.0}
+        {:dp, nil} -> {0.0, 0.0, 0.0}
+        _ -> {k * p.surge, k * sway(p), k}
       end
 
     heave =
@@ -713,16 +807,18 @@ defmodule Neptunus.Control.Core do
 
     case Autopilot.output(core.heading) do
       nil ->
-        Allocation.motion(%{surge: surge, heave: heave, yaw: pilot_k * p.yaw}, 1.0)
+        %{surge: surge, sway: sway, heave: heave, yaw: pilot_k * p.yaw}
 
       yaw ->
         yaw = compensate(yaw, core)
         # heading first: surge gives way so that |surge| + |yaw| <= 1
         room = max(1.0 - abs(yaw), 0.0)
         surge = surge |> max(-room) |> min(room)
-        Allocation.motion(%{surge: surge, heave: heave, yaw: yaw}, 1.0)
+        %{surge: surge, sway: sway, heave: heave, yaw: yaw}
     end
   end
+
+  defp sway(pilot), do: Map.get(pilot, :sway, 0.0)
 
   # Thruster deadband compensation of an autopilot output: beyond `ramp` the output skips the
   # deadband δ (δ + (1 − δ)|u|), below it a steeper line through zero (no chatter from noise).

@@ -6,8 +6,13 @@ defmodule Neptunus.Vehicle.Board do
   A board process is registered as `Neptunus.Fleet.via(Neptunus.Vehicle.Board, id)` whatever
   its implementation, and
 
-    * accepts `go/2` (thruster values in [-1, 1], physical sense: positive pushes the vehicle
-      forward for port/starboard, down for vertical) and `neutral/1`;
+    * declares what its vehicle can do (the `capabilities/1` callback, `t:capabilities/0`): the
+      body-frame axes it can be commanded in, and where the demand becomes thruster
+      commands;
+    * accepts `go/2` — for a board whose allocation is ours (`:thesis`) thruster values in
+      [-1, 1], physical sense: positive pushes the vehicle forward for port/starboard, down for
+      vertical; for a vehicle that allocates itself (`:vehicle`) the body-frame demand
+      (`Neptunus.Control.Demand`) — and `neutral/1`;
     * sends every sample it reads to the vehicle's navigation process with `sample/3`
       (which passes it to `Neptunus.Vehicle.Navigation.sample/2` unless the vehicle flies the
       run-mode simulator; navigation filters it and passes it on to telemetry and control);
@@ -27,7 +32,8 @@ defmodule Neptunus.Vehicle.Board do
   `keepalive/1` once a second while it is healthy), `link_status/1` (boards with a link that
   can go down), and `lights/2`, `laser/2` (0..255) and `tilt/2` (camera tilt, rad in
   [−π/4, π/4]; `tilt_us/1` gives the servo pulse width) — boards without them ignore those
-  commands; `arm/3` (vehicles with their own arming; `arm/3` here refuses for the others).
+  commands; `command/3` (vehicles with their own arming, flight modes or autopilots: one
+  entry point, `command/3` here refuses for the others); `vet/1`.
 
   **Samples** go to navigation through `sample/3`, which passes on only the samples of the
   vehicle's current source: the board's, or — while `Vehicle.Control` runs in run mode
@@ -35,6 +41,7 @@ defmodule Neptunus.Vehicle.Board do
   """
 
   alias Neptunus.Allocation
+  alias Neptunus.Control.Demand
 
   @typedoc "What a board measures (SI units, heading in [0, 2π))."
   @type measurement :: %{
@@ -58,8 +65,55 @@ defmodule Neptunus.Vehicle.Board do
           optional(:board) => map()
         }
 
+  @typedoc """
+  What a board's vehicle can do, declared by the board (`c:capabilities/1`):
+
+    * `axes` — the body-frame axes the vehicle can be commanded in (`surge` forward, `sway` to
+      starboard, `heave` down, `yaw` bow to starboard; `roll` and `pitch` where it can): the
+      pilot's inputs offer these and no others;
+    * `allocation` — where the demand becomes thruster commands: `:thesis` on our side (the
+      three-thruster allocation, thesis eq. 9.3; `go/2` gets `%{port, vertical, starboard}`)
+      or `:vehicle` on the vehicle (`go/2` gets the body-frame demand, e.g. ArduSub's own
+      motor mixing);
+    * `real` — a real vehicle (run mode simulator flies a simulator in its place) or the
+      built-in simulator;
+    * `autopilots` — whose depth and heading hold the `autopilot` command drives:
+      Neptunus' own (`:neptunus`) or the vehicle's flight modes (`:vehicle`, through
+      `command/3`).
+  """
+  @type capabilities :: %{
+          axes: [Demand.axis()],
+          allocation: :thesis | :vehicle,
+          real: boolean(),
+          autopilots: :neptunus | :vehicle
+        }
+
+  @typedoc "What `go/2` takes: see `t:capabilities/0`'s `allocation`."
+  @type output :: Allocation.thrusters() | Demand.t()
+
+  @typedoc """
+  A command for the vehicle itself (`command/3`): arm or disarm, a flight mode by name, or
+  depth and heading hold as `Neptunus.Control.Command` validates the `autopilot` payload.
+  """
+  @type vehicle_command ::
+          {:arm, boolean()}
+          | {:mode, String.t()}
+          | {:autopilot, %{depth: term(), heading: term()}}
+
   @doc "Starts the board for vehicle `opts[:id]`; must register under `via/1`."
   @callback start_link(opts :: keyword()) :: GenServer.on_start()
+
+  @doc """
+  What the vehicle configured with `opts` (the vehicle's options, as `start_link/1` gets them)
+  can do. Pure: called before the board starts.
+  """
+  @callback capabilities(opts :: keyword()) :: capabilities()
+
+  @doc """
+  Commands the vehicle (asynchronous, never blocks): thruster values or the demand, as the
+  board's `allocation` says.
+  """
+  @callback go(id :: String.t(), output()) :: :ok
 
   @doc "Vehicle `id`'s control is alive (called about once a second); see `keepalive/1`."
   @callback keepalive(id :: String.t()) :: :ok
@@ -77,12 +131,16 @@ defmodule Neptunus.Vehicle.Board do
   @callback tilt(id :: String.t(), float()) :: :ok
 
   @doc """
-  Arms (`true`) or disarms (`false`) the vehicle (boards whose vehicle has its own arming:
-  `Neptunus.Vehicle.Board.MAVLink`). Returns at once; `notify` is called with `:ok` or
-  `{:error, reason}` when the outcome is known.
+  A command for the vehicle itself (`t:vehicle_command/0`; boards whose vehicle has its own
+  arming, flight modes or autopilots: `Neptunus.Vehicle.Board.MAVLink`). Returns at once;
+  `notify` is called with `:ok` or `{:error, reason}` when the outcome is known, or
+  `{:error, reason}` at once for a command it does not take.
   """
-  @callback arm(id :: String.t(), boolean(), notify :: (:ok | {:error, String.t()} -> term())) ::
-              :ok
+  @callback command(
+              id :: String.t(),
+              vehicle_command(),
+              notify :: (:ok | {:error, String.t()} -> term())
+            ) :: :ok | {:error, String.t()}
 
   @doc """
   Whether the board's vehicle can fly a validated control command
@@ -91,38 +149,72 @@ defmodule Neptunus.Vehicle.Board do
   """
   @callback vet(command :: term()) :: :ok | {:error, String.t()}
 
-  @optional_callbacks keepalive: 1, link_status: 1, lights: 2, laser: 2, tilt: 2, arm: 3, vet: 1
+  @doc """
+  The keys of the details its `link_status/1` reports beyond `up` and `reason`, which
+  telemetry carries under `link` (each one in the wire schema's `link_status`).
+  """
+  @callback link_details() :: [atom()]
 
-  @boards %{
-    simulated: Neptunus.Vehicle.Board.Simulated,
-    uart: Neptunus.Vehicle.Board.UART,
-    sitl: Neptunus.Vehicle.Board.SITL,
-    mavlink: Neptunus.Vehicle.Board.MAVLink
-  }
+  @optional_callbacks link_details: 0,
+                      keepalive: 1,
+                      link_status: 1,
+                      lights: 2,
+                      laser: 2,
+                      tilt: 2,
+                      command: 3,
+                      vet: 1
+
+  # The boards, once: type => {module, how NEPTUNUS_VEHICLES names it (nil: by its type alone;
+  # else the syntax of its spec, which Neptunus.Config.Vehicles parses)}
+  @registry [
+    simulated: {Neptunus.Vehicle.Board.Simulated, nil},
+    sitl: {Neptunus.Vehicle.Board.SITL, nil},
+    uart: {Neptunus.Vehicle.Board.UART, "uart:DEVICE[@BAUD]"},
+    mavlink: {Neptunus.Vehicle.Board.MAVLink, "mavlink:…"}
+  ]
+  @boards Map.new(@registry, fn {type, {module, _spec}} -> {type, module} end)
 
   @doc """
-  The board link's liveness details a board with a link reports with its state (`up`,
-  `reason`) and telemetry carries under `link` (see `Neptunus.Vehicle.Board.UART.link_status/1`
+  How `NEPTUNUS_VEHICLES` names each board, in order: the type alone (`simulated`) or the
+  syntax of its spec (`uart:DEVICE[@BAUD]`).
+
+      iex> Neptunus.Vehicle.Board.syntaxes()
+      ["simulated", "sitl", "uart:DEVICE[@BAUD]", "mavlink:…"]
+  """
+  @spec syntaxes() :: [String.t()]
+  def syntaxes, do: for({type, {_m, spec}} <- @registry, do: spec || Atom.to_string(type))
+
+  @doc """
+  The board type configured by `name` alone (a board without a spec), or `:error`.
+
+      iex> Neptunus.Vehicle.Board.named("sitl")
+      {:ok, :sitl}
+      iex> Neptunus.Vehicle.Board.named("uart")
+      :error
+  """
+  @spec named(String.t()) :: {:ok, atom()} | :error
+  def named(name) do
+    case Enum.find(@registry, fn {type, {_m, spec}} ->
+           spec == nil and Atom.to_string(type) == name
+         end) do
+      {type, _} -> {:ok, type}
+      nil -> :error
+    end
+  end
+
+  @doc """
+  The board link's details every board with a link reports with its state (`up`, `reason`)
+  and telemetry carries under `link`: the union of the boards' `link_details/0` (see
+  `Neptunus.Vehicle.Board.UART.link_status/1`, `Neptunus.Vehicle.Board.MAVLink.link_status/1`
   and docs/API.md).
   """
   @spec link_details() :: [atom()]
   def link_details do
-    [
-      :rtt_ms,
-      :pong_age_ms,
-      :board_uptime_ms,
-      :board_deadman_armed,
-      :firmware,
-      :detected_firmware,
-      :firmware_mismatch,
-      :commands_sent,
-      :commands_confirmed,
-      :board_settings,
-      :board_settings_pending,
-      :board_settings_reason,
-      :thrust_held,
-      :mavlink
-    ]
+    @boards
+    |> Map.values()
+    |> Enum.filter(&(Code.ensure_loaded?(&1) and function_exported?(&1, :link_details, 0)))
+    |> Enum.flat_map(& &1.link_details())
+    |> Enum.uniq()
   end
 
   @doc "The implementation module for a configured board type (or a module implementing this behaviour)."
@@ -135,14 +227,75 @@ defmodule Neptunus.Vehicle.Board do
   def via(id), do: Neptunus.Fleet.via(__MODULE__, id)
 
   @doc """
-  Commands the thrusters (asynchronous; never blocks the caller). Navigation is told the same
-  command (`Neptunus.Vehicle.Navigation.command/2`): it drives the estimator's prediction.
+  Commands the vehicle (asynchronous; never blocks the caller) with thruster values or the
+  body-frame demand, as its board's `allocation` says (`t:capabilities/0`), through the
+  board's `go/2` (a board started on its own, outside a vehicle, gets the same cast its
+  `go/2` sends). Navigation is told the thruster values (a demand's three-thruster
+  equivalent): they drive the estimator's prediction.
   """
-  @spec go(String.t(), Allocation.thrusters()) :: :ok
-  def go(id, thrusters) do
-    Neptunus.Vehicle.Navigation.command(id, thrusters)
-    GenServer.cast(via(id), {:go, thrusters})
+  @spec go(String.t(), output()) :: :ok
+  def go(id, output) do
+    Neptunus.Vehicle.Navigation.command(id, thrusters(output))
+
+    case board_module(id) do
+      {:ok, module} -> module.go(id, output)
+      :error -> GenServer.cast(via(id), {:go, output})
+    end
   end
+
+  @doc """
+  The three-thruster values of an output: thruster values as they are, a demand through the
+  thesis' allocation (its sway left out).
+
+      iex> Neptunus.Vehicle.Board.thrusters(%{surge: 0.5, sway: 0.3, heave: -0.2, yaw: 0.25})
+      %{port: 0.75, vertical: -0.2, starboard: 0.25}
+  """
+  @spec thrusters(output()) :: Allocation.thrusters()
+  def thrusters(%{port: _, vertical: _, starboard: _} = thrusters), do: thrusters
+
+  def thrusters(%{surge: _} = demand) do
+    {motion, _sway} = Demand.to_motion(demand)
+    Allocation.motion(motion, 1.0)
+  end
+
+  @doc """
+  What the vehicle configured as board `board` (a type of `module/1`) with options `opts`
+  can do (its board's `c:capabilities/1`).
+  """
+  @spec capabilities(atom(), keyword()) :: capabilities()
+  def capabilities(board, opts), do: module(board).capabilities(opts)
+
+  @doc """
+  What vehicle `id` can do (`t:capabilities/0`), as its supervisor registered it at start;
+  nil for a vehicle not running here.
+  """
+  @spec capabilities(String.t()) :: capabilities() | nil
+  def capabilities(id) do
+    case Registry.lookup(Neptunus.Fleet.Registry, {__MODULE__.Capabilities, id}) do
+      [{_pid, capabilities}] -> capabilities
+      [] -> nil
+    end
+  end
+
+  @doc """
+  Registers `capabilities` as vehicle `id`'s for `capabilities/1`, under the calling process
+  (the vehicle's supervisor): they go when it goes.
+  """
+  @spec register_capabilities(String.t(), capabilities()) :: :ok
+  def register_capabilities(id, capabilities) do
+    {:ok, _} =
+      Registry.register(Neptunus.Fleet.Registry, {__MODULE__.Capabilities, id}, capabilities)
+
+    :ok
+  end
+
+  @doc """
+  The capabilities of the three-thruster vehicle of the thesis (surge, heave, yaw; allocation
+  ours), a real one: boards other than the built-in simulator and ArduSub declare these.
+  """
+  @spec thesis_capabilities() :: capabilities()
+  def thesis_capabilities,
+    do: %{axes: [:surge, :heave, :yaw], allocation: :thesis, real: true, autopilots: :neptunus}
 
   @doc """
   Reports a sample read by vehicle `id`'s board (`source` `:board`) or by the simulator that
@@ -205,19 +358,30 @@ defmodule Neptunus.Vehicle.Board do
   end
 
   @doc """
-  Arms or disarms vehicle `id` (see the `arm/3` callback): `:ok` once asked (`notify` gets the
-  outcome), or `{:error, reason}` at once for a board without arming.
+  A command for vehicle `id` itself (see the `command/3` callback): `:ok` once asked
+  (`notify` gets the outcome), or `{:error, reason}` at once — a board without such commands
+  has no arming (`{:arm, _}`: "this vehicle's board has no arming (only mavlink vehicles
+  arm)") and no flight modes.
   """
-  @spec arm(String.t(), boolean(), (:ok | {:error, String.t()} -> term())) ::
+  @spec command(String.t(), vehicle_command(), (:ok | {:error, String.t()} -> term())) ::
           :ok | {:error, String.t()}
-  def arm(id, arm?, notify) when is_boolean(arm?) and is_function(notify, 1) do
+  def command(id, command, notify) when is_function(notify, 1) do
     with {:ok, module} <- board_module(id),
-         true <- function_exported?(module, :arm, 3) do
-      module.arm(id, arm?, notify)
+         true <- function_exported?(module, :command, 3) do
+      module.command(id, command, notify)
     else
-      _ -> {:error, "this vehicle's board has no arming (only mavlink vehicles arm)"}
+      _ -> {:error, no_command(command)}
     end
   end
+
+  defp no_command({:arm, _}), do: "this vehicle's board has no arming (only mavlink vehicles arm)"
+  defp no_command({:mode, _}), do: "this vehicle's board has no flight modes"
+  defp no_command({:autopilot, _}), do: "this vehicle's autopilots are Neptunus' own"
+
+  @doc "Arms or disarms vehicle `id`: `command(id, {:arm, arm?}, notify)`."
+  @spec arm(String.t(), boolean(), (:ok | {:error, String.t()} -> term())) ::
+          :ok | {:error, String.t()}
+  def arm(id, arm?, notify) when is_boolean(arm?), do: command(id, {:arm, arm?}, notify)
 
   @doc "Whether vehicle `id`'s board can fly a validated control command (`vet/1` callback)."
   @spec vet(String.t(), term()) :: :ok | {:error, String.t()}
@@ -230,9 +394,14 @@ defmodule Neptunus.Vehicle.Board do
     end
   end
 
-  @doc "Drives all thrusters neutral."
+  @doc "Drives all thrusters neutral (a zero demand to a vehicle that allocates itself)."
   @spec neutral(String.t()) :: :ok
-  def neutral(id), do: go(id, Allocation.neutral())
+  def neutral(id) do
+    case capabilities(id) do
+      %{allocation: :vehicle} -> go(id, Demand.zero())
+      _ -> go(id, Allocation.neutral())
+    end
+  end
 
   @doc """
   Tells vehicle `id`'s board that its control is alive (asynchronous). A board with a deadman

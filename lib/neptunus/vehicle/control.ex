@@ -9,6 +9,12 @@ defmodule Neptunus.Vehicle.Control do
   A validated command the board's vehicle cannot fly (`Neptunus.Vehicle.Board.vet/2`, e.g.
   manual per-thruster mode on an ArduSub vehicle) is refused with the board's reason.
 
+  What the vehicle can do comes from its board (`Neptunus.Vehicle.Board.capabilities/1`): the
+  axes the pilot may command (a thrust in another is refused), whether the three-thruster
+  allocation is ours (the board gets thruster values) or the vehicle's (it gets the body-frame
+  demand, `Neptunus.Control.Core.output/1`), and whether run mode simulator exists (a real
+  vehicle).
+
   It decides nothing about *who* may command: `Neptunus.Vehicle.Helm` authorises every
   command and is the only caller of `thrust/2`, `command/3` and `stop/2` (tests aside).
 
@@ -40,7 +46,7 @@ defmodule Neptunus.Vehicle.Control do
 
   require Logger
 
-  alias Neptunus.{Allocation, Fleet, Periodic, PID, PubSub, Settings}
+  alias Neptunus.{Fleet, Periodic, PID, PubSub, Settings}
   alias Neptunus.Control.{Autopilot, Command, Core, Tuning}
   alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
 
@@ -218,18 +224,17 @@ defmodule Neptunus.Vehicle.Control do
     control = Keyword.get(opts, :control, [])
     hz = Keyword.get(control, :hz, @default_hz)
 
-    run_modes =
-      case Board.type(id) do
-        nil -> [:normal]
-        :simulated -> [:normal]
-        _real -> [:normal, :simulator]
-      end
+    # what the vehicle can do (its board's declaration); a control started on its own, outside
+    # a vehicle, drives the three-thruster vehicle
+    capabilities = Board.capabilities(id) || %{Board.thesis_capabilities() | real: false}
+    run_modes = if capabilities.real, do: [:normal, :simulator], else: [:normal]
 
     core =
       control
       |> Keyword.take([:gains, :stale_after, :deadband, :dp, :reference])
       |> Keyword.update(:gains, stored_gains(id), &Tuning.merge(Map.new(&1), stored_gains(id)))
       |> Keyword.merge(gain: Keyword.get(opts, :gain, @default_gain), run_modes: run_modes)
+      |> Keyword.merge(axes: capabilities.axes, allocation: capabilities.allocation)
       |> Core.new()
 
     state = %State{
@@ -247,7 +252,7 @@ defmodule Neptunus.Vehicle.Control do
 
   @impl true
   def handle_continue(:neutral, state) do
-    Board.go(state.id, Allocation.neutral())
+    Board.go(state.id, Core.neutral(state.core))
     {:noreply, publish(state)}
   end
 
@@ -331,8 +336,9 @@ defmodule Neptunus.Vehicle.Control do
     Logger.info("vehicle #{state.id}: #{text}")
   end
 
-  defp act({:go, thrusters}, %State{simulator: nil} = state) do
-    Board.go(state.id, thrusters)
+  # thruster values or the demand, as the board's allocation says (Control.Core.output/1)
+  defp act({:go, output}, %State{simulator: nil} = state) do
+    Board.go(state.id, output)
     state
   end
 

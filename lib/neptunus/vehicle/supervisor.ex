@@ -50,6 +50,8 @@ defmodule Neptunus.Vehicle.Supervisor do
   @impl true
   def init(%{id: id, board: board} = vehicle) do
     opts = [id: id] ++ Map.to_list(Map.drop(vehicle, [:id, :board]))
+    # what the vehicle can do, for everyone (Board.capabilities/1), before anything starts
+    :ok = Board.register_capabilities(id, Board.capabilities(board, opts))
 
     chain = [
       {Board.module(board), opts},

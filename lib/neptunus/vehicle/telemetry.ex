@@ -27,8 +27,6 @@ defmodule Neptunus.Vehicle.Telemetry do
   @default_fanout_slice 50
   @default_fanout_gap_ms 2
 
-  @link_keys [:up, :reason | Board.link_details()]
-
   @no_estimate %{
     depth: nil,
     depth_rate: nil,
@@ -150,7 +148,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   @doc """
   Reports the board link's state (called by boards with a link when it changes, and by
   `Board.UART` once a second with its liveness fields, see the moduledoc): `up`, `reason` and
-  any of the `@link_keys`.
+  any of the boards' `Neptunus.Vehicle.Board.link_details/0`.
   """
   @spec link(String.t(), %{
           required(:up) => boolean(),
@@ -158,7 +156,7 @@ defmodule Neptunus.Vehicle.Telemetry do
           optional(atom()) => term()
         }) :: :ok
   def link(id, %{up: up, reason: reason} = link) when is_boolean(up) and is_binary(reason),
-    do: GenServer.cast(via(id), {:link, Map.take(link, @link_keys)})
+    do: GenServer.cast(via(id), {:link, link})
 
   @doc """
   Reports the state of one of the vehicle's other parts, carried in every payload under its
@@ -205,7 +203,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   def handle_continue(:link, state) do
     link =
       try do
-        Map.take(Board.link_status(state.id), @link_keys)
+        Map.take(Board.link_status(state.id), link_keys())
       catch
         :exit, _ -> %{up: false, reason: "board not running"}
       end
@@ -216,7 +214,8 @@ defmodule Neptunus.Vehicle.Telemetry do
   @impl true
   def handle_cast({:sample, sample}, state), do: {:noreply, %{state | sample: sample}}
 
-  def handle_cast({:link, link}, state), do: {:noreply, %{state | link: link}}
+  def handle_cast({:link, link}, state),
+    do: {:noreply, %{state | link: Map.take(link, link_keys())}}
 
   def handle_cast({:report, part, status}, state),
     do: {:noreply, %{state | reports: Map.put(state.reports, part, status)}}
@@ -273,4 +272,7 @@ defmodule Neptunus.Vehicle.Telemetry do
     }
     |> Map.merge(state.reports)
   end
+
+  # what telemetry's `link` carries: the state and the boards' details
+  defp link_keys, do: [:up, :reason | Board.link_details()]
 end

@@ -16,8 +16,9 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   send each: the wire schema, `NeptunusWeb.WireSchema` (docs/API.md); a command added here is
   added there. Commands go through the vehicle's `Neptunus.Vehicle.Helm` (pilot only) to
   `Neptunus.Vehicle.Control.command/3` (the settings), `Neptunus.Sim.Live` (the simulator) or
-  the board (`arm`, `disarm` and, on a mavlink vehicle, `autopilot`:
-  `Neptunus.Vehicle.Board.MAVLink.autopilot/3`, whose late answer comes as `vehicle_answer`);
+  the board (`arm`, `disarm` and, on a vehicle whose autopilots are its own — the board's
+  capabilities say `autopilots: :vehicle`, e.g. ArduSub's flight modes — `autopilot`:
+  `Neptunus.Vehicle.Board.command/3`, whose late answer comes as `vehicle_answer`);
   the tuning and the camera rotation are for the user who pilots or the main station.
 
   A vehicle on another node of the fleet is joined the same way (its snapshot is made there,
@@ -61,7 +62,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
       socket =
         Channel.assign(socket,
           vehicle_id: id,
-          board: state.vehicle.board,
+          autopilots: state.vehicle[:autopilots],
           since_wall_ms: Neptunus.Clock.wall_ms()
         )
 
@@ -118,17 +119,23 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     socket |> id() |> Helm.release_control(party(socket)) |> reply(socket)
   end
 
-  # Arming and, on a mavlink vehicle, the autopilots as the vehicle's flight modes
-  # (Neptunus.Vehicle.Board.MAVLink): pilot only, through the helm. The vehicle's answer is
+  # Arming and, on a vehicle whose autopilots are its own (its board's capabilities, e.g.
+  # ArduSub's flight modes), the autopilots: commands for the vehicle itself
+  # (Neptunus.Vehicle.Board.command/3), pilot only, through the helm. The vehicle's answer is
   # awaited at most @vehicle_answer_ms (the connection's heartbeats wait meanwhile): the reply
   # carries it, or says `pending` and the answer follows as event `vehicle_answer`.
   def handle_in(event, _payload, socket) when event in ["arm", "disarm"] do
-    board_request(socket, event, &Board.arm(&1, event == "arm", &2))
+    board_request(socket, event, &Board.command(&1, {:arm, event == "arm"}, &2))
   end
 
   def handle_in("autopilot", payload, socket)
-      when socket.assigns.board == :mavlink and is_map(payload) do
-    board_request(socket, "autopilot", &Board.MAVLink.autopilot(&1, payload, &2))
+      when socket.assigns.autopilots == "vehicle" and is_map(payload) do
+    with {:ok, {:autopilot, _} = command} <-
+           Neptunus.Control.Command.validate("autopilot", payload) do
+      board_request(socket, "autopilot", &Board.command(&1, command, &2))
+    else
+      {:error, reason} -> reply({:error, reason}, socket)
+    end
   end
 
   # Control commands (Neptunus.Vehicle.Control.command/3): pilot only, through the helm like
@@ -282,7 +289,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     [vehicle] = Enum.filter(Fleet.list(), &(&1.id == id))
 
     %{
-      vehicle: Map.put(vehicle, :node, Atom.to_string(node())),
+      vehicle: vehicle |> Map.put(:node, Atom.to_string(node())) |> Map.merge(abilities(id)),
       telemetry: Telemetry.latest(id),
       helm: helm,
       pilot: helm.pilot && %{name: helm.pilot.name},
@@ -290,6 +297,17 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
       camera: camera(id),
       settings: ViewSettings.get(id)
     }
+  end
+
+  # what the vehicle can do, as the pages need it (its board's capabilities)
+  defp abilities(id) do
+    case Board.capabilities(id) do
+      %{axes: axes, autopilots: autopilots} ->
+        %{axes: Enum.map(axes, &Atom.to_string/1), autopilots: Atom.to_string(autopilots)}
+
+      nil ->
+        %{}
+    end
   end
 
   defp session(socket) do

@@ -509,4 +509,81 @@ defmodule Neptunus.Control.CoreTest do
       assert {:run_mode, :normal, nil} in actions
     end
   end
+
+  describe "the vehicle's axes and allocation" do
+    @sway_vehicle [axes: [:surge, :sway, :heave, :yaw], allocation: :vehicle]
+    @zero %{surge: 0.0, sway: 0.0, heave: 0.0, yaw: 0.0}
+
+    defp strafe(s, w, h, y), do: {:thrust, :motion, %{surge: s, sway: w, heave: h, yaw: y}}
+
+    test "the three-thruster vehicle: sway 0 may be sent and is left out, any other is refused" do
+      {core, actions} = ok!(core(), strafe(0.5, 0.0, 0.0, 0.0))
+      assert gos(actions) == [%{port: 0.25, vertical: 0.0, starboard: 0.25}]
+      assert Core.status(core).command == %{surge: 0.5, heave: 0.0, yaw: 0.0}
+
+      assert Core.command(core, strafe(0.5, 0.3, 0.0, 0.0), 10.0) ==
+               {:error,
+                "this vehicle has no sway (its axes: surge, heave, yaw): send 0 or leave it out"}
+    end
+
+    test "a vehicle that allocates itself gets the demand: the gain once, axes apart" do
+      {core, actions} = ok!(core(@sway_vehicle), strafe(1.0, -0.6, 0.4, 1.0))
+      # gain 0.5 on every axis; surge and yaw do not saturate each other
+      assert gos(actions) == [%{surge: 0.5, sway: -0.3, heave: 0.2, yaw: 0.5}]
+      assert Core.output(core) == %{surge: 0.5, sway: -0.3, heave: 0.2, yaw: 0.5}
+      assert Core.status(core).command == %{surge: 1.0, sway: -0.6, heave: 0.4, yaw: 1.0}
+      # the wire's thrusters stay the three-thruster view of the same demand
+      assert %{port: 1.0, vertical: 0.2, starboard: 0.0} = Core.status(core).thrusters
+
+      {core, actions} = ok!(core, {:set_gain, 1.0})
+      assert gos(actions) == [%{surge: 1.0, sway: -0.6, heave: 0.4, yaw: 1.0}]
+
+      # without sway in the command there is none
+      {_core, actions} = ok!(core, motion(0.2, 0.0, 0.0))
+      assert gos(actions) == [%{@zero | surge: 0.2}]
+    end
+
+    test "stops send a zero demand; handovers too" do
+      core = core(@sway_vehicle)
+      {core, _} = ok!(core, strafe(1.0, 1.0, 0.0, 0.0))
+      assert {_core, [{:go, @zero}, {:stopped, "deadman"}]} = Core.stop(core, "deadman")
+
+      assert {_core, [{:go, @zero}, {:stopped, "control_transferred"}]} =
+               Core.stop(core, "control_transferred")
+
+      assert {:ok, _core, [{:go, @zero}, {:stopped, "control_mode_changed"} | _]} =
+               Core.command(core, {:set_control_mode, :dp}, 10.0)
+
+      assert Core.neutral(core) == @zero
+    end
+
+    test "run mode simulator flies the three-thruster vehicle: thruster values, no sway" do
+      core = core([run_modes: [:normal, :simulator]] ++ @sway_vehicle)
+      {core, actions} = ok!(core, {:set_run_mode, :simulator})
+      # the stop before the switch still went to the vehicle, as a demand
+      assert [@zero | _] = gos(actions)
+      assert Core.axes(core) == [:surge, :heave, :yaw]
+      assert Core.neutral(core) == @neutral
+
+      {core, actions} = ok!(core, motion(0.5, 0.0, 0.0))
+      assert gos(actions) == [%{port: 0.25, vertical: 0.0, starboard: 0.25}]
+
+      assert {:error, "this vehicle has no sway" <> _} =
+               Core.command(core, strafe(0.0, 0.5, 0.0, 0.0), 10.0)
+
+      {core, actions} = ok!(core, {:set_run_mode, :normal})
+      assert [@neutral | _] = gos(actions)
+      assert Core.axes(core) == [:surge, :sway, :heave, :yaw]
+    end
+
+    test "an autopilot's output joins the demand; the heading first, surge giving way" do
+      core = core(@instant ++ @sway_vehicle)
+      {core, _} = ok!(core, strafe(1.0, 0.5, 0.0, 0.0))
+      {core, _} = ok!(core, ap(:unchanged, 2.0))
+      %{surge: surge, sway: sway, yaw: yaw} = Core.output(tick(core))
+      assert yaw > 0
+      assert_in_delta abs(surge) + abs(yaw), 1.0, 1.0e-9
+      assert sway == 0.25
+    end
+  end
 end

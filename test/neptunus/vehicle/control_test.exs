@@ -9,7 +9,8 @@ defmodule Neptunus.Vehicle.ControlTest do
   @moduletag :capture_log
   @neutral %{port: 0.0, vertical: 0.0, starboard: 0.0}
 
-  setup do
+  # a test's `@tag vehicle: %{...}` is merged into the vehicle (e.g. the board's capabilities)
+  setup ctx do
     id = "ctl-#{System.unique_integer([:positive])}"
     PubSub.subscribe(Telemetry.topic(id))
 
@@ -20,6 +21,8 @@ defmodule Neptunus.Vehicle.ControlTest do
       control: [stale_after: 1.0, simulator: [sim: [noise: false]]],
       helm: [tick_ms: 3_600_000]
     }
+
+    vehicle = Map.merge(vehicle, Map.get(ctx, :vehicle, %{}))
 
     start_supervised!({Neptunus.Vehicle.Supervisor, vehicle})
     assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}
@@ -339,6 +342,34 @@ defmodule Neptunus.Vehicle.ControlTest do
       fun.() -> :ok
       n == 0 -> flunk("timed out")
       true -> Process.sleep(20) && wait_for(fun, n - 1)
+    end
+  end
+
+  describe "a vehicle that allocates itself (the test board with ArduSub's capabilities)" do
+    @zero %{surge: 0.0, sway: 0.0, heave: 0.0, yaw: 0.0}
+    @sways %{capabilities: %{axes: [:surge, :sway, :heave, :yaw], allocation: :vehicle}}
+
+    @tag vehicle: @sways
+    test "its capabilities are everyone's", %{id: id} do
+      assert %{axes: [:surge, :sway, :heave, :yaw], allocation: :vehicle, real: true} =
+               Board.capabilities(id)
+    end
+
+    @tag vehicle: @sways
+    test "the board gets the demand: thrust (gain once), then zero on a stop", %{id: id} do
+      payload = %{"mode" => "motion", "surge" => 0.4, "sway" => -1, "heave" => 0, "yaw" => 0.2}
+      assert {:ok, %{command: %{sway: -1.0}}} = Control.thrust(id, payload)
+      assert_receive {:board, ^id, {:go, %{surge: 0.2, sway: -0.5, heave: 0.0, yaw: 0.1}}}
+      refute_received {:board, ^id, {:go, %{port: _}}}
+
+      assert {:ok, _} = Control.stop(id, "pilot_stop")
+      assert_receive {:board, ^id, {:go, @zero}}
+    end
+
+    test "the three-thruster vehicle refuses sway with a reason, takes sway 0", %{id: id} do
+      payload = %{"mode" => "motion", "surge" => 0, "sway" => 0.5, "heave" => 0, "yaw" => 0}
+      assert {:error, "this vehicle has no sway" <> _} = Control.thrust(id, payload)
+      assert {:ok, _} = Control.thrust(id, %{payload | "sway" => 0})
     end
   end
 end

@@ -1,5 +1,9 @@
-/** The command panel: the motion command (or manual thrusters) in force, and the control mode. */
+/**
+ * The command panel: the motion command (or manual thrusters) in force, and the control mode.
+ * Sway is shown on a vehicle that has it.
+ */
 
+import { canSway } from "../../input/demand";
 import { PLACEHOLDER, formatFixed } from "../../lib/units";
 import { fmt } from "../format";
 import type { OperatorState } from "../state";
@@ -15,6 +19,7 @@ export function CommandPanel({ s }: { s: OperatorState }): preact.JSX.Element {
         <Readout label="Surge" id="cmd-surge" value={cmd ? formatFixed(cmd.surge, 2, true) : PLACEHOLDER} />
         <Readout label="Heave" id="cmd-heave" value={cmd ? formatFixed(cmd.heave, 2, true) : PLACEHOLDER} />
         <Readout label="Yaw" id="cmd-yaw" value={cmd ? formatFixed(cmd.yaw, 2, true) : PLACEHOLDER} />
+        {canSway(s.axes) && <Readout label="Sway" id="cmd-sway" value={cmd ? formatFixed(cmd.sway ?? 0, 2, true) : PLACEHOLDER} />}
         {manual && <Readout label="Manual" id="cmd-manual" value={`P ${fmt(manual.port, 2, true)} V ${fmt(manual.vertical, 2, true)} S ${fmt(manual.starboard, 2, true)}`} />}
         <Readout label="Mode" id="control-mode" value={s.control?.mode ?? "motion"} />
       </dl>

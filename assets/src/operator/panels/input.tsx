@@ -4,10 +4,10 @@
  * mapping, head tracking.
  */
 
-import { INPUT_MODES, stickMode } from "../../input/demand";
+import { INPUT_MODES, canSway, stickMode } from "../../input/demand";
 import type { InputMode } from "../../input/demand";
 import type { GamepadOptions } from "../../input/gamepad";
-import { MANUAL_KEYMAP, MOTION_KEYMAP } from "../../input/keyboard";
+import { MANUAL_KEYMAP, MOTION_KEYMAP, SWAY_KEYMAP } from "../../input/keyboard";
 import { formatHeading } from "../../lib/units";
 import { formatDeg } from "../format";
 import { ButtonMapEditor } from "./button_map";
@@ -23,11 +23,13 @@ const INPUT_LABELS: Readonly<Record<InputMode, string>> = {
 
 const KEY_NAMES = ["KeyW", "KeyS", "KeyQ", "KeyE", "KeyD", "KeyA"];
 
-function KeyLegend(props: { mode: "motion" | "manual" }): preact.JSX.Element {
-  const map = props.mode === "motion" ? MOTION_KEYMAP : MANUAL_KEYMAP;
+/** The keys of the control mode; sway's (Z, C) only on a vehicle that sways. */
+function KeyLegend(props: { mode: "motion" | "manual"; sway: boolean }): preact.JSX.Element {
+  const map = props.mode === "motion" ? { ...MOTION_KEYMAP, ...(props.sway ? SWAY_KEYMAP : {}) } : MANUAL_KEYMAP;
+  const names = props.mode === "motion" && props.sway ? [...KEY_NAMES, "KeyZ", "KeyC"] : KEY_NAMES;
   return (
     <ul class="key-legend" data-testid="key-legend">
-      {KEY_NAMES.map((code) => {
+      {names.map((code) => {
         const b = map[code];
         return (
           <li key={code}>
@@ -44,7 +46,7 @@ export function InputPanel({ s, c }: PanelProps): preact.JSX.Element {
   return (
     <Panel title="Input" id="input">
       <Segmented name="input" options={INPUT_MODES} value={s.inputMode} label={(m) => INPUT_LABELS[m]} onSelect={(m) => c.setInputMode(m)} />
-      {s.inputMode === "keyboard" && (mode ? <KeyLegend mode={mode} /> : <p class="note">DP mode: keys are ignored.</p>)}
+      {s.inputMode === "keyboard" && (mode ? <KeyLegend mode={mode} sway={canSway(s.axes)} /> : <p class="note">DP mode: keys are ignored.</p>)}
       {s.inputMode === "touch" && <p class="note">Use the sticks on the camera image (several fingers at once).</p>}
       {s.inputMode === "gamepad" && <GamepadSettings s={s} c={c} />}
       {s.inputMode === "headset" && <HeadsetControls s={s} c={c} />}
@@ -74,12 +76,19 @@ function PadOption(props: PanelProps & { option: keyof GamepadOptions; label: st
   );
 }
 
+/** What the sticks drive: the thesis' table 7.2, or the ArduSub layout on a vehicle that sways. */
+export function padLayout(sway: boolean): string {
+  return sway
+    ? "Left stick: heave ↕ · yaw ↔ · right stick: surge ↕ · sway ↔ (manual: right stick starboard, left stick port) · LT/RT: vertical −/+"
+    : "Right stick: surge/yaw (starboard in manual) · left stick: heave (port) · LT/RT: vertical −/+";
+}
+
 /** The gamepad: which pad is read (and whether it is armed), its options, its buttons. */
 function GamepadSettings({ s, c }: PanelProps): preact.JSX.Element {
   return (
     <div class="gamepad" data-testid="gamepad-status" data-connected={s.gamepad !== null}>
       <p>{s.gamepad === null ? "No gamepad: connect one and press a button." : `${s.gamepad.id}${s.gamepad.armed ? "" : " — centre the sticks to arm"}`}</p>
-      <p class="note">Right stick: surge/yaw (starboard in manual) · left stick: heave (port) · LT/RT: vertical −/+</p>
+      <p class="note">{padLayout(canSway(s.axes))}</p>
       <div class="inline-fields">
         <PadOption s={s} c={c} option="deadband" label="Deadband" max={0.5} step={0.01} />
         <PadOption s={s} c={c} option="expo" label="Expo" max={1} step={0.05} />

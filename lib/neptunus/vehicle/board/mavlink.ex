@@ -24,9 +24,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   ## Around the board
 
-    * `go/2` casts (thruster values from `Neptunus.Vehicle.Control`) become MANUAL_CONTROL;
-      control drives neutral on every stop, so every stop sends a neutral MANUAL_CONTROL at
-      once.
+    * `go/2` casts (the body-frame demand from `Neptunus.Vehicle.Control`) become
+      MANUAL_CONTROL; control drives neutral on every stop, so every stop sends a neutral
+      MANUAL_CONTROL at once.
     * The process subscribes to the vehicle's topic: `stopped` with a pilot-loss reason and
       `helm` (who pilots) drive the disarm after pilot loss (`Core.stopped/3`,
       `Core.pilot/2`).
@@ -98,9 +98,47 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   @doc """
+  An ArduSub vehicle is commanded in surge, sway, heave and yaw (MANUAL_CONTROL `x`, `y`, `z`,
+  `r`) and mixes its thrusters itself (its frame's motor factors); its depth and heading hold
+  are its flight modes.
+  """
+  @impl Board
+  @spec capabilities(keyword()) :: Board.capabilities()
+  def capabilities(_opts),
+    do: %{
+      axes: [:surge, :sway, :heave, :yaw],
+      allocation: :vehicle,
+      real: true,
+      autopilots: :vehicle
+    }
+
+  @doc "The details `link_status/1` reports (telemetry's `link`): the round trip and the vehicle."
+  @impl Board
+  @spec link_details() :: [atom()]
+  def link_details, do: [:rtt_ms, :mavlink]
+
+  @doc "The body-frame demand (`Neptunus.Control.Demand`): MANUAL_CONTROL (`Core.go/3`)."
+  @impl Board
+  @spec go(String.t(), Neptunus.Control.Demand.t()) :: :ok
+  def go(id, demand), do: GenServer.cast(Board.via(id), {:go, demand})
+
+  @doc """
+  The vehicle's own commands: `{:arm, boolean}` (`arm/3`), `{:mode, name}` (`set_mode/3`),
+  `{:autopilot, setpoints}` (validated setpoints, `Core.autopilot/4`).
+  """
+  @impl Board
+  @spec command(String.t(), Board.vehicle_command(), (:ok | {:error, String.t()} -> term())) ::
+          :ok
+  def command(id, {:arm, arm?}, notify), do: arm(id, arm?, notify)
+  def command(id, {:mode, mode}, notify), do: set_mode(id, mode, notify)
+
+  def command(id, {:autopilot, setpoints}, notify) when is_function(notify, 1),
+    do: GenServer.call(Board.via(id), {:autopilot, setpoints, notify})
+
+  @doc """
   The link's state: `%{up, reason, rtt_ms, mavlink: %{armed, mode, system_status, target,
-  servo_us, control, disarm_pending}, transport, counters, frames}` (`frames`: the decoder's
-  counters, with `lost` frames from the vehicle's sequence numbers).
+  servo_us, control, disarm_pending, pilot_gain}, transport, counters, frames}` (`frames`: the
+  decoder's counters, with `lost` frames from the vehicle's sequence numbers).
   """
   @impl Board
   @spec link_status(String.t()) :: map()
@@ -122,7 +160,6 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   answer in time; for a refusal at once (link down, a command already waiting) it is called
   before this returns.
   """
-  @impl Board
   @spec arm(String.t(), boolean(), (:ok | {:error, String.t()} -> term())) :: :ok
   def arm(id, arm?, notify) when is_boolean(arm?) and is_function(notify, 1),
     do: GenServer.call(Board.via(id), {:arm, arm?, notify})
@@ -137,7 +174,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   def autopilot(id, payload, notify) when is_function(notify, 1) do
     with {:ok, {:autopilot, setpoints}} <-
            Neptunus.Control.Command.validate("autopilot", payload),
-         do: GenServer.call(Board.via(id), {:autopilot, setpoints, notify})
+         do: command(id, {:autopilot, setpoints}, notify)
   end
 
   @doc "Refuses the control commands an ArduSub vehicle cannot fly (`Core.vet/1`)."
@@ -204,8 +241,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   @impl true
-  def handle_cast({:go, thrusters}, state),
-    do: {:noreply, run(state, &Core.go(&1, thrusters, now()))}
+  def handle_cast({:go, demand}, state),
+    do: {:noreply, run(state, &Core.go(&1, demand, now()))}
 
   def handle_cast({:lights, n}, state), do: {:noreply, run(state, &Core.lights(&1, n))}
   def handle_cast({:tilt, rad}, state), do: {:noreply, run(state, &Core.tilt(&1, rad))}

@@ -79,6 +79,15 @@ defmodule Neptunus.Vehicle.Board.Simulated do
     GenServer.start_link(__MODULE__, opts, name: Keyword.get(opts, :name, Board.via(id)))
   end
 
+  @doc "The built-in simulator flies the three-thruster vehicle: surge, heave, yaw."
+  @impl Board
+  @spec capabilities(keyword()) :: Board.capabilities()
+  def capabilities(_opts), do: %{Board.thesis_capabilities() | real: false}
+
+  @impl Board
+  @spec go(String.t(), Neptunus.Allocation.thrusters()) :: :ok
+  def go(id, thrusters), do: GenServer.cast(Board.via(id), {:go, thrusters})
+
   @impl Board
   @spec lights(String.t(), 0..255) :: :ok
   def lights(id, n), do: GenServer.cast(Board.via(id), {:lights, n})

@@ -60,6 +60,18 @@ defmodule Neptunus.Vehicle.Board.SITL do
     do: Path.join([System.tmp_dir!(), "neptunus-#{System.pid()}", "sitl-#{id}.tty"])
 
   @impl Board
+  @spec capabilities(keyword()) :: Board.capabilities()
+  def capabilities(opts), do: UART.capabilities(opts)
+
+  @impl Board
+  @spec go(String.t(), Neptunus.Allocation.thrusters()) :: :ok
+  def go(id, thrusters), do: UART.go(id, thrusters)
+
+  @impl Board
+  @spec link_details() :: [atom()]
+  def link_details, do: UART.link_details()
+
+  @impl Board
   @spec keepalive(String.t()) :: :ok
   def keepalive(id), do: UART.keepalive(id)
 

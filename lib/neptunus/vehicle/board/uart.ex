@@ -187,6 +187,15 @@ defmodule Neptunus.Vehicle.Board.UART do
     GenServer.start_link(__MODULE__, opts, name: Board.via(id))
   end
 
+  @doc "An OpenROV board: the three-thruster vehicle, our allocation (thesis eq. 9.3)."
+  @impl Board
+  @spec capabilities(keyword()) :: Board.capabilities()
+  def capabilities(_opts), do: Board.thesis_capabilities()
+
+  @impl Board
+  @spec go(String.t(), Neptunus.Allocation.thrusters()) :: :ok
+  def go(id, thrusters), do: GenServer.cast(Board.via(id), {:go, thrusters})
+
   @doc "Control is alive: keeps the deadman pings going (see the moduledoc)."
   @impl Board
   @spec keepalive(String.t()) :: :ok
@@ -292,7 +301,7 @@ defmodule Neptunus.Vehicle.Board.UART do
 
             :hold ->
               Navigation.command(state.id, Allocation.neutral())
-              go(state, Allocation.neutral())
+              write_go(state, Allocation.neutral())
           end
 
         {:noreply, perform(state, actions)}
@@ -508,7 +517,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     if state.heard_at_ms != nil and now_ms() - state.heard_at_ms <= state.keepalive_timeout_ms do
       n = state.ping_n
       state = %{state | ping_n: rem(n + 1, 2_147_483_647)}
-      state |> bump(:pings) |> command({:ping, n}, OpenROV.ping(n))
+      state |> bump(:pings) |> queue({:ping, n}, OpenROV.ping(n))
     else
       bump(state, :pings_withheld)
     end
@@ -550,10 +559,10 @@ defmodule Neptunus.Vehicle.Board.UART do
   # navigation's model follows what the motors get (Board.go/2 told it the demand)
   defp board_action(:neutral, state) do
     Navigation.command(state.id, Allocation.neutral())
-    go(state, Allocation.neutral())
+    write_go(state, Allocation.neutral())
   end
 
-  defp board_action({:send, key, command}, state), do: command(state, key, command)
+  defp board_action({:send, key, command}, state), do: queue(state, key, command)
 
   defp board_action({:board_reset, reason}, state) do
     Logger.warning("vehicle #{state.id}: #{reason}: sending its state again")
@@ -594,7 +603,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     log_entry(state, "info", "board settings confirmed: the held thrust goes to the board")
     report_link(state)
     Navigation.command(state.id, state.demand)
-    go(state, state.demand)
+    write_go(state, state.demand)
   end
 
   defp board_action({:settings, summary}, state) do
@@ -622,7 +631,26 @@ defmodule Neptunus.Vehicle.Board.UART do
   # Navigation starts its measurements afresh: nothing read before is trusted.
   defp board_reset(state, reason), do: Navigation.board_reset(state.id, reason)
 
-  @link_report Board.link_details()
+  @link_report [
+    :rtt_ms,
+    :pong_age_ms,
+    :board_uptime_ms,
+    :board_deadman_armed,
+    :firmware,
+    :detected_firmware,
+    :firmware_mismatch,
+    :commands_sent,
+    :commands_confirmed,
+    :board_settings,
+    :board_settings_pending,
+    :board_settings_reason,
+    :thrust_held
+  ]
+
+  @doc "The details `link_status/1` reports (telemetry's `link`): the board link's liveness."
+  @impl Board
+  @spec link_details() :: [atom()]
+  def link_details, do: @link_report
 
   defp report_link(state) do
     {up, reason} = state.announced || {state.link == :up, state.reason}
@@ -636,22 +664,22 @@ defmodule Neptunus.Vehicle.Board.UART do
   # I/O ------------------------------------------------------------------------------------
 
   # A neutral go() is sticky: never replaced by a later go() while it waits (Pacer).
-  defp go(state, thrusters), do: go_us(state, Wiring.to_us(state.wiring, thrusters))
+  defp write_go(state, thrusters), do: go_us(state, Wiring.to_us(state.wiring, thrusters))
 
   defp go_us(state, us),
-    do: command(state, :go, OpenROV.go(us, state.wiring.direct), sticky: us == {1500, 1500, 1500})
+    do: queue(state, :go, OpenROV.go(us, state.wiring.direct), sticky: us == {1500, 1500, 1500})
 
   # Queues a command (framed for the firmware) and writes what the pacer allows now.
-  defp command(state, key, text, opts \\ [])
+  defp queue(state, key, text, opts \\ [])
 
-  defp command(%State{link: :up} = state, key, text, opts) do
+  defp queue(%State{link: :up} = state, key, text, opts) do
     case Pacer.push(state.pacer, key, OpenROV.frame(text, state.profile), opts) do
       {:ok, pacer} -> drain(%{state | pacer: pacer})
       {:error, _} -> bump(state, :dropped_commands)
     end
   end
 
-  defp command(state, _key, _text, _opts), do: bump(state, :dropped_commands)
+  defp queue(state, _key, _text, _opts), do: bump(state, :dropped_commands)
 
   defp drain(state) do
     now = now_ms()

@@ -89,50 +89,59 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
   end
 
   describe "go → MANUAL_CONTROL" do
-    test "undoes the allocation: x surge, z 500 − 500·heave, r yaw, y and buttons 0" do
-      for {thrusters, expected} <- [
-            {%{port: 0.0, vertical: 0.0, starboard: 0.0}, %{x: 0, z: 500, r: 0}},
-            {%{port: 0.5, vertical: 0.0, starboard: 0.5}, %{x: 500, z: 500, r: 0}},
-            {%{port: -1.0, vertical: 0.0, starboard: -1.0}, %{x: -1000, z: 500, r: 0}},
-            {%{port: 0.3, vertical: 0.0, starboard: -0.3}, %{x: 0, z: 500, r: 300}},
+    @zero %{surge: 0.0, sway: 0.0, heave: 0.0, yaw: 0.0}
+    @ahead %{@zero | surge: 0.5}
+
+    defp demand(axes), do: Map.merge(@zero, Map.new(axes))
+
+    defp named_float(name, value),
+      do: msg(:named_value_float, %{time_boot_ms: 0, name: name, value: value})
+
+    test "the demand axis by axis: x surge, y sway, z 500 − 500·heave, r yaw, buttons 0" do
+      for {axes, expected} <- [
+            {[], %{x: 0, y: 0, z: 500, r: 0}},
+            {[surge: 0.5], %{x: 500, y: 0, z: 500, r: 0}},
+            {[surge: -1.0], %{x: -1000, y: 0, z: 500, r: 0}},
+            {[sway: 0.4], %{x: 0, y: 400, z: 500, r: 0}},
+            {[sway: -1.0], %{x: 0, y: -1000, z: 500, r: 0}},
+            {[yaw: 0.3], %{x: 0, y: 0, z: 500, r: 300}},
             # positive heave is down: below 500
-            {%{port: 0.0, vertical: 1.0, starboard: 0.0}, %{x: 0, z: 0, r: 0}},
-            {%{port: 0.0, vertical: -1.0, starboard: 0.0}, %{x: 0, z: 1000, r: 0}},
-            {%{port: 0.0, vertical: -0.25, starboard: 0.0}, %{x: 0, z: 625, r: 0}}
+            {[heave: 1.0], %{x: 0, y: 0, z: 0, r: 0}},
+            {[heave: -1.0], %{x: 0, y: 0, z: 1000, r: 0}},
+            {[heave: -0.25], %{x: 0, y: 0, z: 625, r: 0}},
+            # surge and yaw together do not saturate each other: ArduSub mixes them
+            {[surge: 1.0, yaw: 1.0, sway: 1.0], %{x: 1000, y: 1000, z: 500, r: 1000}}
           ] do
-        assert Map.take(Core.manual_control(thrusters), [:x, :z, :r]) == expected
-        assert %{y: 0, buttons: 0} = Core.manual_control(thrusters)
+        c = Core.manual_control(demand(axes), 1.0)
+        assert Map.take(c, [:x, :y, :z, :r]) == expected
+        assert c.buttons == 0
       end
     end
 
-    test "motion allocated with any gain comes back as gain × command" do
-      for x <- [-1.0, -0.4, 0.0, 0.7],
-          m <- [-0.3, 0.0, 0.2],
-          z <- [-0.5, 0.0, 0.9],
-          k <- [0.5, 1.0] do
-        thrusters = Neptunus.Allocation.motion(%{surge: x, heave: z, yaw: m}, k)
-
-        if abs(k * (x + m)) <= 1 and abs(k * (x - m)) <= 1 do
-          c = Core.manual_control(thrusters)
-          assert c.x == round(1000 * k * x)
-          assert c.r == round(1000 * k * m)
-          assert c.z == 500 - round(500 * k * z)
-        end
+    test "ArduSub's gain is divided out: what its mixer gets is the demand" do
+      # ArduSub's channel offset is 400 µs · gain · x/1000 (z: (z − 500)/500)
+      for gain <- [0.25, 0.5, 0.8, 1.0], surge <- [-0.2, 0.0, 0.1, 0.25], heave <- [-0.2, 0.2] do
+        c = Core.manual_control(demand(surge: surge, heave: heave), gain)
+        assert_in_delta 400 * gain * c.x / 1000, 400 * surge, 0.5
+        assert_in_delta 400 * gain * (c.z - 500) / 500, -400 * heave, 0.5
       end
+
+      # beyond ArduSub's gain the command saturates there
+      assert %{x: 1000, y: -1000} = Core.manual_control(demand(surge: 0.8, sway: -0.6), 0.5)
     end
 
     test "a change is sent at once and restarts the period; no change sends nothing" do
       core = linked()
-      {core, actions} = Core.go(core, %{port: 0.5, vertical: 0.0, starboard: 0.5}, 0.6)
+      {core, actions} = Core.go(core, @ahead, 0.6)
       assert [%{x: 500, z: 500, target: 1}] = sends(actions, :manual_control)
       assert core.next_manual == 0.6 + 0.1
-      {_core, actions} = Core.go(core, %{port: 0.5, vertical: 0.0, starboard: 0.5}, 0.62)
+      {_core, actions} = Core.go(core, @ahead, 0.62)
       assert actions == []
     end
 
     test "before a vehicle is known the command is kept, not sent" do
       core = Core.new(0.0)
-      {core, actions} = Core.go(core, %{port: 0.5, vertical: 0.0, starboard: 0.5}, 0.1)
+      {core, actions} = Core.go(core, @ahead, 0.1)
       assert actions == []
       {core, _} = Core.receive(core, heartbeat(), 0.2)
       {_core, actions} = Core.tick(core, 0.2)
@@ -142,15 +151,41 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
     test "neutral/2 sends neutral even when unchanged; nothing before a vehicle is known" do
       core = linked()
       {core, actions} = Core.neutral(core, 0.6)
-      assert [%{x: 0, z: 500, r: 0}] = sends(actions, :manual_control)
-      {core, _} = Core.go(core, %{port: 0.5, vertical: 0.0, starboard: 0.5}, 0.7)
+      assert [%{x: 0, y: 0, z: 500, r: 0}] = sends(actions, :manual_control)
+      {core, _} = Core.go(core, demand(surge: 0.5, sway: 0.5), 0.7)
       {_core, actions} = Core.neutral(core, 0.71)
-      assert [%{x: 0, z: 500}] = sends(actions, :manual_control)
+      assert [%{x: 0, y: 0, z: 500}] = sends(actions, :manual_control)
       assert {_, []} = Core.neutral(Core.new(0.0), 0.1)
     end
 
     test "out-of-range values are clamped" do
-      assert %{x: 1000, z: 0} = Core.manual_control(%{port: 3.0, vertical: 2.0, starboard: 3.0})
+      assert %{x: 1000, y: -1000, z: 0} =
+               Core.manual_control(demand(surge: 3.0, sway: -2.0, heave: 2.0), 1.0)
+    end
+
+    test "PilotGain: the command is re-scaled and sent at once, the pilot told once per gain" do
+      core = linked()
+      {core, _} = Core.go(core, demand(surge: 0.25, yaw: -0.1), 0.6)
+      assert %{x: 250, r: -100} = core.control
+      assert Core.status(core).mavlink.pilot_gain == nil
+
+      {core, actions} = Core.receive(core, named_float("PilotGain", 0.5), 0.65)
+      assert [%{x: 500, r: -200}] = sends(actions, :manual_control)
+
+      assert [{:log, :info, "ArduSub's joystick gain is 50%" <> _, _}] =
+               for({:log, _, _, _} = log <- actions, do: log)
+
+      assert Core.status(core).mavlink.pilot_gain == 0.5
+      # the same gain again: nothing
+      assert {^core, []} = Core.receive(core, named_float("PilotGain", 0.5), 0.7)
+      # other named values and implausible gains are not the gain
+      assert {^core, []} = Core.receive(core, named_float("Lights1", 0.3), 0.7)
+      assert {^core, []} = Core.receive(core, named_float("PilotGain", 0.0), 0.7)
+      assert {^core, []} = Core.receive(core, named_float("PilotGain", 2.0), 0.7)
+
+      # a new demand is sent at the gain heard
+      {_core, actions} = Core.go(core, demand(heave: 0.1), 0.8)
+      assert [%{x: 0, z: 400}] = sends(actions, :manual_control)
     end
   end
 
@@ -641,21 +676,23 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CorePropertiesTest do
 
   defp unit, do: :proper_types.float(-1.0, 1.0)
 
-  test "MANUAL_CONTROL from any thruster values: in range, encodable, neutral only from neutral" do
-    gen = :proper_types.tuple([unit(), unit(), unit()])
+  test "MANUAL_CONTROL from any demand and gain: in range, encodable, neutral only from zero" do
+    gain = :proper_types.float(0.05, 1.0)
+    gen = :proper_types.tuple([unit(), unit(), unit(), unit(), gain])
 
-    Properties.check(gen, fn {p, v, s} ->
-      c = Core.manual_control(%{port: p, vertical: v, starboard: s})
+    Properties.check(gen, fn {x, y, z, r, g} ->
+      c = Core.manual_control(%{surge: x, sway: y, heave: z, yaw: r}, g)
       fields = Map.put(c, :target, 1)
+      small? = fn v, scale -> round(scale * v / g) == 0 end
 
-      c.x in -1000..1000 and c.r in -1000..1000 and c.z in 0..1000 and c.y == 0 and
+      c.x in -1000..1000 and c.y in -1000..1000 and c.r in -1000..1000 and c.z in 0..1000 and
         c.buttons == 0 and
         match?(
           {:ok, _},
           Codec.encode(:manual_control, fields, %{system: 255, component: 190, seq: 0})
         ) and
-        c == Core.manual_control(%{port: 0.0, vertical: 0.0, starboard: 0.0}) ==
-          (round(500 * (p + s)) == 0 and round(500 * (p - s)) == 0 and round(500 * v) == 0)
+        c == Core.manual_control(%{surge: 0.0, sway: 0.0, heave: 0.0, yaw: 0.0}, 1.0) ==
+          (small?.(x, 1000) and small?.(y, 1000) and small?.(z, 500) and small?.(r, 1000))
     end)
   end
 

@@ -99,10 +99,10 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
     start_board(ctx)
     up(ctx)
     next(:manual_control)
-    Board.go(ctx.id, %{port: 0.5, vertical: -0.2, starboard: 0.5})
+    Board.go(ctx.id, %{surge: 0.5, sway: -0.25, heave: -0.2, yaw: 0.0})
     # neutral ones sent before the command was handled may come first; the first other one
     # is the command
-    assert %{x: 500, z: 600, r: 0} = first_non_neutral().fields
+    assert %{x: 500, y: -250, z: 600, r: 0} = first_non_neutral().fields
   end
 
   test "arm: the vehicle's ACK answers; a refusal gives its STATUSTEXT", ctx do

@@ -12,13 +12,22 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     * **MANUAL_CONTROL** to the vehicle's system every `manual_period` (0.1 s, the 10 Hz ground
       stations send; ArduSub's pilot-input failsafe fires after 3 s without it), and at once
       whenever the command changes (so a pilot's command or a stop never waits for the next
-      period). The command comes from the thruster values `go/3` gets, undoing the
-      three-thruster allocation (`Neptunus.Allocation.motion/2`, gain included): surge
-      `(port + starboard) / 2`, yaw `(port − starboard) / 2`, heave `vertical`; `x` = 1000·surge,
-      `r` = 1000·yaw, `z` = 500 − 500·heave (ArduSub: 0..1000, 500 neutral, above 500 up; our
-      heave is positive down), `y` and `buttons` 0. Neutral (`x 0, z 500, r 0`) is sent
-      whenever the vehicle is not commanded: control drives neutral on every stop and while
-      nobody pilots.
+      period). The command is the body-frame demand `go/3` gets (our gain already in it),
+      axis by axis (`manual_control/2`): `x` = 1000·surge, `y` = 1000·sway, `r` = 1000·yaw,
+      `z` = 500 − 500·heave (ArduSub: 0..1000, 500 neutral, above 500 up; our heave is
+      positive down), each divided by ArduSub's own joystick gain so that it is not applied a
+      second time, `buttons` 0. Neutral (`x 0, y 0, z 500, r 0`) is sent whenever the vehicle
+      is not commanded: control drives neutral on every stop and while nobody pilots.
+
+  ## One gain
+
+  ArduSub scales MANUAL_CONTROL by its joystick gain (`JS_GAIN_DEFAULT`, 0.5 by default; its
+  gain buttons step it), which it reports as NAMED_VALUE_FLOAT `PilotGain`. Our gain is in
+  the demand already, so every axis is divided by the last `PilotGain` heard (1.0 until one
+  comes: never more thrust than asked) and clamped to MANUAL_CONTROL's range: what the
+  vehicle's mixer gets is our demand. A demand beyond ArduSub's gain saturates there (an
+  ArduSub at 0.5 gives at most half thrust); the pilot is told once per gain heard (a `log`
+  entry) and docs/MAVLINK.md says to set `JS_GAIN_DEFAULT` 1.
     * **Stream requests** each time the link comes up: REQUEST_DATA_STREAM for the streams
       carrying what we show (`@streams`); ArduSub streams them by default too.
     * **TIMESYNC** every second (`tc1 = 0`, `ts1` our clock in ns): the vehicle's answer gives
@@ -109,7 +118,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
           | {:log, :info | :warning | :error, String.t(), map()}
           | {:sample, Neptunus.Vehicle.Board.sample()}
 
-  @type control :: %{x: integer(), y: 0, z: integer(), r: integer(), buttons: 0}
+  @type control :: %{x: integer(), y: integer(), z: integer(), r: integer(), buttons: 0}
 
   @type pending :: %{
           kind: :arm | :disarm | :mode,
@@ -135,6 +144,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
             type: non_neg_integer() | nil
           },
           control: control(),
+          demand: Neptunus.Control.Demand.t(),
+          pilot_gain: float() | nil,
           next_heartbeat: float(),
           next_manual: float(),
           next_timesync: float(),
@@ -162,6 +173,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     :disarm_at,
     :started,
     :rtt_ms,
+    :pilot_gain,
     system: 255,
     component: 190,
     seq: 0,
@@ -169,6 +181,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     reason: "no heartbeat from the vehicle yet",
     vehicle: %{armed: false, mode: nil, custom_mode: nil, system_status: nil, type: nil},
     control: %{x: 0, y: 0, z: 500, r: 0, buttons: 0},
+    demand: %{surge: 0.0, sway: 0.0, heave: 0.0, yaw: 0.0},
     next_heartbeat: 0.0,
     next_manual: 0.0,
     next_timesync: 0.0,
@@ -211,23 +224,28 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   def pilot_loss_reasons, do: @pilot_loss_reasons
 
   @doc """
-  MANUAL_CONTROL's `x`, `z`, `r` for thruster values (see the moduledoc).
+  MANUAL_CONTROL's `x`, `y`, `z`, `r` for a body-frame demand (each axis in [-1, 1]) on a
+  vehicle whose joystick gain is `pilot_gain` (see the moduledoc): each axis divided by the
+  gain, then scaled and clamped to MANUAL_CONTROL's range.
 
-      iex> Neptunus.Vehicle.Board.MAVLink.Core.manual_control(%{port: 0.0, vertical: 0.0, starboard: 0.0})
+      iex> alias Neptunus.Vehicle.Board.MAVLink.Core
+      iex> Core.manual_control(%{surge: 0.0, sway: 0.0, heave: 0.0, yaw: 0.0}, 1.0)
       %{x: 0, y: 0, z: 500, r: 0, buttons: 0}
-      iex> Neptunus.Vehicle.Board.MAVLink.Core.manual_control(%{port: 0.75, vertical: -0.2, starboard: 0.25})
-      %{x: 500, y: 0, z: 600, r: 250, buttons: 0}
+      iex> Core.manual_control(%{surge: 0.5, sway: -0.25, heave: -0.2, yaw: 0.25}, 1.0)
+      %{x: 500, y: -250, z: 600, r: 250, buttons: 0}
+      iex> Core.manual_control(%{surge: 0.25, sway: 0.0, heave: 0.1, yaw: -0.1}, 0.5)
+      %{x: 500, y: 0, z: 400, r: -200, buttons: 0}
+      iex> Core.manual_control(%{surge: 0.8, sway: 0.0, heave: 0.0, yaw: 0.0}, 0.5)
+      %{x: 1000, y: 0, z: 500, r: 0, buttons: 0}
   """
-  @spec manual_control(Neptunus.Allocation.thrusters()) :: control()
-  def manual_control(%{port: port, vertical: vertical, starboard: starboard}) do
-    surge = (port + starboard) / 2
-    yaw = (port - starboard) / 2
-
+  @spec manual_control(Neptunus.Control.Demand.t(), float()) :: control()
+  def manual_control(%{surge: surge, sway: sway, heave: heave, yaw: yaw}, pilot_gain)
+      when is_number(pilot_gain) and pilot_gain > 0 do
     %{
-      x: scale(surge, 1000, -1000, 1000),
-      y: 0,
-      z: 500 + scale(-vertical, 500, -500, 500),
-      r: scale(yaw, 1000, -1000, 1000),
+      x: scale(surge / pilot_gain, 1000, -1000, 1000),
+      y: scale(sway / pilot_gain, 1000, -1000, 1000),
+      z: 500 + scale(-heave / pilot_gain, 500, -500, 500),
+      r: scale(yaw / pilot_gain, 1000, -1000, 1000),
       buttons: 0
     }
   end
@@ -343,10 +361,18 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
 
   # ── commands ─────────────────────────────────────────────────────────────────────────
 
-  @doc "Thruster values from control: MANUAL_CONTROL at once when the command changes."
-  @spec go(t(), Neptunus.Allocation.thrusters(), float()) :: {t(), [action()]}
-  def go(core, thrusters, now) do
-    control = manual_control(thrusters)
+  @doc """
+  The body-frame demand from control (`Neptunus.Control.Demand`, our gain in it):
+  MANUAL_CONTROL at once when the command changes.
+  """
+  @spec go(t(), Neptunus.Control.Demand.t(), float()) :: {t(), [action()]}
+  def go(core, %{surge: _, sway: _, heave: _, yaw: _} = demand, now) do
+    command(%{core | demand: demand}, now)
+  end
+
+  # MANUAL_CONTROL of the demand in force at ArduSub's gain: sent at once when it changed
+  defp command(core, now) do
+    control = manual_control(core.demand, core.pilot_gain || 1.0)
 
     cond do
       control == core.control -> {core, []}
@@ -358,7 +384,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   @doc "Neutral MANUAL_CONTROL now, changed or not (the board's last word when it stops)."
   @spec neutral(t(), float()) :: {t(), [action()]}
   def neutral(core, now) do
-    core = %{core | control: manual_control(Neptunus.Allocation.neutral())}
+    demand = Neptunus.Control.Demand.zero()
+    core = %{core | demand: demand, control: manual_control(demand, 1.0)}
     if core.target == nil, do: {core, []}, else: send_manual(core, now)
   end
 
@@ -700,6 +727,21 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     {core, []}
   end
 
+  # ArduSub's joystick gain (see "One gain" in the moduledoc): a change re-scales the command
+  defp from_vehicle(
+         core,
+         %Message{name: :named_value_float, fields: %{name: "PilotGain"} = f},
+         now
+       )
+       when is_float(f.value) and f.value >= 0.05 and f.value <= 1.0 do
+    if f.value == core.pilot_gain do
+      {core, []}
+    else
+      {core, actions} = command(%{core | pilot_gain: f.value}, now)
+      {core, [{:log, :info, gain_text(f.value), %{}} | actions]}
+    end
+  end
+
   defp from_vehicle(core, %Message{name: :servo_output_raw, fields: f}, _now) do
     servos = for i <- 1..8, do: Map.get(f, String.to_atom("servo#{i}_raw"), 0)
     {%{core | servo_us: servos}, []}
@@ -715,6 +757,17 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   end
 
   defp from_vehicle(core, _message, _now), do: {core, []}
+
+  defp gain_text(gain) when gain >= 0.999,
+    do: "ArduSub's joystick gain is 100%: our gain is the only one"
+
+  defp gain_text(gain) do
+    percent = round(gain * 100)
+
+    "ArduSub's joystick gain is #{percent}%: Neptunus divides its commands by it (our gain is " <>
+      "the only one), so an axis gets at most #{percent}% thrust; set JS_GAIN_DEFAULT 1 on " <>
+      "the vehicle (and reboot it) for the full range"
+  end
 
   # the codec decodes every numeric field as a number
   defp put_reading(core, key, value),
@@ -766,7 +819,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
         servo_us: core.servo_us,
         thrusters: Enum.map(core.servo_us, &thruster/1),
         control: core.control,
-        disarm_pending: core.disarm_at != nil
+        disarm_pending: core.disarm_at != nil,
+        pilot_gain: core.pilot_gain
       }
     }
   end
