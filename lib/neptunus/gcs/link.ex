@@ -61,7 +61,8 @@ defmodule Neptunus.GCS.Link do
             priority: :low | :high | :normal,
             counters: %{atom() => non_neg_integer()},
             timeout_ms: pos_integer(),
-            last_data_ms: integer()
+            last_data_ms: integer(),
+            text_id: pos_integer()
           }
     @enforce_keys [:id, :transport, :link_id, :admission, :vehicles, :by_id]
     defstruct @enforce_keys ++
@@ -79,7 +80,8 @@ defmodule Neptunus.GCS.Link do
                   priority: :low,
                   counters: %{},
                   timeout_ms: 5_000,
-                  last_data_ms: 0
+                  last_data_ms: 0,
+                  text_id: 1
                 ]
   end
 
@@ -322,6 +324,19 @@ defmodule Neptunus.GCS.Link do
         Logger.warning("gcs session #{state.id}: #{name} not encoded: #{inspect(reason)}")
         state
     end
+  end
+
+  defp act({:text, sysid, severity, text}, state) do
+    id = state.text_id
+    header = %{system: sysid, component: Neptunus.GCS.Vehicle.component(), seq: 0}
+
+    frames =
+      for fields <- Neptunus.GCS.Vehicle.statustext(severity, text, id) do
+        {:ok, frame} = MAVLink.encode(:statustext, fields, header)
+        frame
+      end
+
+    send_frames(%{state | text_id: rem(id, 0xFFFF) + 1}, sysid, frames)
   end
 
   defp act({:frames, sysid, names}, state) do

@@ -34,6 +34,8 @@ defmodule Neptunus.GCS.Session do
   ## Actions
 
     * `{:send, sysid, name, fields}` — a message from vehicle `sysid` to the ground station;
+    * `{:text, sysid, severity, text}` — a STATUSTEXT from vehicle `sysid` (chunked by the
+      shell, which numbers the chunks);
     * `{:frames, sysid, names}` — the vehicle's latest shared frames of these messages;
     * `{:intent, ref, sysid, intent}` — ask the vehicle (helm, control, board); its result
       comes back as `{:result, ref, result}` (see `t:intent/0`);
@@ -60,7 +62,7 @@ defmodule Neptunus.GCS.Session do
   CONTROL_STATUS (from the vehicle's source) tells every ground station who flies.
   """
 
-  alias Neptunus.GCS.{Manual, Modes, Params, Party, Scheduler, Vehicle}
+  alias Neptunus.GCS.{Manual, Modes, Params, Party, Scheduler}
 
   # MAV_RESULT
   @accepted 0
@@ -92,7 +94,7 @@ defmodule Neptunus.GCS.Session do
   @max_pending 8
   @default_timeout_ms 5_000
 
-  @not_in_control "not in control: ask for the helm with MAV_CMD_REQUEST_OPERATOR_CONTROL (32100)"
+  @not_in_control "not in control (ask: MAV_CMD_REQUEST_OPERATOR_CONTROL)"
 
   @type identity :: %{
           name: String.t(),
@@ -115,6 +117,7 @@ defmodule Neptunus.GCS.Session do
 
   @type action ::
           {:send, 1..255, atom(), map()}
+          | {:text, 1..255, 0..7, String.t()}
           | {:frames, 1..255, [atom()]}
           | {:intent, pos_integer(), 1..255, intent()}
           | :close
@@ -141,7 +144,6 @@ defmodule Neptunus.GCS.Session do
     next_ref: 1,
     last_heard_ms: nil,
     timeout_ms: @default_timeout_ms,
-    statustext_id: 1,
     counters: %{}
   ]
 
@@ -164,7 +166,6 @@ defmodule Neptunus.GCS.Session do
           next_ref: pos_integer(),
           last_heard_ms: integer() | nil,
           timeout_ms: pos_integer(),
-          statustext_id: pos_integer(),
           counters: %{atom() => non_neg_integer()}
         }
 
@@ -929,10 +930,7 @@ defmodule Neptunus.GCS.Session do
 
   defp send(_s, sysid, name, fields), do: {:send, sysid, name, fields}
 
-  defp statustext(s, sysid, severity, text) do
-    for fields <- Vehicle.statustext(severity, text, rem(s.statustext_id, 0xFFFF) + 1),
-        do: {:send, sysid, :statustext, fields}
-  end
+  defp statustext(_s, sysid, severity, text), do: [{:text, sysid, severity, text}]
 
   defp put_vehicle(s, sysid, v), do: %{s | vehicles: Map.put(s.vehicles, sysid, v)}
 end
