@@ -24,7 +24,8 @@ defmodule Neptunus.Test.GCSClient do
     ts: 0,
     decoder: %MAVLink.Decoder{},
     received: [],
-    waiting: nil
+    waiting: nil,
+    streams: %{}
   ]
 
   @doc """
@@ -39,6 +40,16 @@ defmodule Neptunus.Test.GCSClient do
 
   @doc "Sends a message (signed when the client has a key)."
   def send!(pid, name, fields, opts \\ []), do: GenServer.call(pid, {:send, name, fields, opts})
+
+  @doc """
+  Sends a message every `every_ms` from now on, as a ground station streams MANUAL_CONTROL
+  (10 Hz) or its HEARTBEAT (1 Hz); `stop_stream/2` stops it.
+  """
+  def stream!(pid, name, fields, every_ms),
+    do: GenServer.call(pid, {:stream, name, fields, every_ms})
+
+  @doc "Stops streaming message `name`."
+  def stop_stream(pid, name), do: GenServer.call(pid, {:stop_stream, name})
 
   @doc "Sends raw bytes."
   def send_raw!(pid, bytes), do: GenServer.call(pid, {:raw, bytes})
@@ -114,6 +125,14 @@ defmodule Neptunus.Test.GCSClient do
     end
   end
 
+  def handle_call({:stream, name, fields, every_ms}, _from, state) do
+    send(self(), {:stream, name, fields, every_ms})
+    {:reply, :ok, %{state | streams: Map.put(state.streams, name, fields)}}
+  end
+
+  def handle_call({:stop_stream, name}, _from, state),
+    do: {:reply, :ok, %{state | streams: Map.delete(state.streams, name)}}
+
   def handle_call(:flush, _from, state), do: {:reply, :ok, %{state | received: []}}
   def handle_call(:received, _from, state), do: {:reply, state.received, state}
 
@@ -142,6 +161,19 @@ defmodule Neptunus.Test.GCSClient do
   def handle_info({:expect_timeout, from}, %{waiting: {from, _, _}} = state) do
     GenServer.reply(from, :timeout)
     {:noreply, %{state | waiting: nil}}
+  end
+
+  def handle_info({:stream, name, fields, every_ms}, state) do
+    case state.streams do
+      %{^name => ^fields} ->
+        {frame, state} = frame(state, name, fields, [])
+        :ok = :gen_udp.send(state.socket, state.host, state.port, frame)
+        Process.send_after(self(), {:stream, name, fields, every_ms}, every_ms)
+        {:noreply, state}
+
+      _ ->
+        {:noreply, state}
+    end
   end
 
   def handle_info(_msg, state), do: {:noreply, state}

@@ -230,6 +230,17 @@ defmodule Neptunus.GCS.Link do
 
   defp received(state, data) do
     {decoder, messages, events} = MAVLink.decode(state.decoder, data)
+
+    # a datagram holds whole frames: what is left of one is cut, not the start of the next
+    {decoder, state} =
+      case {state.transport, decoder.buffer} do
+        {{:udp, _, _, _}, rest} when rest != <<>> ->
+          {%{decoder | buffer: <<>>}, count(state, :truncated)}
+
+        _ ->
+          {decoder, state}
+      end
+
     state = %{state | decoder: decoder, last_data_ms: Neptunus.Clock.monotonic_ms()}
     state = if events == [], do: state, else: count(state, :malformed_events, length(events))
     Enum.reduce(messages, state, &message/2)

@@ -653,8 +653,12 @@ defmodule Neptunus.GCS.Session do
         timeout_s = helm_timeout_s(v)
         s = put_vehicle(s, sysid, %{v | asked: true})
 
+        {gcs_sys, gcs_comp} = s.gcs || {0, 0}
+
         notify =
           send(s, sysid, :command_long, %{
+            target_system: gcs_sys,
+            target_component: gcs_comp,
             command: @request_operator_control,
             confirmation: 0,
             param1: requester * 1.0,
