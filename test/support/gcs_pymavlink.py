@@ -1,0 +1,138 @@
+"""A ground station written with pymavlink, for the ground station tests
+(test/neptunus_web/gcs_external_test.exs). Run with the project's virtualenv:
+
+  .venv/bin/python test/support/gcs_pymavlink.py watch PORT SECONDS [PASSPHRASE]
+      connects (udpout to 127.0.0.1:PORT, heartbeats at 1 Hz, signed when given a passphrase,
+      as MAVProxy's `signing key` does) and reports what it heard for SECONDS
+  .venv/bin/python test/support/gcs_pymavlink.py fly PORT SYSID
+      the whole tour of a vehicle: telemetry, a message interval, AUTOPILOT_VERSION, the
+      parameters, the helm, MANUAL_CONTROL at 10 Hz for 2 s, then silence
+
+Every answer is one JSON document on stdout.
+"""
+
+import hashlib
+import json
+import os
+import sys
+import time
+
+os.environ.setdefault("MAVLINK20", "1")
+
+from pymavlink import mavutil  # noqa: E402
+
+
+def connect(port, passphrase=None):
+    m = mavutil.mavlink_connection("udpout:127.0.0.1:%d" % port, source_system=255, source_component=190)
+    if passphrase:
+        key = hashlib.sha256(passphrase.encode("ascii")).digest()
+        m.setup_signing(key, sign_outgoing=True)
+    return m
+
+
+def heartbeat(m):
+    m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+
+
+def watch(port, seconds, passphrase=None):
+    m = connect(port, passphrase)
+    counts = {}
+    systems = set()
+    deadline = time.time() + seconds
+    last_hb = 0
+    while time.time() < deadline:
+        if time.time() - last_hb >= 1:
+            heartbeat(m)
+            last_hb = time.time()
+        msg = m.recv_match(blocking=True, timeout=0.2)
+        if msg is None or msg.get_type() == "BAD_DATA":
+            continue
+        counts[msg.get_type()] = counts.get(msg.get_type(), 0) + 1
+        if msg.get_type() == "HEARTBEAT":
+            systems.add(msg.get_srcSystem())
+    signing = m.mav.signing
+    return {
+        "messages": counts,
+        "systems": sorted(systems),
+        "goodsig": signing.goodsig_count if passphrase else None,
+        "badsig": signing.badsig_count if passphrase else None,
+    }
+
+
+def wait(m, kind, condition=lambda msg: True, timeout=5.0):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        msg = m.recv_match(type=kind, blocking=True, timeout=0.2)
+        if msg is not None and condition(msg):
+            return msg
+    return None
+
+
+def command(m, sysid, cmd, *params):
+    params = list(params) + [0.0] * (7 - len(params))
+    m.mav.command_long_send(sysid, 1, cmd, 0, *params)
+    ack = wait(m, "COMMAND_ACK", lambda a: a.command == cmd)
+    return None if ack is None else ack.result
+
+
+def fly(port, sysid):
+    m = connect(port)
+    heartbeat(m)
+    report = {}
+    hb = wait(m, "HEARTBEAT", lambda h: h.get_srcSystem() == sysid)
+    report["heartbeat"] = None if hb is None else {"type": hb.type, "autopilot": hb.autopilot, "base_mode": hb.base_mode, "custom_mode": hb.custom_mode}
+
+    # telemetry at the default rates: each message seen in 3 s
+    seen = {}
+    deadline = time.time() + 3
+    while time.time() < deadline:
+        msg = m.recv_match(blocking=True, timeout=0.2)
+        if msg is not None and msg.get_srcSystem() == sysid:
+            seen[msg.get_type()] = seen.get(msg.get_type(), 0) + 1
+    report["seen"] = seen
+
+    report["interval_ack"] = command(m, sysid, 511, 30, 200000)
+    report["autopilot_version_ack"] = command(m, sysid, 512, 148)
+    av = wait(m, "AUTOPILOT_VERSION")
+    report["capabilities"] = None if av is None else av.capabilities
+
+    m.mav.param_request_list_send(sysid, 1)
+    names = {}
+    deadline = time.time() + 5
+    while time.time() < deadline:
+        p = m.recv_match(type="PARAM_VALUE", blocking=True, timeout=0.2)
+        if p is not None:
+            names[p.param_id] = p.param_value
+            if len(names) == p.param_count:
+                break
+    report["params"] = names
+
+    report["helm_ack"] = command(m, sysid, 32100, 0, 1, 0, 10)
+    report["arm_ack"] = command(m, sysid, 400, 1)
+    # the stick at 10 Hz for 2 s (forward, down), then silence
+    for _ in range(20):
+        m.mav.manual_control_send(sysid, 600, 0, 250, 0, 0)
+        heartbeat(m) if _ % 10 == 0 else None
+        time.sleep(0.1)
+    servo = wait(m, "SERVO_OUTPUT_RAW")
+    report["servo"] = None if servo is None else [servo.servo1_raw, servo.servo2_raw, servo.servo3_raw]
+    stop = wait(m, "STATUSTEXT", lambda t: "stopped: deadman" in t.text, timeout=3)
+    report["deadman_text"] = None if stop is None else stop.text
+    return report
+
+
+def main(argv):
+    command_name = argv[1] if len(argv) > 1 else ""
+    if command_name == "watch":
+        answer = watch(int(argv[2]), float(argv[3]), argv[4] if len(argv) > 4 else None)
+    elif command_name == "fly":
+        answer = fly(int(argv[2]), int(argv[3]))
+    else:
+        sys.stderr.write(__doc__)
+        return 2
+    json.dump(answer, sys.stdout)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
