@@ -142,6 +142,14 @@ export interface BoardLinkDetails {
   readonly firmware_mismatch: boolean;
   readonly commands_sent: number | null;
   readonly commands_confirmed: number | null;
+  /** whether the board confirmed (echoed) every setting sent to it; null: not reported */
+  readonly board_settings: "confirmed" | "pending" | "failed" | null;
+  /** the settings it has not confirmed: mtrmod1, mtrmod2 (motor modifiers), lights, laser, tilt */
+  readonly board_settings_pending: readonly string[];
+  /** why a setting failed (past the bound of writes), else null */
+  readonly board_settings_reason: string | null;
+  /** thrust other than neutral is held (sent as neutral) until the motor modifiers are confirmed */
+  readonly thrust_held: boolean;
 }
 
 export interface WildPoints {
@@ -155,9 +163,15 @@ export interface WildPoints {
  * addresses are left alone (the token is never sent elsewhere).
  */
 export function cameraWithToken(camera: CameraInfo | null, token: string | null): CameraInfo | null {
-  if (camera === null || token === null || !camera.url.startsWith("/") || camera.url.startsWith("//")) return camera;
-  const separator = camera.url.includes("?") ? "&" : "?";
-  return { url: `${camera.url}${separator}token=${encodeURIComponent(token)}` };
+  if (camera === null || token === null) return camera;
+  return { ...camera, video: withToken(camera.video, token), url: camera.url === null ? null : withToken(camera.url, token) };
+}
+
+/** `url` with `token` added, when it is our own server's (a path); another server's as it is. */
+function withToken(url: string, token: string): string {
+  if (!url.startsWith("/") || url.startsWith("//")) return url;
+  const separator = url.includes("?") ? "&" : "?";
+  return `${url}${separator}token=${encodeURIComponent(token)}`;
 }
 
 export interface Telemetry {
@@ -306,6 +320,10 @@ function linkStatus(l: wire.LinkStatus): LinkStatus {
           firmware_mismatch: l.firmware_mismatch === true,
           commands_sent: l.commands_sent,
           commands_confirmed: l.commands_confirmed,
+          board_settings: l.board_settings,
+          board_settings_pending: l.board_settings_pending ?? [],
+          board_settings_reason: l.board_settings_reason,
+          thrust_held: l.thrust_held === true,
         };
   const mavlink = l.mavlink && mavlinkStatus(l.mavlink);
   return { up: l.up, reason: l.reason, ...(board ? { board } : {}), ...(mavlink ? { mavlink } : {}) };
@@ -382,17 +400,14 @@ export function decodeTelemetry(value: unknown): Telemetry | null {
 
 /** The camera: `camera: {url}` (or a bare URL) in the snapshot, else `vehicle.camera_url`. */
 export function decodeCamera(snapshot: Record<string, unknown>): CameraInfo | null {
-  const camera = snapshot["camera"];
-  const vehicle = snapshot["vehicle"];
-  const candidates = [
-    isRecord(camera) ? camera["url"] : camera,
-    isRecord(vehicle) ? vehicle["camera_url"] : undefined,
-    isRecord(vehicle) ? vehicle["video_url"] : undefined,
-  ];
-  for (const url of candidates) {
-    if (typeof url === "string" && /^(https?:\/\/|\/)/.test(url)) return { url };
-  }
-  return null;
+  const camera = wire.decodeCameraInfo(snapshot["camera"]);
+  if (camera === null || !safeUrl(camera.video) || (camera.url !== null && !safeUrl(camera.url))) return null;
+  return camera;
+}
+
+/** A URL a page may load: http(s) or a path on this server (never `javascript:` and the like). */
+function safeUrl(url: string): boolean {
+  return /^(https?:\/\/|\/)/.test(url);
 }
 
 /** A vehicle of the fleet's directory, or of a snapshot (`wire.FleetVehicle`). */
