@@ -44,7 +44,7 @@ function mavproxy() {
     ],
     {
       cwd: mkdtempSync(join(tmpdir(), "mavproxy-")),
-      env: { ...process.env, PYTHONPATH: join(here, "..", "support"), MAVLINK20: "1" },
+      env: { ...process.env, PYTHONPATH: join(here, "..", "support"), MAVLINK20: "1", PYTHONUNBUFFERED: "1" },
       stdio: ["pipe", "pipe", "pipe"],
     },
   );
