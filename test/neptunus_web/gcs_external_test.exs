@@ -22,21 +22,25 @@ defmodule NeptunusWeb.GCSExternalTest do
     {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated})
     on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
 
-    endpoint = fn address, loopback, link_id ->
+    endpoint = fn kind, address, loopback, link_id ->
       %{
-        kind: :udpin,
+        kind: kind,
         address: address,
         port: 0,
         loopback: loopback,
         gcs: nil,
-        spec: "udpin:#{:inet.ntoa(address)}:0",
+        spec: "#{kind}:#{:inet.ntoa(address)}:0",
         link_id: link_id
       }
     end
 
     gcs = %{
       # loopback: anyone on this computer; 0.0.0.0: beyond it, signed only
-      endpoints: [endpoint.({127, 0, 0, 1}, true, 0), endpoint.({0, 0, 0, 0}, false, 1)],
+      endpoints: [
+        endpoint.(:udpin, {127, 0, 0, 1}, true, 0),
+        endpoint.(:udpin, {0, 0, 0, 0}, false, 1),
+        endpoint.(:tcpin, {127, 0, 0, 1}, true, 2)
+      ],
       systems: %{id => @sysid},
       keys: %{"mp" => %{name: "mp", role: :pilot, key: Signing.key_from_passphrase(@passphrase)}},
       trusted: [],
@@ -45,8 +49,8 @@ defmodule NeptunusWeb.GCSExternalTest do
     }
 
     start_supervised!({Neptunus.GCS, gcs: gcs, vehicles: [%{id: id, board: :simulated}]})
-    ports = for link <- [0, 1], do: Endpoint.stats(Endpoint.name(link)).port
-    {:ok, id: id, loopback: Enum.at(ports, 0), far: Enum.at(ports, 1)}
+    [loopback, far, tcp] = for link <- [0, 1, 2], do: Endpoint.stats(Endpoint.name(link)).port
+    {:ok, id: id, loopback: loopback, far: far, tcp: tcp}
   end
 
   defp python!(args) do
@@ -60,10 +64,22 @@ defmodule NeptunusWeb.GCSExternalTest do
     :jiffy.decode(output, [:return_maps])
   end
 
-  test "pymavlink: telemetry, an interval, AUTOPILOT_VERSION, parameters, the helm, MANUAL_CONTROL, silence",
-       %{id: id, loopback: port} do
+  for transport <- [:udpin, :tcpin] do
+    test "pymavlink over #{transport}: telemetry, an interval, AUTOPILOT_VERSION, parameters, the helm, MANUAL_CONTROL, silence, disarm",
+         %{id: id} = context do
+      port =
+        case unquote(transport) do
+          :udpin -> "#{context.loopback}"
+          :tcpin -> "tcp:#{context.tcp}"
+        end
+
+      fly(id, port)
+    end
+  end
+
+  defp fly(id, port) do
     Neptunus.PubSub.subscribe("vehicle:" <> id)
-    report = python!(["fly", "#{port}", "#{@sysid}"])
+    report = python!(["fly", port, "#{@sysid}"])
 
     assert %{"type" => 12, "autopilot" => 0} = report["heartbeat"]
 
@@ -79,14 +95,24 @@ defmodule NeptunusWeb.GCSExternalTest do
     assert report["autopilot_version_ack"] == 0
     assert is_integer(report["capabilities"]) and report["capabilities"] > 0
     assert map_size(report["params"]) == 16 and report["params"]["PILOT_GAIN"] == 0.5
+    # refused (not the pilot): the answer is the value kept
+    assert report["lights_refused"] == report["params"]["LIGHTS"]
+    assert Neptunus.Vehicle.Control.status(id).lights == round(report["params"]["LIGHTS"])
+    # its stick moved nothing before it had the helm
+    assert [_ | _] = report["servo_without_helm"]
+    assert Enum.all?(report["servo_without_helm"], &(&1 == [1500, 1500, 1500]))
     assert report["helm_ack"] == 0
-    assert report["arm_ack"] == 0
+    assert report["arm_ack"] == 0 and report["armed_heartbeat"]
     # forward on port and starboard, down on the vertical (go() order: port, vertical, starboard)
     assert [port_us, vertical_us, starboard_us] = report["servo"]
     assert port_us > 1500 and starboard_us > 1500 and vertical_us != 1500
     assert report["deadman_text"] =~ "stopped: deadman"
     assert_received {:pubsub, _, "stopped", %{reason: "deadman"}}
-    assert Helm.status(id).pilot.name == "gcs-255 (GCS 255)"
+    # a simulated board has no arming of its own: it is armed while a pilot holds the helm,
+    # and disarming gives the helm up
+    assert report["disarm_ack"] == 0 and report["disarmed_heartbeat"]
+    assert_received {:pubsub, _, "helm", %{pilot: %{name: "gcs-255 (GCS 255)"}}}
+    assert Helm.status(id).pilot == nil
   end
 
   test "beyond loopback: an unsigned ground station sees nothing; one with the key gets signed telemetry",

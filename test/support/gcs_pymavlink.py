@@ -2,11 +2,15 @@
 (test/neptunus_web/gcs_external_test.exs). Run with the project's virtualenv:
 
   .venv/bin/python test/support/gcs_pymavlink.py watch PORT SECONDS [PASSPHRASE]
-      connects (udpout to 127.0.0.1:PORT, heartbeats at 1 Hz, signed when given a passphrase,
-      as MAVProxy's `signing key` does) and reports what it heard for SECONDS
+      connects (heartbeats at 1 Hz, signed when given a passphrase, as MAVProxy's
+      `signing key` does) and reports what it heard for SECONDS
   .venv/bin/python test/support/gcs_pymavlink.py fly PORT SYSID
       the whole tour of a vehicle: telemetry, a message interval, AUTOPILOT_VERSION, the
-      parameters, the helm, MANUAL_CONTROL at 10 Hz for 2 s, then silence
+      parameters (a set refused while it does not pilot), a stick that moves nothing without
+      the helm, the helm, arm, MANUAL_CONTROL at 10 Hz for 2 s, silence, disarm
+
+PORT is `N` (udpout to 127.0.0.1:N: the endpoint is udpin) or `tcp:N` (a connection to a
+tcpin endpoint).
 
 Every answer is one JSON document on stdout.
 """
@@ -23,7 +27,8 @@ from pymavlink import mavutil  # noqa: E402
 
 
 def connect(port, passphrase=None):
-    m = mavutil.mavlink_connection("udpout:127.0.0.1:%d" % port, source_system=255, source_component=190)
+    device = "tcp:127.0.0.1:%s" % port[4:] if port.startswith("tcp:") else "udpout:127.0.0.1:%s" % port
+    m = mavutil.mavlink_connection(device, source_system=255, source_component=190)
     if passphrase:
         key = hashlib.sha256(passphrase.encode("ascii")).digest()
         m.setup_signing(key, sign_outgoing=True)
@@ -107,26 +112,53 @@ def fly(port, sysid):
                 break
     report["params"] = names
 
+    # a set it may not make (LIGHTS is the pilot's): the answer is the value it keeps
+    m.mav.param_set_send(sysid, 1, b"LIGHTS", 40.0, mavutil.mavlink.MAV_PARAM_TYPE_REAL32)
+    kept = wait(m, "PARAM_VALUE", lambda p: p.param_id == "LIGHTS")
+    report["lights_refused"] = None if kept is None else kept.param_value
+
+    # the stick without the helm moves nothing
+    report["servo_without_helm"] = stick(m, sysid, 15)
+
     report["helm_ack"] = command(m, sysid, 32100, 0, 1, 0, 10)
     report["arm_ack"] = command(m, sysid, 400, 1)
+    armed = wait(m, "HEARTBEAT", lambda h: h.get_srcSystem() == sysid and h.base_mode & 128)
+    report["armed_heartbeat"] = armed is not None
     # the stick at 10 Hz for 2 s (forward, down), then silence
-    for _ in range(20):
-        m.mav.manual_control_send(sysid, 600, 0, 250, 0, 0)
-        heartbeat(m) if _ % 10 == 0 else None
-        time.sleep(0.1)
-    servo = wait(m, "SERVO_OUTPUT_RAW")
-    report["servo"] = None if servo is None else [servo.servo1_raw, servo.servo2_raw, servo.servo3_raw]
+    outputs = stick(m, sysid, 20)
+    report["servo"] = outputs[-1] if outputs else None
     stop = wait(m, "STATUSTEXT", lambda t: "stopped: deadman" in t.text, timeout=3)
     report["deadman_text"] = None if stop is None else stop.text
+    heartbeat(m)
+    report["disarm_ack"] = command(m, sysid, 400, 0)
+    disarmed = wait(m, "HEARTBEAT", lambda h: h.get_srcSystem() == sysid and not h.base_mode & 128)
+    report["disarmed_heartbeat"] = disarmed is not None
     return report
+
+
+def stick(m, sysid, n):
+    """MANUAL_CONTROL at 10 Hz, n times (forward, down), with a heartbeat each second; the
+    SERVO_OUTPUT_RAWs heard meanwhile, as their first three outputs (go()'s port, vertical,
+    starboard)."""
+    outputs = []
+    for i in range(n):
+        m.mav.manual_control_send(sysid, 600, 0, 250, 0, 0)
+        if i % 10 == 0:
+            heartbeat(m)
+        until = time.time() + 0.1
+        while time.time() < until:
+            msg = m.recv_match(type="SERVO_OUTPUT_RAW", blocking=True, timeout=max(0.0, until - time.time()))
+            if msg is not None:
+                outputs.append([msg.servo1_raw, msg.servo2_raw, msg.servo3_raw])
+    return outputs
 
 
 def main(argv):
     command_name = argv[1] if len(argv) > 1 else ""
     if command_name == "watch":
-        answer = watch(int(argv[2]), float(argv[3]), argv[4] if len(argv) > 4 else None)
+        answer = watch(argv[2], float(argv[3]), argv[4] if len(argv) > 4 else None)
     elif command_name == "fly":
-        answer = fly(int(argv[2]), int(argv[3]))
+        answer = fly(argv[2], int(argv[3]))
     else:
         sys.stderr.write(__doc__)
         return 2
