@@ -420,7 +420,7 @@ defmodule Neptunus.GCSTest do
         system_status: 4
       })
 
-    for _ <- 1..20, do: GCSClient.send_raw!(flood, :binary.copy(frame, 40))
+    GCSClient.send_raw!(flood, frame)
 
     GCSClient.stream!(
       pilot,
@@ -435,7 +435,15 @@ defmodule Neptunus.GCSTest do
     )
 
     [flooder] = Endpoint.stats(Endpoint.name(0)).sessions -- [link]
-    until(fn -> Map.get(Link.stats(flooder), :flood, 0) > 0 end, "the flood counted")
+
+    # it floods until its session counts it (however slowly a busy machine handles a burst)
+    until(
+      fn ->
+        for _ <- 1..10, do: GCSClient.send_raw!(flood, :binary.copy(frame, 40))
+        Map.get(Link.stats(flooder), :flood, 0) > 0
+      end,
+      "the flood counted"
+    )
 
     until(
       fn -> Control.status(id).command.surge == 0.4 end,
