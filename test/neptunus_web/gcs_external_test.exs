@@ -4,7 +4,7 @@ defmodule NeptunusWeb.GCSExternalTest do
   # (test/e2e/gcs.e2e.mjs), both from PyPI in the project's .venv (`make setup`).
   use ExUnit.Case, async: false
 
-  alias Neptunus.GCS.Endpoint
+  alias Neptunus.GCS.{Endpoint, Link}
   alias Neptunus.Protocol.MAVLink.Signing
   alias Neptunus.Test.PyMAVLink
   alias Neptunus.Vehicle.Helm
@@ -15,7 +15,8 @@ defmodule NeptunusWeb.GCSExternalTest do
 
   @root Path.expand("../..", __DIR__)
   @sysid 3
-  @passphrase "neptunus e2e passphrase"
+  # one word: MAVProxy's `signing key` takes its first argument
+  @passphrase "neptunus-e2e-passphrase"
 
   setup do
     id = "gcs-e2e-#{System.unique_integer([:positive])}"
@@ -51,6 +52,14 @@ defmodule NeptunusWeb.GCSExternalTest do
     start_supervised!({Neptunus.GCS, gcs: gcs, vehicles: [%{id: id, board: :simulated}]})
     [loopback, far, tcp] = for link <- [0, 1, 2], do: Endpoint.stats(Endpoint.name(link)).port
     {:ok, id: id, loopback: loopback, far: far, tcp: tcp}
+  end
+
+  defp port_output(port, acc \\ "") do
+    receive do
+      {^port, {:data, data}} -> port_output(port, acc <> data)
+    after
+      0 -> acc
+    end
   end
 
   defp python!(args) do
@@ -130,6 +139,42 @@ defmodule NeptunusWeb.GCSExternalTest do
 
     %{counters: counters} = Endpoint.stats(Endpoint.name(1))
     assert counters[:not_admitted] >= 4
+  end
+
+  test "beyond loopback: MAVProxy signs with `signing key` and signs what it forwards for an unsigned tool behind it",
+       %{far: port} do
+    mavproxy = Path.join(@root, ".venv/bin/mavproxy.py")
+    unless File.exists?(mavproxy), do: flunk("#{mavproxy} is missing: run `make setup`")
+    {:ok, probe} = :gen_udp.open(0, ip: {127, 0, 0, 1})
+    {:ok, out} = :inet.port(probe)
+    :ok = :gen_udp.close(probe)
+
+    # docs/MAVLINK.md, "Signing": the tool that does not sign talks to MAVProxy, MAVProxy to the node
+    bridge =
+      Port.open({:spawn_executable, mavproxy}, [
+        :binary,
+        :exit_status,
+        :stderr_to_stdout,
+        args: [
+          "--master=udpout:127.0.0.1:#{port}",
+          "--out=udpout:127.0.0.1:#{out}",
+          "--no-state",
+          "--default-modules=link,signing",
+          "--cmd=signing key #{@passphrase}"
+        ],
+        cd: System.tmp_dir!(),
+        env: [{~c"MAVLINK20", ~c"1"}, {~c"PYTHONUNBUFFERED", ~c"1"}]
+      ])
+
+    {:os_pid, os_pid} = Port.info(bridge, :os_pid)
+    on_exit(fn -> System.cmd("kill", ["-9", "#{os_pid}"], stderr_to_stdout: true) end)
+
+    report = python!(["behind", "#{out}", "#{@sysid}", "20"])
+    said = port_output(bridge)
+    assert %{"type" => 12} = report["heartbeat"], "#{inspect(report)}; MAVProxy said:\n#{said}"
+    assert report["params"] == 16, "#{inspect(report)}; MAVProxy said:\n#{said}"
+    %{sessions: [session]} = Endpoint.stats(Endpoint.name(1))
+    assert Link.stats(session)[:messages] > 0
   end
 
   test "MAVProxy and a browser pilot (Chromium): parameters, the dive, the helm given, arm, drive, silence stops",

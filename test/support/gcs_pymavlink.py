@@ -9,6 +9,10 @@
       parameters (a set refused while it does not pilot), a stick that moves nothing without
       the helm, the helm, arm, MANUAL_CONTROL at 10 Hz for 2 s, silence, disarm
 
+  .venv/bin/python test/support/gcs_pymavlink.py behind PORT SYSID SECONDS
+      an unsigned ground station behind a signing MAVProxy (`--out=udpout:127.0.0.1:PORT`):
+      listens on PORT (udpin), and once it hears the vehicle asks for its parameters
+
 PORT is `N` (udpout to 127.0.0.1:N: the endpoint is udpin) or `tcp:N` (a connection to a
 tcpin endpoint).
 
@@ -136,6 +140,31 @@ def fly(port, sysid):
     return report
 
 
+def behind(port, sysid, seconds):
+    m = mavutil.mavlink_connection("udpin:127.0.0.1:%d" % port, source_system=255, source_component=190)
+    report = {"heartbeat": None, "params": 0}
+    names = set()
+    deadline = time.time() + seconds
+    last_hb = 0
+    while time.time() < deadline:
+        if report["heartbeat"] is not None and time.time() - last_hb >= 1:
+            heartbeat(m)
+            last_hb = time.time()
+        msg = m.recv_match(blocking=True, timeout=0.2)
+        if msg is None or msg.get_srcSystem() != sysid:
+            continue
+        if msg.get_type() == "HEARTBEAT" and report["heartbeat"] is None:
+            report["heartbeat"] = {"type": msg.type, "autopilot": msg.autopilot}
+            heartbeat(m)
+            m.mav.param_request_list_send(sysid, 1)
+        elif msg.get_type() == "PARAM_VALUE":
+            names.add(msg.param_id)
+            if len(names) == msg.param_count:
+                report["params"] = len(names)
+                break
+    return report
+
+
 def stick(m, sysid, n):
     """MANUAL_CONTROL at 10 Hz, n times (forward, down), with a heartbeat each second; the
     SERVO_OUTPUT_RAWs heard meanwhile, as their first three outputs (go()'s port, vertical,
@@ -157,6 +186,8 @@ def main(argv):
     command_name = argv[1] if len(argv) > 1 else ""
     if command_name == "watch":
         answer = watch(argv[2], float(argv[3]), argv[4] if len(argv) > 4 else None)
+    elif command_name == "behind":
+        answer = behind(int(argv[2]), int(argv[3]), float(argv[4]))
     elif command_name == "fly":
         answer = fly(argv[2], int(argv[3]))
     else:
