@@ -270,32 +270,8 @@ defmodule Neptunus.Config.GCS do
       |> Enum.map(&key!(String.split(&1, ":"), "NEPTUNUS_MAVLINK_GCS", &1))
 
     from_file =
-      case Map.get(env, "NEPTUNUS_MAVLINK_GCS_FILE", "") do
-        "" ->
-          []
-
-        path ->
-          case File.read(path) do
-            {:ok, text} ->
-              text
-              |> String.split("\n")
-              |> Enum.with_index(1)
-              |> Enum.map(fn {line, n} ->
-                {line |> String.split("#") |> hd() |> String.trim(), n}
-              end)
-              |> Enum.reject(fn {line, _} -> line == "" end)
-              |> Enum.map(fn {line, n} ->
-                key!(String.split(line), "NEPTUNUS_MAVLINK_GCS_FILE", "#{path}, line #{n}")
-              end)
-
-            {:error, reason} ->
-              Config.bad!(
-                "NEPTUNUS_MAVLINK_GCS_FILE",
-                path,
-                "a readable file (#{:file.format_error(reason)})"
-              )
-          end
-      end
+      for {words, where} <- Config.file_entries!(env, "NEPTUNUS_MAVLINK_GCS_FILE"),
+          do: key!(words, "NEPTUNUS_MAVLINK_GCS_FILE", where)
 
     keys = inline ++ from_file
     names = Enum.map(keys, & &1.name)
