@@ -98,6 +98,21 @@ defmodule Neptunus.Config.GCSTest do
              }
 
       assert keys["qgc"].role == :pilot
+
+      # a keys file others may read is said at boot (the node still starts)
+      File.chmod!(path, 0o644)
+
+      log =
+        ExUnit.CaptureLog.capture_log(fn ->
+          assert %{keys: %{"qgc" => _}} = gcs!(%{"NEPTUNUS_MAVLINK_GCS_FILE" => path})
+        end)
+
+      assert log =~ "NEPTUNUS_MAVLINK_GCS_FILE #{path} is open to others (mode 644)"
+      File.chmod!(path, 0o600)
+
+      assert ExUnit.CaptureLog.capture_log(fn ->
+               gcs!(%{"NEPTUNUS_MAVLINK_GCS_FILE" => path})
+             end) == ""
     after
       File.rm(path)
     end

@@ -19,6 +19,8 @@ defmodule Neptunus.Config.GCS do
   ground station whose key signs what it pushes (`udpout:10.0.0.5:14550@topside`).
   """
 
+  require Logger
+
   alias Neptunus.Config
   alias Neptunus.Config.Auth
 
@@ -260,6 +262,33 @@ defmodule Neptunus.Config.GCS do
 
   # --- keys -----------------------------------------------------------------------------------
 
+  @doc """
+  The warning for a keys file whose permission bits `mode` let its group or others read or
+  write it (whoever reads a key can sign as that ground station), or nil.
+
+      iex> Neptunus.Config.GCS.keys_file_warning("/etc/neptunus/gcs-keys", 0o100600)
+      nil
+      iex> Neptunus.Config.GCS.keys_file_warning("/etc/neptunus/gcs-keys", 0o100640)
+      "NEPTUNUS_MAVLINK_GCS_FILE /etc/neptunus/gcs-keys is open to its group (mode 640): " <>
+        "whoever reads it can sign as its ground stations; run `chmod 600 /etc/neptunus/gcs-keys`"
+  """
+  @spec keys_file_warning(String.t(), non_neg_integer()) :: String.t() | nil
+  def keys_file_warning(path, mode) do
+    bits = Bitwise.band(mode, 0o777)
+
+    who =
+      cond do
+        Bitwise.band(bits, 0o007) != 0 -> "others"
+        Bitwise.band(bits, 0o070) != 0 -> "its group"
+        true -> nil
+      end
+
+    if who,
+      do:
+        "NEPTUNUS_MAVLINK_GCS_FILE #{path} is open to #{who} (mode #{Integer.to_string(bits, 8)}): " <>
+          "whoever reads it can sign as its ground stations; run `chmod 600 #{path}`"
+  end
+
   defp keys!(env) do
     inline =
       env
@@ -272,6 +301,11 @@ defmodule Neptunus.Config.GCS do
     from_file =
       for {words, where} <- Config.file_entries!(env, "NEPTUNUS_MAVLINK_GCS_FILE"),
           do: key!(words, "NEPTUNUS_MAVLINK_GCS_FILE", where)
+
+    with path when path != "" <- Map.get(env, "NEPTUNUS_MAVLINK_GCS_FILE", ""),
+         {:ok, %File.Stat{mode: mode}} <- File.stat(path),
+         warning when is_binary(warning) <- keys_file_warning(path, mode),
+         do: Logger.warning(warning)
 
     keys = inline ++ from_file
     names = Enum.map(keys, & &1.name)
