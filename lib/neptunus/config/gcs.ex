@@ -225,13 +225,16 @@ defmodule Neptunus.Config.GCS do
       |> Enum.map(&String.trim/1)
       |> Enum.reject(&(&1 == ""))
       |> Map.new(fn pair ->
-        with [id, n] <- String.split(pair, "=", parts: 2),
-             true <- id in ids,
-             {n, ""} when n in 1..254 <- Integer.parse(n) do
-          {id, n}
-        else
-          false ->
-            Config.bad!("NEPTUNUS_MAVLINK_SYSIDS", pair, "id=N with id a configured vehicle")
+        case String.split(pair, "=", parts: 2) do
+          [id, n] ->
+            unless id in ids,
+              do:
+                Config.bad!("NEPTUNUS_MAVLINK_SYSIDS", pair, "id=N with id a configured vehicle")
+
+            case Integer.parse(n) do
+              {n, ""} when n in 1..254 -> {id, n}
+              _ -> Config.bad!("NEPTUNUS_MAVLINK_SYSIDS", pair, "id=N with N in 1..254")
+            end
 
           _ ->
             Config.bad!("NEPTUNUS_MAVLINK_SYSIDS", pair, "id=N with N in 1..254")
@@ -335,29 +338,23 @@ defmodule Neptunus.Config.GCS do
   end
 
   defp key!([name, role, hex], variable, where) do
-    with true <- Regex.match?(~r/^[A-Za-z0-9_.-]{1,32}$/, name) || :name,
-         {:ok, role} <- Map.fetch(@roles, role) |> ok_or(:role),
-         {:ok, key} <- hex(hex) do
-      %{name: name, role: role, key: key}
-    else
-      :name -> Config.bad!(variable, where, "a name of 1..32 characters of A-Z a-z 0-9 _ . -")
-      :role -> Config.bad!(variable, where, "a role: pilot, observer or main_station")
-      :key -> Config.bad!(variable, where, "a key of 64 hex digits (32 bytes)")
+    cond do
+      not Regex.match?(~r/^[A-Za-z0-9_.-]{1,32}$/, name) ->
+        Config.bad!(variable, where, "a name of 1..32 characters of A-Z a-z 0-9 _ . -")
+
+      not Map.has_key?(@roles, role) ->
+        Config.bad!(variable, where, "a role: pilot, observer or main_station")
+
+      true ->
+        case Base.decode16(hex, case: :mixed) do
+          {:ok, <<_::256>> = key} -> %{name: name, role: Map.fetch!(@roles, role), key: key}
+          _ -> Config.bad!(variable, where, "a key of 64 hex digits (32 bytes)")
+        end
     end
   end
 
   defp key!(_parts, variable, where),
     do: Config.bad!(variable, where, "name, role and key (64 hex digits)")
-
-  defp ok_or({:ok, value}, _), do: {:ok, value}
-  defp ok_or(:error, error), do: error
-
-  defp hex(text) do
-    case Base.decode16(text, case: :mixed) do
-      {:ok, <<_::256>> = key} -> {:ok, key}
-      _ -> :key
-    end
-  end
 
   # --- the rest -------------------------------------------------------------------------------
 

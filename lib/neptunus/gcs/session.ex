@@ -298,8 +298,8 @@ defmodule Neptunus.GCS.Session do
     {s, for(sysid <- piloting(s), do: {:intent, 0, sysid, :heartbeat})}
   end
 
-  defp message(s, %{name: :manual_control, fields: f}, _now),
-    do: stick(s, f.target, Manual.axes(f), :manual_control)
+  defp message(s, %{name: :manual_control, fields: %{target: target} = f}, _now),
+    do: stick(s, target, Manual.axes(f), :manual_control)
 
   defp message(s, %{name: :rc_channels_override, fields: f}, _now),
     do: stick(s, f.target_system, Manual.rc_axes(f), :rc_channels_override)
