@@ -29,7 +29,8 @@ defmodule Neptunus.GCS.Manual do
       iex> Neptunus.GCS.Manual.axes(%{x: 32767, y: 0, z: -5000, r: 0})
       %{surge: 1.0, heave: 1.0, yaw: 0.0}
   """
-  @spec axes(%{x: integer(), y: integer(), z: integer(), r: integer()}) :: axes()
+  @spec axes(%{:x => integer(), :z => integer(), :r => integer(), optional(atom()) => term()}) ::
+          axes()
   def axes(%{x: x, z: z, r: r}) do
     %{
       surge: clamp(x / 1000),
