@@ -64,6 +64,13 @@ function mavproxy() {
     const m = await out.expect(new RegExp(`${name} \\{([^}]*)\\}`), WAIT_MS, from);
     return Object.fromEntries(m[1].split(",").map((kv) => kv.split(":").map((s) => s.trim())).map(([k, v]) => [k, Number(v)]));
   };
+  /** The value MAVProxy holds for parameter `name` (`param show`; a set lands asynchronously). */
+  out.show = async (name) => {
+    const from = out.text.length;
+    out.send(`param show ${name}`);
+    const m = await out.expect(new RegExp(`${name}\\s+(-?[0-9.]+)`), WAIT_MS, from);
+    return Number(m[1]);
+  };
   return out;
 }
 
@@ -122,8 +129,7 @@ test("MAVProxy: parameters, the dive seen, the helm asked of a browser pilot and
     // it sets the parameter now, arms and drives with MANUAL_CONTROL; the browser sees it fly
     from = gcs.text.length;
     gcs.send("param set LIGHTS 40");
-    gcs.send("param show LIGHTS");
-    await gcs.expect(/LIGHTS\s+40\.0/, WAIT_MS, from);
+    await until(() => gcs.show("LIGHTS"), (v) => v === 40, 2 * WAIT_MS, "MAVProxy holding LIGHTS 40 (its set accepted)");
     gcs.send("arm throttle");
     await gcs.expect(/COMPONENT_ARM_DISARM: ACCEPTED/, WAIT_MS, from);
     gcs.send("stick 700 0 500 0");
