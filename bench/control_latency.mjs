@@ -410,8 +410,8 @@ async function observers() {
     sock.connect(GCS_PORT, '127.0.0.1', () => {
       const beat = () => sock.send(mavHeartbeat({ sysid: 200 + (k % 50) }));
       beat();
-      setInterval(beat, 1000).unref();
-      sockets.push({ close: () => sock.close() });
+      const timer = setInterval(beat, 1000).unref();
+      sockets.push({ close: () => { clearInterval(timer); sock.close(); } });
       sock.once('message', () => resolve(true));
     });
   });
