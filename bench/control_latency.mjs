@@ -40,7 +40,9 @@ import { existsSync, readFileSync, writeFileSync } from 'node:fs';
 import os from 'node:os';
 import { fileURLToPath } from 'node:url';
 import { performance, monitorEventLoopDelay } from 'node:perf_hooks';
+import dgram from 'node:dgram';
 import { channelsSocket } from './support/channels.mjs';
+import { commandLong, frames, heartbeat as mavHeartbeat, manualControl } from './support/mavlink.mjs';
 
 const [GAP_MIN, GAP_MAX] = gap();
 const require = createRequire(new URL('../assets/package.json', import.meta.url));
@@ -52,6 +54,11 @@ const TOPIC = `vehicle:${VEHICLE}`;
 const wsUrl = (name, base = URL_BASE) => `${base}/socket/websocket?vsn=2.0.0&name=${encodeURIComponent(name)}`;
 // LAT_OBSERVER_URL: the observers connect to another node of the fleet (bench/cluster)
 const OBSERVER_URL_BASE = process.env.LAT_OBSERVER_URL ?? URL_BASE;
+// LAT_GCS_PORT (bench/gcs_latency): the pilot is a MAVLink ground station on the node's udpin
+// endpoint at this port (MANUAL_CONTROL instead of thrust), and the observers are ground
+// stations watching (each its own UDP socket, a session of its own)
+const GCS_PORT = process.env.LAT_GCS_PORT ? Number(process.env.LAT_GCS_PORT) : null;
+const GCS_SYSID = 1; // the vehicle's MAVLink system id (the node's only vehicle)
 
 if (process.env.LAT_ROLE === 'observers') {
   await observers();
@@ -62,7 +69,7 @@ if (process.env.LAT_ROLE === 'observers') {
 // ---------------------------------------------------------------------------------------
 
 async function main() {
-  const counts = (process.argv[2] ?? process.env.LAT_OBSERVERS ?? '0,1000').split(',').map(Number);
+  const counts = (process.argv[2] ?? process.env.LAT_OBSERVERS ?? (GCS_PORT ? '0,10' : '0,1000')).split(',').map(Number);
   const SAMPLES = Number(process.argv[3] ?? process.env.LAT_SAMPLES ?? 1000);
   // LAT_CLIENT_NICE: this process (the instrument: the pilot's machine and the board) and its
   // port program at another OS priority, e.g. -10 (root only). The server keeps its own.
@@ -134,19 +141,9 @@ async function main() {
     board.write(text);
   }, 20);
 
-  // The pilot.
-  const pilot = await connect('pilot');
-  const join = await pilot.push(TOPIC, 'phx_join', {});
-  if (join.status !== 'ok') throw new Error(`join failed: ${JSON.stringify(join.response)}`);
-  const grant = await pilot.push(TOPIC, 'request_control', {});
-  if (grant.status !== 'ok' || grant.response.status !== 'granted') {
-    throw new Error(`request_control: ${JSON.stringify(grant)}`);
-  }
-  let epoch = grant.response.grant.epoch;
-  pilot.onEvent = (event, payload) => {
-    if (event === 'control_granted' && payload.epoch != null) epoch = payload.epoch;
-  };
-  const heartbeat = setInterval(() => pilot.push(TOPIC, 'heartbeat', {}).catch(() => {}), 100);
+  // The pilot: a browser's connection, or a ground station (LAT_GCS_PORT).
+  const pilot = GCS_PORT ? await gcsPilot(GCS_PORT) : await browserPilot();
+  const heartbeat = setInterval(() => pilot.heartbeat(), 100);
 
   // The observers: a separate OS process (this script, LAT_ROLE=observers), under nice.
   const script = fileURLToPath(import.meta.url);
@@ -170,7 +167,9 @@ async function main() {
   });
   let observing = 0;
 
-  console.log(`# control latency: pilot thrust over the WebSocket -> go(...) bytes on the pty's master end (${LINK} -> ${board.slave})`);
+  console.log(GCS_PORT
+    ? `# control latency: a ground station's MANUAL_CONTROL (UDP to 127.0.0.1:${GCS_PORT}) -> go(...) bytes on the pty's master end (${LINK} -> ${board.slave}); observers are ground stations watching`
+    : `# control latency: pilot thrust over the WebSocket -> go(...) bytes on the pty's master end (${LINK} -> ${board.slave})`);
   console.log(`# ${SAMPLES} commands per run, vehicle ${VEHICLE}, server ${URL_BASE}`);
   console.log(`# observers: a separate node process (os pid ${worker.pid}) at nice ${OBSERVER_NICE}` +
     `${OBSERVER_CPUS ? ` on CPUs ${OBSERVER_CPUS}` : ''}; ` +
@@ -204,11 +203,10 @@ async function main() {
       const arrived = new Promise((resolve) => { waiter = { expect, resolve }; });
       const sent = performance.now();
       const sentNs = process.hrtime.bigint(); // CLOCK_MONOTONIC, as the port program's stamps
-      const reply = pilot.push(TOPIC, 'thrust', { mode: 'motion', surge: s, heave: 0, yaw: 0, epoch })
-        .then((r) => {
-          if (r.status !== 'ok') { errors++; lastError = JSON.stringify(r.response); }
-          toReply.push(performance.now() - sent);
-        });
+      const reply = pilot.thrust(s)?.then((r) => {
+        if (r.status !== 'ok') { errors++; lastError = JSON.stringify(r.response); }
+        toReply.push(performance.now() - sent);
+      });
       const got = await Promise.race([arrived, sleep(1000).then(() => null)]);
       if (got == null) { timeouts++; waiter = null; } else {
         if (got.readNs == null) throw new Error('no read time from the port program: rebuild it (mix compile)');
@@ -232,9 +230,10 @@ async function main() {
     out('command errors', errors ? `${errors} (last: ${lastError})` : 0);
     out('command -> go bytes  p50 / p90 / p99 / max', stats(toGo));
     out('  the same, at this process (+ a pipe hop)', stats(toGoHere));
-    out('command -> reply     p50 / p90 / p99 / max', stats(toReply));
+    out('command -> reply     p50 / p90 / p99 / max', GCS_PORT ? 'n/a (MANUAL_CONTROL has no reply)' : stats(toReply));
     out('client event-loop delay p50 / p99', `${(loop.percentile(50) / 1e6).toFixed(2)} / ${(loop.percentile(99) / 1e6).toFixed(2)} ms`);
-    out('telemetry received by observers', `${after.messages - before.messages} (${((after.messages - before.messages) / secs).toFixed(0)}/s)`);
+    out(GCS_PORT ? 'MAVLink frames received by observers' : 'telemetry received by observers',
+      `${after.messages - before.messages} (${((after.messages - before.messages) / secs).toFixed(0)}/s)`);
     const pct = (ticks) => `${(ticks / CLK_TCK / secs * 100).toFixed(1)} %`;
     out('CPU (% of one core): server / pilot+board / observers',
       `${cpu0 != null && cpu1 != null ? pct(cpu1 - cpu0) : 'n/a'} / ` +
@@ -266,6 +265,57 @@ async function main() {
   }
   board.close();
   process.exit(0);
+}
+
+/** The pilot as a browser's connection: joined, granted the helm; thrust() resolves with the reply. */
+async function browserPilot() {
+  const socket = await connect('pilot');
+  const join = await socket.push(TOPIC, 'phx_join', {});
+  if (join.status !== 'ok') throw new Error(`join failed: ${JSON.stringify(join.response)}`);
+  const grant = await socket.push(TOPIC, 'request_control', {});
+  if (grant.status !== 'ok' || grant.response.status !== 'granted') {
+    throw new Error(`request_control: ${JSON.stringify(grant)}`);
+  }
+  let epoch = grant.response.grant.epoch;
+  socket.onEvent = (event, payload) => {
+    if (event === 'control_granted' && payload.epoch != null) epoch = payload.epoch;
+  };
+  return {
+    thrust: (s) => socket.push(TOPIC, 'thrust', { mode: 'motion', surge: s, heave: 0, yaw: 0, epoch }),
+    heartbeat: () => socket.push(TOPIC, 'heartbeat', {}).catch(() => {}),
+    close: () => socket.close(),
+  };
+}
+
+/**
+ * The pilot as a ground station on the node's udpin endpoint: it asks for the free helm
+ * (MAV_CMD_REQUEST_OPERATOR_CONTROL, answered ACCEPTED), then thrust(s) sends MANUAL_CONTROL
+ * x = 1000 s (no reply) and heartbeat() a HEARTBEAT (the deadman's feed, as a browser's).
+ */
+async function gcsPilot(port) {
+  const sock = dgram.createSocket('udp4');
+  await new Promise((resolve, reject) => sock.connect(port, '127.0.0.1', (e) => (e ? reject(e) : resolve())));
+  let seq = 0;
+  const send = (build) => sock.send(build({ seq: seq++ }));
+  let granted;
+  const grant = new Promise((resolve) => { granted = resolve; });
+  sock.on('message', (buf) => {
+    for (const f of frames(buf, 3)) {
+      // COMMAND_ACK of MAV_CMD_REQUEST_OPERATOR_CONTROL, MAV_RESULT_ACCEPTED
+      if (f.id === 77 && f.payload.readUInt16LE(0) === 32100 && f.payload[2] === 0) granted();
+    }
+  });
+  for (let tries = 0; ; tries++) {
+    send((o) => mavHeartbeat(o));
+    send((o) => commandLong(GCS_SYSID, 32100, [0, 1, 0, 10], o));
+    if (await Promise.race([grant.then(() => true), sleep(1000).then(() => false)])) break;
+    if (tries === 10) throw new Error(`no ACCEPTED answer to MAV_CMD_REQUEST_OPERATOR_CONTROL on udp 127.0.0.1:${port}`);
+  }
+  return {
+    thrust: (s) => { send((o) => manualControl(GCS_SYSID, { x: Math.round(s * 1000) }, o)); return null; },
+    heartbeat: () => send((o) => mavHeartbeat(o)),
+    close: () => sock.close(),
+  };
 }
 
 function stats(xs) {
@@ -351,7 +401,21 @@ async function observers() {
   let messages = 0;
   const WINDOW = Number(process.env.LAT_WINDOW ?? 100);
 
-  const openOne = (k) => new Promise((resolve) => {
+  const openOne = (k) => (GCS_PORT ? openGcs(k) : openWs(k));
+  // a ground station watching: its own socket (a session), a HEARTBEAT a second, frames counted
+  const openGcs = (k) => new Promise((resolve) => {
+    const sock = dgram.createSocket('udp4');
+    sock.on('message', (buf) => { messages += frames(buf).length; });
+    sock.on('error', () => resolve(false));
+    sock.connect(GCS_PORT, '127.0.0.1', () => {
+      const beat = () => sock.send(mavHeartbeat({ sysid: 200 + (k % 50) }));
+      beat();
+      const timer = setInterval(beat, 1000).unref();
+      sockets.push({ close: () => { clearInterval(timer); sock.close(); } });
+      sock.once('message', () => resolve(true));
+    });
+  });
+  const openWs = (k) => new Promise((resolve) => {
     const ws = new WebSocket(wsUrl(`obs${k}`, OBSERVER_URL_BASE), { perMessageDeflate: false });
     const done = (ok) => { resolve(ok); };
     const telemetry = `[null,null,${JSON.stringify(TOPIC)},"telemetry"`;
@@ -379,7 +443,7 @@ async function observers() {
     } else if (m.type === 'count') {
       parentPort.postMessage({ type: 'counted', messages });
     } else if (m.type === 'close') {
-      for (const ws of sockets) ws.close(1000);
+      for (const ws of sockets) ws.close(1000); // a ground station's close() takes no code
       await sleep(500);
       parentPort.postMessage({ type: 'closed' });
       process.disconnect();

@@ -38,10 +38,17 @@ endpoint =
 # NEPTUNUS_DIST_CERT, NEPTUNUS_DIST_KEY, NEPTUNUS_DIST_CACERT. Unset NEPTUNUS_NODE: one node.
 config :neptunus, cluster: Neptunus.Config.Cluster.cluster!(env)
 
+vehicles = Neptunus.Config.Vehicles.vehicles!(env)
+auth = Neptunus.Config.Auth.auth!(env, endpoint)
+
 config :neptunus,
   endpoint: endpoint,
-  vehicles: Neptunus.Config.Vehicles.vehicles!(env),
-  auth: Neptunus.Config.Auth.auth!(env, endpoint),
+  vehicles: vehicles,
+  auth: auth,
+  # Ground stations (Neptunus.Config.GCS): NEPTUNUS_MAVLINK_SERVE (off by default),
+  # NEPTUNUS_MAVLINK_SYSIDS, NEPTUNUS_MAVLINK_GCS, NEPTUNUS_MAVLINK_GCS_FILE,
+  # NEPTUNUS_MAVLINK_TRUSTED, NEPTUNUS_MAVLINK_UNSIGNED.
+  gcs: Neptunus.Config.GCS.gcs!(env, vehicles, auth.mode),
   helm: Neptunus.Config.Helm.helm!(env),
   os_time_slice_ns: Neptunus.Config.OS.os_time_slice_ns!(env),
   recording:

@@ -7,6 +7,7 @@ defmodule Neptunus.Application do
       ├── Neptunus.PubSub.Relay   other nodes' broadcasts to this node's subscribers
       ├── Neptunus.Settings       per-user and per-vehicle settings, on disk
       ├── Neptunus.Fleet          directory scope, registry, one supervisor per vehicle
+      ├── Neptunus.GCS            (NEPTUNUS_MAVLINK_SERVE only) ground stations over MAVLink
       ├── NeptunusWeb.Presence    who watches which topic
       ├── NeptunusWeb.Endpoint    yaws: static files, HTTP API, WebSocket (last up, first down)
       └── Neptunus.Fleet.Connector  (a fleet's node only) connects to NEPTUNUS_CLUSTER
@@ -51,10 +52,22 @@ defmodule Neptunus.Application do
       # serves this node's subscribers the frames of other nodes' broadcasts
       Neptunus.PubSub.Relay,
       {Neptunus.Settings, dir: Keyword.fetch!(app_env, :settings_dir)},
-      {Neptunus.Fleet, vehicles},
-      NeptunusWeb.Presence,
-      {NeptunusWeb.Endpoint, web}
+      {Neptunus.Fleet, vehicles}
     ]
+
+    # ground stations over MAVLink (NEPTUNUS_MAVLINK_SERVE): after the vehicles they serve
+    children =
+      case Keyword.get(app_env, :gcs) do
+        %{endpoints: [_ | _]} = gcs -> children ++ [{Neptunus.GCS, gcs: gcs, vehicles: vehicles}]
+        _ -> children
+      end
+
+    children =
+      children ++
+        [
+          NeptunusWeb.Presence,
+          {NeptunusWeb.Endpoint, web}
+        ]
 
     # the fleet's other nodes, connected once this node serves (a single node: none)
     children =

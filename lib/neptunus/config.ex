@@ -40,6 +40,36 @@ defmodule Neptunus.Config do
     raise ArgumentError, "#{variable}=#{inspect(value)} is not valid: expected #{expected}"
   end
 
+  @doc """
+  The entries of the file `variable` names (a users or keys file): for each line that is not
+  blank or a comment (`#` to the end of a line), its words and where it is
+  (`"PATH, line N"`, for errors). `[]` when `variable` is unset; a file that cannot be read
+  raises the `ArgumentError` naming `variable`.
+  """
+  @spec file_entries!(env(), String.t()) :: [{[String.t()], String.t()}]
+  def file_entries!(env, variable) do
+    case Map.get(env, variable, "") do
+      "" ->
+        []
+
+      path ->
+        case File.read(path) do
+          {:ok, text} ->
+            text
+            |> String.split("\n")
+            |> Enum.with_index(1)
+            |> Enum.map(fn {line, n} ->
+              {line |> String.split("#") |> hd() |> String.trim(), n}
+            end)
+            |> Enum.reject(fn {line, _} -> line == "" end)
+            |> Enum.map(fn {line, n} -> {String.split(line), "#{path}, line #{n}"} end)
+
+          {:error, reason} ->
+            bad!(variable, path, "a readable file (#{:file.format_error(reason)})")
+        end
+    end
+  end
+
   @doc "`variable`: an integer in `range`, or `default` when unset."
   @spec env_integer!(env(), String.t(), default, Range.t()) :: integer() | default
         when default: term()

@@ -39,6 +39,17 @@ defmodule Neptunus.Test.MAVLinkGen do
   @spec version() :: term()
   def version, do: :proper_types.oneof([1, 2])
 
+  @doc """
+  `{{name, fields}, header, version}`: any defined message, a header, and a protocol version
+  that can carry it (MAVLink 1 only for ids below 256).
+  """
+  @spec framed() :: term()
+  def framed do
+    bind({message(), header(), version()}, fn {{name, _} = message, header, version} ->
+      {message, header, if(Messages.get(name).id > 255, do: 2, else: version)}
+    end)
+  end
+
   @doc "The fields a receiver decodes from `fields` sent with `version`."
   @spec as_received(atom(), map(), 1 | 2) :: map()
   def as_received(_name, fields, 2), do: fields

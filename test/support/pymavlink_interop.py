@@ -7,7 +7,9 @@ Run with the project's virtualenv (`make setup` creates .venv with the pinned py
                                                                    frames pymavlink writes
   .venv/bin/python test/support/pymavlink_interop.py decode FILE  what pymavlink reads in the
                                                                    frames of FILE (a JSON list of
-                                                                   {"frame": HEX})
+                                                                   {"frame": HEX, "key"?: HEX}; a
+                                                                   frame with a key must be signed
+                                                                   with it)
 
 Every answer is one JSON document on stdout. Values travel as MAVLink defines them: integers,
 floats (NaN and infinities as the strings "nan", "infinity", "neg_infinity"), arrays as lists,
@@ -180,7 +182,8 @@ def encode(seed, names):
         message = cls(*random_fields(rng, cls, False))
         mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
         mav.seq = seq
-        mav.signing.secret_key = bytes(rng.randint(0, 255) for _ in range(32))
+        key = bytes(rng.randint(0, 255) for _ in range(32))
+        mav.signing.secret_key = key
         mav.signing.link_id = rng.randint(0, 255)
         mav.signing.timestamp = rng.randint(0, 2**48 - 2)
         mav.signing.sign_outgoing = True
@@ -196,7 +199,12 @@ def encode(seed, names):
                 "component": 1,
                 "seq": seq,
                 "fields": fields_of(message),
-                "signature": {"link_id": link_id, "timestamp": timestamp, "signature": frame[-6:].hex().upper()},
+                "signature": {
+                    "link_id": link_id,
+                    "timestamp": timestamp,
+                    "signature": frame[-6:].hex().upper(),
+                    "key": key.hex().upper(),
+                },
             }
         )
         seq = (seq + 1) % 256
@@ -207,6 +215,11 @@ def decode(frames):
     results = []
     for entry in frames:
         mav = mavlink.MAVLink(None)
+        if "key" in entry:
+            # pymavlink then checks the signature (an unsigned or wrongly signed frame is an
+            # error), and the timestamp against its own, 0 here
+            mav.signing.secret_key = bytes.fromhex(entry["key"])
+            mav.signing.timestamp = 0
         data = bytes.fromhex(entry["frame"])
         try:
             messages = mav.parse_buffer(data) or []

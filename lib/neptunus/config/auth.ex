@@ -119,34 +119,11 @@ defmodule Neptunus.Config.Auth do
 
   defp users!(env) do
     from_file =
-      case Map.get(env, "NEPTUNUS_USERS_FILE", "") do
-        "" ->
-          []
+      for {words, where} <- Config.file_entries!(env, "NEPTUNUS_USERS_FILE"),
+          do: user!(words, "NEPTUNUS_USERS_FILE", where)
 
-        path ->
-          case File.read(path) do
-            {:ok, text} ->
-              warn_users_file(path)
-
-              text
-              |> String.split("\n")
-              |> Enum.with_index(1)
-              |> Enum.map(fn {line, n} ->
-                {line |> String.split("#") |> hd() |> String.trim(), n}
-              end)
-              |> Enum.reject(fn {line, _} -> line == "" end)
-              |> Enum.map(fn {line, n} ->
-                user!(String.split(line), "NEPTUNUS_USERS_FILE", "#{path}, line #{n}")
-              end)
-
-            {:error, reason} ->
-              Config.bad!(
-                "NEPTUNUS_USERS_FILE",
-                path,
-                "a readable file (#{:file.format_error(reason)})"
-              )
-          end
-      end
+    with path when path != "" <- Map.get(env, "NEPTUNUS_USERS_FILE", ""),
+         do: warn_users_file(path)
 
     inline =
       env

@@ -9,7 +9,8 @@ defmodule Neptunus.Protocol.MAVLink do
       and compatibility flags, sequence, system id, component id, 24-bit message id), the
       payload, the 16-bit checksum and, when the incompatibility flag 0x01 is set, a 13-byte
       signature (link id, 48-bit timestamp, 48-bit signature), which is parsed and exposed in
-      `Message.signature` but **not verified**. Frames with any other incompatibility flag
+      `Message.signature` with the bytes it covers; `Neptunus.Protocol.MAVLink.Signing`
+      verifies and makes signatures. Frames with any other incompatibility flag
       cannot be understood and are dropped like garbage, as the spec requires.
     * **MAVLink 1 frames** (start byte 0xFE) on input: a 6-byte header with an 8-bit message id.
       `encode/4` writes them too (version 1) for messages with an id below 256.
@@ -26,7 +27,7 @@ defmodule Neptunus.Protocol.MAVLink do
     * The messages of `Neptunus.Protocol.MAVLink.Messages`, their wire order and CRC_EXTRA
       computed from their XML declarations.
 
-  Not implemented: creating or verifying signatures; messages beyond those defined (other
+  Not implemented: messages beyond those defined (other
   `common.xml` messages and dialects such as `ardupilotmega.xml` are skipped as unknown until
   their declarations are added to `Messages`).
 
@@ -157,7 +158,9 @@ defmodule Neptunus.Protocol.MAVLink do
       <<payload::binary-size(length), crc::little-16, signature::binary-size(signature_length),
         after_frame::binary>> ->
         <<_, checked::binary-size(9 + length), _::binary>> = bytes
-        signature = parse_signature(signature)
+        # what a signature covers: the frame up to its timestamp (Signing.verify/2)
+        signed = binary_part(bytes, 0, 12 + length + max(signature_length - 6, 0))
+        signature = parse_signature(signature, signed)
         frame = {2, id, seq, system, component, payload, signature}
         accept(frame, checked, crc, bytes, after_frame, decoder, messages, events)
 
@@ -282,10 +285,10 @@ defmodule Neptunus.Protocol.MAVLink do
     end
   end
 
-  defp parse_signature(<<>>), do: nil
+  defp parse_signature(<<>>, _signed), do: nil
 
-  defp parse_signature(<<link_id, timestamp::little-48, signature::binary-size(6)>>),
-    do: %{link_id: link_id, timestamp: timestamp, signature: signature}
+  defp parse_signature(<<link_id, timestamp::little-48, signature::binary-size(6)>>, signed),
+    do: %{link_id: link_id, timestamp: timestamp, signature: signature, signed: signed}
 
   defp decode_payload(definition, payload) do
     payload =
@@ -497,6 +500,35 @@ defmodule Neptunus.Protocol.MAVLink do
   end
 
   defp checksum(checked, definition), do: CRC.x25(<<definition.crc_extra>>, CRC.x25(checked))
+
+  @doc """
+  The unsigned MAVLink 2 `frame` (as `encode/4` makes it) with sequence number `seq` and
+  incompatibility flags `incompat` (0, or 0x01 for a frame a signature will follow: see
+  `Neptunus.Protocol.MAVLink.Signing.sign/5`), its checksum recomputed. A broadcast is
+  encoded once and each receiver's link stamps its own sequence number on it.
+
+      iex> {:ok, frame} = Neptunus.Protocol.MAVLink.encode(:heartbeat,
+      ...>   %{type: 12, autopilot: 0, base_mode: 0, custom_mode: 0, system_status: 3},
+      ...>   %{system: 1, component: 1, seq: 0})
+      iex> {_, [message], []} =
+      ...>   Neptunus.Protocol.MAVLink.decode(Neptunus.Protocol.MAVLink.new(),
+      ...>     Neptunus.Protocol.MAVLink.restamp(frame, 42))
+      iex> message.seq
+      42
+  """
+  @spec restamp(binary(), byte(), 0 | 1) :: binary()
+  def restamp(frame, seq, incompat \\ 0)
+
+  def restamp(
+        <<@v2, length, 0, compat, _seq, system, component, id::little-24, rest::binary>>,
+        seq,
+        incompat
+      )
+      when seq in 0..255 and incompat in [0, @signed] do
+    <<payload::binary-size(length), _crc::little-16>> = rest
+    checked = <<length, incompat, compat, seq, system, component, id::little-24, payload::binary>>
+    <<@v2, checked::binary, checksum(checked, Messages.get(id))::little-16>>
+  end
 
   # MAVLink 2 drops the payload's trailing zero bytes, keeping at least one
   defp truncate(payload) do

@@ -144,6 +144,17 @@ defmodule Neptunus.Vehicle.Control do
   end
 
   @doc """
+  The limits of the depth and heading references (`Neptunus.Control.Reference`), as
+  configured: `%{depth: %{rate, accel}, heading: %{rate, accel}}` (m/s and m/s², rad/s and
+  rad/s²).
+  """
+  @spec limits(String.t()) :: %{depth: map(), heading: map()}
+  def limits(id) do
+    %{reference: reference} = GenServer.call(via(id), :tuning)
+    Map.new(reference, fn {axis, kw} -> {axis, Map.new(kw)} end)
+  end
+
+  @doc """
   The step response of the untrusted request `payload` (`Neptunus.Control.Tuning.validate_step/1`:
   `%{"axis", "step", "gains"?}`) on the vehicle's simulator model with the gains in force
   and the proposed ones over them — run headless in the caller's process, the vehicle's

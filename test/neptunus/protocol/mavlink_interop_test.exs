@@ -9,16 +9,39 @@ defmodule Neptunus.Protocol.MAVLinkInteropTest do
   @moduletag timeout: 120_000
 
   alias Neptunus.Protocol.MAVLink
-  alias Neptunus.Protocol.MAVLink.Messages
+  alias Neptunus.Protocol.MAVLink.{Messages, Signing}
   alias Neptunus.Test.MAVLinkGen
   alias Neptunus.Test.PyMAVLink
 
-  defp names, do: Enum.map(Messages.all(), &Atom.to_string(&1.name))
+  # CONTROL_STATUS comes from a revision of development.xml the pinned pymavlink does not have
+  # (Neptunus.Protocol.MAVLink.Messages); its CRC_EXTRA is checked in mavlink_test.exs
+  @not_in_pymavlink [:control_status]
+
+  defp definitions, do: Enum.reject(Messages.all(), &(&1.name in @not_in_pymavlink))
+  defp names, do: Enum.map(definitions(), &Atom.to_string(&1.name))
+
+  test "the messages pymavlink does not define are the ones we know it lacks" do
+    {output, status} =
+      System.cmd(
+        PyMAVLink.python!(),
+        [
+          "-c",
+          "from pymavlink.dialects.v20 import development as d; " <>
+            "print(hasattr(d, 'MAVLink_control_status_message'), " <>
+            "hasattr(d, 'MAV_CMD_REQUEST_OPERATOR_CONTROL'))"
+        ],
+        env: [{"MAVLINK20", "1"}]
+      )
+
+    assert {output, status} == {"False False\n", 0},
+           "pymavlink now defines CONTROL_STATUS / MAV_CMD_REQUEST_OPERATOR_CONTROL: " <>
+             "check their declarations against it (Neptunus.Protocol.MAVLink.Messages)"
+  end
 
   test "every definition agrees with pymavlink's: id, CRC_EXTRA, fields, wire order, arrays" do
     info = PyMAVLink.run!(["info" | names()])
 
-    for definition <- Messages.all() do
+    for definition <- definitions() do
       theirs = Map.fetch!(info, Atom.to_string(definition.name))
       name = definition.name
       assert theirs["id"] == definition.id, "#{name} id"
@@ -37,7 +60,7 @@ defmodule Neptunus.Protocol.MAVLinkInteropTest do
   test "frames pymavlink writes (v2, v1, truncated, untruncated, signed) decode to its fields" do
     frames = PyMAVLink.run!(["encode", "17" | names()])
     # every message in six kinds
-    assert length(frames) == 6 * length(Messages.all())
+    assert length(frames) == 6 * length(definitions())
 
     stream = frames |> Enum.map(&Base.decode16!(&1["frame"])) |> IO.iodata_to_binary()
     {decoder, messages, events} = MAVLink.decode(MAVLink.new(), stream)
@@ -65,12 +88,17 @@ defmodule Neptunus.Protocol.MAVLinkInteropTest do
           assert message.signature == nil, what
 
         signature ->
-          assert message.signature == %{
+          assert Map.delete(message.signature, :signed) == %{
                    link_id: signature["link_id"],
                    timestamp: signature["timestamp"],
                    signature: Base.decode16!(signature["signature"])
                  },
                  what
+
+          # the signature is right for pymavlink's key, and wrong for any other
+          key = Base.decode16!(signature["key"])
+          assert Signing.verify(message, key), what
+          refute Signing.verify(message, :crypto.hash(:sha256, key)), what
       end
     end
 
@@ -89,7 +117,7 @@ defmodule Neptunus.Protocol.MAVLinkInteropTest do
   test "frames we write parse in pymavlink with valid checksums and the same fields" do
     # every message, several times, random values over each type's range, both versions
     sent =
-      for {definition, i} <- Enum.with_index(Messages.all()),
+      for {definition, i} <- Enum.with_index(definitions()),
           round <- 1..6 do
         {:ok, {name, fields}} = :proper_gen.pick(MAVLinkGen.message(definition.name), 20 + round)
         version = if rem(round, 2) == 0, do: 1, else: 2
@@ -148,6 +176,47 @@ defmodule Neptunus.Protocol.MAVLinkInteropTest do
       arm = List.last(results)
       assert arm["name"] == "command_long"
       assert arm["fields"]["command"] == 400 and arm["fields"]["param1"] == 1.0
+    after
+      File.rm(path)
+    end
+  end
+
+  test "frames we sign are accepted by pymavlink with the key; with another key they are not" do
+    key = Signing.key_from_passphrase("interop")
+    other = Signing.key_from_passphrase("not the key")
+    now = Signing.timestamp(System.os_time(:microsecond))
+
+    signed =
+      for {definition, i} <- Enum.with_index(definitions()) do
+        {:ok, {name, fields}} = :proper_gen.pick(MAVLinkGen.message(definition.name), 30)
+        {:ok, frame} = MAVLink.encode(name, fields, %{system: 1, component: 1, seq: 0})
+        {name, fields, Signing.sign(frame, rem(i, 256), key, 2, now + i)}
+      end
+
+    path =
+      Path.join(System.tmp_dir!(), "mavlink-signing-#{System.unique_integer([:positive])}.json")
+
+    json =
+      Enum.map(signed, fn {_, _, frame} ->
+        %{"frame" => Base.encode16(frame), "key" => Base.encode16(key)}
+      end) ++
+        Enum.map(signed, fn {_, _, frame} ->
+          %{"frame" => Base.encode16(frame), "key" => Base.encode16(other)}
+        end)
+
+    File.write!(path, :jiffy.encode(json))
+
+    try do
+      results = PyMAVLink.run!(["decode", path])
+      {right, wrong} = Enum.split(results, length(signed))
+
+      for {{name, fields, _frame}, theirs} <- Enum.zip(signed, right) do
+        refute Map.has_key?(theirs, "error"), "#{name}: #{inspect(theirs)}"
+        assert theirs["name"] == Atom.to_string(name)
+        assert PyMAVLink.from_json(name, theirs["fields"]) == fields
+      end
+
+      for theirs <- wrong, do: assert(theirs["error"] =~ "signature")
     after
       File.rm(path)
     end

@@ -1,8 +1,9 @@
 defmodule Neptunus.Protocol.MAVLink.Messages do
   @moduledoc """
   The MAVLink messages Neptunus knows, as data: each message's id, name and fields exactly as
-  the published MAVLink XML declares them (`minimal.xml` for HEARTBEAT, `common.xml` for the
-  rest, the definitions pymavlink 2.4.50 ships), and what follows from them at compile time:
+  the published MAVLink XML declares them (`minimal.xml` for HEARTBEAT, `standard.xml` for
+  AUTOPILOT_VERSION, `common.xml` for the rest, the definitions pymavlink 2.4.50 ships; and
+  CONTROL_STATUS, below), and what follows from them at compile time:
 
     * the **wire order**: the non-extension fields stably sorted by the size of their element
       type, largest first, then the extension fields in declaration order;
@@ -24,6 +25,14 @@ defmodule Neptunus.Protocol.MAVLink.Messages do
 
   `MESSAGE_INTERVAL` (244) is the vehicle's answer to `MAV_CMD_SET_MESSAGE_INTERVAL` (511),
   which is a command sent in COMMAND_LONG, not a message of its own.
+
+  `CONTROL_STATUS` (512) is the GCS control protocol's status message of `development.xml`
+  (work in progress upstream), in the revision that defines it with `sysid_in_control` and
+  `flags` and `MAV_CMD_REQUEST_OPERATOR_CONTROL` (32100) with the requester's system id,
+  action, allow-takeover and request timeout (3–60 s) as params 1–4. pymavlink 2.4.50's
+  `development.xml` has neither (the protocol has been reworked upstream since), so its
+  CRC_EXTRA (184) is checked against the C library generated from that revision instead
+  (docs/MAVLINK.md).
 
   Adding a message is adding its declaration below, copied from the XML; the tests check every
   CRC_EXTRA against the published value.
@@ -166,6 +175,29 @@ defmodule Neptunus.Protocol.MAVLink.Messages do
        {"uint16_t", "servo15_raw"},
        {"uint16_t", "servo16_raw"}
      ]},
+    {43, "MISSION_REQUEST_LIST",
+     [
+       {"uint8_t", "target_system"},
+       {"uint8_t", "target_component"},
+       :ext,
+       {"uint8_t", "mission_type"}
+     ]},
+    {44, "MISSION_COUNT",
+     [
+       {"uint8_t", "target_system"},
+       {"uint8_t", "target_component"},
+       {"uint16_t", "count"},
+       :ext,
+       {"uint8_t", "mission_type"}
+     ]},
+    {47, "MISSION_ACK",
+     [
+       {"uint8_t", "target_system"},
+       {"uint8_t", "target_component"},
+       {"uint8_t", "type"},
+       :ext,
+       {"uint8_t", "mission_type"}
+     ]},
     {65, "RC_CHANNELS",
      [
        {"uint32_t", "time_boot_ms"},
@@ -218,6 +250,30 @@ defmodule Neptunus.Protocol.MAVLink.Messages do
        {"int16_t", "aux5"},
        {"int16_t", "aux6"}
      ]},
+    {70, "RC_CHANNELS_OVERRIDE",
+     [
+       {"uint8_t", "target_system"},
+       {"uint8_t", "target_component"},
+       {"uint16_t", "chan1_raw"},
+       {"uint16_t", "chan2_raw"},
+       {"uint16_t", "chan3_raw"},
+       {"uint16_t", "chan4_raw"},
+       {"uint16_t", "chan5_raw"},
+       {"uint16_t", "chan6_raw"},
+       {"uint16_t", "chan7_raw"},
+       {"uint16_t", "chan8_raw"},
+       :ext,
+       {"uint16_t", "chan9_raw"},
+       {"uint16_t", "chan10_raw"},
+       {"uint16_t", "chan11_raw"},
+       {"uint16_t", "chan12_raw"},
+       {"uint16_t", "chan13_raw"},
+       {"uint16_t", "chan14_raw"},
+       {"uint16_t", "chan15_raw"},
+       {"uint16_t", "chan16_raw"},
+       {"uint16_t", "chan17_raw"},
+       {"uint16_t", "chan18_raw"}
+     ]},
     {74, "VFR_HUD",
      [
        {"float", "airspeed"},
@@ -226,6 +282,22 @@ defmodule Neptunus.Protocol.MAVLink.Messages do
        {"uint16_t", "throttle"},
        {"float", "alt"},
        {"float", "climb"}
+     ]},
+    {75, "COMMAND_INT",
+     [
+       {"uint8_t", "target_system"},
+       {"uint8_t", "target_component"},
+       {"uint8_t", "frame"},
+       {"uint16_t", "command"},
+       {"uint8_t", "current"},
+       {"uint8_t", "autocontinue"},
+       {"float", "param1"},
+       {"float", "param2"},
+       {"float", "param3"},
+       {"float", "param4"},
+       {"int32_t", "x"},
+       {"int32_t", "y"},
+       {"float", "z"}
      ]},
     {76, "COMMAND_LONG",
      [
@@ -283,6 +355,22 @@ defmodule Neptunus.Protocol.MAVLink.Messages do
        {"uint8_t", "mode"},
        {"uint32_t", "fault_bitmask"}
      ]},
+    {148, "AUTOPILOT_VERSION",
+     [
+       {"uint64_t", "capabilities"},
+       {"uint32_t", "flight_sw_version"},
+       {"uint32_t", "middleware_sw_version"},
+       {"uint32_t", "os_sw_version"},
+       {"uint32_t", "board_version"},
+       {"uint8_t[8]", "flight_custom_version"},
+       {"uint8_t[8]", "middleware_custom_version"},
+       {"uint8_t[8]", "os_custom_version"},
+       {"uint16_t", "vendor_id"},
+       {"uint16_t", "product_id"},
+       {"uint64_t", "uid"},
+       :ext,
+       {"uint8_t[18]", "uid2"}
+     ]},
     {244, "MESSAGE_INTERVAL",
      [
        {"uint16_t", "message_id"},
@@ -301,6 +389,12 @@ defmodule Neptunus.Protocol.MAVLink.Messages do
        :ext,
        {"uint16_t", "id"},
        {"uint8_t", "chunk_seq"}
+     ]},
+    # development.xml (work in progress there; not in the pinned pymavlink): see the moduledoc
+    {512, "CONTROL_STATUS",
+     [
+       {"uint8_t", "sysid_in_control"},
+       {"uint8_t", "flags"}
      ]}
   ]
 

@@ -1,0 +1,216 @@
+defmodule Neptunus.GCS.VehicleTest do
+  use ExUnit.Case, async: true
+  doctest Neptunus.GCS.Vehicle
+
+  import Neptunus.Test.Properties
+
+  alias Neptunus.GCS.{Party, Vehicle}
+  alias Neptunus.Protocol.MAVLink
+
+  @telemetry %{
+    measurement: %{depth: 2.0, heading: 1.0, roll: 0.1, pitch: -0.1, voltage: 12.5, current: 3.25},
+    measurement_state: %{
+      depth: "valid",
+      heading: "valid",
+      roll: "valid",
+      pitch: "valid",
+      voltage: "valid",
+      current: "valid"
+    },
+    estimate: %{
+      depth: 2.0,
+      depth_rate: 0.5,
+      heading: 4.0,
+      yaw_rate: 0.2,
+      roll: 0.1,
+      roll_rate: 0.0,
+      pitch: -0.1,
+      pitch_rate: 0.0
+    },
+    sim: nil,
+    thrusters: %{
+      port: 0.5,
+      vertical: -0.25,
+      starboard: 0.5,
+      port_us: 1700,
+      vertical_us: 1400,
+      starboard_us: 1700
+    },
+    control: %{
+      mode: "motion",
+      gain: 0.5,
+      lights: 100,
+      tilt: :math.pi() / 8,
+      autopilot: %{depth: nil, heading: 4.0}
+    },
+    link: %{up: true, reason: "open"}
+  }
+
+  defp vehicle(telemetry \\ @telemetry, helm \\ nil) do
+    %{Vehicle.new("rov", 1, :simulated, 0) | telemetry: telemetry, helm: helm}
+  end
+
+  defp encodes?(name, fields),
+    do: match?({:ok, _}, MAVLink.encode(name, fields, %{system: 1, component: 1, seq: 0}))
+
+  test "a submarine with a generic autopilot; mode, armed and state from the vehicle" do
+    hb = Vehicle.heartbeat(vehicle())
+    assert %{type: 12, autopilot: 0, custom_mode: 0, system_status: 3} = hb
+    # custom mode enabled, manual input enabled, not armed
+    assert hb.base_mode == 65
+
+    piloted = vehicle(@telemetry, %{pilot: %{id: "x", name: "ada"}})
+    assert %{base_mode: 193, system_status: 4} = Vehicle.heartbeat(piloted)
+
+    assert %{system_status: 1} = Vehicle.heartbeat(vehicle(nil))
+
+    assert %{system_status: 5} =
+             Vehicle.heartbeat(vehicle(%{@telemetry | link: %{up: false, reason: "hangup"}}))
+  end
+
+  test "an ArduSub vehicle: its own arming, mode and state" do
+    t =
+      put_in(@telemetry.link, %{
+        up: true,
+        reason: "heartbeat",
+        mavlink: %{armed: true, mode: "ALT_HOLD", system_status: "active"}
+      })
+
+    assert %{base_mode: 193, custom_mode: 2, system_status: 4} = Vehicle.heartbeat(vehicle(t))
+
+    t =
+      put_in(t.link.mavlink, %{
+        armed: false,
+        mode: "MANUAL",
+        system_status: "standby",
+        servo_us: [1500, 1600, 0],
+        loss: 0.015
+      })
+
+    v = vehicle(t, %{pilot: %{id: "x"}})
+    assert %{base_mode: 65, custom_mode: 19, system_status: 3} = Vehicle.heartbeat(v)
+    streamed = Vehicle.streamed(v, 1_000, 0)
+
+    assert %{servo1_raw: 1500, servo2_raw: 1600, servo3_raw: 0, servo8_raw: 0} =
+             streamed.servo_output_raw
+
+    assert streamed.sys_status.drop_rate_comm == 150
+  end
+
+  test "the streamed messages: attitude, depth as altitude, pressure, thrusters, named values" do
+    s = Vehicle.streamed(vehicle(), 1_234, 1_700_000_000_000_000)
+    assert %{roll: 0.1, pitch: -0.1, yawspeed: 0.2, time_boot_ms: 1_234} = s.attitude
+    assert_in_delta s.attitude.yaw, 4.0 - 2 * :math.pi(), 1.0e-12
+    assert %{alt: -2.0, climb: -0.5, heading: 229, throttle: 25} = s.vfr_hud
+    assert_in_delta s.scaled_pressure.press_abs, 1013.25 + 2 * 100.518, 0.01
+
+    assert %{servo1_raw: 1700, servo2_raw: 1400, servo3_raw: 1700, servo4_raw: 0} =
+             s.servo_output_raw
+
+    assert [
+             %{name: "lights", value: 100.0},
+             %{name: "tilt_deg", value: tilt},
+             %{name: "gain", value: 0.5}
+           ] = s.named_value_float
+
+    assert_in_delta tilt, 22.5, 1.0e-9
+    assert %{voltage_battery: 12_500, current_battery: 325, battery_remaining: -1} = s.sys_status
+    assert s.system_time.time_unix_usec == 1_700_000_000_000_000
+    refute Map.has_key?(s, :local_position_ned)
+  end
+
+  test "what is not known: no attitude before a heading, MAVLink's unknown battery, no position" do
+    t = %{
+      @telemetry
+      | measurement: %{
+          depth: nil,
+          heading: nil,
+          roll: nil,
+          pitch: nil,
+          voltage: nil,
+          current: nil
+        },
+        estimate: %{depth: nil, heading: nil}
+    }
+
+    s = Vehicle.streamed(vehicle(t), 0, 0)
+    refute Map.has_key?(s, :attitude)
+    refute Map.has_key?(s, :scaled_pressure)
+    assert %{voltage_battery: 0xFFFF, current_battery: -1} = s.sys_status
+    assert s.vfr_hud.alt == 0.0
+
+    s = Vehicle.streamed(vehicle(nil), 0, 0)
+    assert Map.keys(s) |> Enum.sort() == [:control_status, :heartbeat, :sys_status, :system_time]
+  end
+
+  test "sensor health follows the measurement states" do
+    states = %{@telemetry.measurement_state | depth: "stale", voltage: "initialising"}
+    s = Vehicle.streamed(vehicle(%{@telemetry | measurement_state: states}), 0, 0).sys_status
+    assert Bitwise.band(s.onboard_control_sensors_present, 8) == 8
+    assert Bitwise.band(s.onboard_control_sensors_health, 8) == 0
+    assert Bitwise.band(s.onboard_control_sensors_health, 4) == 4
+  end
+
+  test "a position: telemetry's own, else the simulator's with its velocity in north/east" do
+    sim = %{
+      x: 3.0,
+      y: -1.0,
+      z: 2.0,
+      phi: 0.0,
+      theta: 0.0,
+      psi: :math.pi() / 2,
+      u: 1.0,
+      v: 0.0,
+      w: 0.1,
+      p: 0.0,
+      q: 0.0,
+      r: 0.0
+    }
+
+    s = Vehicle.streamed(vehicle(%{@telemetry | sim: sim}), 0, 0)
+    assert %{x: 3.0, y: -1.0, z: 2.0, vz: 0.1} = s.local_position_ned
+    assert_in_delta s.local_position_ned.vx, 0.0, 1.0e-9
+    assert_in_delta s.local_position_ned.vy, 1.0, 1.0e-9
+
+    assert %{x: 5.0, y: 6.0} =
+             Vehicle.streamed(vehicle(Map.put(@telemetry, :position, %{x: 5.0, y: 6.0})), 0, 0).local_position_ned
+  end
+
+  test "CONTROL_STATUS: the ground station holding the helm, 0 for a browser or nobody" do
+    gcs = %{pilot: %{id: Party.id(250, "udpin0/1.2.3.4:5"), name: "qgc"}}
+    assert %{sysid_in_control: 250, flags: 1} = Vehicle.control_status(vehicle(@telemetry, gcs))
+
+    assert %{sysid_in_control: 0} =
+             Vehicle.control_status(vehicle(@telemetry, %{pilot: %{id: "c-1"}}))
+
+    assert %{sysid_in_control: 0} = Vehicle.control_status(vehicle(@telemetry, %{pilot: nil}))
+  end
+
+  test "every streamed message and AUTOPILOT_VERSION encode" do
+    for {name, fields} <- Vehicle.streamed(vehicle(), 5_000_000_000, 1_700_000_000_000_000),
+        f <- List.wrap(fields),
+        do: assert(encodes?(name, f), "#{name} #{inspect(f)}")
+
+    assert encodes?(:autopilot_version, Vehicle.autopilot_version(1, "0.1.0"))
+    assert %{flight_sw_version: 0x00010200} = Vehicle.autopilot_version(1, "0.1.2")
+  end
+
+  test "long texts are chunked at character boundaries, each chunk encodable" do
+    text = String.duplicate("é", 60) <> String.duplicate("x", 61)
+    chunks = Vehicle.statustext(4, text, 9)
+    assert Enum.map(chunks, &byte_size(&1.text)) == [50, 50, 50, 31]
+    assert Enum.map(chunks, & &1.id) == [9, 9, 9, 9]
+
+    long = :proper_types.bind(:proper_types.list(:proper_unicode.utf8()), &Enum.join/1, false)
+
+    check(long, fn text ->
+      chunks = Vehicle.statustext(6, text, 9)
+
+      Enum.map_join(chunks, & &1.text) == String.replace(text, <<0>>, "") and
+        Enum.all?(chunks, &(byte_size(&1.text) <= 50 and String.valid?(&1.text))) and
+        Enum.all?(chunks, &encodes?(:statustext, &1)) and
+        (length(chunks) == 1 or
+           Enum.map(chunks, & &1.chunk_seq) == Enum.to_list(0..(length(chunks) - 1)))
+    end)
+  end
+end
