@@ -584,15 +584,23 @@ defmodule Neptunus.Navigation.Position do
 
   @doc """
   The estimate at `now` for control: `%{valid, reason, north, east, velocity_north,
-  velocity_east, std_north, std_east, frame, epoch, shift}` — position and velocity nil
-  without an estimate, `reason` nil when valid (else why not), `shift` the last frame
-  change's `{dn, de}` (see the moduledoc).
+  velocity_east, std_north, std_east, covariance, frame, epoch, shift,
+  velocity_measured}` — position and velocity nil without an estimate, `reason` nil when
+  valid (else why not), `shift` the last frame change's `{dn, de}` (see the moduledoc),
+  `velocity_measured` whether a velocity source (a DVL) is fresh.
   """
   @spec estimate(t(), float()) :: map()
   def estimate(%__MODULE__{} = pos, now) do
     {valid, reason} = validity(pos, now)
 
-    base = %{valid: valid, reason: reason, frame: pos.frame, epoch: pos.epoch, shift: pos.shift}
+    base = %{
+      valid: valid,
+      reason: reason,
+      frame: pos.frame,
+      epoch: pos.epoch,
+      shift: pos.shift,
+      velocity_measured: fresh?(pos, :velocity, now, pos.config.velocity_stale)
+    }
 
     case Filter.at(pos.filter, now) do
       nil ->

@@ -65,7 +65,7 @@ defmodule Neptunus.Dynamics.ParamsTest do
         {&Map.put(&1, "thrusters", []),
          "thrusters must be a non-empty list of thrusters, got []"},
         {&update_in(&1, ["thrusters"], fn [t | rest] -> [Map.put(t, "name", "bow") | rest] end),
-         ~s(thrusters[0].name must be one of port, vertical, starboard, got "bow")},
+         ~s(thrusters[0].name must be one of port, vertical, starboard, lateral, got "bow")},
         {&update_in(&1, ["thrusters"], fn [t | rest] -> [t, t | tl(rest)] end),
          "thrusters[1].name port is listed twice"},
         {&update_in(&1, ["thrusters"], fn [t | rest] ->
