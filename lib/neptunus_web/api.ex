@@ -12,6 +12,8 @@ defmodule NeptunusWeb.API do
   | `/api/session`                       | GET                           | `API.Session`    |
   | `/api/recordings[/<vehicle>/<name>]` | GET; GET, DELETE for one      | `API.Recordings` |
   | `/api/settings[/<key>]`              | GET; GET, PUT, DELETE for one | `API.Settings`   |
+  | `/api/snapshots[/<vehicle>/<name>]`  | GET                           | `API.Snapshots`  |
+  | `/api/vehicles/<id>/snapshot`        | POST                          | `API.Snapshots`  |
 
   A path not listed is answered 404, a method its path does not take 405 (naming those it
   takes). A resource that raises is answered 500 "internal error", and the error logged.
@@ -22,7 +24,7 @@ defmodule NeptunusWeb.API do
 
   require Logger
 
-  alias NeptunusWeb.API.{Health, Login, Recordings, Response, Session, Settings}
+  alias NeptunusWeb.API.{Health, Login, Recordings, Response, Session, Settings, Snapshots}
 
   @doc false
   def out(arg) do
@@ -61,6 +63,11 @@ defmodule NeptunusWeb.API do
   defp route(:PUT, "/api/settings/" <> key, arg), do: Settings.update(arg, key)
   defp route(:DELETE, "/api/settings/" <> key, arg), do: Settings.delete(arg, key)
   defp route(_method, "/api/settings/" <> _, _arg), do: not_allowed("GET, PUT or DELETE")
+  defp route(:GET, "/api/snapshots", arg), do: Snapshots.index(arg)
+  defp route(:GET, "/api/snapshots/" <> rest, arg), do: Snapshots.show(arg, parts(rest))
+  defp route(_method, "/api/snapshots" <> _, _arg), do: not_allowed("GET")
+  defp route(:POST, "/api/vehicles/" <> rest, arg), do: Snapshots.create(arg, parts(rest))
+  defp route(_method, "/api/vehicles/" <> _, _arg), do: not_allowed("POST")
   defp route(_method, path, _arg), do: {404, %{error: "no such API endpoint: #{path}"}}
 
   defp parts(rest), do: String.split(rest, "/")

@@ -396,11 +396,21 @@ defmodule NeptunusWeb.WireSchema do
            {:string, null: true, doc: "why it stopped; null: it is on, or off by configuration"}
        ]},
     camera_status:
-      {:object, "The camera program (updated every second).",
+      {:object, "The camera (updated every second).",
        [
          running: {:boolean, essential: true},
          fps: {:number, essential: true, doc: "frames in the last second"},
-         error: {:string, null: true, doc: "why it is not running"}
+         error: {:string, null: true, doc: "why it is not running"},
+         state:
+           {{:enum, ~w(starting running restarting failed idle none)},
+            doc:
+              "as the video socket's `camera` message: `idle` is a `sim` camera nobody watches (it renders only while someone does)"},
+         restarts: {:integer, doc: "times the camera program was started again"},
+         codec:
+           {{:enum, ~w(h264 mjpeg)},
+            null: true, doc: "the current stream's; null before its first picture"},
+         width: {:integer, null: true, doc: "the current stream's picture width, pixels"},
+         height: {:integer, null: true, doc: "the current stream's picture height, pixels"}
        ]},
 
     # --- helm ------------------------------------------------------------------------------
@@ -487,12 +497,49 @@ defmodule NeptunusWeb.WireSchema do
        ]},
     pilot: {:object, "Who pilots.", [name: {:string, essential: true}]},
     camera_info:
-      {:object, "Where the camera can be watched.",
+      {:object, "Where the camera can be watched (see [Video](#video)).",
        [
+         codec:
+           {{:enum, ~w(h264 mjpeg)},
+            essential: true, doc: "the camera's codec (configured or probed)"},
+         video:
+           {:string,
+            essential: true,
+            doc: "the video WebSocket's path (pages add `?token=…` in secure mode)"},
          url:
            {:string,
-            essential: true, doc: "the MJPEG stream (pages add `?token=…` in secure mode)"}
+            null: true,
+            doc:
+              "the MJPEG stream for `<img>`, only for an MJPEG camera (pages add `?token=…` in secure mode)"}
        ]},
+    snapshot:
+      {:object, "A snapshot: the camera's picture saved as a JPEG next to the recordings.",
+       [
+         vehicle: {:string, essential: true},
+         name: {:string, essential: true, doc: "the file's name (vehicle, time, depth, heading)"},
+         bytes: {:integer, doc: "the file's size"},
+         taken_at: {:number, unit: "ms since the epoch", doc: "when it was taken"},
+         depth:
+           {:number, null: true, unit: "m", doc: "the vehicle's depth then; null: not known"},
+         heading:
+           {:number, null: true, unit: "rad", doc: "the vehicle's heading then; null: not known"},
+         width:
+           {:integer, optional: true, doc: "pixels (only in the answer to the snapshot itself)"},
+         height:
+           {:integer, optional: true, doc: "pixels (only in the answer to the snapshot itself)"},
+         url: {:string, essential: true, doc: "where to download it (`GET`)"},
+         node: {:string, doc: "the node of the fleet that keeps it"}
+       ]},
+    snapshot_result:
+      {:object, "A snapshot's outcome (the event `snapshot`, to the connection that asked).",
+       [
+         ok: {:boolean, essential: true},
+         snapshot: {:snapshot, optional: true, doc: "the saved snapshot (`ok: true`)"},
+         reason: {:string, optional: true, doc: "why not (`ok: false`)"}
+       ]},
+    accepted:
+      {:object, "Accepted; the outcome follows as an event.",
+       [status: {{:enum, ~w(pending)}, essential: true}]},
     vehicle_settings:
       {:object, "A vehicle's settings every page applies (stored on the server).",
        [
@@ -821,6 +868,12 @@ defmodule NeptunusWeb.WireSchema do
         "the board link of a `uart` or `sitl` vehicle came up or went down (`{up, reason}`, see [Board link](#board-link)); on a `mavlink` vehicle its heartbeat came (`heartbeat`) or stopped (`no heartbeat from the vehicle for 3.0 s`)"
     },
     %{
+      name: "snapshot",
+      payload: :snapshot_result,
+      to: "one connection",
+      doc: "the outcome of this connection's `snapshot` command"
+    },
+    %{
       name: "vehicle_answer",
       payload: :vehicle_answer,
       to: "one connection",
@@ -1073,6 +1126,19 @@ defmodule NeptunusWeb.WireSchema do
       who: @tuner,
       doc: "the camera image rotation every page applies; broadcast as `vehicle_settings`",
       errors: "`value must be one of 0, 90, 180, 270 (degrees), got 45`"
+    },
+
+    # The camera
+    %{
+      group: :camera,
+      name: "snapshot",
+      payload: :empty,
+      reply: :accepted,
+      who: "anyone joined",
+      doc:
+        "saves the camera's current picture (see [Snapshots](#snapshots)); the outcome follows as the event `snapshot` to this connection",
+      errors:
+        "as the event's `reason`: `vehicle … has no camera`, `the camera is starting: no picture yet`, `recording is off on this server: …`"
     },
 
     # ArduSub vehicles

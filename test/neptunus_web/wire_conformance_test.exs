@@ -128,7 +128,9 @@ defmodule NeptunusWeb.WireConformanceTest do
       {:event, "fleet", "reachable"} => "not here (a fleet of nodes)",
       {:reply, "vehicle", "arm"} => "the mavlink test below",
       {:reply, "vehicle", "disarm"} => "the mavlink test below",
-      {:reply, "vehicle", "take_control"} => "the secure-mode test below"
+      {:reply, "vehicle", "take_control"} => "the secure-mode test below",
+      {:reply, "vehicle", "snapshot"} => "the camera test below",
+      {:event, "vehicle", "snapshot"} => "the camera test below"
     }
 
     expected =
@@ -215,14 +217,21 @@ defmodule NeptunusWeb.WireConformanceTest do
   test "a vehicle with a camera and a recorder: their state in telemetry" do
     dir = Path.join(System.tmp_dir!(), "wire-rec-#{System.unique_integer([:positive])}")
     on_exit(fn -> File.rm_rf!(dir) end)
-    camera = %{kind: :exec, program: "/bin/sh", args: [@camera_script, "0"]}
+    camera = %{kind: :exec, codec: :mjpeg, program: "/bin/sh", args: [@camera_script, "0"]}
     id = start_vehicle!("wire-cam", %{camera: camera, recording: [dir: dir]})
     ada = join!("vehicle:" <> id, %{"name" => "Ada"})
-    assert %{"url" => _} = ada.join["camera"]
+    assert %{"url" => _, "codec" => "mjpeg", "video" => _} = ada.join["camera"]
 
     telemetry!(
       ada,
       &match?(%{"camera" => %{"running" => true}, "recording" => %{"on" => true}}, &1)
     )
+
+    # a snapshot, saved next to the recordings (the endpoint's recordings directory)
+    NeptunusWeb.Test.Wire.settings!(recording_dir: dir)
+    assert %{"status" => "pending"} = ok!(ada, "snapshot")
+
+    assert %{"ok" => true, "snapshot" => %{"vehicle" => ^id}} =
+             await!(ada, "snapshot", &match?(%{"ok" => _}, &1), 10_000)
   end
 end

@@ -102,7 +102,18 @@ defmodule NeptunusWeb.WireSchemaTest do
     assert :ok = Check.check({:list, {:or_null, :number}}, [1, nil])
     assert :ok = Check.check(:pilot_command, %{"port" => 0, "vertical" => 0, "starboard" => 0})
     assert {:error, [_]} = Check.check(:pilot_command, %{"port" => 0})
-    assert :ok = Check.check_term(:camera_status, %{running: true, fps: 15, error: nil})
+
+    assert :ok =
+             Check.check_term(:camera_status, %{
+               running: true,
+               fps: 15,
+               error: nil,
+               state: "running",
+               restarts: 0,
+               codec: "mjpeg",
+               width: 640,
+               height: 480
+             })
   end
 
   @tag :external

@@ -155,9 +155,15 @@ export interface WildPoints {
  * addresses are left alone (the token is never sent elsewhere).
  */
 export function cameraWithToken(camera: CameraInfo | null, token: string | null): CameraInfo | null {
-  if (camera === null || token === null || !camera.url.startsWith("/") || camera.url.startsWith("//")) return camera;
-  const separator = camera.url.includes("?") ? "&" : "?";
-  return { url: `${camera.url}${separator}token=${encodeURIComponent(token)}` };
+  if (camera === null || token === null) return camera;
+  return { ...camera, video: withToken(camera.video, token), url: camera.url === null ? null : withToken(camera.url, token) };
+}
+
+/** `url` with `token` added, when it is our own server's (a path); another server's as it is. */
+function withToken(url: string, token: string): string {
+  if (!url.startsWith("/") || url.startsWith("//")) return url;
+  const separator = url.includes("?") ? "&" : "?";
+  return `${url}${separator}token=${encodeURIComponent(token)}`;
 }
 
 export interface Telemetry {
@@ -382,17 +388,14 @@ export function decodeTelemetry(value: unknown): Telemetry | null {
 
 /** The camera: `camera: {url}` (or a bare URL) in the snapshot, else `vehicle.camera_url`. */
 export function decodeCamera(snapshot: Record<string, unknown>): CameraInfo | null {
-  const camera = snapshot["camera"];
-  const vehicle = snapshot["vehicle"];
-  const candidates = [
-    isRecord(camera) ? camera["url"] : camera,
-    isRecord(vehicle) ? vehicle["camera_url"] : undefined,
-    isRecord(vehicle) ? vehicle["video_url"] : undefined,
-  ];
-  for (const url of candidates) {
-    if (typeof url === "string" && /^(https?:\/\/|\/)/.test(url)) return { url };
-  }
-  return null;
+  const camera = wire.decodeCameraInfo(snapshot["camera"]);
+  if (camera === null || !safeUrl(camera.video) || (camera.url !== null && !safeUrl(camera.url))) return null;
+  return camera;
+}
+
+/** A URL a page may load: http(s) or a path on this server (never `javascript:` and the like). */
+function safeUrl(url: string): boolean {
+  return /^(https?:\/\/|\/)/.test(url);
 }
 
 /** A vehicle of the fleet's directory, or of a snapshot (`wire.FleetVehicle`). */

@@ -771,13 +771,26 @@ function readRecordingStatus(json: unknown): RecordingStatus | undefined {
 
 export const decodeRecordingStatus = (json: unknown): RecordingStatus | null => readRecordingStatus(json) ?? null;
 
-/** The camera program (updated every second). */
+/** The camera (updated every second). */
 export interface CameraStatus {
   readonly running: boolean;
   /** frames in the last second */
   readonly fps: number;
   /** why it is not running */
   readonly error: string | null;
+  /**
+   * as the video socket's `camera` message: `idle` is a `sim` camera nobody watches (it renders
+   * only while someone does)
+   */
+  readonly state: "starting" | "running" | "restarting" | "failed" | "idle" | "none" | null;
+  /** times the camera program was started again */
+  readonly restarts: number | null;
+  /** the current stream's; null before its first picture */
+  readonly codec: "h264" | "mjpeg" | null;
+  /** the current stream's picture width, pixels */
+  readonly width: number | null;
+  /** the current stream's picture height, pixels */
+  readonly height: number | null;
 }
 
 function readCameraStatus(json: unknown): CameraStatus | undefined {
@@ -789,6 +802,11 @@ function readCameraStatus(json: unknown): CameraStatus | undefined {
     running,
     fps,
     error: readString(json["error"]) ?? null,
+    state: readEnum(json["state"], ["starting", "running", "restarting", "failed", "idle", "none"] as const) ?? null,
+    restarts: readInteger(json["restarts"]) ?? null,
+    codec: readEnum(json["codec"], ["h264", "mjpeg"] as const) ?? null,
+    width: readInteger(json["width"]) ?? null,
+    height: readInteger(json["height"]) ?? null,
   };
 }
 
@@ -1113,22 +1131,112 @@ function readPilot(json: unknown): Pilot | undefined {
 
 export const decodePilot = (json: unknown): Pilot | null => readPilot(json) ?? null;
 
-/** Where the camera can be watched. */
+/** Where the camera can be watched (see [Video](#video)). */
 export interface CameraInfo {
-  /** the MJPEG stream (pages add `?token=…` in secure mode) */
-  readonly url: string;
+  /** the camera's codec (configured or probed) */
+  readonly codec: "h264" | "mjpeg";
+  /** the video WebSocket's path (pages add `?token=…` in secure mode) */
+  readonly video: string;
+  /** the MJPEG stream for `<img>`, only for an MJPEG camera (pages add `?token=…` in secure mode) */
+  readonly url: string | null;
 }
 
 function readCameraInfo(json: unknown): CameraInfo | undefined {
   if (!isRecord(json)) return undefined;
-  const url = readString(json["url"]);
-  if (url === undefined) return undefined;
+  const codec = readEnum(json["codec"], ["h264", "mjpeg"] as const);
+  const video = readString(json["video"]);
+  if (codec === undefined || video === undefined) return undefined;
   return {
-    url,
+    codec,
+    video,
+    url: readString(json["url"]) ?? null,
   };
 }
 
 export const decodeCameraInfo = (json: unknown): CameraInfo | null => readCameraInfo(json) ?? null;
+
+/** A snapshot: the camera's picture saved as a JPEG next to the recordings. */
+export interface Snapshot {
+  readonly vehicle: string;
+  /** the file's name (vehicle, time, depth, heading) */
+  readonly name: string;
+  /** the file's size */
+  readonly bytes: number | null;
+  /** ms since the epoch; when it was taken */
+  readonly taken_at: number | null;
+  /** m; the vehicle's depth then; null: not known */
+  readonly depth: number | null;
+  /** rad; the vehicle's heading then; null: not known */
+  readonly heading: number | null;
+  /** pixels (only in the answer to the snapshot itself); absent from some payloads */
+  readonly width: number | null;
+  /** pixels (only in the answer to the snapshot itself); absent from some payloads */
+  readonly height: number | null;
+  /** where to download it (`GET`) */
+  readonly url: string;
+  /** the node of the fleet that keeps it */
+  readonly node: string | null;
+}
+
+function readSnapshot(json: unknown): Snapshot | undefined {
+  if (!isRecord(json)) return undefined;
+  const vehicle = readString(json["vehicle"]);
+  const name = readString(json["name"]);
+  const url = readString(json["url"]);
+  if (vehicle === undefined || name === undefined || url === undefined) return undefined;
+  return {
+    vehicle,
+    name,
+    bytes: readInteger(json["bytes"]) ?? null,
+    taken_at: readNumber(json["taken_at"]) ?? null,
+    depth: readNumber(json["depth"]) ?? null,
+    heading: readNumber(json["heading"]) ?? null,
+    width: readInteger(json["width"]) ?? null,
+    height: readInteger(json["height"]) ?? null,
+    url,
+    node: readString(json["node"]) ?? null,
+  };
+}
+
+export const decodeSnapshot = (json: unknown): Snapshot | null => readSnapshot(json) ?? null;
+
+/** A snapshot's outcome (the event `snapshot`, to the connection that asked). */
+export interface SnapshotResult {
+  readonly ok: boolean;
+  /** the saved snapshot (`ok: true`); absent from some payloads */
+  readonly snapshot: Snapshot | null;
+  /** why not (`ok: false`); absent from some payloads */
+  readonly reason: string | null;
+}
+
+function readSnapshotResult(json: unknown): SnapshotResult | undefined {
+  if (!isRecord(json)) return undefined;
+  const ok = readBoolean(json["ok"]);
+  if (ok === undefined) return undefined;
+  return {
+    ok,
+    snapshot: readSnapshot(json["snapshot"]) ?? null,
+    reason: readString(json["reason"]) ?? null,
+  };
+}
+
+export const decodeSnapshotResult = (json: unknown): SnapshotResult | null => readSnapshotResult(json) ?? null;
+
+/** Accepted; the outcome follows as an event. */
+export interface Accepted {
+  readonly status: "pending";
+}
+
+function readAccepted(json: unknown): Accepted | undefined {
+  if (!isRecord(json)) return undefined;
+  const status = readEnum(json["status"], ["pending"] as const);
+  if (status === undefined) return undefined;
+  return {
+    status,
+  };
+}
+
+export const decodeAccepted = (json: unknown): Accepted | null => readAccepted(json) ?? null;
 
 /** A vehicle's settings every page applies (stored on the server). */
 export interface VehicleSettings {
@@ -2259,6 +2367,8 @@ export interface VehicleEvents {
    * heartbeat from the vehicle for 3.0 s`)
    */
   readonly link: LinkStatus;
+  /** the outcome of this connection's `snapshot` command */
+  readonly snapshot: SnapshotResult;
   /**
    * a `mavlink` vehicle's late answer to its `arm`, `disarm` or `autopilot` whose reply was
    * `pending` (see [ArduSub vehicles](#ardusub))
@@ -2311,6 +2421,7 @@ export const VEHICLE_EVENT_DECODERS: { readonly [E in keyof VehicleEvents]: (jso
   stopped: decodeReason,
   vehicle_settings: decodeVehicleSettings,
   link: decodeLinkStatus,
+  snapshot: decodeSnapshotResult,
   vehicle_answer: decodeVehicleAnswer,
   board: decodeBoardEvent,
   firmware: decodeFirmwareEvent,
@@ -2444,6 +2555,11 @@ export interface VehicleCommands {
    * rotation every page applies; broadcast as `vehicle_settings`
    */
   readonly set_camera_rotation: { readonly payload: CameraRotation; readonly reply: VehicleSettings };
+  /**
+   * anyone joined: saves the camera's current picture (see [Snapshots](#snapshots)); the outcome
+   * follows as the event `snapshot` to this connection
+   */
+  readonly snapshot: { readonly payload: Empty; readonly reply: Accepted };
   /** the pilot: arms a `mavlink` vehicle */
   readonly arm: { readonly payload: Empty; readonly reply: VehicleRequest };
   /** the pilot: disarms a `mavlink` vehicle */
@@ -2481,6 +2597,7 @@ export const VEHICLE_REPLY_DECODERS: { readonly [C in keyof VehicleCommands]: (j
   step_response: decodeStepResponse,
   set_tuning: decodeTuningReply,
   set_camera_rotation: decodeVehicleSettings,
+  snapshot: decodeAccepted,
   arm: decodeVehicleRequest,
   disarm: decodeVehicleRequest,
   sim_reset: decodeSimReply,

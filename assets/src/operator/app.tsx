@@ -1,8 +1,10 @@
 /** The operator page (Preact): header, camera with HUD and touch sticks, side panels, readouts. */
 
+import { useEffect, useState } from "preact/hooks";
 import { stickMode } from "../input/demand";
 import type { Thrusters } from "../lib/protocol";
 import { ageText } from "../lib/clock";
+import { fetchRollbackNotice } from "../lib/firmware";
 import { PLACEHOLDER, formatFixed, formatHeading } from "../lib/units";
 import { useStore } from "../lib/use_store";
 import type { OperatorController, OperatorState } from "./controller";
@@ -142,6 +144,20 @@ function Banner({ s, c }: { s: OperatorState; c: OperatorController }): preact.J
       <a id="sign-out" href="/login.html" hidden={b === null || b.mode === "local"} onClick={() => c.signOut()}>
         {b?.user ? "Sign out" : "Log in"}
       </a>
+    </p>
+  );
+}
+
+/** On an SD-card image whose last update was rolled back: what happened and why. */
+function FirmwareNotice(): preact.JSX.Element | null {
+  const [notice, setNotice] = useState<string | null>(null);
+  useEffect(() => {
+    void fetchRollbackNotice().then(setNotice);
+  }, []);
+  if (notice === null) return null;
+  return (
+    <p id="firmware-notice" class="banner firmware-notice" data-testid="firmware-notice" role="alert">
+      {notice}
     </p>
   );
 }
@@ -299,6 +315,7 @@ export function App({ controller }: { controller: OperatorController }): preact.
     <div class="page" data-input={s.inputMode}>
       <Header s={s} />
       <Banner s={s} c={controller} />
+      <FirmwareNotice />
       <main class="layout">
         <div class="view-column">
           <Camera camera={s.camera} rotation={s.rotation} status={s.telemetry?.camera_status ?? null}>

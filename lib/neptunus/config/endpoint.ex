@@ -104,7 +104,8 @@ defmodule Neptunus.Config.Endpoint do
       backlog: tune.(:socket_backlog),
       unsent_bytes: tune.(:socket_unsent_bytes),
       auth: Map.merge(Neptunus.Config.Auth.local(), Map.new(Keyword.get(app_env, :auth, %{}))),
-      recording_dir: recording_dir(Keyword.get(app_env, :recording))
+      recording_dir: recording_dir(Keyword.get(app_env, :recording)),
+      firmware_record: Keyword.get(app_env, :firmware_record)
     }
   end
 

@@ -30,15 +30,13 @@ defmodule NeptunusWeb.API.Recordings do
   # each node's recordings directory, read on that node
   @dir {NeptunusWeb.Endpoint.Settings, :recording_dir, []}
 
-  @statuses %{invalid: 400, not_found: 404, conflict: 409, unreachable: 503, failed: 500}
-
   @doc "`GET /api/recordings[?vehicle=id]`: the recordings of every node, or one vehicle's."
   @spec index(tuple()) :: Response.t()
   def index(arg) do
-    authorized(arg, fn ->
+    Request.watching(arg, fn ->
       case Pull.list(Map.get(query(arg), "vehicle"), @dir) do
         {:ok, listing} -> {200, listing}
-        error -> refused(error)
+        error -> Response.refused(error)
       end
     end)
   end
@@ -46,12 +44,12 @@ defmodule NeptunusWeb.API.Recordings do
   @doc "`GET /api/recordings/<vehicle>/<name>` (the path's parts after `recordings/`): an export."
   @spec show(tuple(), [String.t()]) :: Response.t()
   def show(arg, parts) do
-    authorized(arg, fn ->
+    Request.watching(arg, fn ->
       with [vehicle, name] <- parts,
            {:ok, plan, lines} <- Pull.export(vehicle, name, query(arg), @dir) do
         export(arg, plan, lines)
       else
-        {:error, _, _} = error -> refused(error)
+        {:error, _, _} = error -> Response.refused(error)
         _parts -> {404, %{error: "no such recording"}}
       end
     end)
@@ -67,19 +65,12 @@ defmodule NeptunusWeb.API.Recordings do
          :ok <- Pull.delete(vehicle, name, @dir) do
       {200, %{deleted: %{vehicle: vehicle, name: name}}}
     else
-      {:error, _, _} = error -> refused(error)
+      {:error, _, _} = error -> Response.refused(error)
       {status, body} -> {status, body}
     end
   end
 
   def delete(_arg, _parts), do: {404, %{error: "no such recording"}}
-
-  defp authorized(arg, fun) do
-    case Request.may_watch(arg) do
-      :ok -> fun.()
-      {:error, reason} -> {401, %{error: reason}}
-    end
-  end
 
   defp may_delete(arg) do
     case Auth.session(Request.token(arg)) do
@@ -99,8 +90,6 @@ defmodule NeptunusWeb.API.Recordings do
         {401, %{error: reason}}
     end
   end
-
-  defp refused({:error, kind, reason}), do: {Map.fetch!(@statuses, kind), %{error: reason}}
 
   defp export(arg, %{format: "csv", file: file}, lines) do
     [

@@ -64,6 +64,17 @@ defmodule NeptunusWeb.API.Request do
   end
 
   @doc """
+  `fun`'s answer when the request may watch (`may_watch/1`); 401 with the reason otherwise.
+  """
+  @spec watching(tuple(), (() -> NeptunusWeb.API.Response.t())) :: NeptunusWeb.API.Response.t()
+  def watching(arg, fun) do
+    case may_watch(arg) do
+      :ok -> fun.()
+      {:error, reason} -> {401, %{error: reason}}
+    end
+  end
+
+  @doc """
   Whose settings a request reads and writes (`Neptunus.Settings`): in local mode the node's
   one user `{:user, "local"}`; in secure mode the token's user (any role); otherwise the
   HTTP status and reason to refuse with (401). A foreign `Origin` is refused (403).

@@ -17,6 +17,17 @@ defmodule NeptunusWeb.API.Response do
           | {pos_integer(), map(), [{String.t(), String.t() | integer()}]}
           | [tuple()]
 
+  @statuses %{invalid: 400, not_found: 404, conflict: 409, unreachable: 503, failed: 500}
+
+  @doc """
+  The answer to a request the core refused, `{:error, kind, reason}` (as
+  `Neptunus.Recording.Pull` and `Neptunus.Camera.Snapshots` refuse): `:invalid` 400,
+  `:not_found` 404, `:conflict` 409, `:unreachable` 503, `:failed` 500.
+  """
+  @spec refused({:error, :invalid | :not_found | :conflict | :unreachable | :failed, String.t()}) ::
+          {pos_integer(), map()}
+  def refused({:error, kind, reason}), do: {Map.fetch!(@statuses, kind), %{error: reason}}
+
   @doc "A resource's answer as yaws' `out/1` result: JSON with `Cache-Control: no-store`."
   @spec respond(t()) :: [tuple()]
   def respond([{:status, _} | _] = response), do: response

@@ -31,7 +31,7 @@ defmodule NeptunusWeb.Endpoint.Settings do
     :auth,
     :recording_dir
   ]
-  defstruct @enforce_keys
+  defstruct @enforce_keys ++ [firmware_record: nil]
 
   @typedoc """
     * `port`, `bind`, `tls`, `max_connections` — the listener (`Neptunus.Config.Endpoint`,
@@ -46,7 +46,9 @@ defmodule NeptunusWeb.Endpoint.Settings do
     * `unsent_bytes` — the most of a connection's frames the kernel holds unsent (Linux,
       `TCP_NOTSENT_LOWAT`), nil: the kernel's own;
     * `auth` — `t:NeptunusWeb.Auth.config/0`;
-    * `recording_dir` — the recordings the API lists and exports, nil: recording is off.
+    * `recording_dir` — the recordings the API lists and exports, nil: recording is off;
+    * `firmware_record` — on an SD-card image, the file of its last firmware update
+      (`Neptunus.FirmwareRecord`, `NEPTUNUS_FIRMWARE_RECORD`), nil elsewhere.
   """
   @type t :: %__MODULE__{
           port: :inet.port_number(),
@@ -60,7 +62,8 @@ defmodule NeptunusWeb.Endpoint.Settings do
           backlog: pos_integer(),
           unsent_bytes: pos_integer() | nil,
           auth: NeptunusWeb.Auth.config(),
-          recording_dir: Path.t() | nil
+          recording_dir: Path.t() | nil,
+          firmware_record: Path.t() | nil
         }
 
   @key {__MODULE__, :settings}

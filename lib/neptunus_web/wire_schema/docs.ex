@@ -5,7 +5,7 @@ defmodule NeptunusWeb.WireSchema.Docs do
   hand. Sections:
 
     * `vehicle-events`, `fleet-events`, `log-events` — each topic's server events;
-    * `commands-GROUP` — the commands of a group (`helm`, `control`, `tuning`, `ardusub`,
+    * `commands-GROUP` — the commands of a group (`helm`, `control`, `tuning`, `camera`, `ardusub`,
       `sim`): who may send them, payload, reply, effect, errors;
     * `payloads` — every payload type: its fields, types, units and meaning (anchors
       `#wire-NAME`, which the other tables link to).
@@ -17,7 +17,7 @@ defmodule NeptunusWeb.WireSchema.Docs do
   alias NeptunusWeb.WireSchema
 
   @path "docs/API.md"
-  @groups [:helm, :control, :tuning, :ardusub, :sim]
+  @groups [:helm, :control, :tuning, :camera, :ardusub, :sim]
 
   @doc "The document, relative to the project's root."
   @spec path() :: String.t()
