@@ -62,10 +62,11 @@ defmodule Neptunus.Vehicle.Control do
             core: Neptunus.Control.Core.t(),
             periodic: Neptunus.Periodic.t(),
             simulator: pid() | nil,
-            simulator_opts: keyword()
+            simulator_opts: keyword(),
+            lateral?: boolean()
           }
     @enforce_keys [:id, :topic, :core, :periodic]
-    defstruct [:id, :topic, :core, :periodic, :simulator, simulator_opts: []]
+    defstruct [:id, :topic, :core, :periodic, :simulator, simulator_opts: [], lateral?: false]
   end
 
   @doc """
@@ -194,6 +195,10 @@ defmodule Neptunus.Vehicle.Control do
     end
   end
 
+  @doc "The mission in dp with its waypoints (`Neptunus.Control.Core.mission/1`), or nil."
+  @spec mission(String.t()) :: map() | nil
+  def mission(id), do: GenServer.call(via(id), :mission)
+
   @doc "The run-mode simulator's pid, or nil (for tests and diagnostics)."
   @spec simulator(String.t()) :: pid() | nil
   def simulator(id), do: GenServer.call(via(id), :simulator)
@@ -225,9 +230,12 @@ defmodule Neptunus.Vehicle.Control do
         _real -> [:normal, :simulator]
       end
 
+    lateral? = lateral?(Board.type(id), opts)
+
     core =
       control
-      |> Keyword.take([:gains, :stale_after, :deadband, :dp, :reference])
+      |> Keyword.take([:gains, :stale_after, :deadband, :dp, :reference, :mission])
+      |> Keyword.put(:actuation, if(lateral?, do: :full, else: :surge))
       |> Keyword.update(:gains, stored_gains(id), &Tuning.merge(Map.new(&1), stored_gains(id)))
       |> Keyword.merge(gain: Keyword.get(opts, :gain, @default_gain), run_modes: run_modes)
       |> Core.new()
@@ -236,6 +244,7 @@ defmodule Neptunus.Vehicle.Control do
       id: id,
       topic: Telemetry.topic(id),
       core: core,
+      lateral?: lateral?,
       periodic: Periodic.new(hz),
       simulator_opts: simulator_opts(opts, control)
     }
@@ -257,7 +266,7 @@ defmodule Neptunus.Vehicle.Control do
          :ok <- Board.vet(state.id, command),
          {:ok, core, actions} <- Core.command(state.core, command, now_s()) do
       state = state |> Map.put(:core, core) |> perform(actions) |> publish()
-      {:reply, {:ok, reply(event, state)}, state}
+      {:reply, {:ok, planned(reply(event, state), command)}, state}
     else
       {:error, reason} -> {:reply, {:error, reason}, state}
     end
@@ -288,6 +297,7 @@ defmodule Neptunus.Vehicle.Control do
   end
 
   def handle_call(:status, _from, state), do: {:reply, Core.status(state.core), state}
+  def handle_call(:mission, _from, state), do: {:reply, Core.mission(state.core), state}
   def handle_call(:simulator, _from, state), do: {:reply, state.simulator, state}
 
   @impl true
@@ -338,7 +348,7 @@ defmodule Neptunus.Vehicle.Control do
   end
 
   defp act({:go, thrusters}, %State{simulator: nil} = state) do
-    Board.go(state.id, thrusters)
+    Board.go(state.id, with_lateral(thrusters, state))
     state
   end
 
@@ -361,6 +371,11 @@ defmodule Neptunus.Vehicle.Control do
     })
 
     Logger.info("vehicle #{state.id} stopped: #{Neptunus.Log.safe(reason)}")
+    state
+  end
+
+  defp act({:mission, mission}, state) do
+    PubSub.broadcast(state.topic, "mission", %{mission: mission})
     state
   end
 
@@ -458,7 +473,32 @@ defmodule Neptunus.Vehicle.Control do
     }
   end
 
+  defp reply("mission", %State{core: core}),
+    do: %{control: Core.status(core), mission: Core.mission(core)}
+
   defp reply(_event, %State{core: core}), do: %{control: Core.status(core)}
+
+  # a mission's `plan` answers the waypoints it would fly
+  defp planned(reply, {:mission, {:plan, waypoints}}), do: Map.put(reply, :waypoints, waypoints)
+  defp planned(reply, _command), do: reply
+
+  # a simulated vehicle whose model has a lateral thruster (neptunus-sway) is fully actuated:
+  # its lateral thruster gets the demand's sway (the others the three-thruster allocation)
+  defp lateral?(:simulated, opts) do
+    model = opts |> Keyword.get(:sim, []) |> Keyword.get(:vehicle, "neptunus")
+
+    case Neptunus.Dynamics.Params.load_cached(to_string(model)) do
+      {:ok, params} -> Enum.any?(params.thrusters, &(&1.name == :lateral))
+      {:error, _} -> false
+    end
+  end
+
+  defp lateral?(_board, _opts), do: false
+
+  defp with_lateral(thrusters, %State{lateral?: true, core: core}),
+    do: Map.put(thrusters, :lateral, Core.demand(core).sway)
+
+  defp with_lateral(thrusters, _state), do: thrusters
 
   # Control.Core runs on seconds (it also runs on a scenario's simulated time)
   defp now_s, do: Neptunus.Clock.monotonic_ms() / 1000

@@ -39,7 +39,11 @@ defmodule Neptunus.Vehicle.Navigation do
   require Logger
 
   alias Neptunus.Estimator
+  alias Neptunus.Navigation.Position
   alias Neptunus.Vehicle.{Board, Control, Telemetry}
+
+  # the standard deviation of an ArduSub vehicle's own position (m): it does not say
+  @ardusub_std 0.5
 
   defmodule State do
     @moduledoc false
@@ -47,11 +51,23 @@ defmodule Neptunus.Vehicle.Navigation do
             id: String.t(),
             estimator: Neptunus.Estimator.t() | nil,
             estimator_opts: keyword(),
+            position: Neptunus.Navigation.Position.t(),
+            temperature: float() | nil,
+            board_position_at: term(),
             samples: non_neg_integer(),
             board_resets: non_neg_integer()
           }
-    @enforce_keys [:id, :estimator_opts]
-    defstruct [:id, :estimator, :estimator_opts, samples: 0, board_resets: 0]
+    @enforce_keys [:id, :estimator_opts, :position]
+    defstruct [
+      :id,
+      :estimator,
+      :estimator_opts,
+      :position,
+      :temperature,
+      :board_position_at,
+      samples: 0,
+      board_resets: 0
+    ]
   end
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -70,6 +86,21 @@ defmodule Neptunus.Vehicle.Navigation do
   @spec board_reset(String.t(), String.t()) :: :ok
   def board_reset(id, reason) when is_binary(reason),
     do: GenServer.cast(via(id), {:board_reset, reason})
+
+  @doc """
+  A position source's report (asynchronous; `Neptunus.Position.Source.report/4`), arrived
+  at `at` (s, monotonic): see `Neptunus.Navigation.Position.report/4`.
+  """
+  @spec position(String.t(), atom(), Position.report(), float()) :: :ok
+  def position(id, source, report, at),
+    do: GenServer.cast(via(id), {:position, source, report, at})
+
+  @doc """
+  The vehicle's depth estimate (m, or nil) and the water temperature from its board (°C, or
+  nil): what an Underwater GPS topside asks for.
+  """
+  @spec water(String.t()) :: {float() | nil, float() | nil}
+  def water(id), do: GenServer.call(via(id), :water)
 
   @doc "Reports the thruster command sent to the board (asynchronous; see `Board.go/2`)."
   @spec command(String.t(), map()) :: :ok
@@ -90,7 +121,18 @@ defmodule Neptunus.Vehicle.Navigation do
 
   @impl true
   def init(opts) do
-    state = %State{id: Keyword.fetch!(opts, :id), estimator_opts: estimator_opts(opts)}
+    sources =
+      opts
+      |> Keyword.get(:position, [])
+      |> Neptunus.Vehicle.Position.sources()
+      |> Enum.map(&elem(&1, 0))
+
+    state = %State{
+      id: Keyword.fetch!(opts, :id),
+      estimator_opts: estimator_opts(opts),
+      position: Position.new(Keyword.get(opts, :position_filter, []) ++ [sources: sources])
+    }
+
     {:ok, state, {:continue, :estimator}}
   end
 
@@ -124,6 +166,14 @@ defmodule Neptunus.Vehicle.Navigation do
 
     estimate = Estimator.estimate(estimator)
     states = Estimator.states(estimator)
+    now = now_s()
+    state = %{state | estimator: estimator} |> board_position(sample, now)
+
+    position =
+      state.position
+      |> Position.heading(now, estimate.heading, Estimator.std(estimator, :heading))
+      |> Position.depth(estimate.depth)
+      |> Position.tick(now)
 
     Telemetry.sample(
       state.id,
@@ -131,14 +181,28 @@ defmodule Neptunus.Vehicle.Navigation do
         measurement: Estimator.measurement(estimator),
         measurement_state: Map.new(states, fn {k, v} -> {k, Atom.to_string(v)} end),
         estimate: Map.delete(estimate, :t),
-        wild_points: Estimator.wild_points(estimator)
+        wild_points: Estimator.wild_points(estimator),
+        position: Position.status(position, now)
       })
     )
 
-    Control.estimate(state.id, control_estimate(estimate, states, position(sample)))
+    Control.estimate(
+      state.id,
+      control_estimate(estimate, states, Position.estimate(position, now))
+    )
 
-    {:noreply, %{state | estimator: estimator, samples: state.samples + 1, board_resets: resets}}
+    {:noreply,
+     %{
+       state
+       | position: position,
+         temperature: temperature(sample) || state.temperature,
+         samples: state.samples + 1,
+         board_resets: resets
+     }}
   end
+
+  def handle_cast({:position, source, report, at}, state),
+    do: {:noreply, %{state | position: Position.report(state.position, source, report, at)}}
 
   def handle_cast({:command, thrusters}, state),
     do: {:noreply, %{state | estimator: Estimator.command(state.estimator, thrusters)}}
@@ -147,11 +211,17 @@ defmodule Neptunus.Vehicle.Navigation do
     Logger.info("vehicle #{state.id}: board reset (#{reason}): every measurement is initialising")
     estimator = Estimator.reset(state.estimator)
     estimate = Estimator.estimate(estimator)
-    Control.estimate(state.id, control_estimate(estimate, Estimator.states(estimator), nil))
+    position = Position.estimate(state.position, now_s())
+    Control.estimate(state.id, control_estimate(estimate, Estimator.states(estimator), position))
     {:noreply, %{state | estimator: estimator, board_resets: state.board_resets + 1}}
   end
 
   @impl true
+  def handle_call(:water, _from, state) do
+    depth = Estimator.estimate(state.estimator).depth
+    {:reply, {depth, state.temperature}, state}
+  end
+
   def handle_call(:status, _from, state) do
     reply = %{
       estimate: Estimator.estimate(state.estimator),
@@ -160,7 +230,8 @@ defmodule Neptunus.Vehicle.Navigation do
       wild_points: Estimator.wild_points(state.estimator),
       samples: state.samples,
       board_resets: state.board_resets,
-      command: state.estimator.model && state.estimator.model.commands
+      command: state.estimator.model && state.estimator.model.commands,
+      position: Position.status(state.position, now_s())
     }
 
     {:reply, reply, state}
@@ -192,11 +263,18 @@ defmodule Neptunus.Vehicle.Navigation do
     Keyword.merge([vehicle: vehicle], Keyword.get(opts, :navigation, []))
   end
 
-  # the simulator's truth, else a board's position field (e.g. from a DVL or USBL)
-  defp position(%{sim: %{x: x, y: y}}) when is_number(x) and is_number(y), do: %{x: x, y: y}
+  # an ArduSub vehicle's own position (LOCAL_POSITION_NED), when it sends a new one
+  defp board_position(state, %{board: %{position: %{x: x, y: y, time_boot_ms: at}}}, now)
+       when is_number(x) and is_number(y) and at != state.board_position_at do
+    fix = %{t: now, north: x, east: y, std: @ardusub_std, valid: true, frame: :ardusub}
+    position = Position.report(state.position, :ardusub, {:fix, fix}, now)
+    %{state | position: position, board_position_at: at}
+  end
 
-  defp position(%{board: %{position: %{x: x, y: y}}}) when is_number(x) and is_number(y),
-    do: %{x: x, y: y}
+  defp board_position(state, _sample, _now), do: state
 
-  defp position(_sample), do: nil
+  defp temperature(%{board: %{temperature: t}}) when is_number(t), do: t * 1.0
+  defp temperature(_sample), do: nil
+
+  defp now_s, do: Neptunus.Clock.monotonic_ms() / 1000
 end
