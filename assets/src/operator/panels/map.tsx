@@ -61,7 +61,14 @@ export function MapPanel({ s, c }: PanelProps): preact.JSX.Element {
 
   return (
     <Panel title="Map" id="map" class="map-panel">
-      <p class="map-position" data-testid="position-text" id="position-text" data-valid={String(said.valid)}>
+      <p
+        class="map-position"
+        data-testid="position-text"
+        id="position-text"
+        data-valid={String(said.valid)}
+        data-north={here?.north ?? ""}
+        data-east={here?.east ?? ""}
+      >
         {said.text}
       </p>
       <svg
@@ -69,6 +76,9 @@ export function MapPanel({ s, c }: PanelProps): preact.JSX.Element {
         data-testid="map"
         id="map"
         viewBox={`0 0 ${WIDTH} ${HEIGHT}`}
+        data-centre-north={view.centre.north}
+        data-centre-east={view.centre.east}
+        data-scale={view.scale}
         role="img"
         aria-label={pilot ? "Map: click or tap to add a waypoint" : "Map"}
         onClick={onMapClick}
@@ -175,14 +185,14 @@ export function MapPanel({ s, c }: PanelProps): preact.JSX.Element {
           <dt>Mission</dt>
           <dd>
             <span id="mission-state" data-testid="mission-state" data-state={s.mission?.state ?? "none"}>
-              {s.mission ? `${s.mission.state}, waypoint ${s.mission.leg} of ${s.mission.waypoints.length}` : "none"}
+              {mission ? `${mission.state} ${mission.leg}/${mission.waypoints.length}` : "none"}
             </span>
           </dd>
         </div>
       </dl>
       <div class="map-actions">
         <button type="button" id="map-start" data-testid="map-start" disabled={!pilot || s.plan.length === 0} onClick={() => c.missions.start()}>
-          {s.plan.length === 1 ? "Go there and hold" : `Start mission (${s.plan.length})`}
+          {s.plan.length === 1 ? "Go there and hold" : s.plan.length === 0 ? "Start mission" : `Start mission (${s.plan.length})`}
         </button>
         <button type="button" id="map-undo" data-testid="map-undo" disabled={s.plan.length === 0} onClick={() => c.missions.undo()}>
           Undo
