@@ -131,7 +131,7 @@ defmodule Bench.Position do
     events = [
       %{"t" => 0, "autopilot" => %{"depth" => "hold", "heading" => "hold"}},
       %{"t" => 5, "control_mode" => "dp"},
-      %{"t" => 30, "mission" => waypoints}
+      %{"t" => 30, "mission" => %{"waypoints" => waypoints}}
     ]
 
     s = scenario(vehicle, %{"dvl" => true, "usbl" => true}, seed, 260, events)
