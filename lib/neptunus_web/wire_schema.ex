@@ -1095,7 +1095,7 @@ defmodule NeptunusWeb.WireSchema do
       payload: :vehicle_answer,
       to: "one connection",
       doc:
-        "a `mavlink` vehicle's late answer to its `arm`, `disarm` or `autopilot` whose reply was `pending` (see [ArduSub vehicles](#ardusub))"
+        "a `mavlink` vehicle's late answer to its `arm`, `disarm` or `autopilot`, or a position source's to `position_source`, whose reply was `pending` (see [ArduSub vehicles](#ardusub), [docs/POSITION.md](POSITION.md))"
     },
     %{
       name: "board",

@@ -2926,8 +2926,9 @@ export interface VehicleEvents {
   /** the outcome of this connection's `snapshot` command */
   readonly snapshot: SnapshotResult;
   /**
-   * a `mavlink` vehicle's late answer to its `arm`, `disarm` or `autopilot` whose reply was
-   * `pending` (see [ArduSub vehicles](#ardusub))
+   * a `mavlink` vehicle's late answer to its `arm`, `disarm` or `autopilot`, or a position
+   * source's to `position_source`, whose reply was `pending` (see [ArduSub vehicles](#ardusub),
+   * [docs/POSITION.md](POSITION.md))
    */
   readonly vehicle_answer: VehicleAnswer;
   /**
