@@ -20,7 +20,6 @@ defmodule Neptunus.Sim.DVLServer do
 
   alias Neptunus.Camera.Pose
   alias Neptunus.Protocol.{Lines, WaterLinkedDVL}
-  alias Neptunus.PubSub
   alias Neptunus.Sim.DVL
 
   defmodule State do
@@ -113,14 +112,13 @@ defmodule Neptunus.Sim.DVLServer do
   def handle_info(_other, state), do: {:noreply, state}
 
   defp subscribe(state) do
-    case PubSub.monitor() do
-      {:ok, ref} ->
-        :ok = PubSub.subscribe(Pose.topic(state.id))
-        %{state | monitor: ref}
-
-      {:error, _} ->
+    case Pose.follow(state.id) do
+      nil ->
         Process.send_after(self(), :resubscribe, 100)
         state
+
+      ref ->
+        %{state | monitor: ref}
     end
   end
 

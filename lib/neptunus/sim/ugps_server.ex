@@ -23,7 +23,6 @@ defmodule Neptunus.Sim.UGPSServer do
 
   alias Neptunus.Camera.Pose
   alias Neptunus.Protocol.UnderwaterGPS
-  alias Neptunus.PubSub
   alias Neptunus.Sim.USBL
 
   @stale_pose_s 2.0
@@ -104,14 +103,13 @@ defmodule Neptunus.Sim.UGPSServer do
   def handle_info(_other, state), do: {:noreply, state}
 
   defp subscribe(state) do
-    case PubSub.monitor() do
-      {:ok, ref} ->
-        :ok = PubSub.subscribe(Pose.topic(state.id))
-        %{state | monitor: ref}
-
-      {:error, _} ->
+    case Pose.follow(state.id) do
+      nil ->
         Process.send_after(self(), :resubscribe, 100)
         state
+
+      ref ->
+        %{state | monitor: ref}
     end
   end
 
