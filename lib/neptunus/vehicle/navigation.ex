@@ -13,8 +13,17 @@ defmodule Neptunus.Vehicle.Navigation do
       `%{t, depth, depth_rate, heading, yaw_rate, position, measurement_state: %{depth,
       heading}}` (states as atoms; depth and heading values nil while not estimated), so
       Control can say why an autopilot cannot engage and idle an autopilot whose measurement
-      is initialising. `position` is `%{x, y}` (m, NED) from the simulator's truth or a
-      board's `position` field, nil without a position source.
+      is initialising. `position` is the position filter's estimate
+      (`Neptunus.Navigation.Position.estimate/2`: `valid`, `reason`, `north`, `east`,
+      velocities, frame, epoch, shift), telemetry's `position` its status with the 1-σ
+      ellipse and each source's state.
+
+  **Position.** The position sources (`Neptunus.Vehicle.Position`: a DVL, an Underwater GPS,
+  the simulated ones) report here (`position/4`), and so does an ArduSub board's own
+  `LOCAL_POSITION_NED` (its `position` field, a fix in the `ardusub` frame); the heading and
+  depth estimates go along to the position filter on every sample. A vehicle without sources
+  has no position (`valid: false`, `reason: "no position source"`), even a simulated one:
+  the simulator's truth is never navigation's.
 
   **Board resets.** `board_reset/2` (the board link calls it when its link (re)opens and when
   it sees the board reset) puts every measurement back to initialising and restarts the
@@ -31,7 +40,9 @@ defmodule Neptunus.Vehicle.Navigation do
   crash restarts it with a fresh filter, and Telemetry, Control and the Helm after it.
 
   Options: `:id` (required); `:navigation` — options of `Neptunus.Estimator.new/1` (e.g.
-  `vehicle: nil` for a model-free filter). The filter's vehicle model is by default the
+  `vehicle: nil` for a model-free filter); `:position` — the vehicle's position sources (their
+  names are shown as waiting until they report); `:position_filter` — options of
+  `Neptunus.Navigation.Position.new/1`. The filter's vehicle model is by default the
   simulator's parameter set when the board simulates (`sim: [vehicle: …]`), else `neptunus`.
   """
   use GenServer
