@@ -37,8 +37,8 @@ defmodule Bench.Position do
       "## Position hold (DP), #{@hold_s} s, radius from #{@settle_s} s on (m, true position to target)"
     )
 
-    IO.puts("| vehicle | sources | p50 | p95 | max | valid % |")
-    IO.puts("|---|---|---|---|---|---|")
+    IO.puts("| vehicle | sources | p50 | p95 | max | valid % | estimate RMS (m) |")
+    IO.puts("|---|---|---|---|---|---|---|")
 
     for vehicle <- ["neptunus-sway", "neptunus"],
         {label, position} <- [
