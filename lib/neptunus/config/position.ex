@@ -161,5 +161,6 @@ defmodule Neptunus.Config.Position do
       {:error,
        "a source is dvl:HOST[:PORT], ugps:URL[@DEGREES], sim-dvl or sim-usbl (got #{inspect(other)})"}
 
+  @spec bad!(String.t(), String.t()) :: no_return()
   defp bad!(spec, expected), do: Config.bad!(@var, spec, expected)
 end

@@ -343,7 +343,10 @@ defmodule Neptunus.Navigation.Position do
   defp velocity_r(%{covariance: [[a, b, _], [c, d, _], _]}, floor),
     do: [[max(a, floor * floor), b], [c, max(d, floor * floor)]]
 
-  defp velocity_r(%{fom: fom}, floor), do: M.diag([max(fom, floor) ** 2, max(fom, floor) ** 2])
+  defp velocity_r(%{fom: fom}, floor) do
+    sigma = max(fom, floor) * 1.0
+    M.diag([sigma * sigma, sigma * sigma])
+  end
 
   # rejected by the gate: a run of velocities that agree with each other is the truth
   defp velocity_miss(pos, name, meas, info) do
