@@ -52,9 +52,12 @@ defmodule Bench.Position do
       valid =
         Enum.sum(Enum.map(results, & &1.valid)) / max(Enum.sum(Enum.map(results, & &1.rows)), 1)
 
+      errors = Enum.flat_map(results, & &1.errors)
+      rms = if errors == [], do: nil, else: :math.sqrt(Enum.sum(errors) / length(errors))
+
       IO.puts(
         "| #{vehicle} | #{label} | #{f(pct(radii, 50))} | #{f(pct(radii, 95))} | " <>
-          "#{f(Enum.max(radii, fn -> nil end))} | #{f(100 * valid, 1)} |"
+          "#{f(Enum.max(radii, fn -> nil end))} | #{f(100 * valid, 1)} | #{f(rms)} |"
       )
     end
 
@@ -113,10 +116,18 @@ defmodule Bench.Position do
         :math.sqrt(sq(at(row, cols, "x") - tn) + sq(at(row, cols, "y") - te))
       end
 
+    # the estimate against the truth, while valid (squared errors)
+    errors =
+      for row <- rows, at(row, cols, "position_valid") == 1.0 do
+        sq(at(row, cols, "north_est") - at(row, cols, "x")) +
+          sq(at(row, cols, "east_est") - at(row, cols, "y"))
+      end
+
     %{
       radii: radii,
       rows: length(rows),
-      valid: Enum.count(rows, &(at(&1, cols, "position_valid") == 1.0))
+      valid: Enum.count(rows, &(at(&1, cols, "position_valid") == 1.0)),
+      errors: errors
     }
   end
 
