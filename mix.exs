@@ -154,7 +154,7 @@ defmodule Neptunus.MixProject do
   def application do
     [
       mod: {Neptunus.Application, []},
-      extra_applications: [:logger, :crypto, :ssl, :jiffy] ++ extra_apps(Mix.env()),
+      extra_applications: [:logger, :crypto, :ssl, :inets, :jiffy] ++ extra_apps(Mix.env()),
       included_applications: [:yaws]
     ]
   end

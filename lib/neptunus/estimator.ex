@@ -659,6 +659,17 @@ defmodule Neptunus.Estimator do
   defp values(%Kalman{x: x, v: v}), do: {x, v}
 
   @doc """
+  The standard deviation of the `:depth` or `:heading` estimate (m, rad), nil without one.
+  """
+  @spec std(t(), :depth | :heading) :: float() | nil
+  def std(%__MODULE__{filters: filters}, field) when field in [:depth, :heading] do
+    case Kalman.std(Map.fetch!(filters, field)) do
+      {sigma, _rate} -> sigma
+      nil -> nil
+    end
+  end
+
+  @doc """
   The filtered measurement: for each of the six fields the last accepted reading — what the
   board measured, without its wild points — or nil while the field is initialising (no valid
   reading since start, link up or board reset).

@@ -35,8 +35,12 @@ defmodule Neptunus.Fleet do
   @spec start_link([Neptunus.Config.Vehicles.vehicle()]) :: Supervisor.on_start()
   def start_link(vehicles), do: Supervisor.start_link(__MODULE__, vehicles, name: __MODULE__)
 
-  @doc "The `:via` name of a vehicle's process `module`."
-  @spec via(module(), vehicle_id()) :: {:via, Registry, {module(), {module(), vehicle_id()}}}
+  @doc """
+  The `:via` name of a vehicle's process `module` (or `{module, name}` where a vehicle has
+  several of a kind: its position sources).
+  """
+  @spec via(module() | {module(), atom()}, vehicle_id()) ::
+          {:via, Registry, {module(), {module() | {module(), atom()}, vehicle_id()}}}
   def via(module, id), do: {:via, Registry, {@registry, {module, id}}}
 
   @doc "Pid of a vehicle's process, or nil."

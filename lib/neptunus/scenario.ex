@@ -85,7 +85,9 @@ defmodule Neptunus.Scenario do
     initial: [z: 1.0],
     gain: 0.5,
     events: [],
-    model: nil
+    model: nil,
+    position: :truth,
+    dp: []
   ]
 
   @typedoc "The thrust of a `thrust` event."
@@ -101,8 +103,16 @@ defmodule Neptunus.Scenario do
           tau: Neptunus.Dynamics.tau() | nil,
           current: {float(), float(), float()} | nil,
           control_mode: :motion | :manual | :dp | nil,
-          autopilot: %{depth: setpoint(), heading: setpoint()} | nil
+          autopilot: %{depth: setpoint(), heading: setpoint()} | nil,
+          mission: [Neptunus.Control.Mission.waypoint()] | nil,
+          mission_control: :pause | :resume | :abort | nil
         }
+
+  @typedoc """
+  The position sources: `:truth` (the simulator's true position, a perfect source), or the
+  simulated DVL and USBL with their settings (nil: not fitted).
+  """
+  @type position :: :truth | %{dvl: map() | nil, usbl: map() | nil}
 
   @typedoc "An autopilot setpoint of an `autopilot` event (heading in rad)."
   @type setpoint :: :unchanged | :hold | nil | float()
@@ -122,14 +132,16 @@ defmodule Neptunus.Scenario do
           initial: keyword(),
           gain: float(),
           events: [event()],
-          model: Params.t() | nil
+          model: Params.t() | nil,
+          position: position(),
+          dp: keyword()
         }
 
   @top_required ~w(vehicle duration)
   @top_optional ~w(description dt seed noise current current_variation tether_length sensors
-                   initial gain events)
+                   initial gain events position dp)
   @channels ~w(depth heading roll pitch voltage current)
-  @actions ~w(thrust gain tau current autopilot control_mode)
+  @actions ~w(thrust gain tau current autopilot control_mode mission mission_control)
   @control_modes %{"motion" => :motion, "manual" => :manual, "dp" => :dp}
 
   @doc "Parses and validates a scenario from JSON text."
@@ -155,6 +167,8 @@ defmodule Neptunus.Scenario do
          {:ok, sensors} <- V.optional(map, "", "sensors", %{}, &sensors/2),
          {:ok, initial} <- V.optional(map, "", "initial", [z: 1.0], &initial(&1, &2, params)),
          {:ok, gain} <- V.optional(map, "", "gain", 0.5, &V.number(&1, &2, min: 0, max: 1)),
+         {:ok, position} <- V.optional(map, "", "position", :truth, &position/2),
+         {:ok, dp} <- V.optional(map, "", "dp", [], &dp/2),
          {:ok, events} <- V.optional(map, "", "events", [], &events(&1, &2, duration)) do
       {:ok,
        %__MODULE__{
@@ -171,7 +185,9 @@ defmodule Neptunus.Scenario do
          sensors: sensors,
          initial: initial,
          gain: gain,
-         events: events
+         events: events,
+         position: position,
+         dp: dp
        }}
     end
   end
@@ -334,6 +350,9 @@ defmodule Neptunus.Scenario do
          {:ok, current} <- V.optional(map, path, "current", nil, &current/2),
          {:ok, mode} <- V.optional(map, path, "control_mode", nil, &control_mode/2),
          {:ok, autopilot} <- V.optional(map, path, "autopilot", nil, &autopilot/2),
+         {:ok, mission} <- V.optional(map, path, "mission", nil, &mission/2),
+         {:ok, mission_control} <-
+           V.optional(map, path, "mission_control", nil, &mission_control/2),
          :ok <- same_mode(mode, thrust, path) do
       {:ok,
        %{
@@ -343,8 +362,82 @@ defmodule Neptunus.Scenario do
          tau: tau,
          current: current,
          control_mode: mode,
-         autopilot: autopilot
+         autopilot: autopilot,
+         mission: mission,
+         mission_control: mission_control
        }}
+    end
+  end
+
+  defp mission(value, path) do
+    case Neptunus.Control.Mission.parse(value) do
+      {:ok, waypoints} -> {:ok, waypoints}
+      {:error, reason} -> {:error, "#{path}: #{reason}"}
+    end
+  end
+
+  defp mission_control(value, path) do
+    case value do
+      "pause" -> {:ok, :pause}
+      "resume" -> {:ok, :resume}
+      "abort" -> {:ok, :abort}
+      _ -> {:error, ~s(#{path} must be "pause", "resume" or "abort", got #{V.show(value)})}
+    end
+  end
+
+  # position sources: the simulated DVL and USBL (true: default settings, an object: some
+  # settings changed, false or absent: not fitted)
+  defp position(map, path) do
+    with :ok <- V.object(map, path, [], ["dvl", "usbl"]),
+         {:ok, dvl} <- V.optional(map, path, "dvl", nil, &sensor(&1, &2, Neptunus.Sim.DVL)),
+         {:ok, usbl} <- V.optional(map, path, "usbl", nil, &sensor(&1, &2, Neptunus.Sim.USBL)) do
+      {:ok, %{dvl: dvl, usbl: usbl}}
+    end
+  end
+
+  defp sensor(false, _path, _module), do: {:ok, nil}
+  defp sensor(true, _path, _module), do: {:ok, %{}}
+
+  defp sensor(map, path, module) when is_map(map) do
+    defaults = module.defaults()
+    keys = defaults |> Map.keys() |> Enum.map(&Atom.to_string/1) |> List.delete("epoch_us")
+
+    with :ok <- V.object(map, path, [], keys) do
+      map
+      |> Enum.sort()
+      |> V.map_ok(fn {key, value}, _ ->
+        kpath = V.join(path, key)
+        atom = String.to_existing_atom(key)
+
+        checked =
+          case Map.fetch!(defaults, atom) do
+            b when is_boolean(b) -> V.boolean(value, kpath)
+            {_, _} -> with {:ok, [a, b]} <- V.vector(value, kpath, 2), do: {:ok, {a, b}}
+            _ -> V.number(value, kpath, min: 0)
+          end
+
+        with {:ok, v} <- checked, do: {:ok, {atom, v}}
+      end)
+      |> case do
+        {:ok, pairs} -> {:ok, Map.new(pairs)}
+        error -> error
+      end
+    end
+  end
+
+  defp sensor(value, path, _module),
+    do: {:error, "#{path} must be true, false or an object of settings, got #{V.show(value)}"}
+
+  defp dp(map, path) do
+    keys = ~w(kp v_max radius vane_min)
+
+    with :ok <- V.object(map, path, [], keys) do
+      map
+      |> Enum.sort()
+      |> V.map_ok(fn {key, value}, _ ->
+        with {:ok, v} <- V.number(value, V.join(path, key), greater_than: 0),
+             do: {:ok, {String.to_existing_atom(key), v}}
+      end)
     end
   end
 
@@ -402,6 +495,11 @@ defmodule Neptunus.Scenario do
       epath = V.join(V.join(path, i), "autopilot")
 
       case {event.autopilot, mode} do
+        _ when mode != :dp and (event.mission != nil or event.mission_control != nil) ->
+          {:halt,
+           {:error,
+            "#{V.join(path, i)}: missions run in control mode dp (add \"control_mode\": \"dp\")"}}
+
         {nil, _} ->
           {:cont, mode}
 

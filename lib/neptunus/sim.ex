@@ -161,7 +161,7 @@ defmodule Neptunus.Sim do
   def reset(%__MODULE__{opts: opts}), do: new(opts)
 
   @doc "Sets the thruster command in force (values in [-1, 1]; missing thrusters are neutral)."
-  @spec command(t(), Allocation.thrusters()) :: t()
+  @spec command(t(), Allocation.thrusters() | %{atom() => float()}) :: t()
   def command(%__MODULE__{params: params} = sim, thrusters) do
     targets = Enum.map(params.thrusters, &Thruster.force(&1, Map.get(thrusters, &1.name, 0.0)))
     %{sim | thrusters: thrusters, targets: targets}

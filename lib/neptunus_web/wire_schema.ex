@@ -131,6 +131,10 @@ defmodule NeptunusWeb.WireSchema do
          measurement_state: {:measurement_states, doc: "whether each measurement can be trusted"},
          estimate: {:estimate, doc: "the navigation filter's estimate"},
          wild_points: {:wild_points, doc: "readings rejected since navigation started"},
+         position:
+           {:position_status,
+            doc:
+              "where the vehicle is: the position filter's estimate from its position sources (DVL, USBL), with its uncertainty, or why there is none"},
          sim:
            {:sim_state,
             null: true, essential: true, doc: "the simulator's true state; null on a real board"},
@@ -203,6 +207,87 @@ defmodule NeptunusWeb.WireSchema do
            {:integer,
             doc: "times rejected readings that agreed with each other were taken as the truth"}
        ]},
+    position_status:
+      {:object,
+       "The position estimate (north/east, NED, m) and its sources. Without a valid position, DP holds depth and heading only.",
+       [
+         valid: {:boolean, essential: true, doc: "position hold and missions may use it"},
+         reason: {:string, null: true, doc: "why it is not valid (per source); null while valid"},
+         frame:
+           {{:enum, ~w(local usbl ardusub)},
+            null: true,
+            doc:
+              "whose origin: `local` dead reckoning from where the DVL started, `usbl` the topside's, `ardusub` the vehicle's own; null without an estimate"},
+         epoch:
+           {:integer,
+            doc: "changes when the frame does (targets are moved by the shift, or dropped)"},
+         north: {:number, unit: "m", null: true},
+         east: {:number, unit: "m", null: true},
+         depth: {:number, unit: "m", null: true, doc: "the depth estimate"},
+         velocity_north: {:number, unit: "m/s", null: true},
+         velocity_east: {:number, unit: "m/s", null: true},
+         std_north: {:number, unit: "m", null: true, doc: "1 σ"},
+         std_east: {:number, unit: "m", null: true, doc: "1 σ"},
+         ellipse:
+           {:position_ellipse,
+            null: true, doc: "the 1-σ uncertainty ellipse; null without an estimate"},
+         sources: {{:list, :position_source}, doc: "each position source's state"}
+       ]},
+    position_ellipse:
+      {:object, "A 1-σ uncertainty ellipse.",
+       [
+         major: {:number, unit: "m", essential: true, doc: "the larger semi-axis"},
+         minor: {:number, unit: "m", essential: true, doc: "the smaller semi-axis"},
+         angle:
+           {:number,
+            unit: "rad",
+            essential: true,
+            doc: "the larger axis' direction, from north towards east"}
+       ]},
+    position_source:
+      {:object, "One position source and what navigation made of its reports.",
+       [
+         name: {:string, essential: true, doc: "`dvl`, `usbl`, `ardusub`"},
+         kind:
+           {{:enum, ~w(velocity fix)},
+            null: true,
+            doc:
+              "what it measures: velocity (a DVL) or position (a USBL fix); null before its first report"},
+         state:
+           {{:enum, ~w(valid invalid waiting)},
+            essential: true, doc: "`valid`: a usable report lately; `waiting`: nothing heard yet"},
+         reason: {:string, null: true, doc: "why it is not valid; null while valid"},
+         connected: {:boolean, doc: "its link is up"},
+         reports: {:integer, doc: "readings received"},
+         accepted: {:integer, doc: "readings the filter took"},
+         rejected:
+           {{:map, :integer},
+            doc:
+              "by reason: `no_lock`, `water_track`, `out_of_range`, `no_heading`, `invalid_fix`, `innovation`, `too_old`, `frame`"},
+         garbage: {:integer, doc: "reports that could not be read"},
+         disconnects: {:integer, doc: "times its link went down"},
+         reacquired:
+           {:integer, doc: "times rejected readings that agreed were taken as the truth"},
+         altitude: {:number, unit: "m", null: true, doc: "a DVL's altitude above the bottom"},
+         fom: {:number, unit: "m/s", null: true, doc: "a DVL's figure of merit"},
+         std: {:number, unit: "m", null: true, doc: "a fix's standard deviation"},
+         innovation:
+           {{:list, :number},
+            null: true,
+            doc:
+              "the last innovation: m/s in the vehicle frame (x, y) for a DVL, m (north, east) for a fix"},
+         dead_reckoning:
+           {:dead_reckoning,
+            null: true, doc: "a DVL's own integrated position (shown, not fused)"}
+       ]},
+    dead_reckoning:
+      {:object, "A DVL's dead reckoning, in its own frame.",
+       [
+         x: {:number, unit: "m", essential: true},
+         y: {:number, unit: "m", essential: true},
+         z: {:number, unit: "m", essential: true},
+         std: {:number, unit: "m", essential: true}
+       ]},
     sim_state:
       {:object, "The simulator's true 6-DOF state (Fossen notation, NED: z is depth).",
        [
@@ -259,7 +344,38 @@ defmodule NeptunusWeb.WireSchema do
             null: true,
             doc:
               "in dp, what DP holds (without a position source: depth and heading); null outside dp"},
-         autopilot: {:autopilot_setpoints, doc: "the engaged autopilots' setpoints"}
+         autopilot: {:autopilot_setpoints, doc: "the engaged autopilots' setpoints"},
+         mission:
+           {:mission_state,
+            null: true, doc: "the mission in dp (its waypoints come in the `mission` event)"}
+       ]},
+    mission_state:
+      {:object, "A mission's progress.",
+       [
+         id: {:integer, essential: true, doc: "a new one for each mission started"},
+         state: {{:enum, ~w(running paused done)}, essential: true},
+         leg: {:integer, essential: true, doc: "the waypoint steered to, 1-based"},
+         count: {:integer, essential: true, doc: "waypoints"}
+       ]},
+    mission:
+      {:object, "A mission with its waypoints (the `mission` event, the join snapshot).",
+       [
+         id: {:integer, essential: true},
+         state: {{:enum, ~w(running paused done)}, essential: true},
+         leg: {:integer, essential: true, doc: "the waypoint steered to, 1-based"},
+         waypoints: {{:list, :waypoint}, essential: true}
+       ]},
+    waypoint:
+      {:object, "A mission's waypoint (in the position's frame).",
+       [
+         north: {:number, unit: "m", essential: true},
+         east: {:number, unit: "m", essential: true},
+         depth: {:number, unit: "m", essential: true},
+         heading:
+           {:number,
+            unit: "rad", null: true, essential: true, doc: "to hold there; null: the guidance's"},
+         speed: {:number, unit: "m/s", essential: true},
+         radius: {:number, unit: "m", essential: true, doc: "reached within it"}
        ]},
     control_state:
       {:object,
@@ -314,14 +430,34 @@ defmodule NeptunusWeb.WireSchema do
             doc: "why it gives no output for want of a measurement; null while it acts"}
        ]},
     dp_status:
-      {:object, "DP's position hold.",
+      {:object, "DP: position hold and missions.",
        [
-         x: {:number, unit: "m", doc: "the target, north"},
-         y: {:number, unit: "m", doc: "the target, east"},
-         heading: {:number, unit: "rad", doc: "the heading held"},
-         phase: {{:enum, ~w(hold return)}, doc: "`return` beyond 2 m of the target"},
-         distance: {:number, unit: "m", doc: "to the target"},
-         output: {:number, doc: "surge, [-1, 1]"}
+         x: {:number, unit: "m", null: true, doc: "the target held, north; null: none"},
+         y: {:number, unit: "m", null: true, doc: "the target held, east; null: none"},
+         heading: {:number, unit: "rad", doc: "the heading held now"},
+         phase:
+           {{:enum, ~w(hold return mission waiting)},
+            doc:
+              "`hold` at the target, `return` towards it (a three-thruster vehicle beyond its radius), `mission` steering a leg, `waiting` for a valid position"},
+         distance:
+           {:number, unit: "m", null: true, doc: "to the target, or to the waypoint steered to"},
+         output: {:number, doc: "surge demanded, [-1, 1]"},
+         sway: {:number, doc: "sway demanded, [-1, 1] (0 on a vehicle without sway)"},
+         waiting:
+           {:string, null: true, doc: "why there is no horizontal demand; null while acting"},
+         mission: {:mission_guidance, null: true, doc: "during a mission"}
+       ]},
+    mission_guidance:
+      {:object, "A mission's guidance (line of sight).",
+       [
+         id: {:integer, essential: true},
+         state: {{:enum, ~w(running paused done)}, essential: true},
+         leg: {:integer, essential: true, doc: "the waypoint steered to, 1-based"},
+         cross_track:
+           {:number, unit: "m", null: true, doc: "off the line, positive to its starboard"},
+         along: {:number, unit: "m", null: true, doc: "along the leg from its start"},
+         course: {:number, unit: "rad", null: true, doc: "the course steered"},
+         speed: {:number, unit: "m/s", null: true, doc: "the speed asked"}
        ]},
     link_status:
       {:object,
@@ -505,6 +641,8 @@ defmodule NeptunusWeb.WireSchema do
          pilot: {:pilot, null: true, essential: true, doc: "null: nobody pilots"},
          helm: {:helm, essential: true},
          control: {:control_state, essential: true},
+         mission:
+           {:mission, null: true, doc: "the mission in dp, with its waypoints; null: none"},
          camera: {:camera_info, null: true, doc: "null: the vehicle has no camera"},
          settings: {:vehicle_settings, doc: "the vehicle's settings every page applies"},
          session: {:session, essential: true}
@@ -621,7 +759,7 @@ defmodule NeptunusWeb.WireSchema do
     vehicle_answer:
       {:object, "A mavlink vehicle's late answer.",
        [
-         command: {{:enum, ~w(arm disarm autopilot)}, essential: true},
+         command: {{:enum, ~w(arm disarm autopilot position_source)}, essential: true},
          ok: {:boolean, essential: true},
          reason: {:string, optional: true, doc: "why not (`ok: false`)"}
        ]},
@@ -767,9 +905,66 @@ defmodule NeptunusWeb.WireSchema do
            {{:one_of, [:number, {:enum, ["hold"]}]},
             unit: "rad", optional: true, null: true, doc: "[-2π, 2π], wrapped to [0, 2π)"}
        ]},
+    mission_event:
+      {:object, "The mission now.",
+       [mission: {:mission, null: true, essential: true, doc: "null: none"}]},
+    mission_command:
+      {:object,
+       "A mission command: `start` or `plan` with `waypoints` or a `survey`; `pause`, `resume`, `abort` alone.",
+       [
+         action: {{:enum, ~w(start plan pause resume abort)}, essential: true},
+         waypoints:
+           {{:list, :waypoint_in}, optional: true, doc: "1..100, in the position's frame"},
+         survey: {:survey, optional: true, doc: "a lawnmower survey to make the waypoints"}
+       ]},
+    waypoint_in:
+      {:object, "A waypoint to fly to.",
+       [
+         north: {:number, unit: "m", essential: true},
+         east: {:number, unit: "m", essential: true},
+         depth: {:number, unit: "m", essential: true, doc: "[0, 200]"},
+         heading:
+           {:number,
+            unit: "rad",
+            optional: true,
+            null: true,
+            doc: "[-2π, 2π]; null or absent: the guidance's"},
+         speed: {:number, unit: "m/s", optional: true, doc: "[0.05, 1], default 0.3"},
+         radius:
+           {:number, unit: "m", optional: true, doc: "acceptance radius [0.2, 20], default 0.5"}
+       ]},
+    survey:
+      {:object,
+       "A lawnmower survey: lines `length` m long in the direction `heading`, `spacing` m apart, covering `width` m to starboard of the first, which starts at (north, east).",
+       [
+         north: {:number, unit: "m", essential: true},
+         east: {:number, unit: "m", essential: true},
+         heading: {:number, unit: "rad", essential: true, doc: "the lines' direction"},
+         length: {:number, unit: "m", essential: true, doc: "[1, 1000]"},
+         width: {:number, unit: "m", essential: true, doc: "[0, 1000]"},
+         spacing: {:number, unit: "m", essential: true, doc: "[0.5, 100]"},
+         depth: {:number, unit: "m", essential: true},
+         speed: {:number, unit: "m/s", optional: true},
+         radius: {:number, unit: "m", optional: true}
+       ]},
+    mission_reply:
+      {:object, "The control state and the mission after the command.",
+       [
+         control: {:control_state, essential: true},
+         mission: {:mission, null: true, essential: true, doc: "null: no mission"},
+         waypoints:
+           {{:list, :waypoint},
+            optional: true, doc: "`plan` only: the waypoints the mission would fly"}
+       ]},
+    position_source_command:
+      {:object, "A command for a position source's device.",
+       [
+         source: {:string, essential: true, doc: "`dvl`"},
+         command: {{:enum, ~w(reset_dead_reckoning calibrate_gyro)}, essential: true}
+       ]},
     vehicle_request:
       {:object,
-       "A mavlink vehicle's answer within 200 ms (`ok`), or still awaited (`pending`: it follows as `vehicle_answer`).",
+       "A device's answer within 200 ms (`ok`), or still awaited (`pending`: it follows as `vehicle_answer`): a mavlink vehicle's, a position source's.",
        [
          status: {{:enum, ~w(ok pending)}, essential: true},
          control: {:control_state, essential: true}
@@ -883,6 +1078,12 @@ defmodule NeptunusWeb.WireSchema do
         "20 Hz; while someone pilots: the pilot's connection first, observers in slices every 2 ms, all within 25 ms"
     },
     %{
+      name: "mission",
+      payload: :mission_event,
+      doc:
+        "the mission started, changed (a waypoint reached, paused, resumed, moved with the position's frame) or ended (`mission: null`)"
+    },
+    %{
       name: "helm",
       payload: :helm,
       doc: "every change of the helm: state, pilot, request, takeover countdown, epoch"
@@ -915,7 +1116,7 @@ defmodule NeptunusWeb.WireSchema do
       payload: :vehicle_answer,
       to: "one connection",
       doc:
-        "a `mavlink` vehicle's late answer to its `arm`, `disarm` or `autopilot` whose reply was `pending` (see [ArduSub vehicles](#ardusub))"
+        "a `mavlink` vehicle's late answer to its `arm`, `disarm` or `autopilot`, or a position source's to `position_source`, whose reply was `pending` (see [ArduSub vehicles](#ardusub), [docs/POSITION.md](POSITION.md))"
     },
     %{
       name: "board",
@@ -1124,6 +1325,28 @@ defmodule NeptunusWeb.WireSchema do
         "`normal` or `simulator`, see *Run mode* below; a change stops the thrusters first (`stopped` `run_mode_changed`) and disengages the autopilots",
       errors:
         "`mode must be one of \"normal\", \"simulator\", got …`, `run mode simulator needs a vehicle with a real board: this one is simulated (its normal run mode is the simulator)`"
+    },
+    %{
+      group: :control,
+      name: "mission",
+      payload: :mission_command,
+      reply: :mission_reply,
+      who: @pilot,
+      doc:
+        "in `dp` with a valid position: `start` flies the waypoints (or the survey's) with line-of-sight guidance from where the vehicle is; `plan` only checks them and answers the waypoints (a survey's, to show or edit); `pause` holds position, `resume` goes on with the leg, `abort` ends it and holds position (depth and heading without a position). A running mission sets depth and heading (`autopilot` is refused until it is paused or ended). Every stop ends it: a handover holds position, any other stop ends dp (see [Safety stops](#safety-stops))",
+      errors:
+        "`missions run in control mode dp: switch to dp first`, `a mission needs a valid position: …`, `a mission needs at least one waypoint`, `a mission has at most 100 waypoints, got …`, `waypoints[2].speed must be a number in [0.05, 1], got …`, `waypoint 3 is 250.0 m away: beyond the 200 m a mission may reach`, `waypoint 2 is 150.0 m deep: beyond this vehicle's 100 m`, `waypoints 1 and 2 are the same point`, `the survey makes 120 waypoints, at most 100: …`, `the mission is paused: nothing to pause`, `no mission to abort`"
+    },
+    %{
+      group: :control,
+      name: "position_source",
+      payload: :position_source_command,
+      reply: :vehicle_request,
+      who: @pilot,
+      doc:
+        "a command for a DVL: `reset_dead_reckoning` (its own dead reckoning starts again at zero), `calibrate_gyro` (keep the vehicle still; up to 15 s). Answered `pending`, the DVL's answer follows as `vehicle_answer`",
+      errors:
+        "`no position source usbl on this vehicle`, `position source usbl takes no commands`, `command must be \"reset_dead_reckoning\" or \"calibrate_gyro\", got …`; in `vehicle_answer`: `DVL not connected (…)`, `the DVL refused calibrate_gyro: …`, `no response from the DVL in 20 s`"
     },
 
     # tuning and the vehicle's settings

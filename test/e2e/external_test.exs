@@ -30,6 +30,7 @@ defmodule Neptunus.E2E.ExternalTest do
     output = node!(["--test", "--test-reporter=spec", script], env)
     assert output =~ ~r/pass \d+/
     refute output =~ ~r/fail [1-9]/
+    output
   end
 
   test "the official phoenix JS client: join, presence, telemetry, helm, thrust, stop" do
@@ -55,6 +56,32 @@ defmodule Neptunus.E2E.ExternalTest do
       ])
     after
       Neptunus.Fleet.stop_vehicle(camera_vehicle)
+    end
+  end
+
+  @tag timeout: 400_000
+  test "position, position hold and a mission on the map in Chromium (tablet, touch and mouse)" do
+    unless File.exists?(Path.join(@root, "priv/static/index.html")),
+      do: flunk("priv/static is not built: run `make assets`")
+
+    # a simulated vehicle with the simulated DVL and USBL (read by the real drivers over
+    # their protocols on loopback) in a 0.1 m/s current from the west
+    vehicle = "z-e2e-pos-#{System.unique_integer([:positive])}"
+
+    {:ok, _} =
+      Neptunus.Fleet.start_vehicle(%{
+        id: vehicle,
+        board: :simulated,
+        sim: [current: {0.0, 0.1, 0.0}],
+        position: [{:sim_dvl, []}, {:sim_usbl, []}]
+      })
+
+    try do
+      output = node_suite!("test/e2e/position.e2e.mjs", [{"E2E_POSITION_VEHICLE", vehicle}])
+      # the figures it measured (diagnostics)
+      for line <- String.split(output, "\n"), line =~ "p95", do: IO.puts(String.trim(line))
+    after
+      Neptunus.Fleet.stop_vehicle(vehicle)
     end
   end
 

@@ -8,6 +8,7 @@ defmodule Neptunus.ConfigTest do
   doctest Neptunus.Config.Helm
   doctest Neptunus.Config.Recording
   doctest Neptunus.Config.OS
+  doctest Neptunus.Config.Position
 
   alias Neptunus.Config
 
@@ -72,7 +73,7 @@ defmodule Neptunus.ConfigTest do
       assert Config.Vehicles.vehicles!(%{
                "NEPTUNUS_VEHICLES" => "s=sitl,u=uart:/dev/ttyO1,m=simulated"
              })
-             |> Enum.map(&Map.delete(&1, :camera)) ==
+             |> Enum.map(&Map.drop(&1, [:camera, :position])) ==
                [
                  %{id: "s", board: :sitl, wiring: Wiring.default(), firmware: :openrov_25},
                  %{
@@ -178,6 +179,47 @@ defmodule Neptunus.ConfigTest do
     end
   end
 
+  describe "vehicles!/1 position sources (NEPTUNUS_POSITION)" do
+    defp positions(env) do
+      %{"NEPTUNUS_VEHICLES" => "sim=simulated,rov=uart:/dev/ttyO1"}
+      |> Map.merge(env)
+      |> Config.Vehicles.vehicles!()
+      |> Map.new(&{&1.id, &1.position})
+    end
+
+    test "simulated vehicles have the simulated DVL and USBL, others none, by default" do
+      assert positions(%{}) == %{"sim" => [sim_dvl: [], sim_usbl: []], "rov" => []}
+    end
+
+    test "as configured, per vehicle; none turns them off" do
+      assert %{"rov" => [{:dvl, "10.0.0.5", 16_171}, {:ugps, "http://10.0.0.6", r}], "sim" => []} =
+               positions(%{
+                 "NEPTUNUS_POSITION" => "rov=dvl:10.0.0.5+ugps:http://10.0.0.6/@-90, sim=none"
+               })
+
+      assert_in_delta r, -:math.pi() / 2, 1.0e-12
+      assert %{"sim" => [sim_dvl: []]} = positions(%{"NEPTUNUS_POSITION" => "sim=sim-dvl"})
+    end
+
+    for {spec, message} <- [
+          {"x=dvl:a", ~r/NEPTUNUS_POSITION=.*no vehicle "x"/},
+          {"rov", ~r/id=sources pairs/},
+          {"rov=sonar", ~r/a source is dvl:HOST\[:PORT\].*got "sonar"/},
+          {"rov=dvl:", ~r/dvl needs HOST or HOST:PORT/},
+          {"rov=dvl:a:99999", ~r/port must be in 1..65535/},
+          {"rov=ugps:ftp://x", ~r/ugps needs an http:\/\/ URL/},
+          {"rov=ugps:http://x@400", ~r/rotation must be in \[-360, 360\]/},
+          {"rov=dvl:a+dvl:b", ~r/each kind of source once/},
+          {"rov=sim-dvl", ~r/sim-dvl and sim-usbl on a simulated or sitl vehicle \(rov is uart\)/}
+        ] do
+      test "refuses #{inspect(spec)}" do
+        assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
+          positions(%{"NEPTUNUS_POSITION" => unquote(spec)})
+        end
+      end
+    end
+  end
+
   describe "vehicles!/1 models (NEPTUNUS_MODELS)" do
     test "names each vehicle's parameter set for its simulator and navigation filter" do
       env = %{
@@ -193,7 +235,8 @@ defmodule Neptunus.ConfigTest do
     end
 
     for {models, message} <- [
-          {"a=submarine", ~r/NEPTUNUS_MODELS=.*one of neptunus, thesis-4dof \(got "submarine"\)/},
+          {"a=submarine",
+           ~r/NEPTUNUS_MODELS=.*one of neptunus, neptunus-sway, thesis-4dof \(got "submarine"\)/},
           {"b=neptunus", ~r/NEPTUNUS_MODELS=.*no vehicle "b"/},
           {"a", ~r/id=model pairs, e.g. rov=thesis-4dof/},
           {"a=", ~r/got ""/}

@@ -172,7 +172,7 @@ defmodule Neptunus.ScenarioTest do
 
       assert error(with_event(%{"t" => 0})) ==
                "events[0] must have at least one of: autopilot, control_mode, current, gain, " <>
-                 "tau, thrust"
+                 "mission, mission_control, tau, thrust"
 
       assert error(with_event(%{"t" => 0, "foo" => 1})) =~ "unknown field: events[0].foo"
 
@@ -241,7 +241,9 @@ defmodule Neptunus.ScenarioTest do
                ~w(t x y z phi theta psi u v w p q r depth_meas heading_meas roll_meas pitch_meas
                   voltage_meas current_meas depth_est depth_rate_est heading_est yaw_rate_est roll_est pitch_est
                   depth_setpoint heading_setpoint depth_reference heading_reference port
-                  vertical starboard)
+                  vertical starboard lateral north_est east_est velocity_north_est
+                  velocity_east_est position_std position_valid target_north target_east
+                  cross_track leg)
     end
 
     test "events take effect at their step; gain scales motion and manual thrust" do
@@ -269,7 +271,8 @@ defmodule Neptunus.ScenarioTest do
         )
 
       rows = s |> Run.rows() |> Enum.to_list()
-      thrusters = fn k -> rows |> Enum.at(k) |> Enum.take(-3) end
+      port = Enum.find_index(Run.columns(), &(&1 == "port"))
+      thrusters = fn k -> rows |> Enum.at(k) |> Enum.slice(port, 3) end
       assert thrusters.(9) == [0.0, 0.0, 0.0]
       assert thrusters.(10) == [1.0, 0.0, 0.5]
       assert thrusters.(49) == [1.0, 0.0, 0.5]
@@ -335,12 +338,12 @@ defmodule Neptunus.ScenarioTest do
 
       for line <- lines do
         values = String.split(line, ",")
-        assert length(values) == 32
+        assert length(values) == length(Run.columns())
         # the autopilot setpoints and references are empty while disengaged
         assert ["", "", "", ""] = Enum.slice(values, 25, 4)
 
         Enum.each(
-          values -- ["", "", "", ""],
+          Enum.reject(values, &(&1 == "")),
           &String.to_float(if String.contains?(&1, "."), do: &1, else: &1 <> ".0")
         )
       end

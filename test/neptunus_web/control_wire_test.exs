@@ -96,13 +96,48 @@ defmodule NeptunusWeb.ControlWireTest do
     assert %{"autopilot" => %{"depth" => %{"setpoint" => ^d, "overridden" => false}}} =
              event!(ada.ws, "telemetry", &is_map(get_in(&1, ["autopilot", "depth"])))
 
-    assert {"ok", %{"control" => %{"mode" => "dp", "autopilot" => %{"position" => %{"x" => _}}}}} =
-             push(ada, "set_control_mode", %{"mode" => "dp"})
+    # this vehicle has no position source: DP holds depth and heading only, and says so
+    assert {"ok",
+            %{
+              "control" => %{
+                "mode" => "dp",
+                "dp_holds" => ["depth", "heading"],
+                "autopilot" => %{"position" => nil}
+              }
+            }} = push(ada, "set_control_mode", %{"mode" => "dp"})
 
-    assert %{"control" => %{"mode" => "dp"}, "autopilot" => %{"position" => %{"phase" => "hold"}}} =
-             event!(ada.ws, "telemetry", &(get_in(&1, ["control", "mode"]) == "dp"))
+    assert %{
+             "position" => %{"valid" => false, "reason" => "no position source"},
+             "autopilot" => %{"position" => %{"phase" => "waiting"}}
+           } = event!(ada.ws, "telemetry", &(get_in(&1, ["control", "mode"]) == "dp"))
 
     assert {"error", %{"reason" => "dp holds depth and heading" <> _}} =
              push(ada, "autopilot", %{"heading" => nil})
+  end
+
+  test "DP on a simulated vehicle with the simulated DVL and USBL holds its position" do
+    %{topic: topic} =
+      start_vehicle!("ctlwire-pos", %{position: [{:sim_dvl, []}, {:sim_usbl, []}]})
+
+    ada = client(topic, "Ada")
+    assert {"ok", %{"status" => "granted"}} = push(ada, "request_control")
+    # the position sources report through the real drivers: a valid position
+    event!(ada.ws, "telemetry", &(get_in(&1, ["position", "valid"]) == true), 30_000)
+
+    assert {"ok",
+            %{
+              "control" => %{
+                "mode" => "dp",
+                "dp_holds" => ["depth", "heading", "position"],
+                "autopilot" => %{"position" => %{"x" => x, "y" => y}}
+              }
+            }} = push(ada, "set_control_mode", %{"mode" => "dp"})
+
+    assert is_float(x) and is_float(y)
+
+    assert %{"autopilot" => %{"position" => %{"phase" => phase, "x" => ^x}}} =
+             event!(ada.ws, "telemetry", &(get_in(&1, ["control", "mode"]) == "dp"))
+
+    assert phase in ["hold", "return"]
   end
 end

@@ -14,7 +14,7 @@ defmodule NeptunusWeb.WireConformanceTest do
 
   @camera_script Path.expand("../fixtures/camera/fake_camera.sh", __DIR__)
 
-  defp start_vehicle!(prefix, extra \\ %{}) do
+  defp start_vehicle!(prefix, extra) do
     id = "#{prefix}-#{System.unique_integer([:positive])}"
     {:ok, _} = Neptunus.Fleet.start_vehicle(Map.merge(%{id: id, board: :simulated}, extra))
     on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
@@ -29,7 +29,7 @@ defmodule NeptunusWeb.WireConformanceTest do
   defp telemetry!(c, pred), do: await!(c, "telemetry", pred, 5_000)
 
   test "a simulated vehicle flown through every command: snapshot, replies, events, telemetry" do
-    id = start_vehicle!("wire")
+    id = start_vehicle!("wire", %{position: [{:sim_dvl, []}, {:sim_usbl, []}]})
     topic = "vehicle:" <> id
 
     ada = join!(topic, %{"name" => "Ada"})
@@ -68,6 +68,35 @@ defmodule NeptunusWeb.WireConformanceTest do
     telemetry!(ada, &match?(%{"autopilot" => %{"depth" => %{}, "heading" => %{}}}, &1))
     ok!(ada, "set_control_mode", %{"mode" => "dp"})
     telemetry!(ada, &match?(%{"autopilot" => %{"position" => %{}}}, &1))
+
+    # position: the simulated DVL and USBL through the real drivers; a mission and its commands
+    telemetry!(ada, &(&1["position"]["valid"] == true))
+    waypoint = %{"north" => 2, "east" => 0, "depth" => 1, "heading" => nil}
+    ok!(ada, "mission", %{"action" => "start", "waypoints" => [waypoint]})
+    await!(bob, "mission", &match?(%{"mission" => %{"state" => "running"}}, &1))
+    telemetry!(ada, &match?(%{"autopilot" => %{"position" => %{"mission" => %{}}}}, &1))
+    ok!(ada, "mission", %{"action" => "pause"})
+    ok!(ada, "mission", %{"action" => "resume"})
+
+    survey = %{
+      "north" => 0,
+      "east" => 0,
+      "heading" => 0,
+      "length" => 5,
+      "width" => 2,
+      "spacing" => 1,
+      "depth" => 1
+    }
+
+    assert %{"waypoints" => [_ | _]} =
+             ok!(ada, "mission", %{"action" => "plan", "survey" => survey})
+
+    ok!(ada, "mission", %{"action" => "abort"})
+    await!(bob, "mission", &(&1["mission"] == nil))
+
+    assert %{"status" => _} =
+             ok!(ada, "position_source", %{"source" => "dvl", "command" => "reset_dead_reckoning"})
+
     ok!(ada, "set_control_mode", %{"mode" => "manual"})
     await!(ada, "stopped", &(&1["reason"] == "control_mode_changed"))
 

@@ -169,12 +169,13 @@ defmodule NeptunusWeb.Test.Wire do
 
   @doc """
   Starts a simulated vehicle named `prefix-N` for the calling test (stopped when the test
-  exits); returns `%{id: id, topic: "vehicle:" <> id}`. For `setup` blocks.
+  exits), with `options` of the vehicle (e.g. `position:` its position sources); returns
+  `%{id: id, topic: "vehicle:" <> id}`. For `setup` blocks.
   """
-  @spec start_vehicle!(String.t()) :: %{id: String.t(), topic: String.t()}
-  def start_vehicle!(prefix) do
+  @spec start_vehicle!(String.t(), map()) :: %{id: String.t(), topic: String.t()}
+  def start_vehicle!(prefix, options \\ %{}) do
     id = "#{prefix}-#{System.unique_integer([:positive])}"
-    {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated})
+    {:ok, _} = Neptunus.Fleet.start_vehicle(Map.merge(%{id: id, board: :simulated}, options))
     ExUnit.Callbacks.on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
     %{id: id, topic: "vehicle:" <> id}
   end

@@ -36,6 +36,15 @@ export type CameraInfo = wire.CameraInfo;
 export type RecordingStatus = wire.RecordingStatus;
 export type CameraStatus = wire.CameraStatus;
 export type VehicleSettings = wire.VehicleSettings;
+export type PositionStatus = wire.PositionStatus;
+export type PositionSource = wire.PositionSource;
+export type PositionEllipse = wire.PositionEllipse;
+export type DpStatus = wire.DpStatus;
+export type Mission = wire.Mission;
+export type MissionState = wire.MissionState;
+export type MissionReply = wire.MissionReply;
+export type Waypoint = wire.Waypoint;
+export type WaypointIn = wire.WaypointIn;
 
 export const CONTROL_MODES: readonly ControlMode[] = wire.CONTROL_MODE_VALUES;
 export const RUN_MODES: readonly RunMode[] = wire.RUN_MODE_VALUES;
@@ -96,6 +105,8 @@ export interface ControlSettings {
   readonly autopilot: AutopilotSetpoints | null;
   /** in control mode dp, what DP holds: `["depth", "heading", "position"]`, or without a position source `["depth", "heading"]` */
   readonly dp_holds?: readonly string[];
+  /** the mission in dp (its waypoints come with the `mission` event); absent or null: none */
+  readonly mission?: MissionState | null;
 }
 
 /** One autopilot loop: its setpoint (m or rad) and output. */
@@ -111,6 +122,8 @@ export interface AutopilotLoop {
 export interface AutopilotStatus {
   readonly depth: AutopilotLoop | null;
   readonly heading: AutopilotLoop | null;
+  /** DP: its target, phase and a mission's guidance (absent outside dp) */
+  readonly position?: DpStatus;
 }
 
 /** The navigation filter's depth and heading estimate (NaN for a value not known). */
@@ -205,6 +218,8 @@ export interface Telemetry {
   readonly recording: RecordingStatus | null;
   /** the vehicle's camera (null: it has none) */
   readonly camera_status: CameraStatus | null;
+  /** the position estimate and its sources (absent from an older server) */
+  readonly position?: PositionStatus;
   /** the payload as received (plots derive their series from it) */
   readonly raw: Readonly<Record<string, unknown>>;
 }
@@ -240,6 +255,8 @@ export interface VehicleSnapshot {
   readonly camera: CameraInfo | null;
   /** the vehicle's view settings (absent from an older server) */
   readonly settings?: VehicleSettings;
+  /** the mission in dp with its waypoints (absent or null: none) */
+  readonly mission?: Mission | null;
 }
 
 /** Reply to a `thrust` or `stop` push (outputs only; the pulse widths come with telemetry). */
@@ -282,7 +299,7 @@ function orNaN(value: number | null): number {
 }
 
 function controlSettings(c: wire.ControlSettings): ControlSettings {
-  const { mode, gain, lights, laser, tilt, run_mode, autopilot, dp_holds } = c;
+  const { mode, gain, lights, laser, tilt, run_mode, autopilot, dp_holds, mission } = c;
   return {
     mode,
     gain,
@@ -292,6 +309,7 @@ function controlSettings(c: wire.ControlSettings): ControlSettings {
     run_mode,
     autopilot: autopilot && { depth: autopilot.depth, heading: autopilot.heading },
     ...(dp_holds ? { dp_holds } : {}),
+    ...(mission ? { mission } : {}),
   };
 }
 
@@ -316,7 +334,7 @@ function autopilotLoop(loop: wire.AutopilotLoop | null): AutopilotLoop | null {
 }
 
 function autopilotStatus(s: wire.AutopilotStatus): AutopilotStatus {
-  return { depth: autopilotLoop(s.depth), heading: autopilotLoop(s.heading) };
+  return { depth: autopilotLoop(s.depth), heading: autopilotLoop(s.heading), ...(s.position ? { position: s.position } : {}) };
 }
 
 function linkStatus(l: wire.LinkStatus): LinkStatus {
@@ -406,6 +424,7 @@ export function decodeTelemetry(value: unknown): Telemetry | null {
     wild_points: t.wild_points && { total: t.wild_points.total, by_field: t.wild_points.by_field ?? {} },
     recording: t.recording,
     camera_status: t.camera,
+    ...(t.position ? { position: t.position } : {}),
     raw: value,
   };
 }
@@ -484,7 +503,18 @@ export function decodeVehicleSnapshot(value: unknown): VehicleSnapshot | null {
   if (!vehicle || telemetry === undefined || pilot === undefined || helm === undefined || session === undefined) return null;
   const control = decodeControlSettings(value["control"]);
   const settings = decodeVehicleSettings(value["settings"]);
-  return { vehicle, telemetry, pilot, helm, session, control, camera: decodeCamera(value), ...(settings ? { settings } : {}) };
+  const mission = wire.decodeMission(value["mission"]);
+  return {
+    vehicle,
+    telemetry,
+    pilot,
+    helm,
+    session,
+    control,
+    camera: decodeCamera(value),
+    ...(settings ? { settings } : {}),
+    ...(mission ? { mission } : {}),
+  };
 }
 
 /** The helm; a helm piloted by nobody (but free) is malformed. */

@@ -59,6 +59,20 @@ export type ConnectionStatus = "connecting" | "connected" | "disconnected";
 /** The commands of topic `vehicle:<id>` (the wire schema's): the only events a page pushes. */
 export type Command = keyof wire.VehicleCommands;
 
+/** A waypoint sent (`wire.WaypointIn`): what is left out takes the server's default. */
+export interface WaypointOut {
+  /** m */
+  readonly north: number;
+  /** m */
+  readonly east: number;
+  /** m */
+  readonly depth: number;
+  /** m/s */
+  readonly speed?: number;
+  /** m, the acceptance radius */
+  readonly radius?: number;
+}
+
 export type CommandErrorKind = "error" | "timeout" | "not_joined" | "bad_reply";
 
 /** A refused or failed command; `reason` is the server's text (e.g. "not_in_control"). */
@@ -260,6 +274,8 @@ export interface VehicleHandlers {
   readonly link?: (link: LinkStatus) => void;
   /** A mavlink vehicle's late answer to `arm`/`disarm`/`autopilot` (the reply said pending). */
   readonly vehicleAnswer?: (answer: VehicleAnswer) => void;
+  /** The mission started, changed or ended (null). */
+  readonly mission?: (mission: wire.Mission | null) => void;
   /**
    * The vehicle's node of the fleet was cut off from ours (`false`: no telemetry, commands
    * refused, a pilot here lost control) or is back (`true`); `node` names it.
@@ -331,6 +347,11 @@ export class VehicleChannel {
       const answer = wire.decodeVehicleAnswer(payload);
       if (answer) handlers.vehicleAnswer?.(answer);
       else handlers.protocolError?.("vehicle_answer", payload);
+    });
+    this.channel.on("mission", (payload: unknown) => {
+      const event = wire.decodeMissionEvent(payload);
+      if (event) handlers.mission?.(event.mission);
+      else handlers.protocolError?.("mission", payload);
     });
     for (const [event, decode, reachable] of [
       ["unreachable", wire.decodeUnreachable, false],
@@ -539,6 +560,15 @@ export class VehicleChannel {
   arm(arm: boolean, timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<ArmReply> {
     const decode = (r: unknown): ArmReply | null => wire.decodeVehicleRequest(r)?.status ?? null;
     return this.command(arm ? "arm" : "disarm", {}, decode, timeoutMs);
+  }
+
+  /**
+   * `mission` (the pilot, in dp with a valid position): `start` the waypoints (north, east,
+   * depth in m), `pause`, `resume` or `abort`; resolves with the control state and the mission.
+   */
+  mission(action: "start" | "pause" | "resume" | "abort", waypoints?: readonly WaypointOut[]): Promise<wire.MissionReply> {
+    const payload = waypoints === undefined ? { action } : { action, waypoints };
+    return this.command("mission", payload, wire.decodeMissionReply, DEFAULT_COMMAND_TIMEOUT_MS);
   }
 
   /** Leaves the channel and forgets the socket callbacks. */

@@ -29,6 +29,11 @@ export interface Telemetry {
   readonly estimate: Estimate | null;
   /** readings rejected since navigation started */
   readonly wild_points: WildPoints | null;
+  /**
+   * where the vehicle is: the position filter's estimate from its position sources (DVL, USBL),
+   * with its uncertainty, or why there is none
+   */
+  readonly position: PositionStatus | null;
   /** the simulator's true state; null on a real board */
   readonly sim: SimState | null;
   /** the pilot's command */
@@ -71,6 +76,7 @@ function readTelemetry(json: unknown): Telemetry | undefined {
     measurement_state: readMeasurementStates(json["measurement_state"]) ?? null,
     estimate: readEstimate(json["estimate"]) ?? null,
     wild_points: readWildPoints(json["wild_points"]) ?? null,
+    position: readPositionStatus(json["position"]) ?? null,
     sim,
     command,
     thrusters,
@@ -232,6 +238,185 @@ function readWildPoints(json: unknown): WildPoints | undefined {
 }
 
 export const decodeWildPoints = (json: unknown): WildPoints | null => readWildPoints(json) ?? null;
+
+/**
+ * The position estimate (north/east, NED, m) and its sources. Without a valid position, DP holds
+ * depth and heading only.
+ */
+export interface PositionStatus {
+  /** position hold and missions may use it */
+  readonly valid: boolean;
+  /** why it is not valid (per source); null while valid */
+  readonly reason: string | null;
+  /**
+   * whose origin: `local` dead reckoning from where the DVL started, `usbl` the topside's,
+   * `ardusub` the vehicle's own; null without an estimate
+   */
+  readonly frame: "local" | "usbl" | "ardusub" | null;
+  /** changes when the frame does (targets are moved by the shift, or dropped) */
+  readonly epoch: number | null;
+  /** m */
+  readonly north: number | null;
+  /** m */
+  readonly east: number | null;
+  /** m; the depth estimate */
+  readonly depth: number | null;
+  /** m/s */
+  readonly velocity_north: number | null;
+  /** m/s */
+  readonly velocity_east: number | null;
+  /** m; 1 σ */
+  readonly std_north: number | null;
+  /** m; 1 σ */
+  readonly std_east: number | null;
+  /** the 1-σ uncertainty ellipse; null without an estimate */
+  readonly ellipse: PositionEllipse | null;
+  /** each position source's state */
+  readonly sources: readonly PositionSource[] | null;
+}
+
+function readPositionStatus(json: unknown): PositionStatus | undefined {
+  if (!isRecord(json)) return undefined;
+  const valid = readBoolean(json["valid"]);
+  if (valid === undefined) return undefined;
+  return {
+    valid,
+    reason: readString(json["reason"]) ?? null,
+    frame: readEnum(json["frame"], ["local", "usbl", "ardusub"] as const) ?? null,
+    epoch: readInteger(json["epoch"]) ?? null,
+    north: readNumber(json["north"]) ?? null,
+    east: readNumber(json["east"]) ?? null,
+    depth: readNumber(json["depth"]) ?? null,
+    velocity_north: readNumber(json["velocity_north"]) ?? null,
+    velocity_east: readNumber(json["velocity_east"]) ?? null,
+    std_north: readNumber(json["std_north"]) ?? null,
+    std_east: readNumber(json["std_east"]) ?? null,
+    ellipse: readPositionEllipse(json["ellipse"]) ?? null,
+    sources: readList(json["sources"], readPositionSource) ?? null,
+  };
+}
+
+export const decodePositionStatus = (json: unknown): PositionStatus | null => readPositionStatus(json) ?? null;
+
+/** A 1-σ uncertainty ellipse. */
+export interface PositionEllipse {
+  /** m; the larger semi-axis */
+  readonly major: number;
+  /** m; the smaller semi-axis */
+  readonly minor: number;
+  /** rad; the larger axis' direction, from north towards east */
+  readonly angle: number;
+}
+
+function readPositionEllipse(json: unknown): PositionEllipse | undefined {
+  if (!isRecord(json)) return undefined;
+  const major = readNumber(json["major"]);
+  const minor = readNumber(json["minor"]);
+  const angle = readNumber(json["angle"]);
+  if (major === undefined || minor === undefined || angle === undefined) return undefined;
+  return {
+    major,
+    minor,
+    angle,
+  };
+}
+
+export const decodePositionEllipse = (json: unknown): PositionEllipse | null => readPositionEllipse(json) ?? null;
+
+/** One position source and what navigation made of its reports. */
+export interface PositionSource {
+  /** `dvl`, `usbl`, `ardusub` */
+  readonly name: string;
+  /** what it measures: velocity (a DVL) or position (a USBL fix); null before its first report */
+  readonly kind: "velocity" | "fix" | null;
+  /** `valid`: a usable report lately; `waiting`: nothing heard yet */
+  readonly state: "valid" | "invalid" | "waiting";
+  /** why it is not valid; null while valid */
+  readonly reason: string | null;
+  /** its link is up */
+  readonly connected: boolean | null;
+  /** readings received */
+  readonly reports: number | null;
+  /** readings the filter took */
+  readonly accepted: number | null;
+  /**
+   * by reason: `no_lock`, `water_track`, `out_of_range`, `no_heading`, `invalid_fix`,
+   * `innovation`, `too_old`, `frame`
+   */
+  readonly rejected: Readonly<Record<string, number>> | null;
+  /** reports that could not be read */
+  readonly garbage: number | null;
+  /** times its link went down */
+  readonly disconnects: number | null;
+  /** times rejected readings that agreed were taken as the truth */
+  readonly reacquired: number | null;
+  /** m; a DVL's altitude above the bottom */
+  readonly altitude: number | null;
+  /** m/s; a DVL's figure of merit */
+  readonly fom: number | null;
+  /** m; a fix's standard deviation */
+  readonly std: number | null;
+  /** the last innovation: m/s in the vehicle frame (x, y) for a DVL, m (north, east) for a fix */
+  readonly innovation: readonly number[] | null;
+  /** a DVL's own integrated position (shown, not fused) */
+  readonly dead_reckoning: DeadReckoning | null;
+}
+
+function readPositionSource(json: unknown): PositionSource | undefined {
+  if (!isRecord(json)) return undefined;
+  const name = readString(json["name"]);
+  const state = readEnum(json["state"], ["valid", "invalid", "waiting"] as const);
+  if (name === undefined || state === undefined) return undefined;
+  return {
+    name,
+    kind: readEnum(json["kind"], ["velocity", "fix"] as const) ?? null,
+    state,
+    reason: readString(json["reason"]) ?? null,
+    connected: readBoolean(json["connected"]) ?? null,
+    reports: readInteger(json["reports"]) ?? null,
+    accepted: readInteger(json["accepted"]) ?? null,
+    rejected: readMap(json["rejected"], readInteger) ?? null,
+    garbage: readInteger(json["garbage"]) ?? null,
+    disconnects: readInteger(json["disconnects"]) ?? null,
+    reacquired: readInteger(json["reacquired"]) ?? null,
+    altitude: readNumber(json["altitude"]) ?? null,
+    fom: readNumber(json["fom"]) ?? null,
+    std: readNumber(json["std"]) ?? null,
+    innovation: readList(json["innovation"], readNumber) ?? null,
+    dead_reckoning: readDeadReckoning(json["dead_reckoning"]) ?? null,
+  };
+}
+
+export const decodePositionSource = (json: unknown): PositionSource | null => readPositionSource(json) ?? null;
+
+/** A DVL's dead reckoning, in its own frame. */
+export interface DeadReckoning {
+  /** m */
+  readonly x: number;
+  /** m */
+  readonly y: number;
+  /** m */
+  readonly z: number;
+  /** m */
+  readonly std: number;
+}
+
+function readDeadReckoning(json: unknown): DeadReckoning | undefined {
+  if (!isRecord(json)) return undefined;
+  const x = readNumber(json["x"]);
+  const y = readNumber(json["y"]);
+  const z = readNumber(json["z"]);
+  const std = readNumber(json["std"]);
+  if (x === undefined || y === undefined || z === undefined || std === undefined) return undefined;
+  return {
+    x,
+    y,
+    z,
+    std,
+  };
+}
+
+export const decodeDeadReckoning = (json: unknown): DeadReckoning | null => readDeadReckoning(json) ?? null;
 
 /** The simulator's true 6-DOF state (Fossen notation, NED: z is depth). */
 export interface SimState {
@@ -428,6 +613,8 @@ export interface ControlSettings {
   readonly dp_holds: readonly ("depth" | "heading" | "position")[] | null;
   /** the engaged autopilots' setpoints */
   readonly autopilot: AutopilotSetpoints | null;
+  /** the mission in dp (its waypoints come in the `mission` event) */
+  readonly mission: MissionState | null;
 }
 
 function readControlSettings(json: unknown): ControlSettings | undefined {
@@ -443,10 +630,122 @@ function readControlSettings(json: unknown): ControlSettings | undefined {
     run_mode: readRunMode(json["run_mode"]) ?? null,
     dp_holds: readList(json["dp_holds"], (item) => readEnum(item, ["depth", "heading", "position"] as const)) ?? null,
     autopilot: readAutopilotSetpoints(json["autopilot"]) ?? null,
+    mission: readMissionState(json["mission"]) ?? null,
   };
 }
 
 export const decodeControlSettings = (json: unknown): ControlSettings | null => readControlSettings(json) ?? null;
+
+/** A mission's progress. */
+export interface MissionState {
+  /** a new one for each mission started */
+  readonly id: number;
+  readonly state: "running" | "paused" | "done";
+  /** the waypoint steered to, 1-based */
+  readonly leg: number;
+  /** waypoints */
+  readonly count: number;
+}
+
+function readMissionState(json: unknown): MissionState | undefined {
+  if (!isRecord(json)) return undefined;
+  const id = readInteger(json["id"]);
+  const state = readEnum(json["state"], ["running", "paused", "done"] as const);
+  const leg = readInteger(json["leg"]);
+  const count = readInteger(json["count"]);
+  if (
+    id === undefined ||
+    state === undefined ||
+    leg === undefined ||
+    count === undefined
+  )
+    return undefined;
+  return {
+    id,
+    state,
+    leg,
+    count,
+  };
+}
+
+export const decodeMissionState = (json: unknown): MissionState | null => readMissionState(json) ?? null;
+
+/** A mission with its waypoints (the `mission` event, the join snapshot). */
+export interface Mission {
+  readonly id: number;
+  readonly state: "running" | "paused" | "done";
+  /** the waypoint steered to, 1-based */
+  readonly leg: number;
+  readonly waypoints: readonly Waypoint[];
+}
+
+function readMission(json: unknown): Mission | undefined {
+  if (!isRecord(json)) return undefined;
+  const id = readInteger(json["id"]);
+  const state = readEnum(json["state"], ["running", "paused", "done"] as const);
+  const leg = readInteger(json["leg"]);
+  const waypoints = readList(json["waypoints"], readWaypoint);
+  if (
+    id === undefined ||
+    state === undefined ||
+    leg === undefined ||
+    waypoints === undefined
+  )
+    return undefined;
+  return {
+    id,
+    state,
+    leg,
+    waypoints,
+  };
+}
+
+export const decodeMission = (json: unknown): Mission | null => readMission(json) ?? null;
+
+/** A mission's waypoint (in the position's frame). */
+export interface Waypoint {
+  /** m */
+  readonly north: number;
+  /** m */
+  readonly east: number;
+  /** m */
+  readonly depth: number;
+  /** rad; to hold there; null: the guidance's */
+  readonly heading: number | null;
+  /** m/s */
+  readonly speed: number;
+  /** m; reached within it */
+  readonly radius: number;
+}
+
+function readWaypoint(json: unknown): Waypoint | undefined {
+  if (!isRecord(json)) return undefined;
+  const north = readNumber(json["north"]);
+  const east = readNumber(json["east"]);
+  const depth = readNumber(json["depth"]);
+  const heading = json["heading"] === null ? null : readNumber(json["heading"]);
+  const speed = readNumber(json["speed"]);
+  const radius = readNumber(json["radius"]);
+  if (
+    north === undefined ||
+    east === undefined ||
+    depth === undefined ||
+    heading === undefined ||
+    speed === undefined ||
+    radius === undefined
+  )
+    return undefined;
+  return {
+    north,
+    east,
+    depth,
+    heading,
+    speed,
+    radius,
+  };
+}
+
+export const decodeWaypoint = (json: unknown): Waypoint | null => readWaypoint(json) ?? null;
 
 /**
  * The control state C: command replies, the join snapshot, every grant (telemetry has it without
@@ -471,6 +770,7 @@ function readControlState(json: unknown): ControlState | undefined {
     run_mode: readRunMode(json["run_mode"]) ?? null,
     dp_holds: readList(json["dp_holds"], (item) => readEnum(item, ["depth", "heading", "position"] as const)) ?? null,
     autopilot: readAutopilotSetpoints(json["autopilot"]) ?? null,
+    mission: readMissionState(json["mission"]) ?? null,
     command: readPilotCommand(json["command"]) ?? null,
     thrusters: readThrusters(json["thrusters"]) ?? null,
   };
@@ -592,20 +892,29 @@ function readAutopilotLoop(json: unknown): AutopilotLoop | undefined {
 
 export const decodeAutopilotLoop = (json: unknown): AutopilotLoop | null => readAutopilotLoop(json) ?? null;
 
-/** DP's position hold. */
+/** DP: position hold and missions. */
 export interface DpStatus {
-  /** m; the target, north */
+  /** m; the target held, north; null: none */
   readonly x: number | null;
-  /** m; the target, east */
+  /** m; the target held, east; null: none */
   readonly y: number | null;
-  /** rad; the heading held */
+  /** rad; the heading held now */
   readonly heading: number | null;
-  /** `return` beyond 2 m of the target */
-  readonly phase: "hold" | "return" | null;
-  /** m; to the target */
+  /**
+   * `hold` at the target, `return` towards it (a three-thruster vehicle beyond its radius),
+   * `mission` steering a leg, `waiting` for a valid position
+   */
+  readonly phase: "hold" | "return" | "mission" | "waiting" | null;
+  /** m; to the target, or to the waypoint steered to */
   readonly distance: number | null;
-  /** surge, [-1, 1] */
+  /** surge demanded, [-1, 1] */
   readonly output: number | null;
+  /** sway demanded, [-1, 1] (0 on a vehicle without sway) */
+  readonly sway: number | null;
+  /** why there is no horizontal demand; null while acting */
+  readonly waiting: string | null;
+  /** during a mission */
+  readonly mission: MissionGuidance | null;
 }
 
 function readDpStatus(json: unknown): DpStatus | undefined {
@@ -614,13 +923,51 @@ function readDpStatus(json: unknown): DpStatus | undefined {
     x: readNumber(json["x"]) ?? null,
     y: readNumber(json["y"]) ?? null,
     heading: readNumber(json["heading"]) ?? null,
-    phase: readEnum(json["phase"], ["hold", "return"] as const) ?? null,
+    phase: readEnum(json["phase"], ["hold", "return", "mission", "waiting"] as const) ?? null,
     distance: readNumber(json["distance"]) ?? null,
     output: readNumber(json["output"]) ?? null,
+    sway: readNumber(json["sway"]) ?? null,
+    waiting: readString(json["waiting"]) ?? null,
+    mission: readMissionGuidance(json["mission"]) ?? null,
   };
 }
 
 export const decodeDpStatus = (json: unknown): DpStatus | null => readDpStatus(json) ?? null;
+
+/** A mission's guidance (line of sight). */
+export interface MissionGuidance {
+  readonly id: number;
+  readonly state: "running" | "paused" | "done";
+  /** the waypoint steered to, 1-based */
+  readonly leg: number;
+  /** m; off the line, positive to its starboard */
+  readonly cross_track: number | null;
+  /** m; along the leg from its start */
+  readonly along: number | null;
+  /** rad; the course steered */
+  readonly course: number | null;
+  /** m/s; the speed asked */
+  readonly speed: number | null;
+}
+
+function readMissionGuidance(json: unknown): MissionGuidance | undefined {
+  if (!isRecord(json)) return undefined;
+  const id = readInteger(json["id"]);
+  const state = readEnum(json["state"], ["running", "paused", "done"] as const);
+  const leg = readInteger(json["leg"]);
+  if (id === undefined || state === undefined || leg === undefined) return undefined;
+  return {
+    id,
+    state,
+    leg,
+    cross_track: readNumber(json["cross_track"]) ?? null,
+    along: readNumber(json["along"]) ?? null,
+    course: readNumber(json["course"]) ?? null,
+    speed: readNumber(json["speed"]) ?? null,
+  };
+}
+
+export const decodeMissionGuidance = (json: unknown): MissionGuidance | null => readMissionGuidance(json) ?? null;
 
 /**
  * The board link (the `link` event, telemetry's `link`). The fields after `reason` come from a
@@ -1082,6 +1429,8 @@ export interface VehicleSnapshot {
   readonly pilot: Pilot | null;
   readonly helm: Helm;
   readonly control: ControlState;
+  /** the mission in dp, with its waypoints; null: none */
+  readonly mission: Mission | null;
   /** null: the vehicle has no camera */
   readonly camera: CameraInfo | null;
   /** the vehicle's settings every page applies */
@@ -1112,6 +1461,7 @@ function readVehicleSnapshot(json: unknown): VehicleSnapshot | undefined {
     pilot,
     helm,
     control,
+    mission: readMission(json["mission"]) ?? null,
     camera: readCameraInfo(json["camera"]) ?? null,
     settings: readVehicleSettings(json["settings"]) ?? null,
     session,
@@ -1470,7 +1820,7 @@ export const decodeControlRequest = (json: unknown): ControlRequest | null => re
 
 /** A mavlink vehicle's late answer. */
 export interface VehicleAnswer {
-  readonly command: "arm" | "disarm" | "autopilot";
+  readonly command: "arm" | "disarm" | "autopilot" | "position_source";
   readonly ok: boolean;
   /** why not (`ok: false`); absent from some payloads */
   readonly reason: string | null;
@@ -1478,7 +1828,7 @@ export interface VehicleAnswer {
 
 function readVehicleAnswer(json: unknown): VehicleAnswer | undefined {
   if (!isRecord(json)) return undefined;
-  const command = readEnum(json["command"], ["arm", "disarm", "autopilot"] as const);
+  const command = readEnum(json["command"], ["arm", "disarm", "autopilot", "position_source"] as const);
   const ok = readBoolean(json["ok"]);
   if (command === undefined || ok === undefined) return undefined;
   return {
@@ -2053,9 +2403,187 @@ function readAutopilotCommand(json: unknown): AutopilotCommand | undefined {
 
 export const decodeAutopilotCommand = (json: unknown): AutopilotCommand | null => readAutopilotCommand(json) ?? null;
 
+/** The mission now. */
+export interface MissionEvent {
+  /** null: none */
+  readonly mission: Mission | null;
+}
+
+function readMissionEvent(json: unknown): MissionEvent | undefined {
+  if (!isRecord(json)) return undefined;
+  const mission = json["mission"] === null ? null : readMission(json["mission"]);
+  if (mission === undefined) return undefined;
+  return {
+    mission,
+  };
+}
+
+export const decodeMissionEvent = (json: unknown): MissionEvent | null => readMissionEvent(json) ?? null;
+
 /**
- * A mavlink vehicle's answer within 200 ms (`ok`), or still awaited (`pending`: it follows as
- * `vehicle_answer`).
+ * A mission command: `start` or `plan` with `waypoints` or a `survey`; `pause`, `resume`, `abort`
+ * alone.
+ */
+export interface MissionCommand {
+  readonly action: "start" | "plan" | "pause" | "resume" | "abort";
+  /** 1..100, in the position's frame; absent from some payloads */
+  readonly waypoints: readonly WaypointIn[] | null;
+  /** a lawnmower survey to make the waypoints; absent from some payloads */
+  readonly survey: Survey | null;
+}
+
+function readMissionCommand(json: unknown): MissionCommand | undefined {
+  if (!isRecord(json)) return undefined;
+  const action = readEnum(json["action"], ["start", "plan", "pause", "resume", "abort"] as const);
+  if (action === undefined) return undefined;
+  return {
+    action,
+    waypoints: readList(json["waypoints"], readWaypointIn) ?? null,
+    survey: readSurvey(json["survey"]) ?? null,
+  };
+}
+
+export const decodeMissionCommand = (json: unknown): MissionCommand | null => readMissionCommand(json) ?? null;
+
+/** A waypoint to fly to. */
+export interface WaypointIn {
+  /** m */
+  readonly north: number;
+  /** m */
+  readonly east: number;
+  /** m; [0, 200] */
+  readonly depth: number;
+  /** rad; [-2π, 2π]; null or absent: the guidance's; absent from some payloads */
+  readonly heading: number | null;
+  /** m/s; [0.05, 1], default 0.3; absent from some payloads */
+  readonly speed: number | null;
+  /** m; acceptance radius [0.2, 20], default 0.5; absent from some payloads */
+  readonly radius: number | null;
+}
+
+function readWaypointIn(json: unknown): WaypointIn | undefined {
+  if (!isRecord(json)) return undefined;
+  const north = readNumber(json["north"]);
+  const east = readNumber(json["east"]);
+  const depth = readNumber(json["depth"]);
+  if (north === undefined || east === undefined || depth === undefined) return undefined;
+  return {
+    north,
+    east,
+    depth,
+    heading: readNumber(json["heading"]) ?? null,
+    speed: readNumber(json["speed"]) ?? null,
+    radius: readNumber(json["radius"]) ?? null,
+  };
+}
+
+export const decodeWaypointIn = (json: unknown): WaypointIn | null => readWaypointIn(json) ?? null;
+
+/**
+ * A lawnmower survey: lines `length` m long in the direction `heading`, `spacing` m apart,
+ * covering `width` m to starboard of the first, which starts at (north, east).
+ */
+export interface Survey {
+  /** m */
+  readonly north: number;
+  /** m */
+  readonly east: number;
+  /** rad; the lines' direction */
+  readonly heading: number;
+  /** m; [1, 1000] */
+  readonly length: number;
+  /** m; [0, 1000] */
+  readonly width: number;
+  /** m; [0.5, 100] */
+  readonly spacing: number;
+  /** m */
+  readonly depth: number;
+  /** m/s; absent from some payloads */
+  readonly speed: number | null;
+  /** m; absent from some payloads */
+  readonly radius: number | null;
+}
+
+function readSurvey(json: unknown): Survey | undefined {
+  if (!isRecord(json)) return undefined;
+  const north = readNumber(json["north"]);
+  const east = readNumber(json["east"]);
+  const heading = readNumber(json["heading"]);
+  const length = readNumber(json["length"]);
+  const width = readNumber(json["width"]);
+  const spacing = readNumber(json["spacing"]);
+  const depth = readNumber(json["depth"]);
+  if (
+    north === undefined ||
+    east === undefined ||
+    heading === undefined ||
+    length === undefined ||
+    width === undefined ||
+    spacing === undefined ||
+    depth === undefined
+  )
+    return undefined;
+  return {
+    north,
+    east,
+    heading,
+    length,
+    width,
+    spacing,
+    depth,
+    speed: readNumber(json["speed"]) ?? null,
+    radius: readNumber(json["radius"]) ?? null,
+  };
+}
+
+export const decodeSurvey = (json: unknown): Survey | null => readSurvey(json) ?? null;
+
+/** The control state and the mission after the command. */
+export interface MissionReply {
+  readonly control: ControlState;
+  /** null: no mission */
+  readonly mission: Mission | null;
+  /** `plan` only: the waypoints the mission would fly; absent from some payloads */
+  readonly waypoints: readonly Waypoint[] | null;
+}
+
+function readMissionReply(json: unknown): MissionReply | undefined {
+  if (!isRecord(json)) return undefined;
+  const control = readControlState(json["control"]);
+  const mission = json["mission"] === null ? null : readMission(json["mission"]);
+  if (control === undefined || mission === undefined) return undefined;
+  return {
+    control,
+    mission,
+    waypoints: readList(json["waypoints"], readWaypoint) ?? null,
+  };
+}
+
+export const decodeMissionReply = (json: unknown): MissionReply | null => readMissionReply(json) ?? null;
+
+/** A command for a position source's device. */
+export interface PositionSourceCommand {
+  /** `dvl` */
+  readonly source: string;
+  readonly command: "reset_dead_reckoning" | "calibrate_gyro";
+}
+
+function readPositionSourceCommand(json: unknown): PositionSourceCommand | undefined {
+  if (!isRecord(json)) return undefined;
+  const source = readString(json["source"]);
+  const command = readEnum(json["command"], ["reset_dead_reckoning", "calibrate_gyro"] as const);
+  if (source === undefined || command === undefined) return undefined;
+  return {
+    source,
+    command,
+  };
+}
+
+export const decodePositionSourceCommand = (json: unknown): PositionSourceCommand | null => readPositionSourceCommand(json) ?? null;
+
+/**
+ * A device's answer within 200 ms (`ok`), or still awaited (`pending`: it follows as
+ * `vehicle_answer`): a mavlink vehicle's, a position source's.
  */
 export interface VehicleRequest {
   readonly status: "ok" | "pending";
@@ -2415,6 +2943,11 @@ export interface VehicleEvents {
    * within 25 ms
    */
   readonly telemetry: Telemetry;
+  /**
+   * the mission started, changed (a waypoint reached, paused, resumed, moved with the position's
+   * frame) or ended (`mission: null`)
+   */
+  readonly mission: MissionEvent;
   /** every change of the helm: state, pilot, request, takeover countdown, epoch */
   readonly helm: Helm;
   /**
@@ -2433,8 +2966,9 @@ export interface VehicleEvents {
   /** the outcome of this connection's `snapshot` command */
   readonly snapshot: SnapshotResult;
   /**
-   * a `mavlink` vehicle's late answer to its `arm`, `disarm` or `autopilot` whose reply was
-   * `pending` (see [ArduSub vehicles](#ardusub))
+   * a `mavlink` vehicle's late answer to its `arm`, `disarm` or `autopilot`, or a position
+   * source's to `position_source`, whose reply was `pending` (see [ArduSub vehicles](#ardusub),
+   * [docs/POSITION.md](POSITION.md))
    */
   readonly vehicle_answer: VehicleAnswer;
   /**
@@ -2480,6 +3014,7 @@ export interface VehicleEvents {
 /** Each event's decoder (null: the payload does not decode). */
 export const VEHICLE_EVENT_DECODERS: { readonly [E in keyof VehicleEvents]: (json: unknown) => VehicleEvents[E] | null } = {
   telemetry: decodeTelemetry,
+  mission: decodeMissionEvent,
   helm: decodeHelm,
   stopped: decodeReason,
   vehicle_settings: decodeVehicleSettings,
@@ -2603,6 +3138,22 @@ export interface VehicleCommands {
    * (`stopped` `run_mode_changed`) and disengages the autopilots
    */
   readonly set_run_mode: { readonly payload: RunModeChange; readonly reply: ControlUpdate };
+  /**
+   * the pilot: in `dp` with a valid position: `start` flies the waypoints (or the survey's) with
+   * line-of-sight guidance from where the vehicle is; `plan` only checks them and answers the
+   * waypoints (a survey's, to show or edit); `pause` holds position, `resume` goes on with the
+   * leg, `abort` ends it and holds position (depth and heading without a position). A running
+   * mission sets depth and heading (`autopilot` is refused until it is paused or ended). Every
+   * stop ends it: a handover holds position, any other stop ends dp (see [Safety
+   * stops](#safety-stops))
+   */
+  readonly mission: { readonly payload: MissionCommand; readonly reply: MissionReply };
+  /**
+   * the pilot: a command for a DVL: `reset_dead_reckoning` (its own dead reckoning starts again at
+   * zero), `calibrate_gyro` (keep the vehicle still; up to 15 s). Answered `pending`, the DVL's
+   * answer follows as `vehicle_answer`
+   */
+  readonly position_source: { readonly payload: PositionSourceCommand; readonly reply: VehicleRequest };
   /** anyone: the gains in force, the defaults, their ranges and the model a step runs on */
   readonly get_tuning: { readonly payload: Empty; readonly reply: TuningInfo };
   /**
@@ -2659,6 +3210,8 @@ export const VEHICLE_REPLY_DECODERS: { readonly [C in keyof VehicleCommands]: (j
   set_tilt: decodeControlUpdate,
   autopilot: (json) => (readControlUpdate(json) ?? readVehicleRequest(json)) ?? null,
   set_run_mode: decodeControlUpdate,
+  mission: decodeMissionReply,
+  position_source: decodeVehicleRequest,
   get_tuning: decodeTuningInfo,
   step_response: decodeStepResponse,
   set_tuning: decodeTuningReply,

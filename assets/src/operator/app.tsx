@@ -13,6 +13,7 @@ import { CrewPanel } from "./panels/crew";
 import { FleetPanel } from "./panels/fleet";
 import { HelmPanel } from "./panels/helm";
 import { InputPanel } from "./panels/input";
+import { MapPanel } from "./panels/map";
 import { NavigationPanel } from "./panels/navigation";
 import { SettingsPanel } from "./panels/settings";
 import { ThrusterPanel } from "./panels/thrusters";
@@ -146,6 +147,7 @@ export function App({ controller }: { controller: OperatorController }): preact.
             <CommandPanel s={s} />
             <CrewPanel s={s} />
           </div>
+          <MapPanel s={s} c={controller} />
         </div>
         <aside class="side-column">
           {s.fleet.length > 1 ? <FleetPanel s={s} /> : null}

@@ -14,7 +14,8 @@
  *   the camera rotation go to the server as typed; its `error` reason is shown beside the field;
  * - `helm_commands.ts`: request / take / release / answer control, arm / disarm;
  * - `heartbeat.ts`: the pilot's heartbeat every `heartbeat_ms`, the round-trip latency;
- * - `headset.ts`: head tracking → heading setpoint and camera tilt.
+ * - `headset.ts`: head tracking → heading setpoint and camera tilt;
+ * - `mission_commands.ts`: the waypoints planned on the map, start / pause / resume / abort.
  *
  * What the helm, stops and the connection mean for the page is decided by `react`
  * (reactions.ts, pure); this class feeds it the vehicle's events, the page's own stops and the
@@ -44,6 +45,8 @@ import { GamepadButtons } from "./gamepad_buttons";
 import { HeadsetInput } from "./headset";
 import { Heartbeat } from "./heartbeat";
 import { HelmCommands } from "./helm_commands";
+import { withTrackPoint } from "./map";
+import { MissionCommands } from "./mission_commands";
 import { PilotInput } from "./pilot_input";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
@@ -85,6 +88,8 @@ export class OperatorController {
   private readonly heartbeat: Heartbeat;
   /** head tracking: heading setpoint and camera tilt */
   readonly headset: HeadsetInput;
+  /** the mission planned on the map and sent */
+  readonly missions: MissionCommands;
   private readonly session: PageSession;
   /** the socket and the vehicle's channel */
   private readonly connection: OperatorConnection;
@@ -151,6 +156,13 @@ export class OperatorController {
       nowMs: () => performance.now(),
       onControl: (control) => this.store.update({ control }),
       onResult: (error) => (error === null ? this.fields.mark("headset", "ok", "") : this.fields.mark("headset", "error", error)),
+    });
+    this.missions = new MissionCommands({
+      get: () => this.state,
+      update: (patch) => this.store.update(patch),
+      vehicle: () => this.vehicle,
+      showMessage: (text, kind, source) => this.showMessage(text, kind, source),
+      clearMessage: (source) => this.clearMessage(source),
     });
     this.connection = new OperatorConnection(
       {
@@ -223,6 +235,7 @@ export class OperatorController {
           camera: cameraWithToken(snapshot.camera, this.session.token),
           control: snapshot.control,
           sent: null,
+          mission: snapshot.mission ?? null,
         });
         if (snapshot.telemetry) this.onTelemetry(snapshot.telemetry);
       },
@@ -247,6 +260,7 @@ export class OperatorController {
         this.store.update({ link });
         this.dispatch({ type: "link", up: link.up });
       },
+      mission: (mission) => this.missions.received(mission),
       vehicleAnswer: (answer) => this.helm.answered(answer.command, answer.ok ? null : (answer.reason ?? "refused")),
       // the vehicle runs on another node of the fleet, now cut off from this one (or back)
       reachability: (reachable, node) => {
@@ -264,7 +278,10 @@ export class OperatorController {
   }
 
   private onTelemetry(t: Telemetry): void {
-    this.store.update(withTelemetry(t, this.clock.received(t.sent_at, performance.now(), Date.now())));
+    this.store.update({
+      ...withTelemetry(t, this.clock.received(t.sent_at, performance.now(), Date.now())),
+      track: withTrackPoint(this.state.track, t.position),
+    });
   }
 
   // ------------------------------------------------------------------------------------------

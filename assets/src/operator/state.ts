@@ -20,9 +20,11 @@ import { KEPT_LOADING } from "../lib/kept_setting";
 import type { KeptStatus } from "../lib/kept_setting";
 import type { LatencySummary } from "../lib/latency";
 import type { Rotation } from "../lib/prefs";
-import type { AuthMode, CameraInfo, ControlSettings, LinkStatus, PresenceEntry, Role, Telemetry, VehicleInfo } from "../lib/protocol";
+import type { AuthMode, CameraInfo, ControlSettings, LinkStatus, Mission, PresenceEntry, Role, Telemetry, VehicleInfo } from "../lib/protocol";
 import type { ConnectionStatus } from "../lib/vehicle_client";
 import { HEADSET_OFF } from "./headset";
+import { NO_TRACK } from "./map";
+import type { MapPoint, Track } from "./map";
 import type { HeadsetState } from "./headset";
 import { INITIAL_REACTIONS } from "./reactions";
 import type { MessageKind } from "./reactions";
@@ -96,6 +98,12 @@ export interface OperatorState {
   readonly fields: Readonly<Partial<Record<FieldName, FieldStatus>>>;
   /** the last stop the vehicle made (reason, ms since the epoch) */
   readonly lastStop: { readonly reason: string; readonly at: number } | null;
+  /** the mission in dp with its waypoints (the `mission` event, the snapshot); null: none */
+  readonly mission: Mission | null;
+  /** where the vehicle has been, in its position's frame (map.ts) */
+  readonly track: Track;
+  /** the waypoints the pilot is planning on the map, not yet sent */
+  readonly plan: readonly MapPoint[];
 }
 
 /** No round trip measured yet. */
@@ -136,6 +144,9 @@ export function initialState(inputMode: InputMode, gamepadOptions: GamepadOption
     message: NO_MESSAGE,
     fields: {},
     lastStop: null,
+    mission: null,
+    track: NO_TRACK,
+    plan: [],
   };
 }
 

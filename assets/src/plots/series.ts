@@ -2,7 +2,9 @@
  * Plot series derived from the telemetry payload itself: every numeric (or boolean) leaf is a
  * series named by its path ("measurement.depth", "thrusters.port_us", "estimate.yaw_rate",
  * "wild_points.by_field.hdgd"…), so whatever the vehicle publishes can be plotted without the
- * page knowing it in advance. Thesis table 7.3 gives the groups and their order.
+ * page knowing it in advance. A list's items are named by their `name` when they have one
+ * ("position.sources.dvl.innovation.0": the DVL's last innovation in x), else by their index.
+ * Thesis table 7.3 gives the groups and their order.
  */
 
 /** Paths never plotted: the x axis and bookkeeping. */
@@ -14,7 +16,13 @@ export function flattenNumeric(value: unknown, prefix = "", out: Map<string, num
     if (Number.isFinite(value) && !EXCLUDED.has(prefix)) out.set(prefix, value);
   } else if (typeof value === "boolean") {
     if (!EXCLUDED.has(prefix)) out.set(prefix, value ? 1 : 0);
-  } else if (typeof value === "object" && value !== null && !Array.isArray(value)) {
+  } else if (Array.isArray(value)) {
+    value.forEach((child: unknown, i) => {
+      const name: unknown = typeof child === "object" && child !== null ? (child as Record<string, unknown>)["name"] : undefined;
+      const key = typeof name === "string" && name !== "" ? name : String(i);
+      flattenNumeric(child, prefix === "" ? key : `${prefix}.${key}`, out);
+    });
+  } else if (typeof value === "object" && value !== null) {
     for (const [key, child] of Object.entries(value as Record<string, unknown>)) {
       flattenNumeric(child, prefix === "" ? key : `${prefix}.${key}`, out);
     }
@@ -30,6 +38,7 @@ export type SeriesGroup =
   | "Simulated state"
   | "Thrusters"
   | "Autopilot"
+  | "Position"
   | "Control"
   | "Link"
   | "Wild points"
@@ -42,6 +51,7 @@ const GROUPS: readonly [string, SeriesGroup][] = [
   ["sim.", "Simulated state"],
   ["thrusters.", "Thrusters"],
   ["autopilot.", "Autopilot"],
+  ["position.", "Position"],
   ["control.", "Control"],
   ["link.", "Link"],
   ["wild_points.", "Wild points"],
@@ -54,6 +64,7 @@ export const GROUP_ORDER: readonly SeriesGroup[] = [
   "Simulated state",
   "Thrusters",
   "Autopilot",
+  "Position",
   "Control",
   "Link",
   "Wild points",
@@ -93,6 +104,10 @@ export function seriesUnit(path: string): string {
   if (leaf === "current" && path.startsWith("measurement.")) return "A";
   if (path.startsWith("measurement.depth") || ["x", "y", "z"].includes(leaf) || leaf === "depth") return "m";
   if (["u", "v", "w", "depth_rate"].includes(leaf)) return "m/s";
+  if (path.startsWith("position.") || path.startsWith("autopilot.position.")) {
+    if (["velocity_north", "velocity_east", "speed", "fom"].includes(leaf)) return "m/s";
+    if (["north", "east", "std_north", "std_east", "major", "minor", "altitude", "std", "distance", "cross_track", "along"].includes(leaf)) return "m";
+  }
   return "";
 }
 

@@ -53,9 +53,35 @@ describe("flattenNumeric: series from the payload", () => {
     }
   });
 
-  it("ignores arrays and non-finite numbers", () => {
-    const f = flattenNumeric({ a: [1, 2], b: Number.NaN, c: Infinity, d: { e: 1 } });
+  it("ignores non-finite numbers", () => {
+    const f = flattenNumeric({ b: Number.NaN, c: Infinity, d: { e: 1 } });
     expect([...f.keys()]).toEqual(["d.e"]);
+  });
+
+  it("names a list's items by their name, else by index: the position sources' innovations", () => {
+    const f = flattenNumeric({
+      a: [1, 2],
+      position: {
+        north: 1.5,
+        sources: [
+          { name: "dvl", innovation: [0.01, -0.02], altitude: 3 },
+          { name: "usbl", innovation: null, std: 0.3 },
+        ],
+      },
+    });
+    expect(Object.fromEntries(f)).toEqual({
+      "a.0": 1,
+      "a.1": 2,
+      "position.north": 1.5,
+      "position.sources.dvl.innovation.0": 0.01,
+      "position.sources.dvl.innovation.1": -0.02,
+      "position.sources.dvl.altitude": 3,
+      "position.sources.usbl.std": 0.3,
+    });
+    expect(seriesGroup("position.sources.dvl.innovation.0")).toBe("Position");
+    expect(seriesUnit("position.north")).toBe("m");
+    expect(seriesUnit("position.velocity_east")).toBe("m/s");
+    expect(seriesUnit("autopilot.position.mission.cross_track")).toBe("m");
   });
 });
 

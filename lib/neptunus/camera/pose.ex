@@ -41,6 +41,24 @@ defmodule Neptunus.Camera.Pose do
   def topic(id), do: "sim_pose:" <> id
 
   @doc """
+  Follows vehicle `id`'s pose from the calling process (a simulated device): subscribes to
+  `topic/1` and monitors PubSub, whose restart then arrives as `{:DOWN, ref, …}` — follow
+  again after it. Returns the monitor's reference, or nil while PubSub is not up (try again
+  later).
+  """
+  @spec follow(String.t()) :: reference() | nil
+  def follow(id) do
+    case PubSub.monitor() do
+      {:ok, ref} ->
+        :ok = PubSub.subscribe(topic(id))
+        ref
+
+      {:error, _} ->
+        nil
+    end
+  end
+
+  @doc """
   Publishes the pose of `dyn` (a `Neptunus.Dynamics.State` or its map) with the devices
   `lights`, `laser` (0..255) and `tilt` (rad).
   """

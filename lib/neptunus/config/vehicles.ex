@@ -45,6 +45,9 @@ defmodule Neptunus.Config.Vehicles do
   run mode simulator on a real board) and the model of its navigation filter. Example:
   `NEPTUNUS_MODELS=a=thesis-4dof`.
 
+  Position sources: `NEPTUNUS_POSITION` (`Neptunus.Config.Position`): every vehicle gets a
+  `position` list (by default the simulated DVL and USBL on a simulated or sitl vehicle).
+
   Camera (see `Neptunus.Camera.Source`): `v4l2:DEVICE[@h264|@mjpeg][@WxH][@FPS]` (a webcam
   through ffmpeg, its own H.264 or MJPEG passed on), `rtsp://…` (an IP camera's H.264),
   `sim[@h264|@mjpeg][@WxH][@FPS][@bottom=M]` (the simulator's view), `testsrc[…]` (ffmpeg's
@@ -149,6 +152,7 @@ defmodule Neptunus.Config.Vehicles do
         |> mavlink_ids!(Map.get(env, "NEPTUNUS_MAVLINK_IDS", ""))
         |> mavlink_disarm_delay!(Map.get(env, "NEPTUNUS_MAVLINK_DISARM_DELAY", ""))
         |> sitl_bootloader!(Map.get(env, "NEPTUNUS_SITL_BOOTLOADER", ""))
+        |> Neptunus.Config.Position.position!(env)
 
       [dup | _] ->
         Config.bad!("NEPTUNUS_VEHICLES", spec, "unique vehicle ids (#{inspect(dup)} repeats)")

@@ -13,6 +13,7 @@ defmodule Neptunus.Control.Command do
   | `set_tilt` | `{value}` rad in [−π/4, π/4] | `{:set_tilt, rad}` |
   | `autopilot` | `{depth?, heading?}`: a number (depth in [0, #{200}] m; heading in [−2π, 2π] rad, wrapped to [0, 2π)), `"hold"` or `null` | `{:autopilot, %{depth: v, heading: v}}`, absent keys `:unchanged` |
   | `set_run_mode` | `{mode: "normal" \\| "simulator"}` | `{:set_run_mode, mode}` |
+  | `mission` | `{action: "start" \\| "plan", waypoints: [...]}` or `{action, survey: {...}}` (`Neptunus.Control.Mission.parse/1`); `{action: "pause" \\| "resume" \\| "abort"}` | `{:mission, {:start \\| :plan, waypoints}}`, `{:mission, :pause \\| :resume \\| :abort}` |
 
   The thrust payload's `epoch` stamp is the helm's business and is removed before it gets
   here (`Neptunus.Vehicle.Helm.thrust/3`).
@@ -34,7 +35,8 @@ defmodule Neptunus.Control.Command do
   @tilt_max :math.pi() / 4
   @two_pi 2 * :math.pi()
 
-  @events ~w(set_control_mode thrust set_gain set_lights set_laser set_tilt autopilot set_run_mode)
+  @events ~w(set_control_mode thrust set_gain set_lights set_laser set_tilt autopilot set_run_mode
+             mission)
   @control_modes %{"motion" => :motion, "manual" => :manual, "dp" => :dp}
   @run_modes %{"normal" => :normal, "simulator" => :simulator}
 
@@ -57,6 +59,8 @@ defmodule Neptunus.Control.Command do
           | {:set_tilt, float()}
           | {:autopilot, %{depth: setpoint(), heading: setpoint()}}
           | {:set_run_mode, run_mode()}
+          | {:mission, {:start | :plan, [Neptunus.Control.Mission.waypoint()]}}
+          | {:mission, :pause | :resume | :abort}
 
   @doc "The events validated here."
   @spec events() :: [String.t()]
@@ -74,6 +78,24 @@ defmodule Neptunus.Control.Command do
   def validate("set_control_mode", payload) do
     with {:ok, mode} <- mode(payload, @control_modes), do: {:ok, {:set_control_mode, mode}}
   end
+
+  def validate("mission", %{"action" => action} = payload) when action in ["start", "plan"] do
+    with {:ok, waypoints} <- Neptunus.Control.Mission.parse(Map.delete(payload, "action")),
+         do: {:ok, {:mission, {mission_action(action), waypoints}}}
+  end
+
+  def validate("mission", %{"action" => action} = payload)
+      when action in ["pause", "resume", "abort"] do
+    with :ok <- V.object(payload, "", ["action"]),
+         do: {:ok, {:mission, mission_action(action)}}
+  end
+
+  def validate("mission", %{"action" => action}),
+    do:
+      {:error,
+       "action must be \"start\", \"plan\", \"pause\", \"resume\" or \"abort\", got #{V.show(action)}"}
+
+  def validate("mission", _payload), do: {:error, "missing field: action"}
 
   def validate("set_run_mode", payload) do
     with {:ok, mode} <- mode(payload, @run_modes), do: {:ok, {:set_run_mode, mode}}
@@ -190,4 +212,10 @@ defmodule Neptunus.Control.Command do
       {:error,
        "#{path} must be a heading in [-6.2832, 6.2832] rad, \"hold\" or null, " <>
          "got #{V.show(value)}"}
+
+  defp mission_action("start"), do: :start
+  defp mission_action("plan"), do: :plan
+  defp mission_action("pause"), do: :pause
+  defp mission_action("resume"), do: :resume
+  defp mission_action("abort"), do: :abort
 end

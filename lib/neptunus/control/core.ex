@@ -106,6 +106,8 @@ defmodule Neptunus.Control.Core do
     stale_after: 1.0,
     deadband: 0.05,
     dp_opts: [],
+    actuation: :surge,
+    mission_opts: [],
     waiting: %{depth: nil, heading: nil},
     axes: [:surge, :heave, :yaw],
     allocation: :thesis,
@@ -120,6 +122,7 @@ defmodule Neptunus.Control.Core do
           | {:tilt, float()}
           | {:run_mode, Command.run_mode(), %{depth: float(), heading: float()} | nil}
           | {:notice, String.t()}
+          | {:mission, map() | nil}
 
   @typedoc """
   What a `{:go, output}` action commands: the three thrusters (allocation `:thesis`, and
@@ -161,6 +164,8 @@ defmodule Neptunus.Control.Core do
           stale_after: float(),
           deadband: float(),
           dp_opts: keyword(),
+          actuation: :full | :surge,
+          mission_opts: keyword(),
           waiting: %{depth: String.t() | nil, heading: String.t() | nil},
           axes: [Demand.axis()],
           allocation: :thesis | :vehicle,
@@ -196,6 +201,8 @@ defmodule Neptunus.Control.Core do
       stale_after: Keyword.get(opts, :stale_after, 1.0) * 1.0,
       deadband: Keyword.get(opts, :deadband, 0.05) * 1.0,
       dp_opts: Keyword.get(opts, :dp, []),
+      actuation: Keyword.get(opts, :actuation, :surge),
+      mission_opts: Keyword.get(opts, :mission, []),
       axes: Keyword.get(opts, :axes, [:surge, :heave, :yaw]),
       allocation: Keyword.get(opts, :allocation, :thesis)
     }
@@ -234,6 +241,7 @@ defmodule Neptunus.Control.Core do
   end
 
   def command(core, {:set_control_mode, mode}, _now) do
+    ended = if mission(core), do: [{:mission, nil}], else: []
     {core, actions} = pilot_stop(core, "control_mode_changed")
     core = leave_dp(%{core | mode: mode, pilot: zero(mode)})
 
@@ -246,7 +254,7 @@ defmodule Neptunus.Control.Core do
         },
         else: core
 
-    {:ok, core, actions}
+    {:ok, core, actions ++ ended}
   end
 
   def command(%__MODULE__{mode: mode}, {:thrust, thrust_mode, _values}, _now)
@@ -292,6 +300,52 @@ defmodule Neptunus.Control.Core do
   def command(%__MODULE__{mode: :dp}, {:autopilot, %{depth: d, heading: h}}, _now)
       when is_nil(d) or is_nil(h),
       do: {:error, "dp holds depth and heading: switch to motion to release them"}
+
+  def command(%__MODULE__{mode: :dp, dp: %DP{} = dp}, {:autopilot, _}, _now)
+      when dp.mission != nil and dp.mission.state == :running,
+      do: {:error, "a mission is running: it sets depth and heading (pause or abort it first)"}
+
+  def command(%__MODULE__{mode: mode}, {:mission, _}, _now) when mode != :dp,
+    do: {:error, "missions run in control mode dp: switch to dp first"}
+
+  def command(core, {:mission, {:plan, _waypoints}}, _now), do: {:ok, core, []}
+
+  def command(core, {:mission, {:start, waypoints}}, now) do
+    estimate = fresh_estimate(core, now)
+    position = estimate && estimate[:position]
+
+    with {:ok, p} <- mission_position(position),
+         {:ok, waypoints} <- Neptunus.Control.Mission.reachable(waypoints, p, core.mission_opts),
+         {:ok, dp} <- DP.start_mission(core.dp, waypoints, position) do
+      core = %{core | dp: dp}
+      n = length(waypoints)
+
+      {:ok, core,
+       [
+         {:mission, mission(core)},
+         {:notice,
+          "mission #{dp.missions}: started, #{n} waypoint#{if n == 1, do: "", else: "s"}"}
+       ]}
+      |> remix()
+    end
+  end
+
+  def command(core, {:mission, action}, now) when action in [:pause, :resume, :abort] do
+    position = (fresh_estimate(core, now) || %{})[:position]
+
+    result =
+      case action do
+        :pause -> DP.pause_mission(core.dp, position)
+        :resume -> DP.resume_mission(core.dp, position)
+        :abort -> DP.abort_mission(core.dp, position)
+      end
+
+    with {:ok, dp} <- result do
+      core = %{core | dp: dp}
+      done = if action == :abort, do: [{:mission, nil}], else: [{:mission, mission(core)}]
+      {:ok, core, done ++ [{:notice, "mission: #{action}d by the pilot"}]} |> remix()
+    end
+  end
 
   def command(core, {:autopilot, %{depth: depth, heading: heading}}, now) do
     engaging? = Enum.any?([depth, heading], &(&1 not in [nil, :unchanged]))
@@ -375,9 +429,20 @@ defmodule Neptunus.Control.Core do
   @doc "A stop for `reason` (see the moduledoc: handovers keep the autopilots)."
   @spec stop(t(), String.t()) :: {t(), [action()]}
   def stop(core, reason) when reason in @handover_reasons do
-    core = release_pilot(%{core | pilot: zero(core.mode)})
+    # a mission stops with the pilot who started it: DP holds position where it is
+    {dp, ended} =
+      case core.dp do
+        %DP{mission: %{}} = dp ->
+          {:ok, dp} = DP.abort_mission(dp, (core.estimate || %{})[:position])
+          {dp, [{:mission, nil}]}
+
+        dp ->
+          {dp, []}
+      end
+
+    core = release_pilot(%{core | pilot: zero(core.mode), dp: dp})
     core = %{core | thrusters: mix(core), demand: body_demand(core)}
-    {core, [{:go, output(core)}, {:stopped, reason}]}
+    {core, [{:go, output(core)}, {:stopped, reason}] ++ ended}
   end
 
   def stop(core, reason), do: safety_stop(core, reason)
@@ -408,15 +473,15 @@ defmodule Neptunus.Control.Core do
     if active?(core) do
       estimate = fresh_estimate(core, now)
 
-      core =
+      {core, dp_actions} =
         case estimate do
-          nil -> idle(core)
+          nil -> {idle(core), []}
           estimate -> run(core, estimate, dt)
         end
 
       {core, notices} = waiting(core, estimate)
       {core, actions} = emit(core)
-      {core, notices ++ actions}
+      {core, dp_actions ++ notices ++ actions}
     else
       {core, []}
     end
@@ -456,25 +521,49 @@ defmodule Neptunus.Control.Core do
   defp run(core, estimate, dt) do
     heading_ok? = unavailable(estimate, :heading) == nil
 
-    core =
-      case {core.dp, estimate[:position]} do
-        {nil, _} ->
-          core
+    {core, events} =
+      case core.dp do
+        nil ->
+          {core, []}
 
-        {dp, %{x: _, y: _} = position} when heading_ok? ->
-          dp = DP.step(dp, position, estimate.heading, dt)
-          heading = Autopilot.retarget(core.heading, DP.heading_setpoint(dp, position))
-          %{core | dp: dp, heading: heading}
+        dp when heading_ok? ->
+          {dp, events} = DP.step(dp, estimate[:position], estimate.heading, dt)
+          {apply_dp(%{core | dp: dp}), events}
 
-        {dp, _} ->
-          %{core | dp: %{dp | output: 0.0}}
+        dp ->
+          {%{core | dp: DP.idle(dp)}, []}
       end
 
-    %{
+    core = %{
       core
       | depth: run_axis(core.depth, estimate, :depth, :depth_rate, dt),
         heading: run_axis(core.heading, estimate, :heading, :yaw_rate, dt)
     }
+
+    {core, dp_actions(core, events)}
+  end
+
+  # DP's setpoints to the autopilots (without a jump: the reference model moves them)
+  defp apply_dp(%__MODULE__{dp: dp} = core) do
+    heading =
+      if dp.heading_setpoint,
+        do: Autopilot.retarget(core.heading, dp.heading_setpoint),
+        else: core.heading
+
+    depth =
+      if dp.depth_setpoint,
+        do: Autopilot.retarget(core.depth, dp.depth_setpoint),
+        else: core.depth
+
+    %{core | heading: heading, depth: depth}
+  end
+
+  defp dp_actions(core, events) do
+    Enum.flat_map(events, fn
+      {:notice, text} -> [{:notice, text}]
+      :mission -> [{:mission, mission(core)}]
+    end)
+    |> Enum.uniq()
   end
 
   # an axis whose measurement is not valid (initialising after a board reset, stale) idles
@@ -490,7 +579,7 @@ defmodule Neptunus.Control.Core do
       core
       | depth: Autopilot.idle(core.depth),
         heading: Autopilot.idle(core.heading),
-        dp: core.dp && %{core.dp | output: 0.0}
+        dp: core.dp && DP.idle(core.dp)
     }
   end
 
@@ -562,12 +651,35 @@ defmodule Neptunus.Control.Core do
         depth: Autopilot.setpoint(core.depth),
         heading: if(core.dp, do: core.dp.heading, else: Autopilot.setpoint(core.heading)),
         position: dp_target(core.dp)
-      }
+      },
+      mission: mission_state(core.dp)
     }
   end
 
   defp dp_target(nil), do: nil
-  defp dp_target(%DP{target: {x, y}}), do: %{x: x, y: y}
+
+  defp dp_target(%DP{} = dp) do
+    case DP.target(dp) do
+      {x, y} -> %{x: x, y: y}
+      nil -> nil
+    end
+  end
+
+  defp mission_state(%DP{mission: %Neptunus.Control.Mission{} = m}),
+    do: %{id: m.id, state: Atom.to_string(m.state), leg: m.leg + 1, count: length(m.waypoints)}
+
+  defp mission_state(_dp), do: nil
+
+  @doc "The mission as the `mission` event shows it (with its waypoints), or nil."
+  @spec mission(t()) :: map() | nil
+  def mission(%__MODULE__{dp: %DP{mission: %Neptunus.Control.Mission{} = m}}),
+    do: Neptunus.Control.Mission.public(m)
+
+  def mission(_core), do: nil
+
+  @doc "The body-frame demand in force (surge, sway, heave, yaw; zero in manual mode)."
+  @spec demand(t()) :: Neptunus.Control.Demand.t()
+  def demand(%__MODULE__{demand: demand}), do: demand
 
   @doc """
   Telemetry's `autopilot`: `%{depth, heading, position}`, each nil when disengaged, else
@@ -603,6 +715,8 @@ defmodule Neptunus.Control.Core do
   end
 
   defp safety_stop(core, reason) do
+    ended = if mission(core), do: [{:mission, nil}], else: []
+
     core = %{
       leave_dp(core)
       | mode: if(core.mode == :dp, do: :motion, else: core.mode),
@@ -614,7 +728,7 @@ defmodule Neptunus.Control.Core do
         demand: Demand.zero()
     }
 
-    {core, [{:go, output(core)}, {:stopped, reason}]}
+    {core, [{:go, output(core)}, {:stopped, reason}] ++ ended}
   end
 
   # the pilot let go of every axis: overridden autopilots re-capture
@@ -644,38 +758,47 @@ defmodule Neptunus.Control.Core do
         do: core.heading,
         else: Autopilot.engage(core.heading, :hold, estimate.heading, estimate[:yaw_rate], false)
 
-    # without a position source DP holds depth and heading only (thesis ch. 14)
+    # without a valid position DP holds depth and heading only (thesis ch. 14)
     dp =
-      case estimate[:position] do
-        %{x: _, y: _} = position ->
-          DP.new(position, Autopilot.setpoint(heading), [gains: core.gains.surge] ++ core.dp_opts)
-
-        _ ->
-          nil
-      end
+      DP.new(
+        estimate[:position],
+        Autopilot.setpoint(heading),
+        [actuation: core.actuation] ++ core.dp_opts
+      )
 
     %{core | mode: :dp, pilot: zero(:dp), depth: depth, heading: heading, dp: dp}
   end
 
-  defp dp_notice(%__MODULE__{mode: :dp, dp: nil}),
-    do: [{:notice, "dp: no position source: holding depth and heading only"}]
+  defp dp_notice(%__MODULE__{mode: :dp, dp: %DP{waiting: why}}) when is_binary(why),
+    do: [{:notice, "dp: no valid position (#{why}): holding depth and heading only"}]
 
   defp dp_notice(_core), do: []
+
+  defp mission_position(%{valid: true, north: n, east: e}) when is_number(n), do: {:ok, {n, e}}
+
+  defp mission_position(%{reason: reason}) when is_binary(reason),
+    do: {:error, "a mission needs a valid position: #{reason}"}
+
+  defp mission_position(_), do: {:error, "a mission needs a valid position: no position source"}
 
   @doc """
   What DP holds: nil outside control mode dp, else `["depth", "heading", "position"]`, or
   `["depth", "heading"]` on a vehicle without a position source.
   """
   @spec dp_holds(t()) :: [String.t()] | nil
-  def dp_holds(%__MODULE__{mode: :dp, dp: nil}), do: ["depth", "heading"]
-  def dp_holds(%__MODULE__{mode: :dp}), do: ["depth", "heading", "position"]
+  def dp_holds(%__MODULE__{mode: :dp, dp: %DP{} = dp}), do: DP.holds(dp)
+  def dp_holds(%__MODULE__{mode: :dp}), do: ["depth", "heading"]
   def dp_holds(_core), do: nil
 
   # leaving DP: the heading autopilot goes back to DP's held heading
   defp leave_dp(%__MODULE__{dp: nil} = core), do: core
 
   defp leave_dp(%__MODULE__{dp: dp} = core),
-    do: %{core | dp: nil, heading: Autopilot.retarget(core.heading, dp.heading)}
+    do: %{
+      core
+      | dp: nil,
+        heading: Autopilot.retarget(core.heading, dp.heading_setpoint || dp.heading)
+    }
 
   defp set_axis(core, _axis, :unchanged, _estimate), do: core
 
@@ -693,8 +816,7 @@ defmodule Neptunus.Control.Core do
 
   defp set_engaged(%__MODULE__{dp: %DP{} = dp} = core, :heading, value, estimate) do
     dp = DP.set_heading(dp, if(value == :hold, do: estimate.heading, else: value))
-    heading = DP.heading_setpoint(dp, estimate[:position])
-    ap = Autopilot.engage(core.heading, heading, estimate.heading, estimate[:yaw_rate], false)
+    ap = Autopilot.engage(core.heading, dp.heading, estimate.heading, estimate[:yaw_rate], false)
     %{core | dp: dp, heading: ap}
   end
 
@@ -749,10 +871,6 @@ defmodule Neptunus.Control.Core do
   defp allocation(%__MODULE__{run_mode: :simulator}), do: :thesis
   defp allocation(%__MODULE__{allocation: allocation}), do: allocation
 
-  @doc "The body-frame demand in force (surge, sway, heave, yaw; zero in manual mode)."
-  @spec demand(t()) :: Demand.t()
-  def demand(%__MODULE__{demand: demand}), do: demand
-
   @doc false
   # The thruster output of the current mode, pilot command and autopilot outputs.
   @spec mix(t()) :: Allocation.thrusters()
@@ -794,7 +912,7 @@ defmodule Neptunus.Control.Core do
   defp assisted_demand(%__MODULE__{mode: mode, gain: k, pilot: p} = core) do
     {surge, sway, pilot_k} =
       case {mode, core.dp} do
-        {:dp, %DP{output: output}} -> {compensate(output, core), 0.0, 0.0}
+        {:dp, %DP{demand: d}} -> {compensate(d.surge, core), compensate(d.sway, core), 0.0}
         {:dp, nil} -> {0.0, 0.0, 0.0}
         _ -> {k * p.surge, k * sway(p), k}
       end

@@ -31,6 +31,7 @@ defmodule Neptunus.Dynamics.Params do
         "restoring": {"gravity": 9.81, "net_buoyancy": 0.0234, "r_b": [0, 0, -0.02]},
         "thrusters": [{"name": "port", "position": [x, y, z], "direction": [dx, dy, dz],
                        "forward": 6, "reverse": 4, "deadband": 0.05, "time_constant": 0.2}, …],
+                                             // names: port, vertical, starboard, lateral
         "tether": {"length": 10, "diameter": 0.003, "drag_coefficient": 1.2,
                    "attachment": [x, y, z]},
         "sensors": {"rate": 20, "wild_rate": 0.002, "mixup_rate": 0.0005,
@@ -128,7 +129,7 @@ defmodule Neptunus.Dynamics.Params do
         }
 
   @channels ~w(depth heading roll pitch voltage current)
-  @thruster_names ~w(port vertical starboard)
+  @thruster_names ~w(port vertical starboard lateral)
   @top ~w(name dof coriolis water_density rigid_body added_mass damping restoring thrusters
           tether sensors power)
 
@@ -551,7 +552,8 @@ defmodule Neptunus.Dynamics.Params do
   defp thruster_name(name, _path) when name in @thruster_names, do: {:ok, String.to_atom(name)}
 
   defp thruster_name(value, path),
-    do: {:error, "#{path} must be one of port, vertical, starboard, got #{V.show(value)}"}
+    do:
+      {:error, "#{path} must be one of port, vertical, starboard, lateral, got #{V.show(value)}"}
 
   defp unit([x, y, z], path) do
     norm = :math.sqrt(x * x + y * y + z * z)

@@ -19,6 +19,15 @@ defmodule Neptunus.Scenario.Run do
                                                               the way (m, rad; the
                                                               setpoint reference model)
       port, vertical, starboard                               thruster commands in [-1, 1]
+      lateral                                                 the lateral thruster's command
+                                                              (a vehicle with one; else empty)
+      north_est, east_est, velocity_north_est,                navigation's position estimate
+      velocity_east_est, position_std, position_valid         (m, m/s; the larger 1-σ
+                                                              semi-axis; 1 valid, 0 not)
+      target_north, target_east                               DP's position target (m)
+      cross_track, leg                                        a mission's cross-track error
+                                                              (m) and the waypoint steered
+                                                              to (1-based)
 
   The estimate is `Neptunus.Estimator` — the same filter as a live vehicle's
   `Neptunus.Vehicle.Navigation` — run on every step's measurements (wild points and all) and
@@ -29,14 +38,23 @@ defmodule Neptunus.Scenario.Run do
   that — wild points, re-acquisition — is the live filter's. An estimate that does not exist
   (no plausible reading) is an empty field.
 
-  The control is `Neptunus.Control.Core` — the live vehicle's — fed with that estimate (and
-  the simulator's truth as the position source for DP): scenario events are its commands,
-  and its control loop ticks every #{0.02} s of simulated time (the tick due at a step runs
-  after that step's events, before its row).
+  The position is the scenario's `position`: by default the simulator's true position and
+  velocity (a perfect source, valid from the start); with simulated sources
+  (`"position": {"dvl": …, "usbl": …}`) navigation's position estimate from them
+  (`Neptunus.Scenario.Sources`: the simulated DVL and USBL, read as the live drivers read
+  them, fused by `Neptunus.Navigation.Position` with the heading estimate above).
+
+  The control is `Neptunus.Control.Core` — the live vehicle's — fed with that estimate:
+  scenario events are its commands, and its control loop ticks every #{0.02} s of simulated
+  time (the tick due at a step runs after that step's events, before its row). A vehicle
+  with a lateral thruster (`neptunus-sway`) is fully actuated (`actuation: :full`): its
+  lateral thruster gets the demand's sway; the others get the three-thruster allocation.
   """
 
   alias Neptunus.{Estimator, Scenario, Sim}
-  alias Neptunus.Control.Core
+  alias Neptunus.Control.{Core, DP}
+  alias Neptunus.Navigation.Kalman
+  alias Neptunus.Scenario.Sources
 
   @control_period 0.02
   # the scenario's vehicle has been running before it starts: its sensors are up, there is no
@@ -49,6 +67,8 @@ defmodule Neptunus.Scenario.Run do
   @setpoint_columns ~w(depth heading)a
   @reference_columns ~w(depth heading)a
   @thruster_columns ~w(port vertical starboard)a
+  @position_columns ~w(north_est east_est velocity_north_est velocity_east_est position_std
+                       position_valid target_north target_east cross_track leg)
 
   @doc "The CSV columns, in order."
   @spec columns() :: [String.t()]
@@ -59,7 +79,7 @@ defmodule Neptunus.Scenario.Run do
       Enum.map(@est_columns, &"#{&1}_est") ++
       Enum.map(@setpoint_columns, &"#{&1}_setpoint") ++
       Enum.map(@reference_columns, &"#{&1}_reference") ++
-      Enum.map(@thruster_columns, &Atom.to_string/1)
+      Enum.map(@thruster_columns, &Atom.to_string/1) ++ ["lateral"] ++ @position_columns
   end
 
   @doc """
@@ -79,8 +99,23 @@ defmodule Neptunus.Scenario.Run do
       |> Estimator.new()
       |> observe(sim)
 
-    core = control |> Keyword.put(:gain, scenario.gain) |> Core.new()
-    control = %{core: core, next_tick: 0} |> estimate(est, sim)
+    lateral? = Enum.any?(sim.params.thrusters, &(&1.name == :lateral))
+
+    core =
+      control
+      |> Keyword.put(:gain, scenario.gain)
+      |> Keyword.put(:actuation, if(lateral?, do: :full, else: :surge))
+      |> Keyword.put(:dp, scenario.dp)
+      |> Core.new()
+
+    sources =
+      case scenario.position do
+        :truth -> nil
+        position -> Sources.new(position, scenario.seed)
+      end
+
+    control =
+      %{core: core, next_tick: 0, sources: sources, lateral?: lateral?} |> estimate(est, sim)
 
     Stream.unfold({0, sim, scenario.events, control, est}, fn
       {k, _sim, _events, _control, _est} when k > last ->
@@ -106,17 +141,54 @@ defmodule Neptunus.Scenario.Run do
     Estimator.update(est, t, m)
   end
 
-  # control gets navigation's estimate when it has depth and heading, with the truth's position
-  defp estimate(control, est, %Sim{dyn: dyn} = sim) do
+  # control gets navigation's estimate when it has depth and heading, with the position
+  defp estimate(control, est, %Sim{} = sim) do
+    t = Sim.time(sim)
+
     case Estimator.estimate(est) do
       %{depth: d, heading: h} = e when is_number(d) and is_number(h) ->
         states = Map.take(Estimator.states(est), [:depth, :heading])
-        e = Map.merge(e, %{position: %{x: dyn.x, y: dyn.y}, measurement_state: states})
-        %{control | core: Core.estimate(control.core, e, Sim.time(sim))}
+        e = Map.merge(e, %{position: position(control, sim, t), measurement_state: states})
+        %{control | core: Core.estimate(control.core, e, t)}
 
       _ ->
         control
     end
+  end
+
+  # the truth as a perfect source, or navigation's estimate from the simulated sources
+  defp position(%{sources: nil}, %Sim{dyn: dyn}, _t) do
+    {c, s} = {:math.cos(dyn.psi), :math.sin(dyn.psi)}
+
+    %{
+      valid: true,
+      reason: nil,
+      north: dyn.x,
+      east: dyn.y,
+      velocity_north: c * dyn.u - s * dyn.v,
+      velocity_east: s * dyn.u + c * dyn.v,
+      frame: :truth,
+      epoch: 1,
+      shift: nil
+    }
+  end
+
+  defp position(%{sources: sources}, _sim, t), do: Sources.estimate(sources, t)
+
+  # the simulated sources measure the true state; navigation's heading and depth go with them
+  defp sense(%{sources: nil} = control, _est, _sim), do: control
+
+  defp sense(%{sources: sources} = control, est, %Sim{dyn: dyn} = sim) do
+    e = Estimator.estimate(est)
+
+    heading =
+      case {e.heading, Kalman.std(est.filters.heading)} do
+        {psi, {std, _}} when is_number(psi) -> {psi, std}
+        _ -> nil
+      end
+
+    truth = Map.from_struct(dyn)
+    %{control | sources: Sources.step(sources, Sim.time(sim), truth, heading, e.depth)}
   end
 
   # from step j to step `target`, applying the events due at each step on the way (those
@@ -128,7 +200,7 @@ defmodule Neptunus.Scenario.Run do
     est = Estimator.command(est, sim.thrusters)
     sim = Sim.step(sim)
     est = observe(est, sim)
-    control = estimate(control, est, sim)
+    control = control |> sense(est, sim) |> estimate(est, sim)
 
     {sim, events, control} =
       if j + 1 < target,
@@ -164,7 +236,38 @@ defmodule Neptunus.Scenario.Run do
       Enum.map(@est_columns, &Map.fetch!(e, &1)) ++
       Enum.map(@setpoint_columns, &Map.fetch!(setpoints, &1)) ++
       Enum.map(@reference_columns, &reference(autopilots, &1)) ++
-      Enum.map(@thruster_columns, &(Map.get(thr, &1, 0.0) * 1.0))
+      Enum.map(@thruster_columns, &(Map.get(thr, &1, 0.0) * 1.0)) ++
+      [if(control.lateral?, do: Map.get(thr, :lateral, 0.0) * 1.0)] ++
+      position_row(control, k * sim.dt, sim)
+  end
+
+  defp position_row(control, t, sim) do
+    p = position(control, sim, t)
+    std = if p[:std_north], do: max(p.std_north, p.std_east)
+
+    {tn, te, cross, leg} =
+      case control.core.dp do
+        %DP{} = dp ->
+          {tn, te} = DP.target(dp) || {nil, nil}
+          mission = DP.public(dp).mission
+          {tn, te, mission && mission.cross_track, mission && mission.leg}
+
+        nil ->
+          {nil, nil, nil, nil}
+      end
+
+    [
+      p.north,
+      p.east,
+      p.velocity_north,
+      p.velocity_east,
+      if(p.frame == :truth, do: 0.0, else: std),
+      if(p.valid, do: 1, else: 0),
+      tn,
+      te,
+      cross,
+      leg
+    ]
   end
 
   defp reference(autopilots, axis) do
@@ -198,13 +301,16 @@ defmodule Neptunus.Scenario.Run do
         event.gain && {:set_gain, event.gain},
         event.thrust && {:set_control_mode, elem(event.thrust, 0)},
         event.thrust && {:thrust, elem(event.thrust, 0), elem(event.thrust, 1)},
-        event.autopilot && {:autopilot, event.autopilot}
+        event.autopilot && {:autopilot, event.autopilot},
+        event[:mission] && {:mission, {:start, event.mission}},
+        event[:mission_control] && {:mission, event.mission_control}
       ]
       |> Enum.reject(&(&1 in [nil, false]))
       |> Enum.reduce({sim, control}, fn command, {sim, control} ->
         case Core.command(control.core, command, t) do
           {:ok, core, actions} ->
-            {carry_out(sim, actions), %{control | core: core}}
+            control = %{control | core: core}
+            {carry_out(sim, actions, control), control}
 
           {:error, reason} ->
             raise ArgumentError, "scenario event at t = #{event.t} s: #{reason}"
@@ -223,16 +329,24 @@ defmodule Neptunus.Scenario.Run do
 
     if due >= 1 do
       {core, actions} = Core.tick(control.core, due * @control_period, Sim.time(sim))
-      {carry_out(sim, actions), %{control | core: core, next_tick: n + due}}
+      control = %{control | core: core, next_tick: n + due}
+      {carry_out(sim, actions, control), control}
     else
       {sim, control}
     end
   end
 
-  defp carry_out(sim, actions) do
+  # a vehicle with a lateral thruster gets the demand's sway on it
+  defp carry_out(sim, actions, control) do
     Enum.reduce(actions, sim, fn
-      {:go, thrusters}, sim -> Sim.command(sim, thrusters)
-      _other, sim -> sim
+      {:go, thrusters}, sim when control.lateral? ->
+        Sim.command(sim, Map.put(thrusters, :lateral, Core.demand(control.core).sway))
+
+      {:go, thrusters}, sim ->
+        Sim.command(sim, thrusters)
+
+      _other, sim ->
+        sim
     end)
   end
 

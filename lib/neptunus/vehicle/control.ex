@@ -68,10 +68,11 @@ defmodule Neptunus.Vehicle.Control do
             core: Neptunus.Control.Core.t(),
             periodic: Neptunus.Periodic.t(),
             simulator: pid() | nil,
-            simulator_opts: keyword()
+            simulator_opts: keyword(),
+            lateral?: boolean()
           }
     @enforce_keys [:id, :topic, :core, :periodic]
-    defstruct [:id, :topic, :core, :periodic, :simulator, simulator_opts: []]
+    defstruct [:id, :topic, :core, :periodic, :simulator, simulator_opts: [], lateral?: false]
   end
 
   @doc """
@@ -211,6 +212,10 @@ defmodule Neptunus.Vehicle.Control do
     end
   end
 
+  @doc "The mission in dp with its waypoints (`Neptunus.Control.Core.mission/1`), or nil."
+  @spec mission(String.t()) :: map() | nil
+  def mission(id), do: GenServer.call(via(id), :mission)
+
   @doc "The run-mode simulator's pid, or nil (for tests and diagnostics)."
   @spec simulator(String.t()) :: pid() | nil
   def simulator(id), do: GenServer.call(via(id), :simulator)
@@ -240,9 +245,15 @@ defmodule Neptunus.Vehicle.Control do
     capabilities = Board.capabilities(id) || %{Board.thesis_capabilities() | real: false}
     run_modes = if capabilities.real, do: [:normal, :simulator], else: [:normal]
 
+    lateral? = lateral?(Board.type(id), opts)
+
     core =
       control
-      |> Keyword.take([:gains, :stale_after, :deadband, :dp, :reference])
+      |> Keyword.take([:gains, :stale_after, :deadband, :dp, :reference, :mission])
+      |> Keyword.put(
+        :actuation,
+        if(lateral? or :sway in capabilities.axes, do: :full, else: :surge)
+      )
       |> Keyword.update(:gains, stored_gains(id), &Tuning.merge(Map.new(&1), stored_gains(id)))
       |> Keyword.merge(gain: Keyword.get(opts, :gain, @default_gain), run_modes: run_modes)
       |> Keyword.merge(axes: capabilities.axes, allocation: capabilities.allocation)
@@ -252,6 +263,7 @@ defmodule Neptunus.Vehicle.Control do
       id: id,
       topic: Telemetry.topic(id),
       core: core,
+      lateral?: lateral?,
       periodic: Periodic.new(hz),
       simulator_opts: simulator_opts(opts, control)
     }
@@ -273,7 +285,7 @@ defmodule Neptunus.Vehicle.Control do
          :ok <- Board.vet(state.id, command),
          {:ok, core, actions} <- Core.command(state.core, command, now_s()) do
       state = state |> Map.put(:core, core) |> perform(actions) |> publish()
-      {:reply, {:ok, reply(event, state)}, state}
+      {:reply, {:ok, planned(reply(event, state), command)}, state}
     else
       {:error, reason} -> {:reply, {:error, reason}, state}
     end
@@ -304,6 +316,7 @@ defmodule Neptunus.Vehicle.Control do
   end
 
   def handle_call(:status, _from, state), do: {:reply, Core.status(state.core), state}
+  def handle_call(:mission, _from, state), do: {:reply, Core.mission(state.core), state}
   def handle_call(:simulator, _from, state), do: {:reply, state.simulator, state}
 
   @impl true
@@ -347,9 +360,10 @@ defmodule Neptunus.Vehicle.Control do
     Logger.info("vehicle #{state.id}: #{text}")
   end
 
-  # thruster values or the demand, as the board's allocation says (Control.Core.output/1)
+  # thruster values or the demand, as the board's allocation says (Control.Core.output/1);
+  # a simulated vehicle with a lateral thruster also gets the demand's sway
   defp act({:go, output}, %State{simulator: nil} = state) do
-    Board.go(state.id, output)
+    Board.go(state.id, with_lateral(output, state))
     state
   end
 
@@ -372,6 +386,11 @@ defmodule Neptunus.Vehicle.Control do
     })
 
     Logger.info("vehicle #{state.id} stopped: #{Neptunus.Log.safe(reason)}")
+    state
+  end
+
+  defp act({:mission, mission}, state) do
+    PubSub.broadcast(state.topic, "mission", %{mission: mission})
     state
   end
 
@@ -469,7 +488,32 @@ defmodule Neptunus.Vehicle.Control do
     }
   end
 
+  defp reply("mission", %State{core: core}),
+    do: %{control: Core.status(core), mission: Core.mission(core)}
+
   defp reply(_event, %State{core: core}), do: %{control: Core.status(core)}
+
+  # a mission's `plan` answers the waypoints it would fly
+  defp planned(reply, {:mission, {:plan, waypoints}}), do: Map.put(reply, :waypoints, waypoints)
+  defp planned(reply, _command), do: reply
+
+  # a simulated vehicle whose model has a lateral thruster (neptunus-sway) is fully actuated:
+  # its lateral thruster gets the demand's sway (the others the three-thruster allocation)
+  defp lateral?(:simulated, opts) do
+    model = opts |> Keyword.get(:sim, []) |> Keyword.get(:vehicle, "neptunus")
+
+    case Neptunus.Dynamics.Params.load_cached(to_string(model)) do
+      {:ok, params} -> Enum.any?(params.thrusters, &(&1.name == :lateral))
+      {:error, _} -> false
+    end
+  end
+
+  defp lateral?(_board, _opts), do: false
+
+  defp with_lateral(thrusters, %State{lateral?: true, core: core}),
+    do: Map.put(thrusters, :lateral, Core.demand(core).sway)
+
+  defp with_lateral(thrusters, _state), do: thrusters
 
   # Control.Core runs on seconds (it also runs on a scenario's simulated time)
   defp now_s, do: Neptunus.Clock.monotonic_ms() / 1000

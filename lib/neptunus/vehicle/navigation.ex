@@ -13,8 +13,17 @@ defmodule Neptunus.Vehicle.Navigation do
       `%{t, depth, depth_rate, heading, yaw_rate, position, measurement_state: %{depth,
       heading}}` (states as atoms; depth and heading values nil while not estimated), so
       Control can say why an autopilot cannot engage and idle an autopilot whose measurement
-      is initialising. `position` is `%{x, y}` (m, NED) from the simulator's truth or a
-      board's `position` field, nil without a position source.
+      is initialising. `position` is the position filter's estimate
+      (`Neptunus.Navigation.Position.estimate/2`: `valid`, `reason`, `north`, `east`,
+      velocities, frame, epoch, shift), telemetry's `position` its status with the 1-σ
+      ellipse and each source's state.
+
+  **Position.** The position sources (`Neptunus.Vehicle.Position`: a DVL, an Underwater GPS,
+  the simulated ones) report here (`position/4`), and so does an ArduSub board's own
+  `LOCAL_POSITION_NED` (its `position` field, a fix in the `ardusub` frame); the heading and
+  depth estimates go along to the position filter on every sample. A vehicle without sources
+  has no position (`valid: false`, `reason: "no position source"`), even a simulated one:
+  the simulator's truth is never navigation's.
 
   **Board resets.** `board_reset/2` (the board link calls it when its link (re)opens and when
   it sees the board reset) puts every measurement back to initialising and restarts the
@@ -31,7 +40,9 @@ defmodule Neptunus.Vehicle.Navigation do
   crash restarts it with a fresh filter, and Telemetry, Control and the Helm after it.
 
   Options: `:id` (required); `:navigation` — options of `Neptunus.Estimator.new/1` (e.g.
-  `vehicle: nil` for a model-free filter). The filter's vehicle model is by default the
+  `vehicle: nil` for a model-free filter); `:position` — the vehicle's position sources (their
+  names are shown as waiting until they report); `:position_filter` — options of
+  `Neptunus.Navigation.Position.new/1`. The filter's vehicle model is by default the
   simulator's parameter set when the board simulates (`sim: [vehicle: …]`), else `neptunus`.
   """
   use GenServer
@@ -39,7 +50,11 @@ defmodule Neptunus.Vehicle.Navigation do
   require Logger
 
   alias Neptunus.Estimator
+  alias Neptunus.Navigation.Position
   alias Neptunus.Vehicle.{Board, Control, Telemetry}
+
+  # the standard deviation of an ArduSub vehicle's own position (m): it does not say
+  @ardusub_std 0.5
 
   defmodule State do
     @moduledoc false
@@ -47,11 +62,23 @@ defmodule Neptunus.Vehicle.Navigation do
             id: String.t(),
             estimator: Neptunus.Estimator.t() | nil,
             estimator_opts: keyword(),
+            position: Neptunus.Navigation.Position.t(),
+            temperature: float() | nil,
+            board_position_at: term(),
             samples: non_neg_integer(),
             board_resets: non_neg_integer()
           }
-    @enforce_keys [:id, :estimator_opts]
-    defstruct [:id, :estimator, :estimator_opts, samples: 0, board_resets: 0]
+    @enforce_keys [:id, :estimator_opts, :position]
+    defstruct [
+      :id,
+      :estimator,
+      :estimator_opts,
+      :position,
+      :temperature,
+      :board_position_at,
+      samples: 0,
+      board_resets: 0
+    ]
   end
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -70,6 +97,21 @@ defmodule Neptunus.Vehicle.Navigation do
   @spec board_reset(String.t(), String.t()) :: :ok
   def board_reset(id, reason) when is_binary(reason),
     do: GenServer.cast(via(id), {:board_reset, reason})
+
+  @doc """
+  A position source's report (asynchronous; `Neptunus.Position.Source.report/4`), arrived
+  at `at` (s, monotonic): see `Neptunus.Navigation.Position.report/4`.
+  """
+  @spec position(String.t(), atom(), Position.report(), float()) :: :ok
+  def position(id, source, report, at),
+    do: GenServer.cast(via(id), {:position, source, report, at})
+
+  @doc """
+  The vehicle's depth estimate (m, or nil) and the water temperature from its board (°C, or
+  nil): what an Underwater GPS topside asks for.
+  """
+  @spec water(String.t()) :: {float() | nil, float() | nil}
+  def water(id), do: GenServer.call(via(id), :water)
 
   @doc "Reports the thruster command sent to the board (asynchronous; see `Board.go/2`)."
   @spec command(String.t(), map()) :: :ok
@@ -90,7 +132,18 @@ defmodule Neptunus.Vehicle.Navigation do
 
   @impl true
   def init(opts) do
-    state = %State{id: Keyword.fetch!(opts, :id), estimator_opts: estimator_opts(opts)}
+    sources =
+      opts
+      |> Keyword.get(:position, [])
+      |> Neptunus.Vehicle.Position.sources()
+      |> Enum.map(&elem(&1, 0))
+
+    state = %State{
+      id: Keyword.fetch!(opts, :id),
+      estimator_opts: estimator_opts(opts),
+      position: Position.new(Keyword.get(opts, :position_filter, []) ++ [sources: sources])
+    }
+
     {:ok, state, {:continue, :estimator}}
   end
 
@@ -124,6 +177,14 @@ defmodule Neptunus.Vehicle.Navigation do
 
     estimate = Estimator.estimate(estimator)
     states = Estimator.states(estimator)
+    now = now_s()
+    state = %{state | estimator: estimator} |> board_position(sample, now)
+
+    position =
+      state.position
+      |> Position.heading(now, estimate.heading, Estimator.std(estimator, :heading))
+      |> Position.depth(estimate.depth)
+      |> Position.tick(now)
 
     Telemetry.sample(
       state.id,
@@ -131,14 +192,28 @@ defmodule Neptunus.Vehicle.Navigation do
         measurement: Estimator.measurement(estimator),
         measurement_state: Map.new(states, fn {k, v} -> {k, Atom.to_string(v)} end),
         estimate: Map.delete(estimate, :t),
-        wild_points: Estimator.wild_points(estimator)
+        wild_points: Estimator.wild_points(estimator),
+        position: Position.status(position, now)
       })
     )
 
-    Control.estimate(state.id, control_estimate(estimate, states, position(sample)))
+    Control.estimate(
+      state.id,
+      control_estimate(estimate, states, Position.estimate(position, now))
+    )
 
-    {:noreply, %{state | estimator: estimator, samples: state.samples + 1, board_resets: resets}}
+    {:noreply,
+     %{
+       state
+       | position: position,
+         temperature: temperature(sample) || state.temperature,
+         samples: state.samples + 1,
+         board_resets: resets
+     }}
   end
+
+  def handle_cast({:position, source, report, at}, state),
+    do: {:noreply, %{state | position: Position.report(state.position, source, report, at)}}
 
   def handle_cast({:command, thrusters}, state),
     do: {:noreply, %{state | estimator: Estimator.command(state.estimator, thrusters)}}
@@ -147,11 +222,17 @@ defmodule Neptunus.Vehicle.Navigation do
     Logger.info("vehicle #{state.id}: board reset (#{reason}): every measurement is initialising")
     estimator = Estimator.reset(state.estimator)
     estimate = Estimator.estimate(estimator)
-    Control.estimate(state.id, control_estimate(estimate, Estimator.states(estimator), nil))
+    position = Position.estimate(state.position, now_s())
+    Control.estimate(state.id, control_estimate(estimate, Estimator.states(estimator), position))
     {:noreply, %{state | estimator: estimator, board_resets: state.board_resets + 1}}
   end
 
   @impl true
+  def handle_call(:water, _from, state) do
+    depth = Estimator.estimate(state.estimator).depth
+    {:reply, {depth, state.temperature}, state}
+  end
+
   def handle_call(:status, _from, state) do
     reply = %{
       estimate: Estimator.estimate(state.estimator),
@@ -160,7 +241,8 @@ defmodule Neptunus.Vehicle.Navigation do
       wild_points: Estimator.wild_points(state.estimator),
       samples: state.samples,
       board_resets: state.board_resets,
-      command: state.estimator.model && state.estimator.model.commands
+      command: state.estimator.model && state.estimator.model.commands,
+      position: Position.status(state.position, now_s())
     }
 
     {:reply, reply, state}
@@ -192,11 +274,18 @@ defmodule Neptunus.Vehicle.Navigation do
     Keyword.merge([vehicle: vehicle], Keyword.get(opts, :navigation, []))
   end
 
-  # the simulator's truth, else a board's position field (e.g. from a DVL or USBL)
-  defp position(%{sim: %{x: x, y: y}}) when is_number(x) and is_number(y), do: %{x: x, y: y}
+  # an ArduSub vehicle's own position (LOCAL_POSITION_NED), when it sends a new one
+  defp board_position(state, %{board: %{position: %{x: x, y: y, time_boot_ms: at}}}, now)
+       when is_number(x) and is_number(y) and at != state.board_position_at do
+    fix = %{t: now, north: x, east: y, std: @ardusub_std, valid: true, frame: :ardusub}
+    position = Position.report(state.position, :ardusub, {:fix, fix}, now)
+    %{state | position: position, board_position_at: at}
+  end
 
-  defp position(%{board: %{position: %{x: x, y: y}}}) when is_number(x) and is_number(y),
-    do: %{x: x, y: y}
+  defp board_position(state, _sample, _now), do: state
 
-  defp position(_sample), do: nil
+  defp temperature(%{board: %{temperature: t}}) when is_number(t), do: t * 1.0
+  defp temperature(_sample), do: nil
+
+  defp now_s, do: Neptunus.Clock.monotonic_ms() / 1000
 end

@@ -13,11 +13,13 @@ defmodule Neptunus.Vehicle.Supervisor do
         4. `Neptunus.Vehicle.Control` (commands → allocation → board; neutral on start),
         5. `Neptunus.Vehicle.Helm` (who is in control; authorises every command, deadman;
            neutral on start);
+    * `Neptunus.Vehicle.Position` (the position sources: DVL, USBL drivers, the simulated
+      ones; they report to navigation),
     * `Neptunus.Vehicle.Recorder` (everything on the vehicle's topic to disk),
     * `Neptunus.Vehicle.Camera` (the camera program and its frames).
 
-  The recorder and the camera come after the control chain, so their failures restart
-  nothing that moves the vehicle; and they are outside it, so a crash in the chain neither
+  The position sources, the recorder and the camera come after the control chain, so their
+  failures restart nothing that moves the vehicle; and they are outside it, so a crash in the chain neither
   restarts them nor waits for them: a supervisor stops the children after the crashed one
   before it restarts any, and the recorder's last sync or the camera program's stop (tens
   of ms on a busy machine, up to their shutdown timeout when stuck) would otherwise come
@@ -32,7 +34,7 @@ defmodule Neptunus.Vehicle.Supervisor do
   """
   use Supervisor
 
-  alias Neptunus.Vehicle.{Board, Camera, Control, Helm, Navigation, Recorder, Telemetry}
+  alias Neptunus.Vehicle.{Board, Camera, Control, Helm, Navigation, Position, Recorder, Telemetry}
 
   @intensity [max_restarts: 10, max_seconds: 10]
 
@@ -67,7 +69,7 @@ defmodule Neptunus.Vehicle.Supervisor do
       type: :supervisor
     }
 
-    children = [control, {Recorder, opts}, {Camera, opts}]
+    children = [control, {Position, opts}, {Recorder, opts}, {Camera, opts}]
     Supervisor.init(children, [strategy: :rest_for_one] ++ @intensity)
   end
 end

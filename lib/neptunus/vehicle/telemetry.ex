@@ -5,7 +5,8 @@ defmodule Neptunus.Vehicle.Telemetry do
   It keeps the last board sample and the last control output, and publishes the combined
   payload at `telemetry_hz` (default 20 Hz) on absolute deadlines of the monotonic clock
   (re-arming a relative timer would drift). The payload — `t`, `sent_at`, the sample's
-  `measurement`, `measurement_state`, `estimate`, `wild_points` and `sim` (from navigation), the
+  `measurement`, `measurement_state`, `estimate`, `wild_points`, `position` and `sim` (from
+  navigation), the
   control state's `command`, `thrusters`, `control` and `autopilot`, the board's `link`, and the
   parts' reports (`recording`, `camera`) — is defined, field by field, by the wire schema
   (`NeptunusWeb.WireSchema`, type `telemetry`; docs/API.md): a field added here is added there,
@@ -39,6 +40,21 @@ defmodule Neptunus.Vehicle.Telemetry do
   }
   @initialising Map.new(Neptunus.Navigation.WildPoints.fields(), &{&1, "initialising"})
   @no_autopilot %{depth: nil, heading: nil, position: nil}
+  @no_position %{
+    valid: false,
+    reason: "no position estimate yet",
+    frame: nil,
+    epoch: 0,
+    north: nil,
+    east: nil,
+    depth: nil,
+    velocity_north: nil,
+    velocity_east: nil,
+    std_north: nil,
+    std_east: nil,
+    ellipse: nil,
+    sources: []
+  }
 
   defmodule State do
     @moduledoc false
@@ -263,6 +279,7 @@ defmodule Neptunus.Vehicle.Telemetry do
       estimate: Map.get(sample, :estimate, @no_estimate),
       wild_points:
         Map.get_lazy(sample, :wild_points, &Neptunus.Navigation.WildPoints.new_counts/0),
+      position: Map.get(sample, :position, @no_position),
       sim: sample.sim,
       command: state.command,
       thrusters: state.thrusters,

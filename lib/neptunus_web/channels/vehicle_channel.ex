@@ -36,7 +36,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   alias Neptunus.Vehicle.{Board, Control, Helm, Telemetry, ViewSettings}
   alias NeptunusWeb.{Auth, Channel, Presence}
 
-  @control_events ~w(set_control_mode set_gain set_lights set_laser set_tilt autopilot set_run_mode)
+  @control_events ~w(set_control_mode set_gain set_lights set_laser set_tilt autopilot set_run_mode
+                     mission)
   # how long an arm/disarm/autopilot reply waits for a mavlink vehicle's answer (a pilot's
   # heartbeats wait behind it: well under the deadman)
   @vehicle_answer_ms 200
@@ -126,6 +127,12 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   # carries it, or says `pending` and the answer follows as event `vehicle_answer`.
   def handle_in(event, _payload, socket) when event in ["arm", "disarm"] do
     board_request(socket, event, &Board.command(&1, {:arm, event == "arm"}, &2))
+  end
+
+  # a position source's device (a DVL's reset or gyro calibration): pilot only; the answer may
+  # take seconds (a calibration up to 15), so it follows as `vehicle_answer`
+  def handle_in("position_source", payload, socket) do
+    board_request(socket, "position_source", &Neptunus.Vehicle.Position.request(&1, payload, &2))
   end
 
   def handle_in("autopilot", payload, socket)
@@ -294,6 +301,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
       helm: helm,
       pilot: helm.pilot && %{name: helm.pilot.name},
       control: Control.status(id),
+      mission: Control.mission(id),
       camera: camera(id),
       settings: ViewSettings.get(id)
     }

@@ -24,7 +24,7 @@ defmodule Mix.Tasks.Neptunus.SimulateTest do
     assert info =~ "run.csv: 51 rows, thesis-4dof"
     [header | rows] = out |> File.read!() |> String.split("\n", trim: true)
     assert header =~ ~r/^t,x,y,z,phi,theta,psi,u,v,w,p,q,r,depth_meas,heading_meas,/
-    assert header =~ ~r/,port,vertical,starboard$/
+    assert header =~ ~r/,port,vertical,starboard,lateral,north_est,.*,cross_track,leg$/
     assert length(rows) == 51
     assert "0.5," <> _ = List.last(rows)
     # nothing else left in the directory (the temporary file was renamed)
@@ -50,7 +50,7 @@ defmodule Mix.Tasks.Neptunus.SimulateTest do
     error = assert_raise Mix.Error, fn -> Simulate.run([unknown, "--out", out]) end
 
     assert error.message =~
-             ~s|vehicle: unknown vehicle "submarine" (available: neptunus, thesis-4dof)|
+             ~s|vehicle: unknown vehicle "submarine" (available: neptunus, neptunus-sway, thesis-4dof)|
 
     error = assert_raise Mix.Error, fn -> Simulate.run([Path.join(dir, "missing.json")]) end
     assert error.message =~ "cannot read: no such file or directory"
@@ -94,6 +94,6 @@ defmodule Mix.Tasks.Neptunus.SimulateTest do
     assert status != 0
 
     assert output =~
-             "events[0] must have at least one of: autopilot, control_mode, current, gain, tau, thrust"
+             "events[0] must have at least one of: autopilot, control_mode, current, gain, mission, mission_control, tau, thrust"
   end
 end

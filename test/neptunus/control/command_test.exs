@@ -10,7 +10,82 @@ defmodule Neptunus.Control.CommandTest do
 
   test "the events" do
     assert Command.events() ==
-             ~w(set_control_mode thrust set_gain set_lights set_laser set_tilt autopilot set_run_mode)
+             ~w(set_control_mode thrust set_gain set_lights set_laser set_tilt autopilot set_run_mode
+                mission)
+  end
+
+  describe "mission" do
+    test "start and plan take waypoints or a survey; the others only an action" do
+      wp = %{"north" => 5, "east" => 1, "depth" => 2}
+
+      assert {:ok,
+              {:mission,
+               {:start,
+                [%{north: 5.0, east: 1.0, depth: 2.0, speed: 0.3, radius: 0.5, heading: nil}]}}} =
+               Command.validate("mission", %{"action" => "start", "waypoints" => [wp]})
+
+      survey = %{
+        "north" => 0,
+        "east" => 0,
+        "heading" => 0,
+        "length" => 10,
+        "width" => 4,
+        "spacing" => 2,
+        "depth" => 3
+      }
+
+      assert {:ok, {:mission, {:plan, wps}}} =
+               Command.validate("mission", %{"action" => "plan", "survey" => survey})
+
+      assert length(wps) == 6
+
+      for action <- ~w(pause resume abort) do
+        assert {:ok, {:mission, a}} = Command.validate("mission", %{"action" => action})
+        assert Atom.to_string(a) == action
+      end
+    end
+
+    test "malformed missions are refused with a reason naming the field" do
+      assert error("mission", %{}) == "missing field: action"
+      assert error("mission", %{"action" => "fly"}) =~ ~s(action must be "start")
+      assert error("mission", %{"action" => "pause", "x" => 1}) =~ "unknown field: x"
+
+      assert error("mission", %{"action" => "start"}) ==
+               "a mission needs waypoints (a list) or a survey (an object)"
+
+      assert error("mission", %{"action" => "start", "waypoints" => []}) ==
+               "a mission needs at least one waypoint"
+
+      assert error("mission", %{
+               "action" => "start",
+               "waypoints" => [%{"north" => 1, "east" => 1, "depth" => 2, "speed" => 3}]
+             }) ==
+               "waypoints[0].speed must be a number in [0.05, 1], got 3"
+
+      assert error("mission", %{
+               "action" => "start",
+               "waypoints" => [%{"north" => 1, "depth" => 2}]
+             }) ==
+               "missing field: waypoints[0].east"
+
+      too_many = for i <- 1..101, do: %{"north" => i, "east" => 0, "depth" => 1}
+
+      assert error("mission", %{"action" => "start", "waypoints" => too_many}) =~
+               "at most 100 waypoints"
+
+      dense = %{
+        "north" => 0,
+        "east" => 0,
+        "heading" => 0,
+        "length" => 10,
+        "width" => 500,
+        "spacing" => 1,
+        "depth" => 3
+      }
+
+      assert error("mission", %{"action" => "start", "survey" => dense}) =~
+               "the survey makes 1002 waypoints"
+    end
   end
 
   test "every payload must be an object" do

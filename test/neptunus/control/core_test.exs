@@ -30,6 +30,21 @@ defmodule Neptunus.Control.CoreTest do
 
   defp gos(actions), do: for({:go, thr} <- actions, do: thr)
 
+  # a valid position estimate (Neptunus.Navigation.Position's) at rest
+  defp pos(n, e),
+    do: %{
+      valid: true,
+      reason: nil,
+      north: n,
+      east: e,
+      velocity_north: 0.0,
+      velocity_east: 0.0,
+      velocity_measured: true,
+      frame: :usbl,
+      epoch: 1,
+      shift: nil
+    }
+
   # reference limits so high that a setpoint step reaches the PID whole at the next tick:
   # for tests of what the autopilot outputs do, not of how the reference moves
   @instant [
@@ -51,6 +66,7 @@ defmodule Neptunus.Control.CoreTest do
              run_mode: "normal",
              dp_holds: nil,
              autopilot: %{depth: nil, heading: nil, position: nil},
+             mission: nil,
              command: %{surge: 0.0, heave: 0.0, yaw: 0.0},
              thrusters: Allocation.with_us(@neutral)
            }
@@ -139,7 +155,8 @@ defmodule Neptunus.Control.CoreTest do
       assert actions == [
                {:go, @neutral},
                {:stopped, "control_mode_changed"},
-               {:notice, "dp: no position source: holding depth and heading only"}
+               {:notice,
+                "dp: no valid position (no position source): holding depth and heading only"}
              ]
 
       assert %{mode: "dp", dp_holds: ["depth", "heading"]} = Core.status(core)
@@ -164,12 +181,12 @@ defmodule Neptunus.Control.CoreTest do
       assert {:error, "dp needs a current estimate of depth and heading (no board samples)"} =
                Core.command(Core.new(), {:set_control_mode, :dp}, 10.0)
 
-      stale = core([], est(position: %{x: 1.0, y: 2.0}))
+      stale = core([], est(position: pos(1.0, 2.0)))
       assert {:error, _} = Core.command(stale, {:set_control_mode, :dp}, 11.5)
     end
 
     test "dp holds position, depth and heading where it is engaged" do
-      core = core([], est(position: %{x: 1.0, y: 2.0}))
+      core = core([], est(position: pos(1.0, 2.0)))
       {core, actions} = ok!(core, {:set_control_mode, :dp})
       assert actions == [{:go, @neutral}, {:stopped, "control_mode_changed"}]
 
@@ -196,7 +213,7 @@ defmodule Neptunus.Control.CoreTest do
     end
 
     test "dp keeps engaged setpoints; leaving dp for motion keeps them holding" do
-      core = core([], est(position: %{x: 0.0, y: 0.0}))
+      core = core([], est(position: pos(0.0, 0.0)))
       {core, _} = ok!(core, ap(5.0, 0.5))
       {core, _} = ok!(core, {:set_control_mode, :dp})
       assert %{autopilot: %{depth: 5.0, heading: 0.5}} = Core.status(core)
@@ -272,7 +289,7 @@ defmodule Neptunus.Control.CoreTest do
 
   describe "stops" do
     setup do
-      core = core([gain: 1.0], est(position: %{x: 0.0, y: 0.0}))
+      core = core([gain: 1.0], est(position: pos(0.0, 0.0)))
       {core, _} = ok!(core, {:set_control_mode, :dp})
       {:ok, core: core}
     end
@@ -340,17 +357,93 @@ defmodule Neptunus.Control.CoreTest do
     end
 
     test "dp: surge towards the target along the heading" do
-      core = core([], est(heading: 0.0, position: %{x: 0.0, y: 0.0}))
+      core = core([], est(heading: 0.0, position: pos(0.0, 0.0)))
       {core, _} = ok!(core, {:set_control_mode, :dp})
-      core = Core.estimate(core, est(heading: 0.0, position: %{x: -1.0, y: 0.0}), 10.1)
+      core = Core.estimate(core, est(heading: 0.0, position: pos(-1.0, 0.0)), 10.1)
       {core, actions} = Core.tick(core, 0.02, 10.1)
       assert [%{port: p, starboard: s}] = gos(actions)
       assert p > 0 and s > 0
       assert %{position: %{phase: "hold", distance: 1.0}} = Core.autopilot(core)
       # the position source gone: DP idles, depth and heading still held
       core = Core.estimate(core, est(heading: 0.0, position: nil), 10.2)
-      {core, _} = Core.tick(core, 0.02, 10.2)
-      assert core.dp.output == 0.0
+      {core, actions} = Core.tick(core, 0.02, 10.2)
+      assert core.dp.demand.surge == 0.0
+      assert [%{port: p, starboard: s}] = gos(actions)
+      assert_in_delta p + s, 0.0, 1.0e-12
+
+      assert {:notice,
+              "dp: no valid position (no position source): holding depth and heading only"} in actions
+
+      assert %{dp_holds: ["depth", "heading"]} = Core.status(core)
+    end
+
+    test "missions: only in dp, with a valid position; the autopilots are the mission's" do
+      wp = [%{north: 5.0, east: 0.0, depth: 3.0, heading: nil, speed: 0.3, radius: 0.5}]
+
+      assert Core.command(core(), {:mission, {:start, wp}}, 10.0) ==
+               {:error, "missions run in control mode dp: switch to dp first"}
+
+      {core, _} =
+        ok!(core([], est(heading: 0.0, position: pos(0.0, 0.0))), {:set_control_mode, :dp})
+
+      {core, actions} = ok!(core, {:mission, {:start, wp}})
+
+      assert [
+               {:mission, %{id: 1, state: "running", leg: 1, waypoints: ^wp}},
+               {:notice, "mission 1: started, 1 waypoint"} | _
+             ] = actions
+
+      assert %{mission: %{id: 1, state: "running", leg: 1, count: 1}} = Core.status(core)
+
+      assert Core.command(core, ap(4.0), 10.0) ==
+               {:error,
+                "a mission is running: it sets depth and heading (pause or abort it first)"}
+
+      {core, _} = Core.tick(core, 0.02, 10.01)
+      assert %{depth: %{setpoint: 3.0}, position: %{phase: "mission"}} = Core.autopilot(core)
+
+      {core, actions} = ok!(core, {:mission, :pause})
+      assert [{:mission, %{state: "paused"}} | _] = actions
+      {core, _} = ok!(core, ap(4.0))
+      {core, actions} = ok!(core, {:mission, :abort})
+      assert [{:mission, nil} | _] = actions
+      assert %{mission: nil, autopilot: %{position: %{x: 0.0, y: 0.0}}} = Core.status(core)
+
+      # a handover stops a mission (DP holds position); a safety stop ends DP and it
+      {core, _} = ok!(core, {:mission, {:start, wp}})
+      {held, actions} = Core.stop(core, "control_transferred")
+      assert {:mission, nil} in actions
+
+      assert %{mode: "dp", mission: nil, dp_holds: ["depth", "heading", "position"]} =
+               Core.status(held)
+
+      {core, actions} = Core.stop(core, "deadman")
+      assert {:mission, nil} in actions
+      assert %{mode: "motion", mission: nil} = Core.status(core)
+    end
+
+    test "a mission without a valid position, or beyond reach, is refused with the reason" do
+      wp = [%{north: 500.0, east: 0.0, depth: 3.0, heading: nil, speed: 0.3, radius: 0.5}]
+
+      {core, _} =
+        ok!(core([], est(heading: 0.0, position: pos(0.0, 0.0))), {:set_control_mode, :dp})
+
+      assert Core.command(core, {:mission, {:start, wp}}, 10.0) ==
+               {:error, "waypoint 1 is 500.0 m away: beyond the 200 m a mission may reach"}
+
+      lost = %{
+        valid: false,
+        reason: "usbl: no report for 6.0 s",
+        north: 0.0,
+        east: 0.0,
+        epoch: 1,
+        shift: nil
+      }
+
+      core = Core.estimate(core, est(heading: 0.0, position: lost), 10.0)
+
+      assert Core.command(core, {:mission, {:start, [%{hd(wp) | north: 5.0}]}}, 10.0) ==
+               {:error, "a mission needs a valid position: usbl: no report for 6.0 s"}
     end
   end
 
@@ -401,7 +494,7 @@ defmodule Neptunus.Control.CoreTest do
     end
 
     test "dp is refused while depth or heading is initialising" do
-      core = core([], %{initialising() | position: %{x: 0.0, y: 0.0}})
+      core = core([], %{initialising() | position: pos(0.0, 0.0)})
 
       assert {:error, "dp needs depth hold: depth is initialising" <> _} =
                Core.command(core, {:set_control_mode, :dp}, 10.0)

@@ -12,7 +12,7 @@ defmodule Neptunus.Dynamics.ParamsTest do
   end
 
   test "the shipped parameter sets load and validate" do
-    assert Params.available() == ["neptunus", "thesis-4dof"]
+    assert Params.available() == ["neptunus", "neptunus-sway", "thesis-4dof"]
     assert {:ok, %Params{name: "neptunus", dof: 6}} = Params.load("neptunus")
     assert {:ok, %Params{name: "thesis-4dof", dof: 4}} = Params.load(:thesis_4dof)
     assert Params.fetch!("neptunus") == Params.fetch!("neptunus")
@@ -22,7 +22,7 @@ defmodule Neptunus.Dynamics.ParamsTest do
     for name <- ["nope", "../etc/passwd", "Neptunus", ""] do
       assert {:error, message} = Params.load(name)
       assert message =~ "unknown vehicle"
-      assert message =~ "available: neptunus, thesis-4dof"
+      assert message =~ "available: neptunus, neptunus-sway, thesis-4dof"
     end
 
     assert_raise ArgumentError, ~r/unknown vehicle "nope"/, fn -> Params.fetch!("nope") end
@@ -65,7 +65,7 @@ defmodule Neptunus.Dynamics.ParamsTest do
         {&Map.put(&1, "thrusters", []),
          "thrusters must be a non-empty list of thrusters, got []"},
         {&update_in(&1, ["thrusters"], fn [t | rest] -> [Map.put(t, "name", "bow") | rest] end),
-         ~s(thrusters[0].name must be one of port, vertical, starboard, got "bow")},
+         ~s(thrusters[0].name must be one of port, vertical, starboard, lateral, got "bow")},
         {&update_in(&1, ["thrusters"], fn [t | rest] -> [t, t | tl(rest)] end),
          "thrusters[1].name port is listed twice"},
         {&update_in(&1, ["thrusters"], fn [t | rest] ->

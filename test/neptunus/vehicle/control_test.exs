@@ -64,7 +64,8 @@ defmodule Neptunus.Vehicle.ControlTest do
            } = Control.status(id)
 
     assert Control.events() --
-             ~w(set_control_mode set_gain set_lights set_laser set_tilt autopilot set_run_mode) ==
+             ~w(set_control_mode set_gain set_lights set_laser set_tilt autopilot set_run_mode
+                mission) ==
              []
 
     party = %{id: "p1", name: "ada", role: :pilot, pid: self(), notify: fn _, _ -> :ok end}
@@ -160,11 +161,27 @@ defmodule Neptunus.Vehicle.ControlTest do
              command(id, "set_control_mode", %{"mode" => "dp"})
 
     assert_receive {:pubsub, _, "log",
-                    %{category: "autopilot", message: "dp: no position source" <> _}}
+                    %{
+                      category: "autopilot",
+                      message: "dp: no valid position (no position source)" <> _
+                    }}
 
     {:ok, _} = command(id, "set_control_mode", %{"mode" => "motion"})
 
-    estimate(id, position: %{x: 3.0, y: -1.0})
+    estimate(id,
+      position: %{
+        valid: true,
+        reason: nil,
+        north: 3.0,
+        east: -1.0,
+        velocity_north: 0.0,
+        velocity_east: 0.0,
+        velocity_measured: true,
+        frame: :local,
+        epoch: 0,
+        shift: nil
+      }
+    )
 
     assert {:ok,
             %{

@@ -42,7 +42,9 @@ defmodule Neptunus.Vehicle.NavigationTest do
              }
 
       assert_receive {:"$gen_cast", {:estimate, estimate}}
-      assert %{depth: nil, heading: nil, position: %{x: 3.0, y: -2.0}} = estimate
+      # the simulator's truth is no position source: the simulated DVL and USBL are
+      assert %{depth: nil, heading: nil, position: %{valid: false, north: nil}} = estimate
+      assert estimate.position.reason == "no position source"
       assert estimate.measurement_state == %{depth: :initialising, heading: :initialising}
 
       # the readings agree past the settle time: valid
@@ -60,7 +62,7 @@ defmodule Neptunus.Vehicle.NavigationTest do
       assert %{
                heading: 0.5,
                yaw_rate: 0.0,
-               position: %{x: 3.0, y: -2.0},
+               position: %{valid: false, reason: "no position source"},
                measurement_state: %{depth: :valid, heading: :valid}
              } = last_cast(:estimate)
     end
@@ -125,17 +127,42 @@ defmodule Neptunus.Vehicle.NavigationTest do
       assert estimate.measurement_state == %{depth: :initialising, heading: :initialising}
     end
 
-    test "a board's position field is the position source; none gives nil", %{id: id} do
+    test "an ArduSub board's position (LOCAL_POSITION_NED) is a position source", %{id: id} do
+      # a new position is one with a new time_boot_ms; the first one starts the filter on
+      # it, a second that agrees makes it valid
       Navigation.sample(id, %{
         t: 1.0,
         measurement: @m,
         sim: nil,
-        board: %{position: %{x: 1, y: 2}}
+        board: %{position: %{x: 1.0, y: 2.0, time_boot_ms: 1000}}
       })
 
-      assert_receive {:"$gen_cast", {:estimate, %{position: %{x: 1, y: 2}}}}
-      Navigation.sample(id, %{t: 1.05, measurement: @m, sim: nil, board: %{yaw: 0.1}})
-      assert_receive {:"$gen_cast", {:estimate, %{t: 1.05, position: nil}}}
+      assert_receive {:"$gen_cast", {:estimate, %{position: first}}}
+      assert %{valid: false, frame: :ardusub, north: n, east: e} = first
+      assert_in_delta n, 1.0, 1.0e-6
+      assert_in_delta e, 2.0, 1.0e-6
+      assert first.reason =~ "second fix"
+
+      Navigation.sample(id, %{
+        t: 1.05,
+        measurement: @m,
+        sim: nil,
+        board: %{position: %{x: 1.0, y: 2.0, time_boot_ms: 1050}}
+      })
+
+      assert_receive {:"$gen_cast", {:estimate, %{t: 1.05, position: %{valid: true} = second}}}
+      assert_in_delta second.north, 1.0, 0.05
+      assert_in_delta second.east, 2.0, 0.05
+
+      assert %{position: %{valid: true, sources: [%{name: "ardusub", accepted: 2}]}} =
+               Navigation.status(id)
+    end
+
+    test "without a position source the position is not valid, and says so", %{id: id} do
+      Navigation.sample(id, %{t: 1.0, measurement: @m, sim: nil, board: %{yaw: 0.1}})
+
+      assert_receive {:"$gen_cast",
+                      {:estimate, %{position: %{valid: false, reason: "no position source"}}}}
     end
 
     test "commands drive the filter's model", %{id: id} do

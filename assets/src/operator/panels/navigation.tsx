@@ -1,4 +1,7 @@
-/** The navigation panel: heading, depth, attitude, position, speed, power, telemetry age. */
+/**
+ * The navigation panel: heading, depth, attitude, the simulator's true position and speed (a
+ * simulated vehicle; the estimated position is the map panel's), power, telemetry age.
+ */
 
 import { ageText } from "../../lib/clock";
 import { PLACEHOLDER, formatFixed, formatHeading } from "../../lib/units";
@@ -17,8 +20,8 @@ export function NavigationPanel({ s }: { s: OperatorState }): preact.JSX.Element
         <Readout label="Depth" id="depth" value={t ? formatFixed(t.measurement.depth, 2) : PLACEHOLDER} unit="m" />
         <Readout label="Roll" id="roll" value={formatDeg(t?.measurement.roll, true)} unit="°" />
         <Readout label="Pitch" id="pitch" value={formatDeg(t?.measurement.pitch, true)} unit="°" />
-        <Readout label="Position x" id="x" value={t?.sim ? formatFixed(t.sim.x, 2) : PLACEHOLDER} unit="m" />
-        <Readout label="Position y" id="y" value={t?.sim ? formatFixed(t.sim.y, 2) : PLACEHOLDER} unit="m" />
+        <Readout label="Sim. true x" id="x" value={t?.sim ? formatFixed(t.sim.x, 2) : PLACEHOLDER} unit="m" />
+        <Readout label="Sim. true y" id="y" value={t?.sim ? formatFixed(t.sim.y, 2) : PLACEHOLDER} unit="m" />
         <Readout label="Speed u" id="speed-u" value={t?.sim ? formatFixed(t.sim.u, 2) : PLACEHOLDER} unit="m/s" />
         <Readout label="Voltage" id="voltage" value={fmt(t?.measurement.voltage, 1)} unit="V" />
         <Readout label="Current" id="current" value={fmt(t?.measurement.current, 2)} unit="A" />

@@ -104,7 +104,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   end
 
   # MAV_DATA_STREAM id => rate (Hz): RAW_SENSORS (SCALED_PRESSURE), EXTENDED_STATUS
-  # (SYS_STATUS), RC_CHANNELS (SERVO_OUTPUT_RAW), POSITION (GLOBAL_POSITION_INT), EXTRA1
+  # (SYS_STATUS), RC_CHANNELS (SERVO_OUTPUT_RAW), POSITION (GLOBAL_POSITION_INT, LOCAL_POSITION_NED), EXTRA1
   # (ATTITUDE), EXTRA2 (VFR_HUD)
   @streams [{1, 5}, {2, 2}, {3, 5}, {6, 3}, {10, 10}, {11, 10}]
 
@@ -713,6 +713,13 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
       else: {put_reading(core, :depth, -f.relative_alt / 1000), []}
   end
 
+  # the vehicle's own position, where its EKF has one (a DVL or a GPS feeding ArduSub):
+  # navigation takes it as a position source
+  defp from_vehicle(core, %Message{name: :local_position_ned, fields: f}, _now) do
+    position = %{x: f.x * 1.0, y: f.y * 1.0, time_boot_ms: f.time_boot_ms}
+    {%{core | readings: Map.put(core.readings, :position, position)}, []}
+  end
+
   defp from_vehicle(core, %Message{name: :sys_status, fields: f}, _now) do
     core =
       if f.voltage_battery != 0xFFFF,
@@ -776,12 +783,13 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   defp sample(core, time_boot_ms, now) do
     measurement = Map.take(core.readings, [:depth, :heading, :roll, :pitch, :voltage, :current])
 
-    %{
-      t: now - core.started,
-      measurement: measurement,
-      sim: nil,
-      board: %{board_time: time_boot_ms / 1000}
-    }
+    board =
+      case core.readings do
+        %{position: position} -> %{board_time: time_boot_ms / 1000, position: position}
+        _ -> %{board_time: time_boot_ms / 1000}
+      end
+
+    %{t: now - core.started, measurement: measurement, sim: nil, board: board}
   end
 
   defp wrap(yaw) when is_number(yaw) do

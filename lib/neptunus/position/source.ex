@@ -1,0 +1,45 @@
+defmodule Neptunus.Position.Source do
+  @moduledoc """
+  A position source of a vehicle: the behaviour every source implements, like the boards'
+  (`Neptunus.Vehicle.Board`), and the API the rest of the vehicle uses.
+
+  A source process is started by `Neptunus.Vehicle.Position` with `id` (the vehicle) and
+  `name` (the source's name in navigation: `:dvl`, `:usbl`, …), registered as
+  `via(id, name)`, and reports to navigation with `report/4` —
+  `Neptunus.Navigation.Position`'s reports: readings (measurements with the time they were
+  made), its link going up or down, and what it could not read (`{:garbage, reason}`).
+
+  Implementations:
+
+    * `Neptunus.Position.DVL` — a Water Linked DVL over its TCP JSON protocol;
+    * `Neptunus.Position.UGPS` — a Water Linked Underwater GPS over its HTTP API;
+    * `Neptunus.Position.Simulated` — the simulator's DVL or USBL served on loopback over
+      those protocols, read by the two drivers above (a simulated vehicle's sources);
+    * `Neptunus.Position.Test` — a test double: the test says what it reports.
+
+  Optional: `command/3` — a command for the device (`:reset_dead_reckoning`,
+  `:calibrate_gyro` for a DVL); sources without it refuse commands.
+  """
+
+  @doc "Starts the source (options include `:id` and `:name`); must register under `via/2`."
+  @callback start_link(keyword()) :: GenServer.on_start()
+
+  @doc "Sends a command to the device and waits for its answer."
+  @callback command(id :: String.t(), name :: atom(), command :: atom()) ::
+              {:ok, term()} | {:error, String.t()}
+
+  @optional_callbacks command: 3
+
+  @doc "The registered name of vehicle `id`'s source `name`."
+  @spec via(String.t(), atom()) :: GenServer.name()
+  def via(id, name), do: Neptunus.Fleet.via({__MODULE__, name}, id)
+
+  @doc "Reports to vehicle `id`'s navigation (asynchronous), at monotonic `at` (s)."
+  @spec report(String.t(), atom(), Neptunus.Navigation.Position.report(), float()) :: :ok
+  def report(id, name, report, at),
+    do: Neptunus.Vehicle.Navigation.position(id, name, report, at)
+
+  @doc "Now, in the seconds of the position filter's clock (monotonic)."
+  @spec now() :: float()
+  def now, do: Neptunus.Clock.monotonic_ms() / 1000
+end
