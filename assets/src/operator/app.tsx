@@ -11,6 +11,8 @@ import { barGeometry, downFor, fmt, formatDeg, vehicleHref, vehicleLabel } from 
 import { Camera, Hud } from "./hud";
 import { HelmPanel, InputPanel, Panel, SettingsPanel } from "./panels";
 import { TouchPad } from "./touchpad";
+import { ownCamera } from "../video/player";
+import { VideoHealthLine, VideoLatency } from "../video/view";
 
 const THRUSTERS = ["port", "vertical", "starboard"] as const;
 
@@ -301,11 +303,12 @@ export function App({ controller }: { controller: OperatorController }): preact.
       <Banner s={s} c={controller} />
       <main class="layout">
         <div class="view-column">
-          <Camera camera={s.camera} rotation={s.rotation} status={s.telemetry?.camera_status ?? null}>
-            <Hud s={s} />
+          <Camera camera={s.camera} rotation={s.rotation} status={s.telemetry?.camera_status ?? null} video={controller.video}>
+            <Hud s={s} video={<VideoLatency player={controller.video} />} />
             <StopBanner s={s} />
             {s.inputMode === "touch" && <TouchPad controller={controller} touch={s.touch} mode={mode} />}
           </Camera>
+          {s.camera !== null && ownCamera(s.camera.url) && <VideoHealthLine player={controller.video} onSnapshot={() => controller.snapshot()} />}
           <div class="readout-grid">
             <Navigation s={s} />
             <ThrusterPanel thrusters={s.telemetry?.thrusters ?? null} />

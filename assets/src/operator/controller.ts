@@ -73,6 +73,9 @@ import { withReachability } from "./fleet";
 import { HEADSET_OFF, HeadsetInput } from "./headset";
 import type { HeadsetState } from "./headset";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
+import { loadPathChoice } from "../video/path";
+import { VideoPlayer, ownCamera } from "../video/player";
+import { takeSnapshot } from "../video/snapshots";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
 
 export type { TelemetryState };
@@ -185,6 +188,8 @@ export class OperatorController {
   private readonly settings: SettingsClient;
   /** the brightness the lights come back to when a button turns them on */
   private lightsOn = 255;
+  /** the vehicle's camera over the video socket (src/video/) */
+  readonly video: VideoPlayer;
 
   constructor(params: URLSearchParams) {
     this.params = params;
@@ -261,6 +266,11 @@ export class OperatorController {
       ),
     );
     this.settings = new SettingsClient(() => this.session.token);
+    this.video = new VideoPlayer({
+      token: () => this.session.token,
+      serverOffsetMs: () => this.clock.offset.offsetMs,
+      choice: loadPathChoice(params, storage()),
+    });
   }
 
   private get state(): OperatorState {
@@ -374,6 +384,7 @@ export class OperatorController {
           control: snapshot.control,
           sent: null,
         });
+        this.video.watch(snapshot.camera !== null && ownCamera(snapshot.camera.url) ? id : null);
         if (snapshot.telemetry) this.onTelemetry(snapshot.telemetry);
       },
       telemetry: (t) => this.onTelemetry(t),
@@ -613,6 +624,9 @@ export class OperatorController {
       case "input_gamepad":
         this.setInputMode("gamepad");
         return;
+      case "snapshot":
+        this.snapshot();
+        return;
       case "set": {
         const { field, value } = command;
         this.setting(field, (v) => v.setValue(`set_${field}`, value));
@@ -777,6 +791,20 @@ export class OperatorController {
 
   signOut(): void {
     this.session.signOut();
+  }
+
+  /** The camera's current picture saved on the server, next to the recordings (Snapshot button, gamepad). */
+  snapshot(): void {
+    const id = this.state.vehicleId;
+    if (id === null || this.state.camera === null) {
+      this.showMessage("Snapshot: this vehicle has no camera.", "warn", "snapshot");
+      return;
+    }
+    this.showMessage("Taking a snapshot…", "info", "snapshot");
+    takeSnapshot(id, this.session.token).then(
+      (info) => this.showMessage(`Snapshot saved: ${info.name}`, "info", "snapshot"),
+      (err: unknown) => this.showMessage(`Snapshot not saved: ${reasonOf(err)}`, "error", "snapshot"),
+    );
   }
 
   // ------------------------------------------------------------------------------------------

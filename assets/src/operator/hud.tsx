@@ -11,6 +11,9 @@ import type { Rotation } from "../lib/prefs";
 import type { BoardLinkDetails, CameraInfo, CameraStatus, RecordingStatus } from "../lib/protocol";
 import { formatHeading, headingDeg, radToDeg } from "../lib/units";
 import type { OperatorState } from "./controller";
+import { ownCamera } from "../video/player";
+import type { VideoPlayer } from "../video/player";
+import { VideoFeed } from "../video/view";
 import { DEPTH_TOLERANCE, HEADING_TOLERANCE, movingReference } from "./reference";
 import type { MeasurementState } from "../lib/protocol";
 import {
@@ -110,6 +113,8 @@ export function Camera(props: {
   rotation: Rotation;
   /** the server's word on the camera (from telemetry) */
   status?: CameraStatus | null;
+  /** plays this server's own camera over the video socket (src/video/) */
+  video?: VideoPlayer;
   children?: ComponentChildren;
 }): preact.JSX.Element {
   const { camera, rotation } = props;
@@ -122,6 +127,8 @@ export function Camera(props: {
           <strong>No camera</strong>
           <span>This vehicle publishes no video stream.</span>
         </div>
+      ) : props.video !== undefined && ownCamera(camera.url) ? (
+        <VideoFeed player={props.video} rotation={rotation} />
       ) : cameraElement(camera.url) === "video" ? (
         <video class="feed" src={camera.url} style={style} autoplay muted playsInline />
       ) : (
@@ -208,7 +215,7 @@ function BoardLink(props: { details: BoardLinkDetails }): preact.JSX.Element {
   );
 }
 
-export function Hud(props: { s: OperatorState }): preact.JSX.Element {
+export function Hud(props: { s: OperatorState; video?: ComponentChildren }): preact.JSX.Element {
   const { s } = props;
   const t = s.telemetry;
   const m = t?.measurement;
@@ -286,6 +293,7 @@ export function Hud(props: { s: OperatorState }): preact.JSX.Element {
             <small> (max {formatMs(s.latency.max)})</small>
           </span>
           <RecCamera recording={t?.recording ?? null} camera={t?.camera_status ?? null} />
+          {props.video}
         </HudBox>
         <HudBox title="Thrusters">
           <span class="hud-thrusters" data-testid="hud-thrusters">

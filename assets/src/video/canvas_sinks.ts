@@ -175,6 +175,10 @@ export class WebCodecsSink implements Sink {
     return this.decoder?.decodeQueueSize ?? 0;
   }
 
+  lagMs(): null {
+    return null;
+  }
+
   private drop(): void {
     const decoder = this.decoder;
     this.decoder = null;
@@ -242,6 +246,10 @@ export class JpegSink implements Sink {
 
   backlog(): number {
     return this.decoding;
+  }
+
+  lagMs(): null {
+    return null;
   }
 
   reset(): void {

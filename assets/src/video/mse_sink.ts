@@ -174,6 +174,12 @@ export class MseSink implements Sink {
     return this.session?.queue.length ?? 0;
   }
 
+  lagMs(): number | null {
+    const ranges = this.session?.buffer?.buffered;
+    if (ranges === undefined || ranges.length === 0) return null;
+    return (ranges.end(ranges.length - 1) - this.video.currentTime) * 1000;
+  }
+
   private failed(reason: string): void {
     this.reset();
     this.events.error(reason);

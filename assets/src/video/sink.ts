@@ -33,6 +33,8 @@ export interface Sink {
   reset(): void;
   /** frames given but not decoded yet */
   backlog(): number;
+  /** how far the picture shown is behind the newest frame received (ms), where the path keeps a buffer */
+  lagMs(): number | null;
   /** read the render stamp of each picture (the sim camera's) */
   readStamps: boolean;
   close(): void;
