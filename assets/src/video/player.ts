@@ -16,7 +16,7 @@ import type { CoreAction, CoreInput, CoreState, DecoderConfig, DropReason } from
 import { StreamHealth } from "./health";
 import type { HealthSummary } from "./health";
 import { hasMse, MseSink } from "./mse_sink";
-import { forcedPath, savePathChoice } from "./path";
+import { PATH_LABELS, forcedPath, savePathChoice } from "./path";
 import type { PathChoice } from "./path";
 import { choosePath } from "./sink";
 import type { DecodePath, Sink, SinkEvents } from "./sink";
@@ -28,6 +28,8 @@ import type { CameraEvent, EncodedFrame, FrameHeader, StreamEvent } from "./wire
 const BACKOFF_MS = [500, 1000, 2000, 5000];
 /** how often the health line is refreshed (ms) */
 const VIEW_MS = 250;
+/** decoder errors in a row without a picture after which a path is given up on this page */
+const MAX_FAILURES = 3;
 
 export type SocketState = "off" | "connecting" | "open" | "closed";
 
@@ -149,6 +151,10 @@ export class VideoPlayer {
   private choice: PathChoice;
   /** an unopened socket's attempts since the last open */
   private failures = 0;
+  /** decoder errors since the last picture shown */
+  private decoderFailures = 0;
+  /** paths that failed MAX_FAILURES times in a row without a picture: not chosen again */
+  private readonly broken = new Set<DecodePath>();
 
   constructor(private readonly options: PlayerOptions) {
     this.choice = options.choice;
@@ -190,6 +196,7 @@ export class VideoPlayer {
   setChoice(choice: PathChoice): void {
     if (choice === this.choice) return;
     this.choice = choice;
+    this.broken.clear();
     savePathChoice(storage(), choice);
     this.store.update({ choice });
     this.replaceSink(null);
@@ -305,17 +312,19 @@ export class VideoPlayer {
   }
 
   private configure(config: DecoderConfig, keyframe: EncodedFrame): void {
-    const env = { webcodecs: hasWebCodecs(), mse: hasMse() };
+    const env = { webcodecs: hasWebCodecs() && !this.broken.has("webcodecs"), mse: hasMse() && !this.broken.has("mse") };
     const forced = forcedPath(this.choice);
     const path = choosePath(config.codec, forced, env);
     const note =
       path === null
         ? "This browser can decode H.264 neither with WebCodecs nor with Media Source Extensions."
-        : forced !== null && config.codec === "h264" && path !== forced
-          ? forced === "webcodecs"
-            ? "WebCodecs needs a secure page (https or localhost): playing with MSE."
-            : "This browser has no Media Source Extensions for H.264: playing with WebCodecs."
-          : null;
+        : this.broken.size > 0 && config.codec === "h264"
+          ? `${[...this.broken].map((p) => PATH_LABELS[p]).join(" and ")} failed on this page: playing with ${PATH_LABELS[path]}.`
+          : forced !== null && config.codec === "h264" && path !== forced
+            ? forced === "webcodecs"
+              ? "WebCodecs needs a secure page (https or localhost): playing with MSE."
+              : "This browser has no Media Source Extensions for H.264: playing with WebCodecs."
+            : null;
     this.store.update({ note });
     if (path === null) return;
     if (this.sink?.path !== path) this.replaceSink(path);
@@ -354,6 +363,14 @@ export class VideoPlayer {
         c.errors += 1;
         c.lastError = reason;
         console.warn(`neptunus video: ${reason}`);
+        this.decoderFailures += 1;
+        const path = this.sink?.path;
+        if (this.decoderFailures >= MAX_FAILURES && path !== undefined && path !== "jpeg") {
+          // this browser cannot play the stream this way: the other path from the next keyframe
+          this.broken.add(path);
+          this.decoderFailures = 0;
+          this.replaceSink(null);
+        }
         this.apply({ type: "decoder_error", reason }, null);
       },
     };
@@ -366,6 +383,7 @@ export class VideoPlayer {
     const serverToDisplay = serverNow === null ? null : serverNow - frame.serverUs / 1000;
     const renderToDisplay = stamp === null || serverNow === null ? null : stampAgeMs(stamp, serverNow);
     c.displayed += 1;
+    this.decoderFailures = 0;
     if (stamp !== null) c.stamps += 1;
     else if (this.sink?.readStamps === true) c.stampMisses += 1;
     c.serverToDisplay = serverToDisplay;
