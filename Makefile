@@ -5,7 +5,8 @@ SHELL := /bin/bash
 .DEFAULT_GOAL := help
 
 APT_PACKAGES := elixir erlang-dev erlang-src erlang-yaws erlang-jiffy erlang-proper \
-                erlang-dialyzer socat chromium gcc libc6-dev python3 python3-venv openssl
+                erlang-dialyzer socat chromium gcc libc6-dev python3 python3-venv openssl \
+                ffmpeg
 YAWS_DIR := $(firstword $(wildcard /usr/lib/yaws-*))
 ASSETS_STAMP := assets/node_modules/.package-lock.json
 # pymavlink, for the MAVLink interoperability tests only, in a project-local virtualenv
@@ -37,7 +38,8 @@ setup-apt:
 	if [ -n "$$missing" ]; then \
 	  if [ "$$(id -u)" = 0 ]; then \
 	    echo "Installing Debian packages:" $$missing; \
-	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
+	    apt-get update -qq || echo "apt-get update failed for some lists: installing from those it has"; \
+	    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
 	  else \
 	    echo "Missing Debian packages. Run:"; \
 	    echo "  sudo apt-get update && sudo apt-get install -y" $$missing; \

@@ -40,7 +40,8 @@ defmodule NeptunusWeb.API do
       (the previous value stays)
     * `DELETE /api/settings/<key>` → `{"deleted": key}` (also when none was stored)
 
-  See `NeptunusWeb.Auth` and docs/API.md.
+  Snapshots (`POST /api/vehicles/<id>/snapshot`, `GET /api/snapshots…`):
+  `NeptunusWeb.SnapshotAPI`. See `NeptunusWeb.Auth` and docs/API.md.
   """
   import NeptunusWeb.Yaws
 
@@ -105,6 +106,13 @@ defmodule NeptunusWeb.API do
 
   defp route(_method, "/api/settings/" <> _, _arg),
     do: {405, %{error: "method not allowed: use GET, PUT or DELETE"}}
+
+  # snapshots (NeptunusWeb.SnapshotAPI)
+  defp route(method, "/api/snapshots" <> _ = path, arg),
+    do: NeptunusWeb.SnapshotAPI.route(method, path, arg)
+
+  defp route(method, "/api/vehicles/" <> _ = path, arg),
+    do: NeptunusWeb.SnapshotAPI.route(method, path, arg)
 
   defp route(_method, path, _arg), do: {404, %{error: "no such API endpoint: #{path}"}}
 

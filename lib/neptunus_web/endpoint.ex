@@ -5,7 +5,9 @@ defmodule NeptunusWeb.Endpoint do
     * `priv/static` (the operator page and its assets) at `/`,
     * the HTTP API (`NeptunusWeb.API`) under `/api`,
     * the Phoenix Channels v2 WebSocket (`NeptunusWeb.Socket`) at `/socket/websocket`,
-    * the vehicles' cameras (`NeptunusWeb.CameraStream`) at `/camera/<id>.mjpg`.
+    * the vehicles' cameras: the video WebSocket (`NeptunusWeb.VideoSocket`) at
+      `/video/<id>/websocket`, MJPEG for `<img>` (`NeptunusWeb.CameraStream`) at
+      `/camera/<id>.mjpg`.
 
   It starts last in the application and so stops first. Its option is the web layer's
   settings (`NeptunusWeb.Settings`, built from the configuration once at boot by
@@ -104,7 +106,8 @@ defmodule NeptunusWeb.Endpoint do
       appmods: [
         {~c"/api", NeptunusWeb.API},
         {~c"/socket", NeptunusWeb.Socket},
-        {~c"/camera", NeptunusWeb.CameraStream}
+        {~c"/camera", NeptunusWeb.CameraStream},
+        {~c"/video", NeptunusWeb.VideoSocket}
       ],
       flags: [access_log: false, auth_log: false],
       # every request: the Host check first, the security headers on every response

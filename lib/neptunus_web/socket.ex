@@ -32,10 +32,9 @@ defmodule NeptunusWeb.Socket do
   freed and the vehicle stops).
 
   Slow clients: on Linux the kernel may hold only `unsent_bytes` (default 4 096) of
-  a connection's frames unsent (`TCP_NOTSENT_LOWAT`, plain and TLS sockets alike). Without
-  it the kernel grows the send buffer to megabytes and a slow client's backlog forms there,
-  where nothing can drop stale telemetry; with it the backlog forms in the mailbox, where
-  `FlowControl` drops it (`backlog`, default 8 waiting messages). While piloting,
+  a connection's frames unsent (`NeptunusWeb.Socket.Transport.limit_unsent/1`), so a slow
+  client's backlog forms in the mailbox, where `FlowControl` drops it (`backlog`, default 8
+  waiting messages). While piloting,
   the connection also gets its telemetry first (`Neptunus.PubSub.prioritize/2`). Frames of
   a topic the connection has left (still in flight, or from a paced broadcast's later
   slice) are dropped.
@@ -77,16 +76,14 @@ defmodule NeptunusWeb.Socket do
   import NeptunusWeb.Yaws
 
   alias Neptunus.PubSub
-  alias NeptunusWeb.{Auth, Presence}
+  alias NeptunusWeb.Presence
   alias NeptunusWeb.Channels.{FleetChannel, LogChannel, VehicleChannel}
-  alias NeptunusWeb.Socket.{FlowControl, Router, WsFrame}
+  alias NeptunusWeb.Socket.{FlowControl, Router, Transport, WsFrame}
 
   @routes [{"fleet", FleetChannel}, {"vehicle:*", VehicleChannel}, {"log:*", LogChannel}]
 
-  @ipproto_tcp 6
   # see "Memory"
   @fullsweep_after 0
-  @tcp_notsent_lowat 25
   @max_message_bytes 65_536
   # how often to look for the presence server while it restarts
   @presence_retry_ms 20
@@ -117,27 +114,18 @@ defmodule NeptunusWeb.Socket do
 
     cond do
       path != "/socket/websocket" ->
-        http_error(404, "no such socket endpoint: #{path}")
+        Transport.http_error(404, "no such socket endpoint: #{path}")
 
       not String.starts_with?(Map.get(params, "vsn", ""), "2.") ->
-        http_error(400, "unsupported protocol version: use vsn=2.0.0")
+        Transport.http_error(400, "unsupported protocol version: use vsn=2.0.0")
 
       true ->
-        upgrade(arg, params)
+        upgrade(arg)
     end
   end
 
-  defp upgrade(arg, params) do
-    headers = arg(arg, :headers)
-
-    request = %{
-      origin: header(headers, "origin"),
-      host: text(headers(headers, :host)),
-      token: params["token"],
-      name: params["name"]
-    }
-
-    case Auth.connect(request) do
+  defp upgrade(arg) do
+    case Transport.authorize(arg) do
       {:ok, user} ->
         opts = [
           {:callback, {:basic, %{user: user}}},
@@ -149,12 +137,8 @@ defmodule NeptunusWeb.Socket do
         {:websocket, __MODULE__, opts}
 
       {:error, status, reason} ->
-        http_error(status, reason)
+        Transport.http_error(status, reason)
     end
-  end
-
-  defp http_error(status, reason) do
-    [{:status, status}, {:content, ~c"application/json", Neptunus.JSON.encode!(%{error: reason})}]
   end
 
   # yaws WebSocket callbacks (basic mode). yaws does not catch exceptions from handle_info
@@ -192,7 +176,7 @@ defmodule NeptunusWeb.Socket do
     # The upgrade leaves garbage behind; collecting it now keeps an idle connection small.
     send(self(), :gc)
     sock = ws_state(ws_state, :sock)
-    limit_unsent(sock)
+    Transport.limit_unsent(sock)
     {:ok, %{state | sock: sock}}
   end
 
@@ -393,12 +377,9 @@ defmodule NeptunusWeb.Socket do
   defp push(%State{sock: nil} = state, frame), do: {:reply, {:text, frame}, state}
 
   defp push(%State{sock: sock} = state, frame) do
-    _ = send_data(sock, WsFrame.text(frame))
+    _ = Transport.send_data(sock, WsFrame.text(frame))
     {:noreply, state}
   end
-
-  defp send_data({:ssl, sock}, data), do: :ssl.send(sock, data)
-  defp send_data(sock, data), do: :gen_tcp.send(sock, data)
 
   defp reply(state, []), do: {:noreply, state}
   defp reply(state, frames), do: {:reply, Enum.map(frames, &{:text, &1}), state}
@@ -448,28 +429,7 @@ defmodule NeptunusWeb.Socket do
     end
   end
 
-  # Linux: the kernel takes a frame only while less than `unsent_bytes` of this
-  # connection's earlier frames wait there unsent (TCP_NOTSENT_LOWAT). On a slow link the
-  # backlog then forms in the mailbox, where stale telemetry is dropped, instead of in a
-  # send buffer that the kernel grows to megabytes: seconds of old data for the client.
-  defp limit_unsent(sock) do
-    case {:os.type(), NeptunusWeb.Settings.get().unsent_bytes} do
-      {{:unix, :linux}, bytes} when is_integer(bytes) and bytes > 0 and sock != nil ->
-        # best effort: a kernel without the option only keeps the larger buffer
-        _ = setopts(sock, [{:raw, @ipproto_tcp, @tcp_notsent_lowat, <<bytes::native-32>>}])
-        :ok
-
-      _ ->
-        :ok
-    end
-  end
-
-  defp setopts({:ssl, sock}, opts), do: :ssl.setopts(sock, opts)
-  defp setopts(sock, opts), do: :inet.setopts(sock, opts)
-
-  defp connected?(%State{sock: nil}), do: true
-  defp connected?(%State{sock: {:ssl, sock}}), do: match?({:ok, _}, :ssl.peername(sock))
-  defp connected?(%State{sock: sock}), do: match?({:ok, _}, :inet.peername(sock))
+  defp connected?(state), do: Transport.connected?(state.sock)
 
   # The socket is closed under yaws (the send timeout): end the connection now.
   defp gone(state) do

@@ -249,7 +249,7 @@ defmodule NeptunusWeb.FleetClusterTest do
   test "recordings and camera of a vehicle on V: listed, exported and watched from T", ctx do
     script = Path.expand("../fixtures/camera/fake_camera.sh", __DIR__)
     id = "far-cam-#{System.unique_integer([:positive])}"
-    camera = %{kind: :exec, program: "/bin/sh", args: [script, "0"]}
+    camera = %{kind: :exec, codec: :mjpeg, program: "/bin/sh", args: [script, "0"]}
     recording = Map.put(Application.get_env(:neptunus, :recording), :dir, ctx.tmp_dir)
     name = :"fleet_v#{port()}_#{System.unique_integer([:positive])}"
 
@@ -299,7 +299,7 @@ defmodule NeptunusWeb.FleetClusterTest do
   test "camera frames cross to T once per frame, not once per viewer on T" do
     script = Path.expand("../fixtures/camera/fake_camera.sh", __DIR__)
     id = "far-cam-#{System.unique_integer([:positive])}"
-    camera = %{kind: :exec, program: "/bin/sh", args: [script, "0"]}
+    camera = %{kind: :exec, codec: :mjpeg, program: "/bin/sh", args: [script, "0"]}
     name = :"fleet_v#{port()}_#{System.unique_integer([:positive])}"
     peer = Cluster.start_node!(name, port() + 5, [%{id: id, board: :simulated, camera: camera}])
     on_exit(fn -> Cluster.stop_node(peer) end)

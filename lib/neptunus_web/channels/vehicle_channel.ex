@@ -6,7 +6,8 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   command out) and relays the answers. Payloads and error reasons: `docs/API.md`.
 
   Join reply (state snapshot): `%{vehicle, telemetry, helm, pilot, control, camera, settings,
-  session}` (`camera`: `%{url}` of the MJPEG stream, or nil; `settings`: the vehicle's view
+  session}` (`camera`: `%{codec, video, url}`, the video WebSocket's path and the MJPEG
+  stream's, see `Neptunus.Vehicle.Camera.info/1`, or nil; `settings`: the vehicle's view
   settings, `Neptunus.Vehicle.ViewSettings`),
   followed by `presence_state`. Joining never depends on control: observers join like
   pilots, and being refused control is an event, never a closed channel.
@@ -17,7 +18,9 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   `set_control_mode`, `set_gain`, `set_lights`, `set_laser`, `set_tilt`, `autopilot`,
   `set_run_mode` (`Neptunus.Vehicle.Control.command/3`), the autopilot tuning `set_tuning`,
   `step_response` (the user who pilots, from any connection, or the main station) and
-  `get_tuning` (anyone), `set_camera_rotation` (the user who pilots or the main
+  `get_tuning` (anyone), `snapshot` (anyone: the camera's picture saved,
+  `NeptunusWeb.SnapshotAPI`; replied `%{status: "pending"}`, the result follows as the event
+  `snapshot` to this connection), `set_camera_rotation` (the user who pilots or the main
   station; broadcast as `vehicle_settings`), `arm` and `disarm` (a mavlink vehicle,
   `Neptunus.Vehicle.Board.arm/3`; on a mavlink vehicle `autopilot` sets its flight mode,
   `Neptunus.Vehicle.Board.MAVLink.autopilot/3`). Server events: `telemetry`, `helm`, `stopped`,
@@ -191,6 +194,29 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     |> reply(socket)
   end
 
+  # A snapshot of the camera (NeptunusWeb.SnapshotAPI): anyone watching. The picture is
+  # decoded and saved by a process of its own on the vehicle's node, never in this
+  # connection (a pilot's commands would wait): the reply says `pending`, the event
+  # `snapshot` follows to this connection.
+  def handle_in("snapshot", _payload, socket) do
+    id = id(socket)
+
+    spawn(fn ->
+      result =
+        try do
+          NeptunusWeb.SnapshotAPI.take(id)
+        rescue
+          exception -> {:error, 500, Exception.message(exception)}
+        catch
+          kind, reason -> {:error, 500, "snapshot failed: #{inspect({kind, reason})}"}
+        end
+
+      Channel.send_self(socket, {:snapshot, result})
+    end)
+
+    {:reply, {:ok, %{status: "pending"}}, socket}
+  end
+
   def handle_in(event, _payload, socket) do
     {:reply, {:error, %{reason: "unknown event: #{event}"}}, socket}
   end
@@ -216,6 +242,12 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   end
 
   def handle_info({:helm, event, payload}, socket), do: {:push, event, payload, socket}
+
+  def handle_info({:snapshot, {:ok, snapshot}}, socket),
+    do: {:push, "snapshot", %{ok: true, snapshot: snapshot}, socket}
+
+  def handle_info({:snapshot, {:error, _status, reason}}, socket),
+    do: {:push, "snapshot", %{ok: false, reason: reason}, socket}
 
   # the vehicle's answer to an arm/disarm/autopilot whose reply said `pending`
   def handle_info({:vehicle_answer, _ref, event, result}, socket) do
@@ -277,9 +309,9 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   end
 
   defp camera(id) do
-    case Neptunus.Vehicle.Camera.url(id) do
+    case Neptunus.Vehicle.Camera.info(id) do
       nil -> nil
-      url -> %{url: url}
+      %{codec: codec} = info -> %{info | codec: Atom.to_string(codec)}
     end
   end
 

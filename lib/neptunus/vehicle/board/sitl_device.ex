@@ -11,6 +11,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   firmware the simulator's reading, runs the firmware's loop up to now, sends what it wrote and
   drives the simulator with the thrusters the firmware's ESC pulses give. Received bytes go to
   the firmware as they arrive (its 64-byte receive buffer drops what overflows: `rx_dropped`).
+  Each tick also publishes the true pose and the firmware's lights, laser and tilt for the
+  simulated camera (`Neptunus.Camera.Pose`).
 
   `reset/1` reboots the board (as a USB Arduino that resets) without touching the simulated
   vehicle: the firmware starts again from millis 0 and the physics keep going. If the port
@@ -20,6 +22,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   use GenServer
 
   alias Neptunus.{Periodic, Sim}
+  alias Neptunus.Camera.Pose
   alias Neptunus.Vehicle.Board.SITL.Firmware
 
   @max_catch_up 20
@@ -185,6 +188,12 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
 
     sim = state.sim |> Sim.command(firmware.thrusters) |> Sim.step(steps)
     Periodic.arm(periodic, :tick)
+    # for the simulated camera, if one renders this vehicle (a lookup when none does)
+    Pose.publish(state.id, sim.dyn, %{
+      lights: firmware.lights,
+      laser: firmware.laser,
+      tilt: (firmware.tilt - 1500) / 500 * :math.pi() / 4
+    })
 
     state = %{
       state
