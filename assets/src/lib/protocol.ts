@@ -196,7 +196,10 @@ export interface WildPoints {
 
 /** Where the vehicle's camera can be watched (from the snapshot). */
 export interface CameraInfo {
-  readonly url: string;
+  /** an address an `<img>` or `<video>` plays (this server's MJPEG stream, or another host's); null: none */
+  readonly url: string | null;
+  /** this server's video socket for the camera (`/video/ID/websocket`, docs/API.md "Video"); null: none */
+  readonly video: string | null;
 }
 
 /**
@@ -205,9 +208,15 @@ export interface CameraInfo {
  * addresses are left alone (the token is never sent elsewhere).
  */
 export function cameraWithToken(camera: CameraInfo | null, token: string | null): CameraInfo | null {
-  if (camera === null || token === null || !camera.url.startsWith("/") || camera.url.startsWith("//")) return camera;
-  const separator = camera.url.includes("?") ? "&" : "?";
-  return { url: `${camera.url}${separator}token=${encodeURIComponent(token)}` };
+  const url = camera?.url ?? null;
+  if (camera === null || url === null || token === null || !ownPath(url)) return camera;
+  const separator = url.includes("?") ? "&" : "?";
+  return { ...camera, url: `${url}${separator}token=${encodeURIComponent(token)}` };
+}
+
+/** A path on this server (not another host's address, not a protocol-relative one). */
+function ownPath(url: string): boolean {
+  return url.startsWith("/") && !url.startsWith("//");
 }
 
 export interface Telemetry {
@@ -595,19 +604,23 @@ export function decodeTelemetry(value: unknown): Telemetry | null {
   };
 }
 
-/** The camera: `camera: {url}` (or a bare URL) in the snapshot, else `vehicle.camera_url`. */
+/**
+ * The camera: `camera: {video, url}` in the snapshot (this server's video socket and, for an
+ * MJPEG camera, its `<img>` stream), `camera: {url}` or a bare URL, else `vehicle.camera_url`.
+ */
 export function decodeCamera(snapshot: Record<string, unknown>): CameraInfo | null {
   const camera = snapshot["camera"];
   const vehicle = snapshot["vehicle"];
+  const video = isRecord(camera) && typeof camera["video"] === "string" && ownPath(camera["video"]) ? camera["video"] : null;
   const candidates = [
     isRecord(camera) ? camera["url"] : camera,
     isRecord(vehicle) ? vehicle["camera_url"] : undefined,
     isRecord(vehicle) ? vehicle["video_url"] : undefined,
   ];
   for (const url of candidates) {
-    if (typeof url === "string" && /^(https?:\/\/|\/)/.test(url)) return { url };
+    if (typeof url === "string" && /^(https?:\/\/|\/)/.test(url)) return { url, video };
   }
-  return null;
+  return video !== null ? { url: null, video } : null;
 }
 
 export function decodeVehicleInfo(value: unknown): VehicleInfo | null {

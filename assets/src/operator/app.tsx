@@ -11,7 +11,6 @@ import { barGeometry, downFor, fmt, formatDeg, vehicleHref, vehicleLabel } from 
 import { Camera, Hud } from "./hud";
 import { HelmPanel, InputPanel, Panel, SettingsPanel } from "./panels";
 import { TouchPad } from "./touchpad";
-import { ownCamera } from "../video/player";
 import { VideoHealthLine, VideoLatency } from "../video/view";
 
 const THRUSTERS = ["port", "vertical", "starboard"] as const;
@@ -308,7 +307,7 @@ export function App({ controller }: { controller: OperatorController }): preact.
             <StopBanner s={s} />
             {s.inputMode === "touch" && <TouchPad controller={controller} touch={s.touch} mode={mode} />}
           </Camera>
-          {s.camera !== null && ownCamera(s.camera.url) && <VideoHealthLine player={controller.video} onSnapshot={() => controller.snapshot()} />}
+          {s.camera?.video != null && <VideoHealthLine player={controller.video} onSnapshot={() => controller.snapshot()} />}
           <div class="readout-grid">
             <Navigation s={s} />
             <ThrusterPanel thrusters={s.telemetry?.thrusters ?? null} />

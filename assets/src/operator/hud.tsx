@@ -11,7 +11,6 @@ import type { Rotation } from "../lib/prefs";
 import type { BoardLinkDetails, CameraInfo, CameraStatus, RecordingStatus } from "../lib/protocol";
 import { formatHeading, headingDeg, radToDeg } from "../lib/units";
 import type { OperatorState } from "./controller";
-import { ownCamera } from "../video/player";
 import type { VideoPlayer } from "../video/player";
 import { VideoFeed } from "../video/view";
 import { DEPTH_TOLERANCE, HEADING_TOLERANCE, movingReference } from "./reference";
@@ -120,21 +119,24 @@ export function Camera(props: {
   const { camera, rotation } = props;
   const down = props.status && !props.status.running && props.status.error !== null ? props.status.error : null;
   const style = { transform: `rotate(${rotation}deg)` };
+  // this server's camera plays over the video socket (which says itself what the camera does)
+  const socketFeed = props.video !== undefined && camera?.video != null;
+  const url = camera?.url ?? null;
   return (
     <div class="camera" data-testid="camera" data-rotation={rotation} data-camera={camera ? "on" : "none"}>
-      {camera === null ? (
+      {props.video !== undefined && socketFeed ? (
+        <VideoFeed player={props.video} rotation={rotation} />
+      ) : url === null ? (
         <div class="no-camera" data-testid="no-camera">
           <strong>No camera</strong>
           <span>This vehicle publishes no video stream.</span>
         </div>
-      ) : props.video !== undefined && ownCamera(camera.url) ? (
-        <VideoFeed player={props.video} rotation={rotation} />
-      ) : cameraElement(camera.url) === "video" ? (
-        <video class="feed" src={camera.url} style={style} autoplay muted playsInline />
+      ) : cameraElement(url) === "video" ? (
+        <video class="feed" src={url} style={style} autoplay muted playsInline />
       ) : (
-        <ImageFeed key={camera.url} url={camera.url} style={style} />
+        <ImageFeed key={url} url={url} style={style} />
       )}
-      {camera !== null && down !== null && (
+      {camera !== null && down !== null && !socketFeed && (
         <div class="camera-lost camera-down" data-testid="camera-down" role="status">
           Camera: {down}
         </div>

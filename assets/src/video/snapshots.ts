@@ -10,6 +10,9 @@ export interface SnapshotInfo {
   readonly bytes: number;
   /** ms since the epoch */
   readonly takenAt: number;
+  /** the vehicle's depth (m) and heading (rad) when it was taken; null when not known */
+  readonly depth: number | null;
+  readonly heading: number | null;
 }
 
 type Fetch = (input: string, init?: RequestInit) => Promise<Response>;
@@ -20,9 +23,10 @@ function isRecord(v: unknown): v is Record<string, unknown> {
 
 export function decodeSnapshot(v: unknown): SnapshotInfo | null {
   if (!isRecord(v)) return null;
-  const { vehicle, name, bytes, taken_at: takenAt } = v;
+  const { vehicle, name, bytes, taken_at: takenAt, depth, heading } = v;
   if (typeof vehicle !== "string" || typeof name !== "string" || typeof bytes !== "number" || typeof takenAt !== "number") return null;
-  return { vehicle, name, bytes, takenAt };
+  const num = (x: unknown): number | null => (typeof x === "number" && Number.isFinite(x) ? x : null);
+  return { vehicle, name, bytes, takenAt, depth: num(depth), heading: num(heading) };
 }
 
 /** The body of `GET /api/snapshots?vehicle=…`, or null when it is not one. */
@@ -57,9 +61,9 @@ async function errorOf(response: Response): Promise<string> {
   return `HTTP ${response.status}`;
 }
 
-/** `POST /api/snapshots/<vehicle>`: the server saves the current picture. Rejects with its reason. */
+/** `POST /api/vehicles/<vehicle>/snapshot`: the server saves the current picture. Rejects with its reason. */
 export async function takeSnapshot(vehicle: string, token: string | null, fetchFn: Fetch = fetch): Promise<SnapshotInfo> {
-  const response = await fetchFn(`/api/snapshots/${encodeURIComponent(vehicle)}`, { method: "POST", headers: authHeaders(token) });
+  const response = await fetchFn(`/api/vehicles/${encodeURIComponent(vehicle)}/snapshot`, { method: "POST", headers: authHeaders(token) });
   if (!response.ok) throw new Error(await errorOf(response));
   const body: unknown = await response.json();
   const info = decodeSnapshot(isRecord(body) ? body["snapshot"] : undefined);

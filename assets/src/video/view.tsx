@@ -22,6 +22,8 @@ export function waitingText(v: VideoView): string | null {
         return `Camera restarting${why}`;
       case "failed":
         return `Camera failed${why}`;
+      case "idle":
+        return "Camera idle — waking it up…";
       case "none":
         return "This vehicle publishes no video stream.";
     }

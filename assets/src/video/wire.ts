@@ -92,7 +92,7 @@ export function encodeFrame(frame: Omit<EncodedFrame, "captureUs" | "payload"> &
 }
 
 export type Codec = "h264" | "mjpeg";
-export type CameraState = "starting" | "running" | "restarting" | "failed" | "none";
+export type CameraState = "starting" | "running" | "restarting" | "failed" | "idle" | "none";
 
 /** `stream`: what the camera sends now; a new `generation` means a new decoder. */
 export interface StreamEvent {
@@ -100,6 +100,7 @@ export interface StreamEvent {
   readonly codec: Codec;
   readonly width: number;
   readonly height: number;
+  /** the camera's configured rate, else its SPS's; 0 when it does not say (the server's null) */
   readonly fps: number;
   readonly generation: number;
   /** sim, v4l2, rtsp, testsrc, exec (only the sim camera stamps its picture) */
@@ -124,7 +125,7 @@ export interface SkippedEvent {
 
 export type VideoEvent = StreamEvent | CameraEvent | SkippedEvent;
 
-const CAMERA_STATES: readonly CameraState[] = ["starting", "running", "restarting", "failed", "none"];
+const CAMERA_STATES: readonly CameraState[] = ["starting", "running", "restarting", "failed", "idle", "none"];
 const AVC = /^avc[13]\.[0-9A-Fa-f]{6}$/;
 
 function isRecord(v: unknown): v is Record<string, unknown> {
@@ -139,11 +140,11 @@ function decodeStream(v: Record<string, unknown>): Parsed<StreamEvent> {
   const { codec, width, height, fps, generation, source, avc } = v;
   if (codec !== "h264" && codec !== "mjpeg") return { ok: false, reason: `stream: unknown codec ${JSON.stringify(codec)}` };
   if (!count(width) || !count(height)) return { ok: false, reason: "stream: width and height must be whole numbers" };
-  if (typeof fps !== "number" || !Number.isFinite(fps) || fps < 0) return { ok: false, reason: "stream: fps must be a number ≥ 0" };
+  if (fps !== null && fps !== undefined && (typeof fps !== "number" || !Number.isFinite(fps) || fps < 0)) return { ok: false, reason: "stream: fps must be a number ≥ 0 or null" };
   if (!count(generation)) return { ok: false, reason: "stream: generation must be a whole number" };
   if (typeof source !== "string") return { ok: false, reason: "stream: source must be a string" };
   if (avc !== null && avc !== undefined && (typeof avc !== "string" || !AVC.test(avc))) return { ok: false, reason: `stream: avc ${JSON.stringify(avc)} is not a codec string` };
-  return { ok: true, value: { event: "stream", codec, width, height, fps, generation, source, avc: typeof avc === "string" ? avc : null } };
+  return { ok: true, value: { event: "stream", codec, width, height, fps: typeof fps === "number" ? fps : 0, generation, source, avc: typeof avc === "string" ? avc : null } };
 }
 
 function decodeCamera(v: Record<string, unknown>): Parsed<CameraEvent> {
@@ -178,10 +179,10 @@ export function parseEvent(text: string): Parsed<VideoEvent> {
   }
 }
 
-/** The video socket's address for `vehicleId` on this page's server (wss on https). */
-export function videoSocketUrl(location: { readonly protocol: string; readonly host: string }, vehicleId: string, token: string | null): string {
+/** The video socket's address on this page's server (wss on https), from its path (`/video/ID/websocket`). */
+export function videoSocketUrl(location: { readonly protocol: string; readonly host: string }, path: string, token: string | null): string {
   const scheme = location.protocol === "https:" ? "wss:" : "ws:";
   const query = new URLSearchParams({ vsn: "1" });
   if (token !== null) query.set("token", token);
-  return `${scheme}//${location.host}/video/${encodeURIComponent(vehicleId)}/websocket?${query.toString()}`;
+  return `${scheme}//${location.host}${path}${path.includes("?") ? "&" : "?"}${query.toString()}`;
 }

@@ -155,12 +155,21 @@ describe("control settings replies and the camera", () => {
 
   it("finds the camera URL in the snapshot, or none", () => {
     const vehicle = { id: "v", board: "simulated" };
-    expect(decodeCamera({ vehicle, camera: { url: "http://cam:8080/?action=stream" } })).toEqual({ url: "http://cam:8080/?action=stream" });
-    expect(decodeCamera({ vehicle, camera: "/video/v.mp4" })).toEqual({ url: "/video/v.mp4" });
-    expect(decodeCamera({ vehicle: { ...vehicle, camera_url: "https://x/y.mjpg" } })).toEqual({ url: "https://x/y.mjpg" });
+    expect(decodeCamera({ vehicle, camera: { url: "http://cam:8080/?action=stream" } })).toEqual({ url: "http://cam:8080/?action=stream", video: null });
+    expect(decodeCamera({ vehicle, camera: "/video/v.mp4" })).toEqual({ url: "/video/v.mp4", video: null });
+    expect(decodeCamera({ vehicle: { ...vehicle, camera_url: "https://x/y.mjpg" } })).toEqual({ url: "https://x/y.mjpg", video: null });
     expect(decodeCamera({ vehicle, camera: null })).toBeNull();
     expect(decodeCamera({ vehicle, camera: { url: "javascript:alert(1)" } })).toBeNull();
     expect(decodeCamera({ vehicle })).toBeNull();
+  });
+
+  it("finds this server's video socket: H.264 (no <img> stream), MJPEG (both)", () => {
+    const vehicle = { id: "v", board: "simulated" };
+    expect(decodeCamera({ vehicle, camera: { codec: "h264", video: "/video/v/websocket", url: null } })).toEqual({ url: null, video: "/video/v/websocket" });
+    expect(decodeCamera({ vehicle, camera: { codec: "mjpeg", video: "/video/v/websocket", url: "/camera/v.mjpg" } })).toEqual({ url: "/camera/v.mjpg", video: "/video/v/websocket" });
+    // never another host's socket
+    expect(decodeCamera({ vehicle, camera: { codec: "h264", video: "//evil.example/ws", url: null } })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: { codec: "h264", video: 7, url: null } })).toBeNull();
   });
 });
 
@@ -340,11 +349,13 @@ describe("barGeometry", () => {
 
 describe("camera address for an <img>", () => {
   it("adds the token to our own server's stream only", () => {
-    expect(cameraWithToken({ url: "/camera/rov.mjpg" }, "v1.a+b")).toEqual({ url: "/camera/rov.mjpg?token=v1.a%2Bb" });
-    expect(cameraWithToken({ url: "/camera/rov.mjpg?x=1" }, "t")).toEqual({ url: "/camera/rov.mjpg?x=1&token=t" });
-    expect(cameraWithToken({ url: "/camera/rov.mjpg" }, null)).toEqual({ url: "/camera/rov.mjpg" });
-    expect(cameraWithToken({ url: "http://cam.example/video.mjpg" }, "t")).toEqual({ url: "http://cam.example/video.mjpg" });
-    expect(cameraWithToken({ url: "//cam.example/video.mjpg" }, "t")).toEqual({ url: "//cam.example/video.mjpg" });
+    const video = "/video/rov/websocket";
+    expect(cameraWithToken({ url: "/camera/rov.mjpg", video }, "v1.a+b")).toEqual({ url: "/camera/rov.mjpg?token=v1.a%2Bb", video });
+    expect(cameraWithToken({ url: "/camera/rov.mjpg?x=1", video: null }, "t")).toEqual({ url: "/camera/rov.mjpg?x=1&token=t", video: null });
+    expect(cameraWithToken({ url: "/camera/rov.mjpg", video: null }, null)).toEqual({ url: "/camera/rov.mjpg", video: null });
+    expect(cameraWithToken({ url: "http://cam.example/video.mjpg", video: null }, "t")).toEqual({ url: "http://cam.example/video.mjpg", video: null });
+    expect(cameraWithToken({ url: "//cam.example/video.mjpg", video: null }, "t")).toEqual({ url: "//cam.example/video.mjpg", video: null });
+    expect(cameraWithToken({ url: null, video }, "t")).toEqual({ url: null, video });
     expect(cameraWithToken(null, "t")).toBeNull();
   });
 });

@@ -63,6 +63,8 @@ describe("text events", () => {
       value: { event: "stream", codec: "h264", width: 640, height: 360, fps: 30, generation: 3, source: "sim", avc: "avc1.42C01E" },
     });
     expect(parseEvent('{"event":"stream","codec":"mjpeg","width":320,"height":240,"fps":15,"generation":1,"source":"v4l2","avc":null}')).toMatchObject({ ok: true, value: { codec: "mjpeg", avc: null } });
+    expect(parseEvent('{"event":"stream","codec":"h264","width":1280,"height":720,"fps":null,"generation":2,"source":"rtsp","avc":"avc1.640028"}')).toMatchObject({ ok: true, value: { fps: 0 } });
+    expect(parseEvent('{"event":"camera","state":"idle","reason":null,"restarts":0}')).toMatchObject({ ok: true, value: { state: "idle" } });
     expect(parseEvent('{"event":"camera","state":"restarting","reason":"exited with status 1","restarts":2}')).toEqual({
       ok: true,
       value: { event: "camera", state: "restarting", reason: "exited with status 1", restarts: 2 },
@@ -84,7 +86,7 @@ describe("text events", () => {
 
 describe("the socket's address", () => {
   it("is ws on http and wss on https, with the token and the version", () => {
-    expect(videoSocketUrl({ protocol: "http:", host: "10.0.0.2:4000" }, "rov 1", "a+b")).toBe("ws://10.0.0.2:4000/video/rov%201/websocket?vsn=1&token=a%2Bb");
-    expect(videoSocketUrl({ protocol: "https:", host: "rov.example" }, "neptunus-1", null)).toBe("wss://rov.example/video/neptunus-1/websocket?vsn=1");
+    expect(videoSocketUrl({ protocol: "http:", host: "10.0.0.2:4000" }, "/video/rov%201/websocket", "a+b")).toBe("ws://10.0.0.2:4000/video/rov%201/websocket?vsn=1&token=a%2Bb");
+    expect(videoSocketUrl({ protocol: "https:", host: "rov.example" }, "/video/neptunus-1/websocket", null)).toBe("wss://rov.example/video/neptunus-1/websocket?vsn=1");
   });
 });
