@@ -74,7 +74,7 @@ import { HEADSET_OFF, HeadsetInput } from "./headset";
 import type { HeadsetState } from "./headset";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import { loadPathChoice } from "../video/path";
-import { VideoPlayer, ownCamera } from "../video/player";
+import { VideoPlayer } from "../video/player";
 import { takeSnapshot } from "../video/snapshots";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
 
@@ -269,6 +269,7 @@ export class OperatorController {
     this.video = new VideoPlayer({
       token: () => this.session.token,
       serverOffsetMs: () => this.clock.offset.offsetMs,
+      readClock: () => this.clock.read(),
       choice: loadPathChoice(params, storage()),
     });
   }
@@ -384,7 +385,7 @@ export class OperatorController {
           control: snapshot.control,
           sent: null,
         });
-        this.video.watch(snapshot.camera !== null && ownCamera(snapshot.camera.url) ? id : null);
+        this.video.watch(snapshot.camera?.video ?? null);
         if (snapshot.telemetry) this.onTelemetry(snapshot.telemetry);
       },
       telemetry: (t) => this.onTelemetry(t),

@@ -7,15 +7,26 @@
  *   the next keyframe, without reloading the page.
  * - The live edge, always: a page that falls behind (its decoder holds more than
  *   MAX_BACKLOG frames) drops frames up to the next keyframe; a keyframe that finds the
- *   decoder still behind flushes it first. A gap in the sequence numbers (frames the server
+ *   decoder far behind (FLUSH_BACKLOG) flushes it first. A gap in the sequence numbers (frames the server
  *   skipped for this page) also waits for a keyframe: an H.264 frame needs the ones before.
  * - JPEG frames stand alone: a page behind simply drops them until it catches up.
  */
 
 import type { CameraEvent, Codec, FrameHeader, StreamEvent, VideoEvent } from "./wire";
 
-/** H.264 frames waiting in the decoder past which the page drops to the next keyframe */
-export const MAX_BACKLOG = 4;
+/**
+ * H.264 frames waiting in the decoder past which the page drops to the next keyframe: half a
+ * second at 30 fps. Below it the decoder catches up by itself (a few ms a frame; only the
+ * newest picture is shown) — dropping to a keyframe would freeze the picture up to a second.
+ */
+export const MAX_BACKLOG = 15;
+/**
+ * Frames waiting in the decoder at a keyframe past which it is flushed (reset) before the
+ * keyframe: a decoder this far behind would show old pictures for seconds. Below it the
+ * keyframe just joins the queue — a reset costs a new decoder, which a starved page cannot
+ * afford every second.
+ */
+export const FLUSH_BACKLOG = 3 * MAX_BACKLOG;
 /** JPEG images being decoded past which a new one is dropped */
 export const MAX_JPEG_BACKLOG = 2;
 
@@ -139,7 +150,7 @@ function onFrame(state: CoreState, frame: FrameHeader, backlog: number): Step {
   const config = configFor(stream);
   if (state.configured === null) {
     actions.push({ type: "configure", config });
-  } else if (backlog > MAX_BACKLOG) {
+  } else if (backlog > FLUSH_BACKLOG) {
     actions.push({ type: "drop", frames: backlog, why: "behind" }, { type: "reset", reason: "behind: flushed at a keyframe" }, { type: "configure", config });
   }
   actions.push({ type: "decode" });

@@ -28,6 +28,8 @@ import type { CameraEvent, EncodedFrame, FrameHeader, StreamEvent } from "./wire
 const BACKOFF_MS = [500, 1000, 2000, 5000];
 /** how often the health line is refreshed (ms) */
 const VIEW_MS = 250;
+/** how often the server's clock is read while the video plays (ms) */
+const CLOCK_MS = 2000;
 /** decoder errors in a row without a picture after which a path is given up on this page */
 const MAX_FAILURES = 3;
 
@@ -57,6 +59,8 @@ export interface VideoCounters {
   keyframesReceived: number;
   /** the first frame received on each socket: a late joiner's must be a keyframe */
   firstReceived: { sequence: number; keyframe: boolean; generation: number } | null;
+  /** the sequence number of the first frame decoded on each socket */
+  firstDecoded: number | null;
   decoded: number;
   displayed: number;
   dropped: Record<DropReason, number>;
@@ -71,6 +75,8 @@ export interface VideoCounters {
   stampMisses: number;
   /** MSE: how far the picture shown is behind the newest frame appended (ms) */
   bufferLagMs: number | null;
+  /** the server's clock minus this page's (ms) the latencies were computed with */
+  offsetMs: number | null;
   /** the latest latencies (ms) */
   serverToDisplay: number | null;
   renderToDisplay: number | null;
@@ -89,6 +95,11 @@ export interface PlayerOptions {
   readonly token: () => string | null;
   /** the server's clock minus this one (ms), null while unknown (lib/clock.ts) */
   readonly serverOffsetMs: () => number | null;
+  /**
+   * Asks the server's clock once more (lib/clock.ts TelemetryClock.read): the latency is only
+   * as good as the offset, whose best reading is the one with the quickest round trip.
+   */
+  readonly readClock?: () => void;
   readonly choice: PathChoice;
   /** the page's address (for the socket's host and scheme) */
   readonly location?: { readonly protocol: string; readonly host: string };
@@ -101,6 +112,7 @@ function newCounters(): VideoCounters {
     received: 0,
     keyframesReceived: 0,
     firstReceived: null,
+    firstDecoded: null,
     decoded: 0,
     displayed: 0,
     dropped: { no_stream: 0, stale: 0, lost: 0, await_key: 0, behind: 0, kind: 0 },
@@ -113,6 +125,7 @@ function newCounters(): VideoCounters {
     stamps: 0,
     stampMisses: 0,
     bufferLagMs: null,
+    offsetMs: null,
     serverToDisplay: null,
     renderToDisplay: null,
     samples: [],
@@ -127,11 +140,6 @@ function storage(): Storage | null {
   }
 }
 
-/** Whether a camera address is this server's own stream (its video socket then plays it). */
-export function ownCamera(url: string): boolean {
-  return url.startsWith("/") && !url.startsWith("//");
-}
-
 /** Date.now() of a performance.now() reading */
 function wallMs(perfMs: number): number {
   return Date.now() - (performance.now() - perfMs);
@@ -140,7 +148,8 @@ function wallMs(perfMs: number): number {
 export class VideoPlayer {
   readonly store: Store<VideoView>;
   readonly counters: VideoCounters = newCounters();
-  private vehicleId: string | null = null;
+  /** the video socket's path (`/video/ID/websocket`) */
+  private path: string | null = null;
   private socket: WebSocket | null = null;
   private retry: number | null = null;
   private core: CoreState = INITIAL_CORE;
@@ -148,6 +157,7 @@ export class VideoPlayer {
   private container: HTMLElement | null = null;
   private readonly health = new StreamHealth();
   private ticker: number | null = null;
+  private clockTicker: number | null = null;
   private choice: PathChoice;
   /** an unopened socket's attempts since the last open */
   private failures = 0;
@@ -162,22 +172,26 @@ export class VideoPlayer {
     if (typeof window !== "undefined") window.neptunusVideo = this.counters;
   }
 
-  /** Watches `vehicleId`'s camera (null: none); the same one again changes nothing. */
-  watch(vehicleId: string | null): void {
-    if (vehicleId === this.vehicleId) return;
+  /** Watches the camera of the video socket at `path` (null: none); the same one again changes nothing. */
+  watch(path: string | null): void {
+    if (path === this.path) return;
     this.stop();
-    this.vehicleId = vehicleId;
-    if (vehicleId === null) return;
+    this.path = path;
+    if (path === null) return;
     this.ticker = window.setInterval(() => this.refresh(), VIEW_MS);
+    const readClock = this.options.readClock;
+    if (readClock !== undefined) this.clockTicker = window.setInterval(readClock, CLOCK_MS);
     this.connect();
   }
 
   stop(): void {
-    this.vehicleId = null;
+    this.path = null;
     if (this.retry !== null) window.clearTimeout(this.retry);
     this.retry = null;
     if (this.ticker !== null) window.clearInterval(this.ticker);
     this.ticker = null;
+    if (this.clockTicker !== null) window.clearInterval(this.clockTicker);
+    this.clockTicker = null;
     const socket = this.socket;
     this.socket = null;
     socket?.close(1000, "page left the vehicle");
@@ -204,9 +218,9 @@ export class VideoPlayer {
   }
 
   private connect(): void {
-    const id = this.vehicleId;
-    if (id === null) return;
-    const url = videoSocketUrl(this.options.location ?? window.location, id, this.options.token());
+    const path = this.path;
+    if (path === null) return;
+    const url = videoSocketUrl(this.options.location ?? window.location, path, this.options.token());
     let socket: WebSocket;
     try {
       socket = new WebSocket(url);
@@ -224,6 +238,7 @@ export class VideoPlayer {
       this.failures = 0;
       this.counters.opens += 1;
       this.counters.firstReceived = null;
+      this.counters.firstDecoded = null;
       this.apply({ type: "open" }, null);
       this.store.update({ socket: "open", failures: 0, showing: false });
     };
@@ -293,7 +308,9 @@ export class VideoPlayer {
         if (frame !== null) this.configure(action.config, frame);
         return;
       case "decode":
-        if (frame !== null) this.sink?.decode(frame);
+        if (frame === null) return;
+        if (c.firstDecoded === null) c.firstDecoded = frame.sequence;
+        this.sink?.decode(frame);
         return;
       case "drop":
         c.dropped[action.why] += action.frames;
@@ -387,6 +404,7 @@ export class VideoPlayer {
     if (stamp !== null) c.stamps += 1;
     else if (this.sink?.readStamps === true) c.stampMisses += 1;
     c.serverToDisplay = serverToDisplay;
+    c.offsetMs = offset;
     c.bufferLagMs = this.sink?.lagMs() ?? null;
     c.renderToDisplay = renderToDisplay;
     if (renderToDisplay !== null && c.samples.length < 100_000) c.samples.push(renderToDisplay);

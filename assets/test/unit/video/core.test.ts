@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { INITIAL_CORE, MAX_BACKLOG, MAX_JPEG_BACKLOG, step } from "../../../src/video/core";
+import { FLUSH_BACKLOG, INITIAL_CORE, MAX_BACKLOG, MAX_JPEG_BACKLOG, step } from "../../../src/video/core";
 import type { CoreAction, CoreInput, CoreState } from "../../../src/video/core";
 import { liveEdge, JUMP_S, KEEP_S, TRIM_AFTER_S } from "../../../src/video/live_edge";
 import { choosePath } from "../../../src/video/sink";
@@ -118,7 +118,7 @@ describe("the live edge", () => {
     expect(r.actions).toEqual([[{ type: "skipped", frames: 20 }], [{ type: "drop", frames: 20, why: "lost" }, { type: "decode" }]]);
   });
 
-  it("drops to the next keyframe when the decoder is behind; flushes it if still behind at the keyframe", () => {
+  it("drops to the next keyframe when the decoder is behind; the keyframe joins the queue", () => {
     const r = run(
       [
         { type: "frame", frame: frame(11), backlog: MAX_BACKLOG },
@@ -133,8 +133,18 @@ describe("the live edge", () => {
       [{ type: "decode" }],
       [{ type: "drop", frames: 1, why: "behind" }],
       [{ type: "drop", frames: 1, why: "await_key" }],
-      [{ type: "drop", frames: MAX_BACKLOG + 2, why: "behind" }, { type: "reset", reason: "behind: flushed at a keyframe" }, { type: "configure", config: CONFIG }, { type: "decode" }],
       [{ type: "decode" }],
+      [{ type: "decode" }],
+    ]);
+  });
+
+  it("flushes a decoder far behind at a keyframe (never at every keyframe of a merely slow one)", () => {
+    expect(step(playing, { type: "frame", frame: frame(11, true), backlog: FLUSH_BACKLOG }).actions).toEqual([{ type: "decode" }]);
+    expect(step(playing, { type: "frame", frame: frame(11, true), backlog: FLUSH_BACKLOG + 1 }).actions).toEqual([
+      { type: "drop", frames: FLUSH_BACKLOG + 1, why: "behind" },
+      { type: "reset", reason: "behind: flushed at a keyframe" },
+      { type: "configure", config: CONFIG },
+      { type: "decode" },
     ]);
   });
 
