@@ -91,15 +91,11 @@ export function hasWebCodecs(): boolean {
   return typeof window !== "undefined" && window.isSecureContext && typeof VideoDecoder === "function";
 }
 
-export class WebCodecsSink implements Sink {
-  readonly path: DecodePath = "webcodecs";
-  private readonly painter: CanvasPainter;
-  private decoder: VideoDecoder | null = null;
-  /** the frames in the decoder, by timestamp (µs): their headers come back with the pictures */
-  private readonly inFlight = new Map<number, FrameHeader>();
-  private lastTimestamp = 0;
+/** What both canvas paths share: the painter, the element, the stamps; no buffer to lag in. */
+abstract class CanvasSink {
+  protected readonly painter: CanvasPainter;
 
-  constructor(private readonly events: SinkEvents) {
+  constructor(protected readonly events: SinkEvents) {
     this.painter = new CanvasPainter(events);
   }
 
@@ -114,6 +110,18 @@ export class WebCodecsSink implements Sink {
   set readStamps(on: boolean) {
     this.painter.readStamps = on;
   }
+
+  lagMs(): null {
+    return null;
+  }
+}
+
+export class WebCodecsSink extends CanvasSink implements Sink {
+  readonly path: DecodePath = "webcodecs";
+  private decoder: VideoDecoder | null = null;
+  /** the frames in the decoder, by timestamp (µs): their headers come back with the pictures */
+  private readonly inFlight = new Map<number, FrameHeader>();
+  private lastTimestamp = 0;
 
   configure(config: DecoderConfig, keyframe: EncodedFrame): void {
     this.reset();
@@ -175,10 +183,6 @@ export class WebCodecsSink implements Sink {
     return this.decoder?.decodeQueueSize ?? 0;
   }
 
-  lagMs(): null {
-    return null;
-  }
-
   private drop(): void {
     const decoder = this.decoder;
     this.decoder = null;
@@ -197,28 +201,11 @@ export class WebCodecsSink implements Sink {
 }
 
 /** MJPEG: each frame is a JPEG image, decoded off the main thread by createImageBitmap. */
-export class JpegSink implements Sink {
+export class JpegSink extends CanvasSink implements Sink {
   readonly path: DecodePath = "jpeg";
-  private readonly painter: CanvasPainter;
   private decoding = 0;
   /** bumped by reset: images decoded for an older stream are thrown away */
   private epoch = 0;
-
-  constructor(private readonly events: SinkEvents) {
-    this.painter = new CanvasPainter(events);
-  }
-
-  get element(): HTMLElement {
-    return this.painter.canvas;
-  }
-
-  get readStamps(): boolean {
-    return this.painter.readStamps;
-  }
-
-  set readStamps(on: boolean) {
-    this.painter.readStamps = on;
-  }
 
   configure(): void {
     this.reset();
@@ -246,10 +233,6 @@ export class JpegSink implements Sink {
 
   backlog(): number {
     return this.decoding;
-  }
-
-  lagMs(): null {
-    return null;
   }
 
   reset(): void {

@@ -4,6 +4,8 @@
  * wrappers, like the recordings' (lib/recordings.ts).
  */
 
+import { responseReason } from "../lib/errors";
+
 export interface SnapshotInfo {
   readonly vehicle: string;
   readonly name: string;
@@ -51,20 +53,10 @@ function authHeaders(token: string | null): Record<string, string> {
   return token !== null ? { authorization: `Bearer ${token}` } : {};
 }
 
-async function errorOf(response: Response): Promise<string> {
-  try {
-    const body: unknown = await response.json();
-    if (isRecord(body) && typeof body["error"] === "string") return body["error"];
-  } catch {
-    // not JSON
-  }
-  return `HTTP ${response.status}`;
-}
-
 /** `POST /api/vehicles/<vehicle>/snapshot`: the server saves the current picture. Rejects with its reason. */
 export async function takeSnapshot(vehicle: string, token: string | null, fetchFn: Fetch = fetch): Promise<SnapshotInfo> {
   const response = await fetchFn(`/api/vehicles/${encodeURIComponent(vehicle)}/snapshot`, { method: "POST", headers: authHeaders(token) });
-  if (!response.ok) throw new Error(await errorOf(response));
+  if (!response.ok) throw new Error(await responseReason(response));
   const body: unknown = await response.json();
   const info = decodeSnapshot(isRecord(body) ? body["snapshot"] : undefined);
   if (info === null) throw new Error("unexpected reply to a snapshot");
@@ -74,7 +66,7 @@ export async function takeSnapshot(vehicle: string, token: string | null, fetchF
 /** `GET /api/snapshots?vehicle=…`, newest first. Rejects with the server's reason. */
 export async function fetchSnapshots(vehicle: string, token: string | null, fetchFn: Fetch = fetch): Promise<SnapshotInfo[]> {
   const response = await fetchFn(`/api/snapshots?${new URLSearchParams({ vehicle }).toString()}`, { headers: authHeaders(token), cache: "no-store" });
-  if (!response.ok) throw new Error(await errorOf(response));
+  if (!response.ok) throw new Error(await responseReason(response));
   const list = decodeSnapshotList(await response.json());
   if (list === null) throw new Error("unexpected reply to /api/snapshots");
   return [...list].sort((a, b) => b.takenAt - a.takenAt);
