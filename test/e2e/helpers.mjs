@@ -84,10 +84,10 @@ export async function launch() {
   return chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 30000 });
 }
 
-/** A fresh context and page at `path` (default the operator page as `name`). */
-export async function open(browser, { width, height, name, touch = false, path = null, init = null }) {
+/** A fresh context and page at `path` (default the operator page as `name`); `wait`: its timeouts (ms). */
+export async function open(browser, { width, height, name, touch = false, path = null, init = null, wait = WAIT_MS }) {
   const context = await browser.newContext({ viewport: { width, height }, hasTouch: touch, isMobile: false });
-  context.setDefaultTimeout(WAIT_MS);
+  context.setDefaultTimeout(wait);
   await reportCspViolations(context);
   const page = await context.newPage();
   if (init) await page.addInitScript(init);
@@ -95,11 +95,11 @@ export async function open(browser, { width, height, name, touch = false, path =
   page.on("console", (msg) => {
     if (msg.type() === "error") pageProblems.push(`[${name}] console.error: ${msg.text()}`);
   });
-  const response = await page.goto(`${BASE}${path ?? `/?name=${encodeURIComponent(name)}`}`, { waitUntil: "load", timeout: WAIT_MS });
+  const response = await page.goto(`${BASE}${path ?? `/?name=${encodeURIComponent(name)}`}`, { waitUntil: "load", timeout: wait });
   assertPageHeaders(response, name);
   await page
     .locator('#status[data-state="connected"]')
-    .waitFor({ timeout: WAIT_MS })
+    .waitFor({ timeout: wait })
     .catch(async () => {
       const status = await page.locator("#status").textContent();
       throw new Error(`[${name}] page never showed "connected" (status: "${status}")`);
