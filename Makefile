@@ -103,6 +103,7 @@ bench: setup assets
 	bench/control_latency
 	bench/recording_export
 	bench/recorder_sync
+	bench/sim_camera
 	bench/soak
 	@if [ "$$(id -u)" = 0 ]; then bench/slow_link; else echo "bench/slow_link skipped: it needs root (a network namespace and a shaped link)"; fi
 

@@ -171,6 +171,27 @@ defmodule NeptunusWeb.VideoSocketTest do
     assert Enum.any?(frames, & &1.keyframe)
   end
 
+  test "the vehicle's join reply says how to watch an H.264 camera", %{id: id} do
+    %{snapshot: snapshot, ws: ws} =
+      NeptunusWeb.Test.Wire.client!("vehicle:" <> id, %{"name" => "v"})
+
+    assert snapshot["camera"] == %{
+             "codec" => "h264",
+             "video" => "/video/#{id}/websocket",
+             "url" => nil
+           }
+
+    WSClient.close(ws)
+    {:ok, 404, body} = mjpeg_status(id)
+    assert body =~ "sends h264: watch it at /video/#{id}/websocket"
+  end
+
+  defp mjpeg_status(id) do
+    {status, _headers, body, socket} = NeptunusWeb.Test.Wire.raw_get("/camera/#{id}.mjpg")
+    :gen_tcp.close(socket)
+    {:ok, status, body}
+  end
+
   test "unknown vehicle, no camera, wrong path: 404 with a reason" do
     other = start_vehicle!("nocam")
 

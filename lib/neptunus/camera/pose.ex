@@ -33,7 +33,8 @@ defmodule Neptunus.Camera.Pose do
           tilt: float()
         }
 
-  @fields [:x, :y, :z, :phi, :theta, :psi, :u, :v, :w, :p, :q, :r, :lights, :laser, :tilt]
+  @dyn_fields [:x, :y, :z, :phi, :theta, :psi, :u, :v, :w, :p, :q, :r]
+  @fields @dyn_fields ++ [:lights, :laser, :tilt]
 
   @doc "The topic a vehicle's simulator publishes its pose on (event `\"pose\"`)."
   @spec topic(String.t()) :: String.t()
@@ -56,23 +57,9 @@ defmodule Neptunus.Camera.Pose do
   """
   @spec new(map(), %{lights: number(), laser: number(), tilt: number()}) :: t()
   def new(dyn, %{lights: lights, laser: laser, tilt: tilt}) do
-    %{
-      x: dyn.x * 1.0,
-      y: dyn.y * 1.0,
-      z: dyn.z * 1.0,
-      phi: dyn.phi * 1.0,
-      theta: dyn.theta * 1.0,
-      psi: dyn.psi * 1.0,
-      u: dyn.u * 1.0,
-      v: dyn.v * 1.0,
-      w: dyn.w * 1.0,
-      p: dyn.p * 1.0,
-      q: dyn.q * 1.0,
-      r: dyn.r * 1.0,
-      lights: lights / 255,
-      laser: laser / 255,
-      tilt: tilt * 1.0
-    }
+    @dyn_fields
+    |> Map.new(&{&1, Map.fetch!(dyn, &1) * 1.0})
+    |> Map.merge(%{lights: lights / 255, laser: laser / 255, tilt: tilt * 1.0})
   end
 
   @doc """

@@ -238,6 +238,30 @@ defmodule Neptunus.Camera.Source do
   end
 
   @doc """
+  `text` (a program's error line) without the source's password, if it has one.
+
+      iex> source = %{kind: :rtsp, url: "rtsp://admin:s3cret@10.0.0.5/s"}
+      iex> Neptunus.Camera.Source.redact("rtsp://admin:s3cret@10.0.0.5/s: Connection refused", source)
+      "rtsp://admin:***@10.0.0.5/s: Connection refused"
+  """
+  @spec redact(String.t(), t() | nil) :: String.t()
+  def redact(text, %{kind: :rtsp, url: url}) do
+    case URI.parse(url).userinfo do
+      nil ->
+        text
+
+      info ->
+        case String.split(info, ":", parts: 2) do
+          [_user, ""] -> text
+          [user, password] -> String.replace(text, user <> ":" <> password, user <> ":***")
+          [_user] -> text
+        end
+    end
+  end
+
+  def redact(text, _source), do: text
+
+  @doc """
   The codec the source sends (`:auto`: a V4L2 camera not probed yet, see
   `Neptunus.Camera.V4L2`).
   """

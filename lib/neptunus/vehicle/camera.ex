@@ -136,7 +136,7 @@ defmodule Neptunus.Vehicle.Camera do
 
   @doc """
   What pages need to show vehicle `id`'s camera: `%{codec, video, url}` — the codec
-  (`:h264` or `:mjpeg`; `:auto` for a V4L2 camera not probed yet), the video WebSocket's
+  (`:h264` or `:mjpeg`; `:auto` for a V4L2 camera before its first stream), the video WebSocket's
   path and the MJPEG `<img>` stream's (nil for H.264) — or nil without a camera.
   """
   @spec info(String.t()) :: %{codec: atom(), video: String.t(), url: String.t() | nil} | nil
@@ -258,6 +258,7 @@ defmodule Neptunus.Vehicle.Camera do
 
   def handle_info({port, {:data, <<?e, line::binary>>}}, %State{port: port} = state) do
     limit = if state.phase == :probing, do: 200, else: @error_lines
+    line = Source.redact(line, state.source)
     {:noreply, %{state | errors: Enum.take([line | state.errors], limit)}}
   end
 
@@ -327,7 +328,13 @@ defmodule Neptunus.Vehicle.Camera do
   def handle_call(:info, _from, %State{source: nil} = state), do: {:reply, nil, state}
 
   def handle_call(:info, _from, state) do
-    codec = Source.codec(state.source)
+    # a probed V4L2 camera's codec once its stream is known
+    codec =
+      case state.info do
+        %{codec: codec} -> String.to_existing_atom(codec)
+        nil -> Source.codec(state.source)
+      end
+
     url = if codec == :mjpeg, do: "/camera/#{URI.encode(state.id)}.mjpg", else: nil
     {:reply, %{codec: codec, video: "/video/#{URI.encode(state.id)}/websocket", url: url}, state}
   end

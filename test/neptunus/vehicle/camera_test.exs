@@ -166,7 +166,8 @@ defmodule Neptunus.Vehicle.CameraTest do
       assert_receive {:pubsub, _, "stream", %{codec: "h264", width: 320, source: "v4l2"}}, 10_000
       frame = next_frame(10_000)
       assert frame.keyframe and String.starts_with?(Frame.payload(frame), <<0, 0, 0, 1, 0x67>>)
-      assert %{codec: :auto} = Camera.info(id)
+      # probed: the pages are told the codec it sends
+      assert %{codec: :h264, url: nil} = Camera.info(id)
     end
 
     test "an MJPEG webcam's MJPEG; forced H.264 it lacks is refused with what it offers" do
@@ -219,6 +220,65 @@ defmodule Neptunus.Vehicle.CameraTest do
     end
   end
 
+  describe "RTSP (a local RTSP server, ffmpeg its client as with an IP camera)" do
+    setup do
+      file = Path.join(System.tmp_dir!(), "rtsp-#{System.unique_integer([:positive])}.h264")
+
+      {_, 0} =
+        System.cmd(
+          "ffmpeg",
+          ~w(-nostdin -loglevel error -f lavfi -i testsrc=size=320x240:rate=15 -frames:v 30
+             -c:v libx264 -preset ultrafast -tune zerolatency -pix_fmt yuv420p -g 15 -bf 0
+             -f h264) ++ [file]
+        )
+
+      {nals, rest, 0} = H264.split(File.read!(file))
+      File.rm!(file)
+
+      {acc, aus} =
+        Enum.reduce(nals ++ [H264.flush(rest)], {H264.AccessUnits.new(), []}, fn nal,
+                                                                                 {acc, aus} ->
+          case H264.AccessUnits.push(acc, nal) do
+            {acc, nil} -> {acc, aus}
+            {acc, au} -> {acc, [au | aus]}
+          end
+        end)
+
+      {_, last} = H264.AccessUnits.flush(acc)
+
+      aus =
+        Enum.reverse([last | aus])
+        |> Enum.map(fn au -> Enum.reject(au, &(H264.type(&1) == 9)) end)
+
+      {:ok, server, port} = Neptunus.Test.RTSPServer.start(aus, 15)
+      on_exit(fn -> if Process.alive?(server), do: Neptunus.Test.RTSPServer.stop(server) end)
+      {:ok, server: server, url: "rtsp://user:secret@127.0.0.1:#{port}/stream"}
+    end
+
+    test "the camera's H.264 passed through; when the camera goes away, said and started again",
+         %{server: server, url: url} do
+      {:ok, source} = Source.parse(url)
+      id = start!(source)
+
+      assert_receive {:pubsub, _, "stream",
+                      %{codec: "h264", width: 320, height: 240, source: "rtsp", avc: "avc1." <> _}},
+                     15_000
+
+      frames = for _ <- 1..20, do: next_frame(10_000)
+      assert hd(frames).keyframe
+      assert Enum.map(frames, & &1.seq) == Enum.to_list(hd(frames).seq..(hd(frames).seq + 19))
+      assert Enum.count(frames, & &1.keyframe) >= 1
+
+      Neptunus.Test.RTSPServer.stop(server)
+      event = camera_event("restarting", 20_000)
+      assert event.reason =~ "exited" or event.reason =~ "no picture"
+      # the password never shows (ffmpeg names the URL in its errors)
+      refute event.reason =~ "secret"
+      assert Source.redact("#{url}: refused", source) =~ "user:***@"
+      assert %{state: "restarting"} = Camera.status(id)
+    end
+  end
+
   describe "the simulated camera" do
     defp sim!(opts \\ []) do
       {:ok, source} = Source.parse("sim@384x216@10")
@@ -259,20 +319,20 @@ defmodule Neptunus.Vehicle.CameraTest do
       end
     end
 
-    defp decode(annexb) do
+    # the first picture of `annexb`, decoded to raw pixels of `pix_fmt` (gray, rgb24)
+    defp decode(annexb, pix_fmt \\ "gray") do
       file = Path.join(System.tmp_dir!(), "sim-#{System.unique_integer([:positive])}.h264")
       File.write!(file, annexb)
 
-      {grey, 0} =
+      {pixels, 0} =
         System.cmd(
           "ffmpeg",
           ~w(-nostdin -loglevel error -f h264 -i) ++
-            [file] ++
-            ~w(-frames:v 1 -f rawvideo -pix_fmt gray -)
+            [file] ++ ~w(-frames:v 1 -f rawvideo -pix_fmt #{pix_fmt} -)
         )
 
       File.rm(file)
-      grey
+      pixels
     end
 
     # the render time the picture shows in its corner (ms since the epoch, mod 2^48)
@@ -338,6 +398,22 @@ defmodule Neptunus.Vehicle.CameraTest do
       {_, dark} = picture_at(id, pose(psi: 1.5, z: 9.0, lights: 0.0))
       {_, lit} = picture_at(id, pose(psi: 1.5, z: 9.0, lights: 1.0))
       assert mean(lit, from) > mean(dark, from) + 5
+    end
+
+    test "the laser shows as red dots on the seabed only while it is on" do
+      id = sim!()
+      _ = Camera.view(id)
+      on = pose(z: 8.0, theta: -0.6, laser: 1.0)
+      {keyframe, _} = picture_at(id, on)
+      {keyframe_off, _} = picture_at(id, %{on | laser: 0.0})
+      assert red_pixels(Frame.payload(keyframe)) > 4
+      assert red_pixels(Frame.payload(keyframe_off)) == 0
+    end
+
+    defp red_pixels(annexb) do
+      for <<r, g, b <- decode(annexb, "rgb24")>>, r > g + 50 and r > b + 50, reduce: 0 do
+        n -> n + 1
+      end
     end
 
     test "stops rendering when nobody watches any more" do
