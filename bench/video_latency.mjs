@@ -1,0 +1,281 @@
+// Video latency with real Chromium pages as viewers: glass-to-glass (render→display, read by
+// each page from the sim camera's corner stamp), frames delivered per viewer, the server's CPU,
+// and what one throttled viewer does to the others. Prints figures, asserts nothing.
+// Started by bench/video_latency, which starts the server; alone against a running server:
+//
+//   VLAT_URL=http://127.0.0.1:4000 VLAT_VEHICLE=neptunus-1 VLAT_SERVER_PID=<beam pid> \
+//     node bench/video_latency.mjs [VIEWERS] [SECONDS]
+//
+// VIEWERS: comma-separated counts measured in turn (default "1,10,50"); SECONDS per count
+// (default 20). The viewers are operator pages (`/?vehicle=V&video=PATH`, the page a pilot
+// or an observer opens: telemetry, HUD, the player) in one headless Chromium, each a page
+// (its own renderer process). Each page's player keeps every render→display sample
+// (`window.neptunusVideo.samples`); the bench empties them after a warm-up and reads them at
+// the end of the window.
+//
+// The throttled viewer (VLAT_THROTTLED_WITH, default 10: measured after that count's window,
+// with its pages still open): one more Chromium page that reads its video socket slowly —
+// one message every VLAT_THROTTLE_READ_MS (default 200: 5 a second of a 30 fps camera)
+// through WebSocketStream, which reads only when asked, so the socket's buffers fill and the
+// server sees a slow viewer as over a slow link. (Chromium's network emulation would not
+// do: it holds the bytes in the browser, the server never sees them wait.) Once the server
+// has skipped frames for it (its buffers full: up to a minute at the sim camera's bitrate)
+// the others are measured again over SECONDS; the figures compare each page's p99 without
+// and with it.
+//
+// Environment: VLAT_URL (http://127.0.0.1:4000), VLAT_VEHICLE (neptunus-1), VLAT_SERVER_PID
+// (the BEAM's OS pid: its CPU and its child processes' — the camera — are printed),
+// VLAT_PATH (auto | webcodecs | mse), VLAT_WARMUP_FRAMES (60), VLAT_THROTTLED_WITH (10; 0:
+// none), VLAT_THROTTLE_READ_MS (200), CHROMIUM_PATH (/usr/bin/chromium).
+
+import { createRequire } from 'node:module';
+import { existsSync, readFileSync, readdirSync } from 'node:fs';
+import os from 'node:os';
+import { pct } from './support/stats.mjs';
+
+const require = createRequire(new URL('../assets/package.json', import.meta.url));
+const { chromium } = require('playwright-core');
+
+const BASE = (process.env.VLAT_URL ?? 'http://127.0.0.1:4000').replace(/\/+$/, '');
+const VEHICLE = process.env.VLAT_VEHICLE ?? 'neptunus-1';
+const PATH = process.env.VLAT_PATH ?? 'auto';
+const COUNTS = (process.argv[2] ?? process.env.VLAT_VIEWERS ?? '1,10,50').split(',').map(Number);
+const SECONDS = Number(process.argv[3] ?? process.env.VLAT_SECONDS ?? 20);
+const WARMUP_FRAMES = Number(process.env.VLAT_WARMUP_FRAMES ?? 60);
+const THROTTLED_WITH = Number(process.env.VLAT_THROTTLED_WITH ?? 10);
+const THROTTLE_READ_MS = Number(process.env.VLAT_THROTTLE_READ_MS ?? 200);
+const SERVER_PID = Number(process.env.VLAT_SERVER_PID ?? 0);
+const CHROMIUM = process.env.CHROMIUM_PATH ?? '/usr/bin/chromium';
+const CLK_TCK = Number(process.env.VLAT_CLK_TCK ?? 100);
+
+const out = (label, value) => console.log(`${(label + ':').padEnd(50)} ${value}`);
+const ms = (v) => (Number.isFinite(v) ? `${v.toFixed(0)} ms` : 'n/a');
+const sleep = (t) => new Promise((r) => setTimeout(r, t));
+
+// ---------------------------------------------------------------------------------------
+// CPU of the server (the BEAM) and of its child processes (the camera: renderer, ffmpeg)
+
+function ticksOf(pid) {
+  try {
+    const stat = readFileSync(`/proc/${pid}/stat`, 'utf8');
+    const f = stat.slice(stat.lastIndexOf(')') + 2).split(' ');
+    // utime, stime, cutime, cstime are fields 14..17 (f[11..14] after the name)
+    return Number(f[11]) + Number(f[12]);
+  } catch {
+    return null;
+  }
+}
+
+function childrenOf(pid) {
+  const kids = [];
+  for (const name of readdirSync('/proc')) {
+    if (!/^\d+$/.test(name)) continue;
+    try {
+      const stat = readFileSync(`/proc/${name}/stat`, 'utf8');
+      const f = stat.slice(stat.lastIndexOf(')') + 2).split(' ');
+      if (Number(f[1]) === pid) kids.push({ pid: Number(name), comm: stat.slice(stat.indexOf('(') + 1, stat.lastIndexOf(')')) });
+    } catch {
+      // gone
+    }
+  }
+  return kids;
+}
+
+/** CPU ticks of the server and of each of its children (by pid) now. */
+function cpuNow() {
+  if (!SERVER_PID) return null;
+  const kids = childrenOf(SERVER_PID);
+  // grandchildren too: the camera may be a shell running the renderer and ffmpeg
+  for (const k of [...kids]) kids.push(...childrenOf(k.pid));
+  return { at: performance.now(), server: ticksOf(SERVER_PID), kids: kids.map((k) => ({ ...k, ticks: ticksOf(k.pid) })) };
+}
+
+function cpuSince(a) {
+  const b = cpuNow();
+  if (a === null || b === null) return null;
+  const seconds = (b.at - a.at) / 1000;
+  const pctOf = (t0, t1) => (t0 === null || t1 === null ? NaN : ((t1 - t0) / CLK_TCK / seconds) * 100);
+  const camera = b.kids.map((k) => {
+    const before = a.kids.find((x) => x.pid === k.pid);
+    return { comm: k.comm, pct: pctOf(before?.ticks ?? null, k.ticks) };
+  });
+  return { server: pctOf(a.server, b.server), camera };
+}
+
+function loadLine() {
+  const [l1, l5] = os.loadavg();
+  return `${l1.toFixed(2)} (1 min), ${l5.toFixed(2)} (5 min) on ${os.cpus().length} cores`;
+}
+
+// ---------------------------------------------------------------------------------------
+// Pages
+
+const ARGS = [
+  '--no-sandbox',
+  '--disable-gpu',
+  '--no-first-run',
+  '--disable-background-networking',
+  '--disable-component-update',
+  '--disable-background-timer-throttling',
+  '--disable-renderer-backgrounding',
+  '--disable-backgrounding-occluded-windows',
+  '--autoplay-policy=no-user-gesture-required',
+];
+
+async function openViewer(browser, name) {
+  const context = await browser.newContext({ viewport: { width: 1024, height: 768 } });
+  const page = await context.newPage();
+  page.on('pageerror', (err) => console.error(`[${name}] uncaught: ${err.message}`));
+  await page.goto(`${BASE}/?vehicle=${encodeURIComponent(VEHICLE)}&name=${encodeURIComponent(name)}&video=${PATH}`, { waitUntil: 'load', timeout: 60_000 });
+  return { name, context, page };
+}
+
+/** The slow reader (see the top): a page of this origin reading its socket at `readMs` per message. */
+async function openThrottled(browser, readMs) {
+  const context = await browser.newContext();
+  const page = await context.newPage();
+  page.on('pageerror', (err) => console.error(`[throttled] uncaught: ${err.message}`));
+  await page.goto(`${BASE}/api/health`, { timeout: 60_000 });
+  await page.evaluate(
+    async ({ path, readMs }) => {
+      const slow = { frames: 0, skips: 0, skipped: 0, closed: null };
+      window.slow = slow;
+      const ws = new WebSocketStream(`ws://${location.host}${path}?vsn=1`);
+      const { readable } = await ws.opened;
+      ws.closed.then((c) => (slow.closed = `closed ${c.closeCode}`), (e) => (slow.closed = `failed ${e}`));
+      const reader = readable.getReader();
+      (async () => {
+        for (;;) {
+          const { value, done } = await reader.read();
+          if (done) return;
+          if (typeof value === 'string') {
+            const e = JSON.parse(value);
+            if (e.event === 'skipped') {
+              slow.skips += 1;
+              slow.skipped += e.frames;
+            }
+          } else {
+            slow.frames += 1;
+          }
+          await new Promise((r) => setTimeout(r, readMs));
+        }
+      })();
+    },
+    { path: `/video/${encodeURIComponent(VEHICLE)}/websocket`, readMs },
+  );
+  return { context, page, state: () => page.evaluate(() => ({ ...window.slow })) };
+}
+
+async function counters(v) {
+  return v.page.evaluate(() => {
+    const c = window.neptunusVideo;
+    if (!c) return null;
+    const dropped = Object.values(c.dropped).reduce((a, b) => a + b, 0);
+    return { path: c.path, received: c.received, displayed: c.displayed, dropped, skipped: c.skipped, superseded: c.superseded, errors: c.errors, stamps: c.stamps, misses: c.stampMisses, offsetKnown: c.serverToDisplay !== null };
+  });
+}
+
+async function waitWarm(viewers) {
+  const deadline = Date.now() + 120_000;
+  for (;;) {
+    const cs = await Promise.all(viewers.map(counters));
+    if (cs.every((c) => c !== null && c.stamps >= WARMUP_FRAMES)) return;
+    if (Date.now() > deadline) {
+      const slow = cs.map((c, i) => `${viewers[i].name}: ${c === null ? 'no player' : `${c.stamps} stamped pictures`}`).filter((_, i) => !(cs[i]?.stamps >= WARMUP_FRAMES));
+      throw new Error(`viewers not warm after 120 s: ${slow.slice(0, 5).join(', ')}`);
+    }
+    await sleep(500);
+  }
+}
+
+/** Empties every page's samples, waits SECONDS, returns each page's samples and counter deltas. */
+async function measure(viewers) {
+  const before = await Promise.all(viewers.map(counters));
+  await Promise.all(viewers.map((v) => v.page.evaluate(() => window.neptunusVideo.samples.splice(0))));
+  const cpu0 = cpuNow();
+  const t0 = performance.now();
+  await sleep(SECONDS * 1000);
+  const samples = await Promise.all(viewers.map((v) => v.page.evaluate(() => window.neptunusVideo.samples.splice(0))));
+  const seconds = (performance.now() - t0) / 1000;
+  const cpu = cpuSince(cpu0);
+  const after = await Promise.all(viewers.map(counters));
+  const per = viewers.map((v, i) => {
+    const a = after[i];
+    const b = before[i];
+    return {
+      name: v.name,
+      path: a.path,
+      samples: samples[i],
+      received: (a.received - b.received) / seconds,
+      displayed: (a.displayed - b.displayed) / seconds,
+      dropped: a.dropped - b.dropped,
+      skipped: a.skipped - b.skipped,
+      errors: a.errors - b.errors,
+      p50: pct(samples[i], 50),
+      p99: pct(samples[i], 99),
+    };
+  });
+  return { per, cpu, seconds };
+}
+
+function report(label, m) {
+  const all = m.per.flatMap((p) => p.samples);
+  const mean = (xs) => xs.reduce((a, b) => a + b, 0) / Math.max(1, xs.length);
+  out(`${label}: glass-to-glass p50 / p99 (all pages)`, `${ms(pct(all, 50))} / ${ms(pct(all, 99))}  (${all.length} pictures, render→display from the corner stamp)`);
+  out(`${label}: worst page's p50 / p99`, `${ms(Math.max(...m.per.map((p) => p.p50)))} / ${ms(Math.max(...m.per.map((p) => p.p99)))}`);
+  out(`${label}: frames received per viewer per s`, `mean ${mean(m.per.map((p) => p.received)).toFixed(1)}, min ${Math.min(...m.per.map((p) => p.received)).toFixed(1)}`);
+  out(`${label}: pictures shown per viewer per s`, `mean ${mean(m.per.map((p) => p.displayed)).toFixed(1)}, min ${Math.min(...m.per.map((p) => p.displayed)).toFixed(1)}`);
+  out(`${label}: frames dropped (all pages) / server-skipped`, `${m.per.reduce((n, p) => n + p.dropped, 0)} / ${m.per.reduce((n, p) => n + p.skipped, 0)}; decoder errors ${m.per.reduce((n, p) => n + p.errors, 0)}`);
+  out(`${label}: decode path`, [...new Set(m.per.map((p) => p.path))].join(', '));
+  if (m.cpu !== null) {
+    const cam = m.cpu.camera.filter((c) => Number.isFinite(c.pct)).map((c) => `${c.comm} ${c.pct.toFixed(1)} %`).join(', ');
+    out(`${label}: server CPU (BEAM) / camera processes`, `${m.cpu.server.toFixed(1)} % of one core / ${cam || 'none seen'}`);
+  }
+  out(`${label}: machine load`, loadLine());
+}
+
+async function main() {
+  if (!existsSync(CHROMIUM)) throw new Error(`no Chromium at ${CHROMIUM}`);
+  console.log(`# video_latency: ${BASE}, vehicle ${VEHICLE}, path ${PATH}, ${SECONDS} s per measurement, viewers ${COUNTS.join(', ')}`);
+  console.log(`# machine: ${os.cpus().length} × ${os.cpus()[0]?.model ?? '?'}, load ${loadLine()}`);
+  const browser = await chromium.launch({ executablePath: CHROMIUM, args: ARGS, timeout: 60_000 });
+  try {
+    for (const n of COUNTS) {
+      const viewers = [];
+      for (let i = 0; i < n; i++) viewers.push(await openViewer(browser, `viewer-${n}-${i}`));
+      await waitWarm(viewers);
+      const m = await measure(viewers);
+      report(`${n} viewer${n === 1 ? '' : 's'}`, m);
+      if (n === THROTTLED_WITH) {
+        const t = await openThrottled(browser, THROTTLE_READ_MS);
+        const t0 = Date.now();
+        // its buffers fill first: measure once the server skips frames for it
+        for (;;) {
+          const st = await t.state();
+          if (st.skips > 0) break;
+          if (st.closed !== null) throw new Error(`the throttled viewer's socket ${st.closed}`);
+          if (Date.now() - t0 > 180_000) throw new Error(`the server did not skip frames for the throttled viewer in 180 s: ${JSON.stringify(st)}`);
+          await sleep(500);
+        }
+        out('throttled viewer: first skip after', `${((Date.now() - t0) / 1000).toFixed(0)} s (its buffers filling)`);
+        const tBefore = await t.state();
+        const withT = await measure(viewers);
+        const tAfter = await t.state();
+        report(`${n} viewers + 1 throttled`, withT);
+        const deltas = m.per.map((p, i) => withT.per[i].p99 - p.p99);
+        const worst = deltas.reduce((a, b) => (Math.abs(b) > Math.abs(a) ? b : a), 0);
+        out('throttled viewer: change of the others\' p99', `worst ${worst >= 0 ? '+' : ''}${worst.toFixed(0)} ms (per page: ${deltas.map((d) => d.toFixed(0)).join(' ')})`);
+        out(`throttled viewer (reads 1 message / ${THROTTLE_READ_MS} ms)`, `${tAfter.frames - tBefore.frames} frames read, ${tAfter.skips - tBefore.skips} skips by the server (${tAfter.skipped - tBefore.skipped} frames), socket ${tAfter.closed ?? 'open'}`);
+        await t.context.close();
+      }
+      await Promise.all(viewers.map((v) => v.context.close()));
+    }
+  } finally {
+    await browser.close();
+  }
+}
+
+main().catch((err) => {
+  console.error(`video_latency: ${err.stack ?? err.message}`);
+  process.exit(1);
+});
