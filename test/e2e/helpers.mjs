@@ -164,3 +164,40 @@ export function assertNoPageProblems() {
 export async function screenshot(page, name, { fullPage = true } = {}) {
   await page.screenshot({ path: join(ARTIFACTS, name), fullPage });
 }
+
+/**
+ * A stubbed standard pad, an init script for `open`: `window.__pad` holds its axes and its 18
+ * buttons (the standard 17 and the PlayStation pads' touchpad); the page reads copies.
+ */
+export const stubPad = () => {
+  const buttons = () => Array.from({ length: 18 }, () => ({ value: 0, pressed: false, touched: false }));
+  window.__pad = { axes: [0, 0, 0, 0], buttons: buttons() };
+  Object.defineProperty(Navigator.prototype, "getGamepads", {
+    configurable: true,
+    value: () => [
+      {
+        id: "Stub pad (STANDARD GAMEPAD)",
+        index: 0,
+        connected: true,
+        mapping: "standard",
+        timestamp: performance.now(),
+        axes: window.__pad.axes.slice(),
+        buttons: window.__pad.buttons.map((b) => ({ ...b })),
+      },
+    ],
+  });
+};
+
+const setButton = (page, index, pressed) =>
+  page.evaluate(([i, p]) => (window.__pad.buttons[i] = { value: p ? 1 : 0, pressed: p, touched: p }), [index, pressed]);
+
+/** Presses `index` for `ms` (a few animation frames at least), then lets go. */
+export async function pressButton(page, index, ms = 120) {
+  await setButton(page, index, true);
+  try {
+    await page.waitForTimeout(ms);
+  } finally {
+    await setButton(page, index, false);
+  }
+  await page.waitForTimeout(60);
+}

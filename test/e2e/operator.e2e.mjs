@@ -22,7 +22,9 @@ import {
   launch,
   num,
   open,
+  pressButton,
   screenshot,
+  stubPad,
   takeHelm,
   thrusterValues,
   until,
@@ -342,26 +344,6 @@ const afterFrames = (page, n = 2) =>
     n,
   );
 
-/** A stubbed standard pad: `window.__pad` holds its axes and buttons (the page reads copies). */
-const stubPad = () => {
-  const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
-  window.__pad = { axes: [0, 0, 0, 0], buttons: buttons() };
-  Object.defineProperty(Navigator.prototype, "getGamepads", {
-    configurable: true,
-    value: () => [
-      {
-        id: "Stub pad (STANDARD GAMEPAD)",
-        index: 0,
-        connected: true,
-        mapping: "standard",
-        timestamp: performance.now(),
-        axes: window.__pad.axes.slice(),
-        buttons: window.__pad.buttons.map((b) => ({ ...b })),
-      },
-    ],
-  });
-};
-
 test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard is ignored in gamepad mode", { timeout: TEST_MS }, async () => {
   const { context, page } = await operator({ ...DESKTOP, name: "e2e-gamepad", init: stubPad });
   const setPad = (axes) => page.evaluate((a) => (window.__pad.axes = a), axes);
@@ -405,20 +387,6 @@ test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard i
     await context.close();
   }
 });
-
-const setButton = (page, index, pressed) =>
-  page.evaluate(([i, p]) => (window.__pad.buttons[i] = { value: p ? 1 : 0, pressed: p, touched: p }), [index, pressed]);
-
-/** Presses `index` for `ms` (a few animation frames at least), then lets go. */
-async function pressButton(page, index, ms = 120) {
-  await setButton(page, index, true);
-  try {
-    await page.waitForTimeout(ms);
-  } finally {
-    await setButton(page, index, false);
-  }
-  await page.waitForTimeout(60);
-}
 
 const storedMapping = (page) =>
   page.evaluate(async () => {

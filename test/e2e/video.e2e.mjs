@@ -13,7 +13,7 @@
 
 import assert from "node:assert/strict";
 import { after, before, test } from "node:test";
-import { BASE, DESKTOP, TABLET, TEST_MS, WAIT_MS, assertNoPageProblems, launch, open, screenshot, takeHelm, until, waitTelemetry } from "./helpers.mjs";
+import { BASE, DESKTOP, TABLET, TEST_MS, WAIT_MS, assertNoPageProblems, launch, open, pressButton, screenshot, stubPad, takeHelm, until, waitTelemetry } from "./helpers.mjs";
 
 const VEHICLE = process.env.E2E_VIDEO_VEHICLE;
 const RESTART_VEHICLE = process.env.E2E_RESTART_VEHICLE;
@@ -50,24 +50,38 @@ async function videoPage(opts) {
   return side;
 }
 
-/** The picture's pixels below the stamp's band, as the page shows them (canvas or video). */
+/**
+ * The picture as the page shows it (canvas or video), below the stamp's band, as the mean
+ * luma of 16×16 blocks: the scene's large shapes, without the marine snow's specks and the
+ * encoder's noise.
+ */
 function grab(page) {
   return page.evaluate(() => {
     const el = document.querySelector('[data-testid="video-feed"] .video-picture');
     if (!el) return null;
     const w = el instanceof HTMLVideoElement ? el.videoWidth : el.width;
-    const h = el instanceof HTMLVideoElement ? el.videoHeight : el.height;
-    if (!w || !h) return null;
+    const h = (el instanceof HTMLVideoElement ? el.videoHeight : el.height) - 16;
     const c = document.createElement("canvas");
     c.width = w;
-    c.height = h;
+    c.height = h + 16;
     const ctx = c.getContext("2d");
     ctx.drawImage(el, 0, 0);
-    // below the 16-px stamp band, every 4th pixel's luma
-    const data = ctx.getImageData(0, 16, w, h - 16).data;
-    const luma = [];
-    for (let i = 0; i < data.length; i += 16) luma.push(Math.round(0.299 * data[i] + 0.587 * data[i + 1] + 0.114 * data[i + 2]));
-    return { w, h, luma };
+    const data = ctx.getImageData(0, 16, w, h).data;
+    const B = 16;
+    const blocks = [];
+    for (let by = 0; by + B <= h; by += B) {
+      for (let bx = 0; bx + B <= w; bx += B) {
+        let sum = 0;
+        for (let y = by; y < by + B; y++) {
+          for (let x = bx; x < bx + B; x++) {
+            const i = (y * w + x) * 4;
+            sum += 0.299 * data[i] + 0.587 * data[i + 1] + 0.114 * data[i + 2];
+          }
+        }
+        blocks.push(sum / (B * B));
+      }
+    }
+    return { w, h, blocks };
   });
 }
 
@@ -76,12 +90,12 @@ function pictureWidth(page) {
   return page.locator('[data-testid="video-feed"] .video-picture').evaluate((el) => (el instanceof HTMLVideoElement ? el.videoWidth : el.width));
 }
 
-/** Mean absolute difference of two grabs (0..255). */
+/** Mean absolute difference of two grabs' blocks (0..255). */
 function difference(a, b) {
-  assert.equal(a.luma.length, b.luma.length, "pictures of different sizes");
+  assert.equal(a.blocks.length, b.blocks.length, "pictures of different sizes");
   let sum = 0;
-  for (let i = 0; i < a.luma.length; i++) sum += Math.abs(a.luma[i] - b.luma[i]);
-  return sum / a.luma.length;
+  for (let i = 0; i < a.blocks.length; i++) sum += Math.abs(a.blocks[i] - b.blocks[i]);
+  return sum / a.blocks.length;
 }
 
 for (const path of ["webcodecs", "mse"]) {
@@ -136,16 +150,10 @@ test("the picture changes when the vehicle yaws", { timeout: 90_000 }, async () 
     await waitTelemetry(page);
     await waitVideo(page, () => window.neptunusVideo?.displayed >= 10, null, "pictures");
     await takeHelm(page);
-    // the camera tilted down: the seabed fills the picture
-    await page.locator("#tilt-input").fill("-45");
-    await page.locator("#tilt-set").click();
-    await page.locator('[data-testid="tilt-current"]', { hasText: "-45.0" }).waitFor({ timeout: WAIT_MS * 2 });
-    const settled = (await counters(page)).displayed;
-    await waitVideo(page, (k) => window.neptunusVideo.displayed >= k + 10, settled, "10 pictures with the camera down");
-    // the picture when still: two grabs a few pictures apart (only marine snow moves)
+    // the picture when still: two grabs 30 pictures apart (only marine snow moves)
     const still1 = await grab(page);
     const n = (await counters(page)).displayed;
-    await waitVideo(page, (k) => window.neptunusVideo.displayed >= k + 5, n, "5 more pictures");
+    await waitVideo(page, (k) => window.neptunusVideo.displayed >= k + 30, n, "30 more pictures");
     const still2 = await grab(page);
     const stillDiff = difference(still1, still2);
     // yaw right until the heading has turned 45°
@@ -161,10 +169,8 @@ test("the picture changes when the vehicle yaws", { timeout: 90_000 }, async () 
     await waitVideo(page, (k) => window.neptunusVideo.displayed >= k + 3, m, "pictures after the turn");
     const turned = await grab(page);
     const turnDiff = difference(still2, turned);
-    console.log(`# picture difference (mean |Δluma|): still ${stillDiff.toFixed(2)}, after a 45° turn ${turnDiff.toFixed(2)}`);
-    assert.ok(turnDiff > 4 * Math.max(stillDiff, 0.2), `the picture after a 45° turn differs by ${turnDiff.toFixed(2)} (still: ${stillDiff.toFixed(2)})`);
-    await page.locator("#tilt-input").fill("0");
-    await page.locator("#tilt-set").click();
+    console.log(`# picture difference (16-px blocks, mean |Δluma|): still ${stillDiff.toFixed(2)}, after a 45° turn ${turnDiff.toFixed(2)}`);
+    assert.ok(turnDiff > 3 * Math.max(stillDiff, 0.1), `the picture after a 45° turn differs by ${turnDiff.toFixed(2)} (still: ${stillDiff.toFixed(2)})`);
     await page.locator("#release-control").click();
   } finally {
     await context.close();
@@ -241,24 +247,28 @@ test("a throttled viewer drops whole GOPs; another viewer stays live", { timeout
   let slow = null;
   try {
     await waitVideo(live.page, () => window.neptunusVideo?.displayed >= 10, null, "the live viewer's pictures");
-    // a viewer reading 5 messages a second of a 30 fps camera
-    slow = await throttledViewer(`/video/${encodeURIComponent(BUSY_VEHICLE)}/websocket`, 200);
+    // a viewer reading 10 messages a second of a 30 fps camera
+    slow = await throttledViewer(`/video/${encodeURIComponent(BUSY_VEHICLE)}/websocket`, 100);
     const liveAt = await counters(live.page);
     try {
-      await slow.page.waitForFunction(() => window.slow.skipped.length >= 2, null, { timeout: 90_000, polling: 200 });
+      await slow.page.waitForFunction(() => window.slow.skipped.length >= 1 && window.slow.frames.length > window.slow.skipped[0].at, null, { timeout: 90_000, polling: 200 });
     } catch (err) {
       throw new Error(`the server never skipped frames for the throttled viewer: ${JSON.stringify(await slow.page.evaluate(() => ({ ...window.slow, frames: window.slow.frames.slice(-10) })))}`, { cause: err });
     }
     const seen = await slow.page.evaluate(() => window.slow);
-    assert.equal(seen.closed, null, `the throttled viewer's socket: ${seen.closed}`);
     // after each skip: a keyframe, and a gap in the sequence numbers as long as the skip said
+    // (the test server closes a socket a send waited 2 s for: a page this slow on a busy
+    // machine may be closed after its skips — a viewer gone, the others unaffected)
+    let checked = 0;
     for (const { frames, at } of seen.skipped) {
       const before = seen.frames[at - 1];
       const next = seen.frames[at];
       if (before === undefined || next === undefined || before.gen !== next.gen) continue;
       assert.equal(next.key, true, `the frame after a skip of ${frames} is a keyframe`);
       assert.equal(next.seq - before.seq - 1, frames, "the skip's count is the gap in the sequence");
+      checked += 1;
     }
+    assert.ok(checked >= 1, `a skip between frames of one stream: ${JSON.stringify(seen.skipped)}`);
     // meanwhile the live viewer went on: pictures, nothing skipped, its picture fresh
     await waitVideo(live.page, (k) => window.neptunusVideo.displayed >= k + 60, liveAt.displayed, "the live viewer's next 60 pictures");
     // (a page on a machine this busy may be skipped a little itself: that is its own slowness,
@@ -266,7 +276,7 @@ test("a throttled viewer drops whole GOPs; another viewer stays live", { timeout
     const liveAfter = await counters(live.page);
     assert.ok(liveAfter.serverToDisplay < 1000, `the live viewer's picture is ${liveAfter.serverToDisplay} ms old`);
     console.log(
-      `# throttled viewer: ${seen.frames.length} frames read, ${seen.skipped.length} skips (${seen.skipped.map((s) => s.frames).join(", ")} frames); ` +
+      `# throttled viewer: ${seen.frames.length} frames read, ${seen.skipped.length} skips (${seen.skipped.map((s) => s.frames).join(", ")} frames), socket ${seen.closed ?? "open"}; ` +
         `live viewer: ${liveAfter.displayed - liveAt.displayed} pictures, ${liveAfter.skipped - liveAt.skipped} frames skipped, server→display ${liveAfter.serverToDisplay?.toFixed(0)} ms`,
     );
   } finally {
@@ -303,24 +313,43 @@ test("a camera restart is recovered without a reload", { timeout: 120_000 }, asy
   assertNoPageProblems();
 });
 
-test("Snapshot: the button saves the picture on the server; the developer page lists it", { timeout: TEST_MS }, async () => {
-  const { context, page } = await videoPage({ name: "e2e-video-snapshot" });
+test("Snapshots: the button and the gamepad's button save the picture on the server; the developer page lists them", { timeout: TEST_MS }, async () => {
+  const { context, page } = await videoPage({ name: "e2e-video-snapshot", init: stubPad });
+  /** The name in the next "Snapshot saved: NAME" message that is not `previous`'s. */
+  const saved = async (what, previous = null) => {
+    const text = await until(
+      () => page.locator("#message").textContent(),
+      (t) => /^Snapshot saved: /.test(t ?? "") && t !== `Snapshot saved: ${previous}`,
+      30_000,
+      `the snapshot saved (${what})`,
+    );
+    return text.replace(/^Snapshot saved: /, "").trim();
+  };
   try {
+    // a known start: this server's local user has the default mapping (snapshot on 17; the
+    // page has it from the start, and the server has none to replace it with)
+    await page.evaluate(() => fetch("/api/settings/gamepad.mapping", { method: "DELETE" }));
+    await page.reload();
     await waitVideo(page, () => window.neptunusVideo?.displayed >= 5, null, "pictures");
     await page.locator('[data-testid="snapshot"]').click();
-    await until(() => page.locator("#message").textContent(), (t) => /Snapshot saved: /.test(t ?? ""), 30_000, "the snapshot saved");
-    const name = ((await page.locator("#message").textContent()) ?? "").replace(/^Snapshot saved: /, "").trim();
+    const byButton = await saved("the Snapshot button");
+    assert.ok(byButton.startsWith(`${VEHICLE}-`) && byButton.endsWith(".jpg"), `the snapshot's name: ${byButton}`);
+    // the gamepad's snapshot button (17 by default; buttons act in every input mode)
+    await pressButton(page, 17);
+    const byPad = await saved("the gamepad's button", byButton);
     const dev = await context.newPage();
     await dev.goto(`${BASE}/dev.html?vehicle=${encodeURIComponent(VEHICLE)}`);
     await dev.locator("#snapshots summary").click();
-    const item = dev.locator(`[data-testid="snapshot-list"] li[data-name="${name}"]`);
-    await item.waitFor();
-    const href = await item.locator("a").getAttribute("href");
-    const res = await fetch(`${BASE}${href}`);
-    assert.equal(res.status, 200);
-    assert.equal(res.headers.get("content-type"), "image/jpeg");
-    const bytes = new Uint8Array(await res.arrayBuffer());
-    assert.deepEqual([...bytes.subarray(0, 2)], [0xff, 0xd8], "a JPEG");
+    for (const name of [byButton, byPad]) {
+      const item = dev.locator(`[data-testid="snapshot-list"] li[data-name="${name}"]`);
+      await item.waitFor();
+      const href = await item.locator("a").getAttribute("href");
+      const res = await fetch(`${BASE}${href}`);
+      assert.equal(res.status, 200);
+      assert.equal(res.headers.get("content-type"), "image/jpeg");
+      const bytes = new Uint8Array(await res.arrayBuffer());
+      assert.deepEqual([...bytes.subarray(0, 2)], [0xff, 0xd8], "a JPEG");
+    }
   } finally {
     await context.close();
   }
