@@ -38,8 +38,15 @@ defmodule Neptunus.Test.H264Gen do
   defp escape(<<b, rest::binary>>, zeros, acc),
     do: escape(rest, if(b == 0, do: zeros + 1, else: 0), [b | acc])
 
-  # a payload as an encoder writes it: escaped, ending in the stop bit's byte
-  defp payload, do: bind(T.binary(), fn raw -> escape(raw) <> <<0x80>> end)
+  # a payload as an encoder writes it: escaped, ending in the stop bit's byte (short: what
+  # matters is where zeros and start-code-like bytes fall, not the length)
+  defp payload do
+    bytes = T.frequency([{3, T.choose(0, 3)}, {1, T.choose(0, 255)}])
+
+    bind(bind(T.choose(0, 40), &T.vector(&1, bytes)), fn raw ->
+      escape(:erlang.list_to_binary(raw)) <> <<0x80>>
+    end)
+  end
 
   # a slice: type 5 (IDR) or 1; the first of its picture has first_mb_in_slice 0
   defp slice(type, first?) do
@@ -54,13 +61,15 @@ defmodule Neptunus.Test.H264Gen do
   def access_unit(keyframe?) do
     type = if keyframe?, do: 5, else: 1
 
+    more = bind(T.choose(0, 3), &T.vector(&1, slice(type, false)))
+
     bind(
-      {T.boolean(), T.boolean(), slice(type, true), T.list(slice(type, false)), payload()},
+      {T.boolean(), T.boolean(), slice(type, true), more, payload()},
       fn {aud?, sei?, first, more, sei} ->
         head = if aud?, do: [<<0x09, 0xF0>>], else: []
         params = if keyframe?, do: [@sps, @pps], else: []
         sei = if sei?, do: [<<0x06, sei::binary>>], else: []
-        head ++ params ++ sei ++ [first | Enum.take(more, 3)]
+        head ++ params ++ sei ++ [first | more]
       end
     )
   end
@@ -77,7 +86,10 @@ defmodule Neptunus.Test.H264Gen do
   @doc "The access units, their Annex B bytes (3- or 4-byte start codes) and cut points."
   @spec stream_and_cuts() :: term()
   def stream_and_cuts do
-    bind({access_units(), T.list(T.boolean()), T.list(T.non_neg_integer())}, fn {aus, longs, cuts} ->
+    cuts = bind(T.choose(0, 8), &T.vector(&1, T.non_neg_integer()))
+    longs = bind(T.choose(1, 6), &T.vector(&1, T.boolean()))
+
+    bind({access_units(), longs, cuts}, fn {aus, longs, cuts} ->
       nals = List.flatten(aus)
       longs = Stream.cycle(if longs == [], do: [true], else: longs)
 

@@ -264,7 +264,7 @@ defmodule Neptunus.Vehicle.Camera do
 
   def handle_info({port, {:data, _other}}, %State{port: port} = state), do: {:noreply, state}
 
-  def handle_info({port, {:exit_status, code}}, %State{port: port, phase: :probing} = state) do
+  def handle_info({port, {:exit_status, _}}, %State{port: port, phase: :probing} = state) do
     state = %{state | port: nil}
 
     case V4L2.decide(Enum.reverse(state.errors), state.source) do
@@ -273,7 +273,6 @@ defmodule Neptunus.Vehicle.Camera do
         {:noreply, state |> launch(%{state.source | codec: codec}) |> report()}
 
       {:error, reason} ->
-        _ = code
         {:noreply, state |> stopped(:failed, reason) |> report()}
     end
   end
@@ -317,9 +316,6 @@ defmodule Neptunus.Vehicle.Camera do
   def handle_info({:EXIT, _pid, reason}, state), do: {:stop, reason, state}
 
   def handle_info(_other, state), do: {:noreply, state}
-
-  @impl true
-  def handle_cast(:watch, state), do: {:noreply, wake(state)}
 
   @impl true
   def handle_call(:configured?, _from, state), do: {:reply, state.source != nil, state}

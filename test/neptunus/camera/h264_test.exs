@@ -58,40 +58,44 @@ defmodule Neptunus.Camera.H264Test do
     end
 
     test "access units come out whole and in order, whatever the chunking and start codes" do
-      check(H264Gen.stream_and_cuts(), fn {aus, bytes, cuts} ->
-        {out, rest, acc} =
-          Enum.reduce(H264Gen.chunks(bytes, cuts), {[], <<>>, AccessUnits.new()}, fn chunk,
-                                                                                     {out, rest,
-                                                                                      acc} ->
-            {nals, rest, 0} = H264.split(rest <> chunk, byte_size(rest))
+      check(
+        H264Gen.stream_and_cuts(),
+        fn {aus, bytes, cuts} ->
+          {out, rest, acc} =
+            Enum.reduce(H264Gen.chunks(bytes, cuts), {[], <<>>, AccessUnits.new()}, fn chunk,
+                                                                                       {out, rest,
+                                                                                        acc} ->
+              {nals, rest, 0} = H264.split(rest <> chunk, byte_size(rest))
 
-            {acc, out} =
-              Enum.reduce(nals, {acc, out}, fn nal, {acc, out} ->
+              {acc, out} =
+                Enum.reduce(nals, {acc, out}, fn nal, {acc, out} ->
+                  case AccessUnits.push(acc, nal) do
+                    {acc, nil} -> {acc, out}
+                    {acc, au} -> {acc, [au | out]}
+                  end
+                end)
+
+              {out, rest, acc}
+            end)
+
+          # at the end of the stream the last NAL unit and access unit are flushed
+          {acc, out} =
+            case H264.flush(rest) do
+              nil ->
+                {acc, out}
+
+              nal ->
                 case AccessUnits.push(acc, nal) do
                   {acc, nil} -> {acc, out}
                   {acc, au} -> {acc, [au | out]}
                 end
-              end)
+            end
 
-            {out, rest, acc}
-          end)
-
-        # at the end of the stream the last NAL unit and access unit are flushed
-        {acc, out} =
-          case H264.flush(rest) do
-            nil ->
-              {acc, out}
-
-            nal ->
-              case AccessUnits.push(acc, nal) do
-                {acc, nil} -> {acc, out}
-                {acc, au} -> {acc, [au | out]}
-              end
-          end
-
-        {_, last} = AccessUnits.flush(acc)
-        Enum.reverse([last | out]) == aus
-      end)
+          {_, last} = AccessUnits.flush(acc)
+          Enum.reverse([last | out]) == aus
+        end,
+        200
+      )
     end
 
     test "bytes before the first start code are skipped and counted; garbage never crashes" do

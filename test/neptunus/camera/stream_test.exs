@@ -40,49 +40,57 @@ defmodule Neptunus.Camera.StreamTest do
       Stream.new(Keyword.merge([format: format, source: "testsrc", fps: 30, generation: 7], opts))
 
   test "FLV: one frame per picture, keyframes with SPS and PPS in front, whatever the chunking" do
-    check(H264Gen.stream_and_cuts(), fn {aus, _annexb, cuts} ->
-      bytes = flv(aus)
-      {stream, outputs} = feed_all(new(:flv), H264Gen.chunks(bytes, cuts))
+    check(
+      H264Gen.stream_and_cuts(),
+      fn {aus, _annexb, cuts} ->
+        bytes = flv(aus)
+        {stream, outputs} = feed_all(new(:flv), H264Gen.chunks(bytes, cuts))
 
-      [{:stream, info} | _] = outputs
-      frames = frames(outputs)
+        [{:stream, info} | _] = outputs
+        frames = frames(outputs)
 
-      info == %{
-        codec: "h264",
-        width: 640,
-        height: 360,
-        fps: 30,
-        generation: 7,
-        source: "testsrc",
-        avc: "avc1.42C01E"
-      } and length(frames) == length(aus) and
-        Enum.map(frames, & &1.seq) == Enum.to_list(0..(length(aus) - 1)) and
-        Enum.all?(Enum.zip(frames, aus), fn {frame, au} ->
-          pictures = Enum.reject(au, &(H264.type(&1) in [7, 8, 9]))
-          params = if frame.keyframe, do: [H264Gen.sps(), H264Gen.pps()], else: []
+        info == %{
+          codec: "h264",
+          width: 640,
+          height: 360,
+          fps: 30,
+          generation: 7,
+          source: "testsrc",
+          avc: "avc1.42C01E"
+        } and length(frames) == length(aus) and
+          Enum.map(frames, & &1.seq) == Enum.to_list(0..(length(aus) - 1)) and
+          Enum.all?(Enum.zip(frames, aus), fn {frame, au} ->
+            pictures = Enum.reject(au, &(H264.type(&1) in [7, 8, 9]))
+            params = if frame.keyframe, do: [H264Gen.sps(), H264Gen.pps()], else: []
 
-          frame.keyframe == H264.keyframe?(au) and frame.generation == 7 and
-            Frame.payload(frame) == IO.iodata_to_binary(H264.annexb(params ++ pictures))
-        end) and hd(frames).data |> Frame.parse() |> elem(1) |> Map.fetch!(:first) and
-        stream.waiting == 0
-    end)
+            frame.keyframe == H264.keyframe?(au) and frame.generation == 7 and
+              Frame.payload(frame) == IO.iodata_to_binary(H264.annexb(params ++ pictures))
+          end) and hd(frames).data |> Frame.parse() |> elem(1) |> Map.fetch!(:first) and
+          stream.waiting == 0
+      end,
+      200
+    )
   end
 
   test "Annex B: the same frames, each known complete when the next picture starts" do
-    check(H264Gen.stream_and_cuts(), fn {aus, bytes, cuts} ->
-      {_stream, outputs} = feed_all(new(:annexb), H264Gen.chunks(bytes, cuts))
-      frames = frames(outputs)
-      # the last picture waits for the next one
-      length(frames) == length(aus) - 1 and
-        Enum.all?(Enum.zip(frames, aus), fn {frame, au} ->
-          payload = Frame.payload(frame)
-          # keyframes: SPS and PPS first; the delimiters gone
-          frame.keyframe == H264.keyframe?(au) and
-            (not frame.keyframe or
-               String.starts_with?(payload, IO.iodata_to_binary(H264.annexb([H264Gen.sps()])))) and
-            not String.contains?(payload, <<0, 0, 0, 1, 0x09>>)
-        end)
-    end)
+    check(
+      H264Gen.stream_and_cuts(),
+      fn {aus, bytes, cuts} ->
+        {_stream, outputs} = feed_all(new(:annexb), H264Gen.chunks(bytes, cuts))
+        frames = frames(outputs)
+        # the last picture waits for the next one
+        length(frames) == length(aus) - 1 and
+          Enum.all?(Enum.zip(frames, aus), fn {frame, au} ->
+            payload = Frame.payload(frame)
+            # keyframes: SPS and PPS first; the delimiters gone
+            frame.keyframe == H264.keyframe?(au) and
+              (not frame.keyframe or
+                 String.starts_with?(payload, IO.iodata_to_binary(H264.annexb([H264Gen.sps()])))) and
+              not String.contains?(payload, <<0, 0, 0, 1, 0x09>>)
+          end)
+      end,
+      200
+    )
   end
 
   test "a camera that sends its parameter sets once: every later keyframe gets them" do
