@@ -25,7 +25,7 @@
 //
 // Environment: VLAT_URL (http://127.0.0.1:4000), VLAT_VEHICLE (neptunus-1), VLAT_SERVER_PID
 // (the BEAM's OS pid: its CPU and its child processes' — the camera — are printed),
-// VLAT_PATH (auto | webcodecs | mse), VLAT_WARMUP_FRAMES (60), VLAT_THROTTLED_WITH (10; 0:
+// VLAT_PATH (auto | webcodecs | mse), VLAT_WARMUP_FRAMES (60), VLAT_WARMUP_S (60), VLAT_THROTTLED_WITH (10; 0:
 // none), VLAT_THROTTLE_READ_MS (200), CHROMIUM_PATH (/usr/bin/chromium).
 
 import { createRequire } from 'node:module';
@@ -42,6 +42,7 @@ const PATH = process.env.VLAT_PATH ?? 'auto';
 const COUNTS = (process.argv[2] ?? process.env.VLAT_VIEWERS ?? '1,10,50').split(',').map(Number);
 const SECONDS = Number(process.argv[3] ?? process.env.VLAT_SECONDS ?? 20);
 const WARMUP_FRAMES = Number(process.env.VLAT_WARMUP_FRAMES ?? 60);
+const WARMUP_S = Number(process.env.VLAT_WARMUP_S ?? 60);
 const THROTTLED_WITH = Number(process.env.VLAT_THROTTLED_WITH ?? 10);
 const THROTTLE_READ_MS = Number(process.env.VLAT_THROTTLE_READ_MS ?? 200);
 const SERVER_PID = Number(process.env.VLAT_SERVER_PID ?? 0);
@@ -175,14 +176,18 @@ async function counters(v) {
   });
 }
 
+/**
+ * Waits until every page has shown VLAT_WARMUP_FRAMES stamped pictures, at most
+ * VLAT_WARMUP_S seconds (a machine too busy for that is measured as it is: the figures say so).
+ */
 async function waitWarm(viewers) {
-  const deadline = Date.now() + 120_000;
+  const deadline = Date.now() + WARMUP_S * 1000;
   for (;;) {
     const cs = await Promise.all(viewers.map(counters));
-    if (cs.every((c) => c !== null && c.stamps >= WARMUP_FRAMES)) return;
-    if (Date.now() > deadline) {
-      const slow = cs.map((c, i) => `${viewers[i].name}: ${c === null ? 'no player' : `${c.stamps} stamped pictures`}`).filter((_, i) => !(cs[i]?.stamps >= WARMUP_FRAMES));
-      throw new Error(`viewers not warm after 120 s: ${slow.slice(0, 5).join(', ')}`);
+    const warm = cs.filter((c) => c !== null && c.stamps >= WARMUP_FRAMES).length;
+    if (warm === viewers.length || Date.now() > deadline) {
+      if (warm < viewers.length) out('warm-up', `${warm} of ${viewers.length} pages showed ${WARMUP_FRAMES} pictures within ${WARMUP_S} s; measuring as it is`);
+      return;
     }
     await sleep(500);
   }
@@ -250,14 +255,21 @@ async function main() {
         const t = await openThrottled(browser, THROTTLE_READ_MS);
         const t0 = Date.now();
         // its buffers fill first: measure once the server skips frames for it
+        let first = 'none within 180 s';
         for (;;) {
           const st = await t.state();
-          if (st.skips > 0) break;
-          if (st.closed !== null) throw new Error(`the throttled viewer's socket ${st.closed}`);
-          if (Date.now() - t0 > 180_000) throw new Error(`the server did not skip frames for the throttled viewer in 180 s: ${JSON.stringify(st)}`);
+          if (st.skips > 0) {
+            first = `${((Date.now() - t0) / 1000).toFixed(0)} s (its buffers filling)`;
+            break;
+          }
+          if (st.closed !== null) {
+            first = `none: its socket ${st.closed}`;
+            break;
+          }
+          if (Date.now() - t0 > 180_000) break;
           await sleep(500);
         }
-        out('throttled viewer: first skip after', `${((Date.now() - t0) / 1000).toFixed(0)} s (its buffers filling)`);
+        out('throttled viewer: first skip after', first);
         const tBefore = await t.state();
         const withT = await measure(viewers);
         const tAfter = await t.state();

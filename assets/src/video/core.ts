@@ -9,9 +9,13 @@
  *   MAX_BACKLOG frames) drops frames up to the next keyframe; a keyframe that finds the
  *   decoder far behind (FLUSH_BACKLOG) flushes it first. A gap in the sequence numbers (frames the server
  *   skipped for this page) also waits for a keyframe: an H.264 frame needs the ones before.
+ * - A frame that waited in the page (its main thread was busy: the browser queues the socket's
+ *   messages) more than LATE_MS is dropped, and the page goes on from a fresh keyframe
+ *   (lateness.ts): a starved page catches up at the cost of a header's parse per frame.
  * - JPEG frames stand alone: a page behind simply drops them until it catches up.
  */
 
+import { LATE_MS } from "./lateness";
 import type { CameraEvent, Codec, FrameHeader, StreamEvent, VideoEvent } from "./wire";
 
 /**
@@ -56,11 +60,11 @@ export type CoreInput =
   | { readonly type: "open" }
   | { readonly type: "closed" }
   | { readonly type: "event"; readonly event: VideoEvent }
-  /** a frame arrived while `backlog` frames wait in the decoder */
-  | { readonly type: "frame"; readonly frame: FrameHeader; readonly backlog: number }
+  /** a frame arrived while `backlog` frames wait in the decoder, `lateMs` after its time (lateness.ts) */
+  | { readonly type: "frame"; readonly frame: FrameHeader; readonly backlog: number; readonly lateMs: number }
   | { readonly type: "decoder_error"; readonly reason: string };
 
-export type DropReason = "no_stream" | "stale" | "lost" | "await_key" | "behind" | "kind";
+export type DropReason = "no_stream" | "stale" | "lost" | "await_key" | "behind" | "late" | "kind";
 
 export type CoreAction =
   /** close the decoder and forget what it holds */
@@ -104,7 +108,7 @@ function onEvent(state: CoreState, event: VideoEvent): Step {
   }
 }
 
-function onFrame(state: CoreState, frame: FrameHeader, backlog: number): Step {
+function onFrame(state: CoreState, frame: FrameHeader, backlog: number, lateMs: number): Step {
   const stream = state.stream;
   const drop = (why: DropReason, s: CoreState = state, frames = 1): Step => ({ state: s, actions: [{ type: "drop", frames, why }] });
   if (stream === null) return drop("no_stream");
@@ -113,7 +117,7 @@ function onFrame(state: CoreState, frame: FrameHeader, backlog: number): Step {
     // a frame of a stream we were not told of: take it as that stream (size from the picture)
     const next: StreamEvent = { ...stream, generation: frame.generation, avc: null };
     const restarted = restart(state, `new generation ${frame.generation}`, { stream: next });
-    const again = onFrame(restarted.state, frame, 0);
+    const again = onFrame(restarted.state, frame, 0, lateMs);
     return { state: again.state, actions: [...restarted.actions, ...again.actions] };
   }
   if ((frame.kind === "jpeg") !== (stream.codec === "mjpeg")) return drop("kind");
@@ -130,6 +134,8 @@ function onFrame(state: CoreState, frame: FrameHeader, backlog: number): Step {
     }
   }
   const seen: CoreState = { ...state, lastSequence: frame.sequence };
+
+  if (lateMs > LATE_MS) return { state: { ...seen, awaitingKey: true }, actions: [...actions, { type: "drop", frames: 1, why: "late" }] };
 
   if (frame.kind === "jpeg") {
     if (backlog >= MAX_JPEG_BACKLOG) return { state: seen, actions: [...actions, { type: "drop", frames: 1, why: "behind" }] };
@@ -170,7 +176,7 @@ export function step(state: CoreState, input: CoreInput): Step {
     case "event":
       return onEvent(state, input.event);
     case "frame":
-      return onFrame(state, input.frame, input.backlog);
+      return onFrame(state, input.frame, input.backlog, input.lateMs);
     case "decoder_error": {
       const r = restart(state, `decoder error: ${input.reason}`);
       return { state: r.state, actions: [...r.actions, { type: "request_keyframe" }] };

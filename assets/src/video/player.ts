@@ -14,6 +14,7 @@ import { hasWebCodecs, JpegSink, WebCodecsSink } from "./canvas_sinks";
 import { INITIAL_CORE, step } from "./core";
 import type { CoreAction, CoreInput, CoreState, DecoderConfig, DropReason } from "./core";
 import { StreamHealth } from "./health";
+import { Lateness } from "./lateness";
 import type { HealthSummary } from "./health";
 import { hasMse, MseSink } from "./mse_sink";
 import { PATH_LABELS, forcedPath, savePathChoice } from "./path";
@@ -115,7 +116,7 @@ function newCounters(): VideoCounters {
     firstDecoded: null,
     decoded: 0,
     displayed: 0,
-    dropped: { no_stream: 0, stale: 0, lost: 0, await_key: 0, behind: 0, kind: 0 },
+    dropped: { no_stream: 0, stale: 0, lost: 0, await_key: 0, behind: 0, late: 0, kind: 0 },
     skipped: 0,
     superseded: 0,
     errors: 0,
@@ -156,6 +157,7 @@ export class VideoPlayer {
   private sink: Sink | null = null;
   private container: HTMLElement | null = null;
   private readonly health = new StreamHealth();
+  private readonly lateness = new Lateness();
   private ticker: number | null = null;
   private clockTicker: number | null = null;
   private choice: PathChoice;
@@ -239,6 +241,7 @@ export class VideoPlayer {
       this.counters.opens += 1;
       this.counters.firstReceived = null;
       this.counters.firstDecoded = null;
+      this.lateness.reset();
       this.apply({ type: "open" }, null);
       this.store.update({ socket: "open", failures: 0, showing: false });
     };
@@ -287,8 +290,10 @@ export class VideoPlayer {
     c.received += 1;
     if (frame.keyframe) c.keyframesReceived += 1;
     if (c.firstReceived === null) c.firstReceived = { sequence: frame.sequence, keyframe: frame.keyframe, generation: frame.generation };
-    this.health.received(performance.now(), data.byteLength);
-    this.apply({ type: "frame", frame, backlog: this.sink?.backlog() ?? 0 }, frame);
+    const now = performance.now();
+    this.health.received(now, data.byteLength);
+    const lateMs = this.lateness.observe(performance.timeOrigin + now, frame.serverUs / 1000);
+    this.apply({ type: "frame", frame, backlog: this.sink?.backlog() ?? 0, lateMs }, frame);
   }
 
   /** One input through the core; its actions carried out (`frame`: the frame of a frame input). */

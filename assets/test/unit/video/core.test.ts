@@ -1,6 +1,7 @@
 import { describe, expect, it } from "vitest";
 import { FLUSH_BACKLOG, INITIAL_CORE, MAX_BACKLOG, MAX_JPEG_BACKLOG, step } from "../../../src/video/core";
 import type { CoreAction, CoreInput, CoreState } from "../../../src/video/core";
+import { LATE_MS, Lateness, RESET_MS, WINDOW_MS } from "../../../src/video/lateness";
 import { liveEdge, JUMP_S, KEEP_S, TRIM_AFTER_S } from "../../../src/video/live_edge";
 import { choosePath } from "../../../src/video/sink";
 import type { FrameHeader, StreamEvent } from "../../../src/video/wire";
@@ -24,12 +25,12 @@ function run(inputs: readonly CoreInput[], from: CoreState = INITIAL_CORE): { st
 }
 
 const streamed = run([{ type: "open" }, { type: "event", event: STREAM }]).state;
-const playing = run([{ type: "frame", frame: frame(10, true), backlog: 0 }], streamed).state;
+const playing = run([{ type: "frame", frame: frame(10, true), backlog: 0, lateMs: 0 }], streamed).state;
 
 describe("starting a stream", () => {
   it("drops frames before the stream event and delta frames before the first keyframe", () => {
-    expect(step(INITIAL_CORE, { type: "frame", frame: frame(1, true), backlog: 0 }).actions).toEqual([{ type: "drop", frames: 1, why: "no_stream" }]);
-    const r = run([{ type: "frame", frame: frame(7), backlog: 0 }, { type: "frame", frame: frame(8), backlog: 0 }, { type: "frame", frame: frame(9, true), backlog: 0 }], streamed);
+    expect(step(INITIAL_CORE, { type: "frame", frame: frame(1, true), backlog: 0, lateMs: 0 }).actions).toEqual([{ type: "drop", frames: 1, why: "no_stream" }]);
+    const r = run([{ type: "frame", frame: frame(7), backlog: 0, lateMs: 0 }, { type: "frame", frame: frame(8), backlog: 0, lateMs: 0 }, { type: "frame", frame: frame(9, true), backlog: 0, lateMs: 0 }], streamed);
     expect(r.actions).toEqual([
       [{ type: "drop", frames: 1, why: "await_key" }],
       [{ type: "drop", frames: 1, why: "await_key" }],
@@ -39,7 +40,7 @@ describe("starting a stream", () => {
   });
 
   it("decodes the frames that follow the keyframe", () => {
-    expect(step(playing, { type: "frame", frame: frame(11), backlog: 1 }).actions).toEqual([{ type: "decode" }]);
+    expect(step(playing, { type: "frame", frame: frame(11), backlog: 1, lateMs: 0 }).actions).toEqual([{ type: "decode" }]);
   });
 
   it("does nothing for the same stream said again", () => {
@@ -53,9 +54,9 @@ describe("a new stream, a decoder error, a closed socket: the decoder starts ove
     const r = run(
       [
         { type: "event", event: next },
-        { type: "frame", frame: frame(11, false, 1), backlog: 0 },
-        { type: "frame", frame: frame(1, false, 2), backlog: 0 },
-        { type: "frame", frame: frame(2, true, 2), backlog: 0 },
+        { type: "frame", frame: frame(11, false, 1), backlog: 0, lateMs: 0 },
+        { type: "frame", frame: frame(1, false, 2), backlog: 0, lateMs: 0 },
+        { type: "frame", frame: frame(2, true, 2), backlog: 0, lateMs: 0 },
       ],
       playing,
     );
@@ -72,7 +73,7 @@ describe("a new stream, a decoder error, a closed socket: the decoder starts ove
   });
 
   it("takes a frame of a newer generation than it was told as that stream's start", () => {
-    const r = step(playing, { type: "frame", frame: frame(1, true, 5), backlog: 0 });
+    const r = step(playing, { type: "frame", frame: frame(1, true, 5), backlog: 0, lateMs: 0 });
     expect(r.actions).toEqual([
       { type: "reset", reason: "new generation 5" },
       { type: "pause" },
@@ -82,7 +83,7 @@ describe("a new stream, a decoder error, a closed socket: the decoder starts ove
   });
 
   it("after a decoder error, asks for a keyframe and waits for it", () => {
-    const r = run([{ type: "decoder_error", reason: "bad slice" }, { type: "frame", frame: frame(11), backlog: 0 }, { type: "frame", frame: frame(12, true), backlog: 0 }], playing);
+    const r = run([{ type: "decoder_error", reason: "bad slice" }, { type: "frame", frame: frame(11), backlog: 0, lateMs: 0 }, { type: "frame", frame: frame(12, true), backlog: 0, lateMs: 0 }], playing);
     expect(r.actions).toEqual([
       [{ type: "reset", reason: "decoder error: bad slice" }, { type: "pause" }, { type: "request_keyframe" }],
       [{ type: "drop", frames: 1, why: "await_key" }],
@@ -105,7 +106,7 @@ describe("a new stream, a decoder error, a closed socket: the decoder starts ove
 
 describe("the live edge", () => {
   it("counts a gap in the sequence as lost and waits for the next keyframe", () => {
-    const r = run([{ type: "frame", frame: frame(14), backlog: 0 }, { type: "frame", frame: frame(15), backlog: 0 }, { type: "frame", frame: frame(16, true), backlog: 0 }], playing);
+    const r = run([{ type: "frame", frame: frame(14), backlog: 0, lateMs: 0 }, { type: "frame", frame: frame(15), backlog: 0, lateMs: 0 }, { type: "frame", frame: frame(16, true), backlog: 0, lateMs: 0 }], playing);
     expect(r.actions).toEqual([
       [{ type: "drop", frames: 3, why: "lost" }, { type: "drop", frames: 1, why: "await_key" }],
       [{ type: "drop", frames: 1, why: "await_key" }],
@@ -114,18 +115,18 @@ describe("the live edge", () => {
   });
 
   it("notes the server's skip and waits for the keyframe it skips to", () => {
-    const r = run([{ type: "event", event: { event: "skipped", frames: 20, reason: "slow_viewer" } }, { type: "frame", frame: frame(31, true), backlog: 0 }], playing);
+    const r = run([{ type: "event", event: { event: "skipped", frames: 20, reason: "slow_viewer" } }, { type: "frame", frame: frame(31, true), backlog: 0, lateMs: 0 }], playing);
     expect(r.actions).toEqual([[{ type: "skipped", frames: 20 }], [{ type: "drop", frames: 20, why: "lost" }, { type: "decode" }]]);
   });
 
   it("drops to the next keyframe when the decoder is behind; the keyframe joins the queue", () => {
     const r = run(
       [
-        { type: "frame", frame: frame(11), backlog: MAX_BACKLOG },
-        { type: "frame", frame: frame(12), backlog: MAX_BACKLOG + 1 },
-        { type: "frame", frame: frame(13), backlog: 0 },
-        { type: "frame", frame: frame(14, true), backlog: MAX_BACKLOG + 2 },
-        { type: "frame", frame: frame(15), backlog: 0 },
+        { type: "frame", frame: frame(11), backlog: MAX_BACKLOG, lateMs: 0 },
+        { type: "frame", frame: frame(12), backlog: MAX_BACKLOG + 1, lateMs: 0 },
+        { type: "frame", frame: frame(13), backlog: 0, lateMs: 0 },
+        { type: "frame", frame: frame(14, true), backlog: MAX_BACKLOG + 2, lateMs: 0 },
+        { type: "frame", frame: frame(15), backlog: 0, lateMs: 0 },
       ],
       playing,
     );
@@ -139,8 +140,8 @@ describe("the live edge", () => {
   });
 
   it("flushes a decoder far behind at a keyframe (never at every keyframe of a merely slow one)", () => {
-    expect(step(playing, { type: "frame", frame: frame(11, true), backlog: FLUSH_BACKLOG }).actions).toEqual([{ type: "decode" }]);
-    expect(step(playing, { type: "frame", frame: frame(11, true), backlog: FLUSH_BACKLOG + 1 }).actions).toEqual([
+    expect(step(playing, { type: "frame", frame: frame(11, true), backlog: FLUSH_BACKLOG, lateMs: 0 }).actions).toEqual([{ type: "decode" }]);
+    expect(step(playing, { type: "frame", frame: frame(11, true), backlog: FLUSH_BACKLOG + 1, lateMs: 0 }).actions).toEqual([
       { type: "drop", frames: FLUSH_BACKLOG + 1, why: "behind" },
       { type: "reset", reason: "behind: flushed at a keyframe" },
       { type: "configure", config: CONFIG },
@@ -148,12 +149,30 @@ describe("the live edge", () => {
     ]);
   });
 
+  it("drops frames that waited in the page, keyframes too, and goes on at a fresh keyframe", () => {
+    const r = run(
+      [
+        { type: "frame", frame: frame(11), backlog: 0, lateMs: LATE_MS + 1 },
+        { type: "frame", frame: frame(12, true), backlog: 0, lateMs: 5000 },
+        { type: "frame", frame: frame(13), backlog: 0, lateMs: 0 },
+        { type: "frame", frame: frame(14, true), backlog: 0, lateMs: LATE_MS },
+      ],
+      playing,
+    );
+    expect(r.actions).toEqual([
+      [{ type: "drop", frames: 1, why: "late" }],
+      [{ type: "drop", frames: 1, why: "late" }],
+      [{ type: "drop", frames: 1, why: "await_key" }],
+      [{ type: "decode" }],
+    ]);
+  });
+
   it("drops duplicate and reordered frames", () => {
-    expect(step(playing, { type: "frame", frame: frame(10), backlog: 0 }).actions).toEqual([{ type: "drop", frames: 1, why: "stale" }]);
+    expect(step(playing, { type: "frame", frame: frame(10), backlog: 0, lateMs: 0 }).actions).toEqual([{ type: "drop", frames: 1, why: "stale" }]);
   });
 
   it("drops frames that are not of the stream's codec", () => {
-    expect(step(playing, { type: "frame", frame: frame(11, true, 1, "jpeg"), backlog: 0 }).actions).toEqual([{ type: "drop", frames: 1, why: "kind" }]);
+    expect(step(playing, { type: "frame", frame: frame(11, true, 1, "jpeg"), backlog: 0, lateMs: 0 }).actions).toEqual([{ type: "drop", frames: 1, why: "kind" }]);
   });
 });
 
@@ -161,7 +180,7 @@ describe("MJPEG", () => {
   const mjpeg = run([{ type: "event", event: { ...STREAM, codec: "mjpeg", avc: null } }], INITIAL_CORE).state;
 
   it("decodes every image; gaps cost nothing more than the images missed", () => {
-    const r = run([{ type: "frame", frame: frame(1, true, 1, "jpeg"), backlog: 0 }, { type: "frame", frame: frame(4, true, 1, "jpeg"), backlog: 0 }], mjpeg);
+    const r = run([{ type: "frame", frame: frame(1, true, 1, "jpeg"), backlog: 0, lateMs: 0 }, { type: "frame", frame: frame(4, true, 1, "jpeg"), backlog: 0, lateMs: 0 }], mjpeg);
     expect(r.actions).toEqual([
       [{ type: "configure", config: { ...CONFIG, codec: "mjpeg", avc: null } }, { type: "decode" }],
       [{ type: "drop", frames: 2, why: "lost" }, { type: "decode" }],
@@ -169,8 +188,49 @@ describe("MJPEG", () => {
   });
 
   it("drops an image while the page is still decoding earlier ones", () => {
-    const started = step(mjpeg, { type: "frame", frame: frame(1, true, 1, "jpeg"), backlog: 0 }).state;
-    expect(step(started, { type: "frame", frame: frame(2, true, 1, "jpeg"), backlog: MAX_JPEG_BACKLOG }).actions).toEqual([{ type: "drop", frames: 1, why: "behind" }]);
+    const started = step(mjpeg, { type: "frame", frame: frame(1, true, 1, "jpeg"), backlog: 0, lateMs: 0 }).state;
+    expect(step(started, { type: "frame", frame: frame(2, true, 1, "jpeg"), backlog: MAX_JPEG_BACKLOG, lateMs: 0 }).actions).toEqual([{ type: "drop", frames: 1, why: "behind" }]);
+  });
+});
+
+describe("how late a frame reaches the page", () => {
+  // server and page clocks 5 s apart, a link of 40 ms: local − server = 5 040 ms when on time
+  const OFFSET = 5040;
+
+  it("is nothing on a steady link, however slow or however far the clocks are apart", () => {
+    const l = new Lateness();
+    for (let i = 0; i < 100; i++) expect(l.observe(1_000_000 + i * 33 + OFFSET, 1_000_000 + i * 33)).toBe(0);
+    const slow = new Lateness();
+    for (let i = 0; i < 100; i++) expect(slow.observe(i * 33 + 2500, i * 33)).toBe(0);
+  });
+
+  it("is the wait above the link's floor: a busy page finds old frames", () => {
+    const l = new Lateness();
+    l.observe(1000 + OFFSET, 1000);
+    l.observe(1033 + OFFSET + 10, 1033); // a little jitter
+    // the page was busy for 2 s: the frame stamped 1066 is handled at 3100
+    expect(l.observe(3100 + OFFSET, 1066)).toBe(2034);
+    // and it catches up: the next one is on time again
+    expect(l.observe(3110 + OFFSET, 3110)).toBe(0);
+  });
+
+  it("forgets a floor older than its window", () => {
+    const l = new Lateness();
+    l.observe(0 + OFFSET, 0); // a quick one long ago
+    for (let t = 1000; t <= WINDOW_MS + 2000; t += 1000) l.observe(t + OFFSET + 300, t);
+    // the floor is now the link's 300 ms more
+    expect(l.observe(WINDOW_MS + 3000 + OFFSET + 300, WINDOW_MS + 3000)).toBe(0);
+  });
+
+  it("takes a new floor when frames stay late for RESET_MS (a clock was set): never late for ever", () => {
+    const l = new Lateness();
+    for (let t = 0; t < 1000; t += 100) l.observe(t + OFFSET, t);
+    // the server's clock steps back 10 s: every frame now looks 10 s late
+    let last = -1;
+    for (let t = 1000; t <= 1000 + RESET_MS + 200; t += 100) last = l.observe(t + OFFSET, t - 10_000);
+    expect(last).toBe(0);
+    expect(l.observe(1000 + RESET_MS + 300 + OFFSET, 1000 + RESET_MS + 300 - 10_000)).toBe(0);
+    expect(LATE_MS).toBeLessThan(RESET_MS);
   });
 });
 
