@@ -7,11 +7,13 @@
 //     node bench/video_latency.mjs [VIEWERS] [SECONDS]
 //
 // VIEWERS: comma-separated counts measured in turn (default "1,10,50"); SECONDS per count
-// (default 20). The viewers are operator pages (`/?vehicle=V&video=PATH`, the page a pilot
-// or an observer opens: telemetry, HUD, the player) in one headless Chromium, each a page
-// (its own renderer process). Each page's player keeps every render→display sample
-// (`window.neptunusVideo.samples`); the bench empties them after a warm-up and reads them at
-// the end of the window.
+// (default 20). The viewers are pages in one headless Chromium, each its own renderer
+// process: camera pages (`/camera.html?vehicle=V&video=PATH`: the picture, its health line,
+// the vehicle joined as any watcher does) by default, operator pages (`/?vehicle=V`: the HUD,
+// telemetry at 20 Hz, the panels and the player — about a third of a core per page here
+// before any video) with VLAT_PAGE=operator. Each page's player keeps every render→display
+// sample (`window.neptunusVideo.samples`); the bench empties them after a warm-up and reads
+// them at the end of the window.
 //
 // The throttled viewer (VLAT_THROTTLED_WITH, default 10: measured after that count's window,
 // with its pages still open): one more Chromium page that reads its video socket slowly —
@@ -23,7 +25,8 @@
 // the others are measured again over SECONDS; the figures compare each page's p99 without
 // and with it.
 //
-// Environment: VLAT_URL (http://127.0.0.1:4000), VLAT_VEHICLE (neptunus-1), VLAT_SERVER_PID
+// Environment: VLAT_URL (http://127.0.0.1:4000), VLAT_VEHICLE (neptunus-1), VLAT_PAGE (camera |
+// operator), VLAT_SERVER_PID
 // (the BEAM's OS pid: its CPU and its child processes' — the camera — are printed),
 // VLAT_PATH (auto | webcodecs | mse), VLAT_WARMUP_FRAMES (60), VLAT_WARMUP_S (60), VLAT_THROTTLED_WITH (10; 0:
 // none), VLAT_THROTTLE_READ_MS (200), CHROMIUM_PATH (/usr/bin/chromium).
@@ -39,6 +42,8 @@ const { chromium } = require('playwright-core');
 const BASE = (process.env.VLAT_URL ?? 'http://127.0.0.1:4000').replace(/\/+$/, '');
 const VEHICLE = process.env.VLAT_VEHICLE ?? 'neptunus-1';
 const PATH = process.env.VLAT_PATH ?? 'auto';
+const PAGE = process.env.VLAT_PAGE ?? 'camera';
+if (PAGE !== 'camera' && PAGE !== 'operator') throw new Error(`VLAT_PAGE must be camera or operator, got ${PAGE}`);
 const COUNTS = (process.argv[2] ?? process.env.VLAT_VIEWERS ?? '1,10,50').split(',').map(Number);
 const SECONDS = Number(process.argv[3] ?? process.env.VLAT_SECONDS ?? 20);
 const WARMUP_FRAMES = Number(process.env.VLAT_WARMUP_FRAMES ?? 60);
@@ -127,7 +132,8 @@ async function openViewer(browser, name) {
   const context = await browser.newContext({ viewport: { width: 1024, height: 768 } });
   const page = await context.newPage();
   page.on('pageerror', (err) => console.error(`[${name}] uncaught: ${err.message}`));
-  await page.goto(`${BASE}/?vehicle=${encodeURIComponent(VEHICLE)}&name=${encodeURIComponent(name)}&video=${PATH}`, { waitUntil: 'load', timeout: 60_000 });
+  const where = PAGE === 'camera' ? '/camera.html' : '/';
+  await page.goto(`${BASE}${where}?vehicle=${encodeURIComponent(VEHICLE)}&name=${encodeURIComponent(name)}&video=${PATH}`, { waitUntil: 'load', timeout: 60_000 });
   return { name, context, page };
 }
 
@@ -241,13 +247,30 @@ function report(label, m) {
 
 async function main() {
   if (!existsSync(CHROMIUM)) throw new Error(`no Chromium at ${CHROMIUM}`);
-  console.log(`# video_latency: ${BASE}, vehicle ${VEHICLE}, path ${PATH}, ${SECONDS} s per measurement, viewers ${COUNTS.join(', ')}`);
+  console.log(`# video_latency: ${BASE}, vehicle ${VEHICLE}, ${PAGE} pages, path ${PATH}, ${SECONDS} s per measurement, viewers ${COUNTS.join(', ')}`);
   console.log(`# machine: ${os.cpus().length} × ${os.cpus()[0]?.model ?? '?'}, load ${loadLine()}`);
   const browser = await chromium.launch({ executablePath: CHROMIUM, args: ARGS, timeout: 60_000 });
   try {
     for (const n of COUNTS) {
       const viewers = [];
-      for (let i = 0; i < n; i++) viewers.push(await openViewer(browser, `viewer-${n}-${i}`));
+      let failed = 0;
+      for (let i = 0; i < n; i++) {
+        // a page the machine cannot open now (a busy server or browser) is tried twice more
+        for (let attempt = 1; ; attempt++) {
+          try {
+            viewers.push(await openViewer(browser, `viewer-${n}-${i}`));
+            break;
+          } catch (err) {
+            if (attempt === 3) {
+              failed += 1;
+              console.error(`viewer-${n}-${i} not opened: ${err.message.split('\n')[0]}`);
+              break;
+            }
+            await sleep(2000);
+          }
+        }
+      }
+      if (failed > 0) out('pages not opened', `${failed} of ${n}`);
       await waitWarm(viewers);
       const m = await measure(viewers);
       report(`${n} viewer${n === 1 ? '' : 's'}`, m);

@@ -123,6 +123,22 @@ for (const path of ["webcodecs", "mse"]) {
   });
 }
 
+test("the camera page: the picture fills the window, with its health line and latency", { timeout: TEST_MS }, async () => {
+  const { context, page } = await open(browser, { ...TABLET, name: "e2e-camera-page", path: `/camera.html?vehicle=${encodeURIComponent(VEHICLE)}`, wait: PAGE_MS });
+  try {
+    await waitVideo(page, () => window.neptunusVideo?.displayed >= 10 && window.neptunusVideo.stamps >= 10, null, "pictures on the camera page");
+    await until(() => page.locator('[data-testid="video-health"]').textContent(), (t) => /H\.264 640×360/.test(t ?? "") && /render→display \d+ ms/.test(t ?? ""), WAIT_MS, "the health line");
+    await until(() => page.locator('[data-testid="hud-video-latency"]').textContent(), (t) => /video \d+ ms/.test(t ?? ""), WAIT_MS, "the latency in the header");
+    // the picture's box takes the window's width and most of its height
+    const box = await page.locator('[data-testid="video-feed"]').boundingBox();
+    assert.ok(box && box.width >= TABLET.width - 4 && box.height >= TABLET.height * 0.6, `the picture's box: ${JSON.stringify(box)}`);
+    await screenshot(page, "camera-page-1024x768.png", { fullPage: false });
+  } finally {
+    await context.close();
+  }
+  assertNoPageProblems();
+});
+
 test("the rotation setting turns the picture on both paths", { timeout: TEST_MS }, async () => {
   for (const path of ["webcodecs", "mse"]) {
     const { context, page } = await videoPage({ ...TABLET, name: `e2e-rotate-${path}`, video: path });

@@ -1,0 +1,166 @@
+/**
+ * The camera page (`/camera.html?vehicle=ID`, default the fleet's first vehicle): the vehicle's
+ * picture filling the window with its health line — for a second screen, a crew monitor or a
+ * projector. It joins the vehicle as any watcher does (for the camera's address, its rotation
+ * and the server's clock) and shows nothing else: no HUD, no controls, it never pilots, so it
+ * costs a browser the video and little more.
+ */
+
+import { render } from "preact";
+import { TelemetryClock } from "../lib/clock";
+import { reasonOf } from "../lib/errors";
+import { parseRotation } from "../lib/prefs";
+import type { Rotation } from "../lib/prefs";
+import type { CameraInfo } from "../lib/protocol";
+import { PageSession, browserSessionEnv } from "../lib/session";
+import { Store } from "../lib/store";
+import { useStore } from "../lib/use_store";
+import { NeptunusClient } from "../lib/vehicle_client";
+import type { ConnectionStatus, VehicleChannel } from "../lib/vehicle_client";
+import { loadPathChoice } from "../video/path";
+import { VideoPlayer } from "../video/player";
+import { takeSnapshot } from "../video/snapshots";
+import { VideoFeed, VideoHealthLine, VideoLatency } from "../video/view";
+
+interface CameraPageState {
+  readonly vehicleId: string | null;
+  readonly camera: CameraInfo | null;
+  readonly joined: boolean;
+  readonly rotation: Rotation;
+  readonly status: ConnectionStatus;
+  readonly message: string;
+}
+
+const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
+const CLOCK_MS = 10_000;
+
+function storage(): Storage | null {
+  try {
+    return window.localStorage;
+  } catch {
+    return null;
+  }
+}
+
+class CameraPage {
+  readonly store = new Store<CameraPageState>({ vehicleId: null, camera: null, joined: false, rotation: 0, status: "connecting", message: "" });
+  readonly player: VideoPlayer;
+  private readonly session = new PageSession(browserSessionEnv((reason) => this.store.update({ message: reason === null ? "" : `Cannot reach the server: ${reason}` })));
+  private vehicle: VehicleChannel | null = null;
+  private readonly clock = new TelemetryClock(() => this.vehicle);
+
+  constructor(private readonly params: URLSearchParams) {
+    this.player = new VideoPlayer({
+      token: () => this.session.token,
+      serverOffsetMs: () => this.clock.offset.offsetMs,
+      readClock: () => this.clock.read(),
+      choice: loadPathChoice(params, storage()),
+    });
+  }
+
+  async start(): Promise<void> {
+    window.setInterval(() => this.clock.tick(performance.now()), 250);
+    window.setInterval(() => this.clock.read(), CLOCK_MS);
+    const session = await this.session.authenticate();
+    if (session === null) return; // leaving for the login page
+    const token = this.session.token;
+    const client = new NeptunusClient({ name: "camera page", ...(token !== null ? { token } : {}) });
+    client.socket.onError(() => void this.session.recheck());
+    client.connect();
+    const id = await this.chooseVehicle(client);
+    if (id === null) return;
+    document.title = `Neptunus — camera — ${id}`;
+    this.store.update({ vehicleId: id });
+    const vehicle = client.vehicle(id, {
+      snapshot: (snapshot) => {
+        this.store.update({ camera: snapshot.camera, joined: true, ...(snapshot.settings ? { rotation: parseRotation(snapshot.settings.camera_rotation) } : {}) });
+        this.player.watch(snapshot.camera?.video ?? null);
+      },
+      vehicleSettings: (settings) => this.store.update({ rotation: parseRotation(settings.camera_rotation) }),
+      status: (status) => this.store.update({ status }),
+    });
+    this.vehicle = vehicle;
+    vehicle.join().catch((err: unknown) => this.store.update({ message: `Cannot join vehicle ${id}: ${reasonOf(err)}` }));
+  }
+
+  private async chooseVehicle(client: NeptunusClient): Promise<string | null> {
+    const requested = this.params.get("vehicle");
+    if (requested !== null) {
+      if (VEHICLE_ID.test(requested)) return requested;
+      this.store.update({ message: `Invalid vehicle id in the address: "${requested}"` });
+      return null;
+    }
+    try {
+      const fleet = await client.fleet();
+      const first = fleet.vehicles.find((v) => v.status !== "unreachable") ?? fleet.vehicles[0];
+      if (first !== undefined) return first.id;
+      this.store.update({ message: "The server has no vehicles." });
+    } catch (err) {
+      this.store.update({ message: `Cannot list vehicles: ${reasonOf(err)}` });
+    }
+    return null;
+  }
+
+  snapshot(): void {
+    const id = this.store.get().vehicleId;
+    if (id === null) return;
+    this.store.update({ message: "Taking a snapshot…" });
+    takeSnapshot(id, this.session.token).then(
+      (info) => this.store.update({ message: `Snapshot saved: ${info.name}` }),
+      (err: unknown) => this.store.update({ message: `Snapshot not saved: ${reasonOf(err)}` }),
+    );
+  }
+}
+
+function CameraView({ page }: { page: CameraPage }): preact.JSX.Element {
+  const s = useStore(page.store);
+  const operator = s.vehicleId === null ? "/" : `/?vehicle=${encodeURIComponent(s.vehicleId)}`;
+  return (
+    <div class="camera-page">
+      <header class="bar">
+        <h1>Neptunus</h1>
+        <span class="vehicle">
+          Camera of{" "}
+          <strong id="vehicle-id" data-testid="vehicle-id">
+            {s.vehicleId ?? "—"}
+          </strong>
+        </span>
+        <span id="status" class="status" data-testid="status" data-state={s.status} role="status">
+          {s.status === "disconnected" ? "disconnected — reconnecting" : s.status}
+        </span>
+        <VideoLatency player={page.player} />
+        <a class="dev-link" href={operator}>
+          Operator page
+        </a>
+      </header>
+      <div class="camera" data-testid="camera" data-rotation={s.rotation} data-camera={s.camera?.video != null ? "on" : "none"}>
+        {s.camera?.video != null ? (
+          <VideoFeed player={page.player} rotation={s.rotation} />
+        ) : (
+          <div class="no-camera" data-testid="no-camera">
+            <strong>{s.joined ? "No camera" : "Connecting…"}</strong>
+            <span>{s.joined ? "This vehicle publishes no video stream." : ""}</span>
+          </div>
+        )}
+      </div>
+      {s.camera?.video != null && <VideoHealthLine player={page.player} onSnapshot={() => page.snapshot()} />}
+      <p id="message" class="message" data-testid="message" role="alert">
+        {s.message}
+      </p>
+    </div>
+  );
+}
+
+function main(): void {
+  const root = document.getElementById("app");
+  if (!root) throw new Error("camera page: #app is missing from camera.html");
+  const page = new CameraPage(new URLSearchParams(window.location.search));
+  render(<CameraView page={page} />, root);
+  page.start().catch((err: unknown) => console.error("neptunus:", err));
+}
+
+if (document.readyState === "loading") {
+  document.addEventListener("DOMContentLoaded", main, { once: true });
+} else {
+  main();
+}
