@@ -147,8 +147,19 @@ async function openThrottled(browser, readMs) {
     async ({ path, readMs }) => {
       const slow = { frames: 0, skips: 0, skipped: 0, closed: null };
       window.slow = slow;
-      const ws = new WebSocketStream(`ws://${location.host}${path}?vsn=1`);
-      const { readable } = await ws.opened;
+      // a machine this busy may fail a handshake: three tries
+      let ws;
+      let readable;
+      for (let attempt = 1; ; attempt++) {
+        try {
+          ws = new WebSocketStream(`ws://${location.host}${path}?vsn=1`);
+          ({ readable } = await ws.opened);
+          break;
+        } catch (err) {
+          if (attempt === 3) throw err;
+          await new Promise((r) => setTimeout(r, 1000));
+        }
+      }
       ws.closed.then((c) => (slow.closed = `closed ${c.closeCode}`), (e) => (slow.closed = `failed ${e}`));
       const reader = readable.getReader();
       (async () => {
