@@ -7,6 +7,7 @@
  */
 
 import { render } from "preact";
+import { chooseVehicle } from "../lib/choose_vehicle";
 import { TelemetryClock } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
 import { parseRotation } from "../lib/prefs";
@@ -31,7 +32,6 @@ interface CameraPageState {
   readonly message: string;
 }
 
-const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
 const CLOCK_MS = 10_000;
 
 function storage(): Storage | null {
@@ -67,7 +67,7 @@ class CameraPage {
     const client = new NeptunusClient({ name: "camera page", ...(token !== null ? { token } : {}) });
     client.socket.onError(() => void this.session.recheck());
     client.connect();
-    const id = await this.chooseVehicle(client);
+    const id = await chooseVehicle(client, this.params.get("vehicle"), (message) => this.store.update({ message }));
     if (id === null) return;
     document.title = `Neptunus — camera — ${id}`;
     this.store.update({ vehicleId: id });
@@ -81,24 +81,6 @@ class CameraPage {
     });
     this.vehicle = vehicle;
     vehicle.join().catch((err: unknown) => this.store.update({ message: `Cannot join vehicle ${id}: ${reasonOf(err)}` }));
-  }
-
-  private async chooseVehicle(client: NeptunusClient): Promise<string | null> {
-    const requested = this.params.get("vehicle");
-    if (requested !== null) {
-      if (VEHICLE_ID.test(requested)) return requested;
-      this.store.update({ message: `Invalid vehicle id in the address: "${requested}"` });
-      return null;
-    }
-    try {
-      const fleet = await client.fleet();
-      const first = fleet.vehicles.find((v) => v.status !== "unreachable") ?? fleet.vehicles[0];
-      if (first !== undefined) return first.id;
-      this.store.update({ message: "The server has no vehicles." });
-    } catch (err) {
-      this.store.update({ message: `Cannot list vehicles: ${reasonOf(err)}` });
-    }
-    return null;
   }
 
   snapshot(): void {
