@@ -5,7 +5,7 @@ defmodule Neptunus.Camera.Pose do
 
   The simulators (`Neptunus.Vehicle.Board.Simulated`, the SITL board's
   `Neptunus.Vehicle.Board.SITL.Device`) publish it at every step on `topic/1` — a
-  broadcast that costs them a lookup when nobody listens — and the vehicle's camera
+  broadcast that costs them three table lookups when nobody listens — and the vehicle's camera
   process subscribes while it renders. So the picture follows the simulator at its own
   rate and no video work ever runs in the board, control or helm processes.
 
@@ -45,7 +45,13 @@ defmodule Neptunus.Camera.Pose do
   `lights`, `laser` (0..255) and `tilt` (rad).
   """
   @spec publish(String.t(), map(), %{lights: number(), laser: number(), tilt: number()}) :: :ok
-  def publish(id, dyn, devices), do: PubSub.broadcast(topic(id), "pose", new(dyn, devices))
+  def publish(id, dyn, devices) do
+    topic = topic(id)
+    # nothing built while no camera renders this vehicle (the simulator's usual step)
+    if PubSub.subscriber_count(topic) > 0,
+      do: PubSub.broadcast(topic, "pose", new(dyn, devices)),
+      else: :ok
+  end
 
   @doc """
   A pose from a dynamics state and the devices (pure).

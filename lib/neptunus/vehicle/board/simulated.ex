@@ -197,7 +197,7 @@ defmodule Neptunus.Vehicle.Board.Simulated do
 
   defp report(state, sim) do
     Board.sample(state.id, Map.put(Sim.sample(sim), :board, state.devices), state.source)
-    # for the simulated camera, if one renders this vehicle (a lookup when none does)
+    # for the simulated camera, if one renders this vehicle (nothing built when none does)
     Pose.publish(state.id, sim.dyn, state.devices)
   end
 

@@ -188,7 +188,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
 
     sim = state.sim |> Sim.command(firmware.thrusters) |> Sim.step(steps)
     Periodic.arm(periodic, :tick)
-    # for the simulated camera, if one renders this vehicle (a lookup when none does)
+    # for the simulated camera, if one renders this vehicle (nothing built when none does)
     Pose.publish(state.id, sim.dyn, %{
       lights: firmware.lights,
       laser: firmware.laser,
