@@ -2,7 +2,7 @@ defmodule NeptunusWeb.CameraStream do
   @moduledoc """
   `GET /camera/<id>.mjpg` (a yaws appmod): the vehicle's camera as a
   `multipart/x-mixed-replace` Motion JPEG stream, which browsers show in an `<img>`. Who may
-  watch the vehicle may watch its camera (`NeptunusWeb.API.may_watch/1`: the token in
+  watch the vehicle may watch its camera (`NeptunusWeb.API.Request.may_watch/1`: the token in
   `?token=` for an `<img>`).
 
   Only for an MJPEG camera (an H.264 camera is watched on the video WebSocket,
@@ -17,12 +17,13 @@ defmodule NeptunusWeb.CameraStream do
   its frames come through this node's relay of that camera (`NeptunusWeb.CameraRelay`), so
   they cross between the nodes once per frame, not once per viewer.
   """
-  import NeptunusWeb.Yaws
+  import NeptunusWeb.Endpoint.Yaws
 
   alias Neptunus.Fleet
   alias Neptunus.Camera.{Frame, MJPEG}
   alias Neptunus.Vehicle.Camera
-  alias NeptunusWeb.{API, CameraRelay}
+  alias NeptunusWeb.API.{Request, Response}
+  alias NeptunusWeb.CameraRelay
 
   @doc false
   def out(arg) do
@@ -35,7 +36,7 @@ defmodule NeptunusWeb.CameraStream do
       pid = spawn(fn -> start(id, socket) end)
       {:streamcontent_from_pid, String.to_charlist(MJPEG.content_type()), pid}
     else
-      {status, body} -> API.respond({status, body})
+      {status, body} -> Response.respond({status, body})
     end
   end
 
@@ -64,14 +65,14 @@ defmodule NeptunusWeb.CameraStream do
   defp vehicle(_path), do: {404, %{error: "no such camera: use /camera/<vehicle id>.mjpg"}}
 
   defp allowed(arg) do
-    case API.may_watch(arg) do
+    case Request.may_watch(arg) do
       :ok -> :ok
       {:error, reason} -> {401, %{error: reason}}
     end
   end
 
   defp start(id, socket) do
-    NeptunusWeb.Yaws.await_stream(
+    NeptunusWeb.Endpoint.Yaws.await_stream(
       socket,
       fn yaws ->
         pubsub = subscribe(id)

@@ -7,7 +7,7 @@ defmodule NeptunusWeb.VideoSocket do
   header, never copied per viewer.
 
   Upgrades are authorised exactly as the Channels socket's
-  (`NeptunusWeb.Socket.Transport.authorize/1`: `Origin`, `Host`, `token`): refused with 403
+  (`NeptunusWeb.WebSocket.Upgrade.authorize/1`: `Origin`, `Host`, `token`): refused with 403
   or 401 and a reason; a vehicle without camera (or unknown) with 404.
 
   One process per viewer, at `:low` priority (the control path and the Channels sockets
@@ -16,7 +16,7 @@ defmodule NeptunusWeb.VideoSocket do
   first, then the frames from the next keyframe on. Which frames go out is
   `NeptunusWeb.VideoSocket.Flow`'s decision: a viewer that falls behind (its client reads
   slower than the camera sends; the kernel holds little unsent,
-  `NeptunusWeb.Socket.Transport.limit_unsent/1`, so the backlog forms in this process'
+  `NeptunusWeb.WebSocket.Transport.limit_unsent/2`, so the backlog forms in this process'
   mailbox) drops whole groups of pictures, and is told (`skipped`); the camera and other
   viewers never wait for it. A client that reads nothing at all is closed by the endpoint's
   send timeout; the viewer finds its socket gone at its next check.
@@ -26,13 +26,15 @@ defmodule NeptunusWeb.VideoSocket do
   """
   require Logger
 
-  import NeptunusWeb.Yaws
+  import NeptunusWeb.Endpoint.Yaws
 
   alias Neptunus.Fleet
   alias Neptunus.Camera.Frame
   alias Neptunus.Vehicle.Camera
-  alias NeptunusWeb.{CameraRelay, Settings}
-  alias NeptunusWeb.Socket.{Transport, WsFrame}
+  alias NeptunusWeb.CameraRelay
+  alias NeptunusWeb.Endpoint.Settings
+  alias NeptunusWeb.Socket.WsFrame
+  alias NeptunusWeb.WebSocket.{Transport, Upgrade}
   alias NeptunusWeb.VideoSocket.Flow
 
   # frames waiting for a viewer from which on it is behind (a third of a second at 30 fps)
@@ -46,7 +48,7 @@ defmodule NeptunusWeb.VideoSocket do
             id: String.t(),
             user: NeptunusWeb.Auth.user(),
             flow: NeptunusWeb.VideoSocket.Flow.t(),
-            sock: NeptunusWeb.Socket.Transport.sock(),
+            sock: NeptunusWeb.WebSocket.Transport.socket() | nil,
             watch: reference() | nil,
             generation: non_neg_integer() | nil,
             camera: map() | nil
@@ -60,7 +62,7 @@ defmodule NeptunusWeb.VideoSocket do
     path = arg(arg, :server_path) |> to_string()
 
     with {:ok, id} <- vehicle(path),
-         {:ok, user} <- authorize(arg),
+         {:ok, user} <- Upgrade.authorize(arg),
          :ok <- camera(id) do
       {:websocket, __MODULE__,
        [
@@ -69,7 +71,7 @@ defmodule NeptunusWeb.VideoSocket do
          {:max_message_size, @max_message_bytes}
        ]}
     else
-      {:error, status, reason} -> Transport.http_error(status, reason)
+      {:error, status, reason} -> Upgrade.refuse(status, reason)
     end
   end
 
@@ -82,13 +84,6 @@ defmodule NeptunusWeb.VideoSocket do
 
   defp vehicle(_path),
     do: {:error, 404, "no such video endpoint: use /video/<vehicle id>/websocket"}
-
-  defp authorize(arg) do
-    case Transport.authorize(arg) do
-      {:ok, user} -> {:ok, user}
-      {:error, status, reason} -> {:error, status, reason}
-    end
-  end
 
   defp camera(id) do
     cond do
@@ -114,8 +109,8 @@ defmodule NeptunusWeb.VideoSocket do
 
   @doc false
   def handle_open(ws_state, state) do
-    sock = ws_state(ws_state, :sock)
-    Transport.limit_unsent(sock)
+    sock = Transport.socket(ws_state)
+    Transport.limit_unsent(sock, Settings.get().unsent_bytes)
     send(self(), :watch)
     {:ok, %{state | sock: sock}}
   end
@@ -168,7 +163,7 @@ defmodule NeptunusWeb.VideoSocket do
   end
 
   defp send_frame(state, frame) do
-    _ = Transport.send_data(state.sock, WsFrame.binary(frame.data))
+    _ = Transport.write(state.sock, WsFrame.binary(frame.data))
     {:noreply, state}
   end
 
@@ -230,7 +225,7 @@ defmodule NeptunusWeb.VideoSocket do
   end
 
   defp text(state, message) do
-    _ = Transport.send_data(state.sock, WsFrame.text(Neptunus.JSON.encode!(message)))
+    _ = Transport.write(state.sock, WsFrame.text(Neptunus.JSON.encode!(message)))
     :ok
   end
 

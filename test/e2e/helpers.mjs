@@ -46,7 +46,7 @@ export async function reportCspViolations(context) {
   });
 }
 
-/** The page response carries the anti-framing headers (see NeptunusWeb.Guard). */
+/** The page response carries the anti-framing headers (see NeptunusWeb.Endpoint.Guard). */
 export function assertPageHeaders(response, where) {
   assert.ok(response, `${where}: no response`);
   const headers = response.headers();

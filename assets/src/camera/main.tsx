@@ -21,6 +21,7 @@ import type { ConnectionStatus, VehicleChannel } from "../lib/vehicle_client";
 import { loadPathChoice } from "../video/path";
 import { VideoPlayer } from "../video/player";
 import { takeSnapshot } from "../video/snapshots";
+import { CameraFeed } from "../operator/camera_feed";
 import { VideoFeed, VideoHealthLine, VideoLatency } from "../video/view";
 
 interface CameraPageState {
@@ -45,6 +46,8 @@ function storage(): Storage | null {
 class CameraPage {
   readonly store = new Store<CameraPageState>({ vehicleId: null, camera: null, joined: false, rotation: 0, status: "connecting", message: "" });
   readonly player: VideoPlayer;
+  /** plays the joined vehicle's camera, takes snapshots (the operator page's part) */
+  readonly camera: CameraFeed;
   private readonly session = new PageSession(browserSessionEnv((reason) => this.store.update({ message: reason === null ? "" : `Cannot reach the server: ${reason}` })));
   private vehicle: VehicleChannel | null = null;
   private readonly clock = new TelemetryClock(() => this.vehicle);
@@ -55,6 +58,12 @@ class CameraPage {
       serverOffsetMs: () => this.clock.offset.offsetMs,
       readClock: () => this.clock.read(),
       choice: loadPathChoice(params, storage()),
+    });
+    this.camera = new CameraFeed({
+      get: () => this.store.get(),
+      player: this.player,
+      takeSnapshot: (vehicle) => takeSnapshot(vehicle, this.session.token),
+      showMessage: (message) => this.store.update({ message }),
     });
   }
 
@@ -74,23 +83,13 @@ class CameraPage {
     const vehicle = client.vehicle(id, {
       snapshot: (snapshot) => {
         this.store.update({ camera: snapshot.camera, joined: true, ...(snapshot.settings ? { rotation: parseRotation(snapshot.settings.camera_rotation) } : {}) });
-        this.player.watch(snapshot.camera?.video ?? null);
+        this.camera.show(snapshot.camera);
       },
       vehicleSettings: (settings) => this.store.update({ rotation: parseRotation(settings.camera_rotation) }),
       status: (status) => this.store.update({ status }),
     });
     this.vehicle = vehicle;
     vehicle.join().catch((err: unknown) => this.store.update({ message: `Cannot join vehicle ${id}: ${reasonOf(err)}` }));
-  }
-
-  snapshot(): void {
-    const id = this.store.get().vehicleId;
-    if (id === null) return;
-    this.store.update({ message: "Taking a snapshot…" });
-    takeSnapshot(id, this.session.token).then(
-      (info) => this.store.update({ message: `Snapshot saved: ${info.name}` }),
-      (err: unknown) => this.store.update({ message: `Snapshot not saved: ${reasonOf(err)}` }),
-    );
   }
 }
 
@@ -115,8 +114,8 @@ function CameraView({ page }: { page: CameraPage }): preact.JSX.Element {
           Operator page
         </a>
       </header>
-      <div class="camera" data-testid="camera" data-rotation={s.rotation} data-camera={s.camera?.video != null ? "on" : "none"}>
-        {s.camera?.video != null ? (
+      <div class="camera" data-testid="camera" data-rotation={s.rotation} data-camera={s.camera !== null ? "on" : "none"}>
+        {s.camera !== null ? (
           <VideoFeed player={page.player} rotation={s.rotation} />
         ) : (
           <div class="no-camera" data-testid="no-camera">
@@ -125,7 +124,7 @@ function CameraView({ page }: { page: CameraPage }): preact.JSX.Element {
           </div>
         )}
       </div>
-      {s.camera?.video != null && <VideoHealthLine player={page.player} onSnapshot={() => page.snapshot()} />}
+      {s.camera !== null && <VideoHealthLine player={page.player} onSnapshot={() => page.camera.snapshot()} />}
       <p id="message" class="message" data-testid="message" role="alert">
         {s.message}
       </p>

@@ -4,7 +4,6 @@
  */
 
 import type { ComponentChildren } from "preact";
-import { useEffect, useState } from "preact/hooks";
 import { bugPosition, compassTicks } from "../lib/compass";
 import { formatMs } from "../lib/latency";
 import type { Rotation } from "../lib/prefs";
@@ -16,15 +15,12 @@ import { VideoFeed } from "../video/view";
 import { DEPTH_TOLERANCE, HEADING_TOLERANCE, movingReference } from "./reference";
 import type { MeasurementState } from "../lib/protocol";
 import {
-  CAMERA_RETRY_MS,
   barGeometry,
   boardLinkText,
-  cameraElement,
   fmt,
   measurementDeg,
   measurementHeading,
   measurementText,
-  retryUrl,
   showsUnit,
 } from "./format";
 
@@ -107,73 +103,29 @@ function HudBox(props: { title: string; children: ComponentChildren; class?: str
   );
 }
 
+/**
+ * The camera area: the vehicle's camera played over this server's video socket (src/video/:
+ * H.264 or MJPEG, the player says over the picture what it waits for), or "No camera".
+ */
 export function Camera(props: {
   camera: CameraInfo | null;
   rotation: Rotation;
-  /** the server's word on the camera (from telemetry) */
-  status?: CameraStatus | null;
-  /** plays this server's own camera over the video socket (src/video/) */
-  video?: VideoPlayer;
+  video: VideoPlayer;
   children?: ComponentChildren;
 }): preact.JSX.Element {
   const { camera, rotation } = props;
-  const down = props.status && !props.status.running && props.status.error !== null ? props.status.error : null;
-  const style = { transform: `rotate(${rotation}deg)` };
-  // this server's camera plays over the video socket (which says itself what the camera does)
-  const socketFeed = props.video !== undefined && camera?.video != null;
-  const url = camera?.url ?? null;
   return (
     <div class="camera" data-testid="camera" data-rotation={rotation} data-camera={camera ? "on" : "none"}>
-      {props.video !== undefined && socketFeed ? (
-        <VideoFeed player={props.video} rotation={rotation} />
-      ) : url === null ? (
+      {camera === null ? (
         <div class="no-camera" data-testid="no-camera">
           <strong>No camera</strong>
           <span>This vehicle publishes no video stream.</span>
         </div>
-      ) : cameraElement(url) === "video" ? (
-        <video class="feed" src={url} style={style} autoplay muted playsInline />
       ) : (
-        <ImageFeed key={url} url={url} style={style} />
-      )}
-      {camera !== null && down !== null && !socketFeed && (
-        <div class="camera-lost camera-down" data-testid="camera-down" role="status">
-          Camera: {down}
-        </div>
+        <VideoFeed player={props.video} rotation={rotation} />
       )}
       {props.children}
     </div>
-  );
-}
-
-/** An MJPEG/JPEG feed that says so when the stream breaks and asks for it again every 3 s. */
-function ImageFeed(props: { url: string; style: { transform: string } }): preact.JSX.Element {
-  const [attempt, setAttempt] = useState(0);
-  const [failed, setFailed] = useState(false);
-  useEffect(() => {
-    if (!failed) return undefined;
-    const timer = window.setTimeout(() => {
-      setFailed(false);
-      setAttempt((a) => a + 1);
-    }, CAMERA_RETRY_MS);
-    return () => window.clearTimeout(timer);
-  }, [failed]);
-  return (
-    <>
-      <img
-        class="feed"
-        src={retryUrl(props.url, attempt)}
-        style={props.style}
-        alt="camera image"
-        draggable={false}
-        onError={() => setFailed(true)}
-      />
-      {failed && (
-        <div class="camera-lost" data-testid="camera-lost" role="status">
-          Camera stream interrupted — retrying…
-        </div>
-      )}
-    </>
   );
 }
 

@@ -179,10 +179,16 @@ export function parseEvent(text: string): Parsed<VideoEvent> {
   }
 }
 
-/** The video socket's address on this page's server (wss on https), from its path (`/video/ID/websocket`). */
+/**
+ * The video socket's address on this page's server (wss on https), from its path
+ * (`/video/ID/websocket`, maybe with a query): `vsn=1` and this page's current token, which
+ * replaces any the path already carries (a login may have been renewed since).
+ */
 export function videoSocketUrl(location: { readonly protocol: string; readonly host: string }, path: string, token: string | null): string {
   const scheme = location.protocol === "https:" ? "wss:" : "ws:";
-  const query = new URLSearchParams({ vsn: "1" });
+  const at = path.indexOf("?");
+  const query = new URLSearchParams(at < 0 ? "" : path.slice(at + 1));
+  query.set("vsn", "1");
   if (token !== null) query.set("token", token);
-  return `${scheme}//${location.host}${path}${path.includes("?") ? "&" : "?"}${query.toString()}`;
+  return `${scheme}//${location.host}${at < 0 ? path : path.slice(0, at)}?${query.toString()}`;
 }

@@ -153,22 +153,23 @@ describe("control settings replies and the camera", () => {
     expect(decodeControlSettings({ mode: 1 })).toBeNull();
   });
 
-  it("finds the camera URL in the snapshot, or none", () => {
+  it("finds the camera in the snapshot, or none", () => {
     const vehicle = { id: "v", board: "simulated" };
-    expect(decodeCamera({ vehicle, camera: { url: "http://cam:8080/?action=stream" } })).toEqual({ url: "http://cam:8080/?action=stream", video: null });
-    expect(decodeCamera({ vehicle, camera: "/video/v.mp4" })).toEqual({ url: "/video/v.mp4", video: null });
-    expect(decodeCamera({ vehicle: { ...vehicle, camera_url: "https://x/y.mjpg" } })).toEqual({ url: "https://x/y.mjpg", video: null });
+    const mjpeg = { codec: "mjpeg", video: "/video/v/websocket", url: "http://cam:8080/?action=stream" };
+    expect(decodeCamera({ vehicle, camera: mjpeg })).toEqual(mjpeg);
+    const h264 = { codec: "h264", video: "/video/v/websocket", url: null };
+    expect(decodeCamera({ vehicle, camera: h264 })).toEqual(h264);
     expect(decodeCamera({ vehicle, camera: null })).toBeNull();
-    expect(decodeCamera({ vehicle, camera: { url: "javascript:alert(1)" } })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: { ...mjpeg, url: "javascript:alert(1)" } })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: { ...h264, video: "javascript:alert(1)" } })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: "/video/v.mp4" })).toBeNull();
     expect(decodeCamera({ vehicle })).toBeNull();
   });
 
-  it("finds this server's video socket: H.264 (no <img> stream), MJPEG (both)", () => {
+  it("never takes another host's video socket", () => {
     const vehicle = { id: "v", board: "simulated" };
-    expect(decodeCamera({ vehicle, camera: { codec: "h264", video: "/video/v/websocket", url: null } })).toEqual({ url: null, video: "/video/v/websocket" });
-    expect(decodeCamera({ vehicle, camera: { codec: "mjpeg", video: "/video/v/websocket", url: "/camera/v.mjpg" } })).toEqual({ url: "/camera/v.mjpg", video: "/video/v/websocket" });
-    // never another host's socket
     expect(decodeCamera({ vehicle, camera: { codec: "h264", video: "//evil.example/ws", url: null } })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: { codec: "h264", video: "https://evil.example/ws", url: null } })).toBeNull();
     expect(decodeCamera({ vehicle, camera: { codec: "h264", video: 7, url: null } })).toBeNull();
   });
 });
@@ -347,16 +348,24 @@ describe("barGeometry", () => {
   });
 });
 
-describe("camera address for an <img>", () => {
+describe("camera addresses", () => {
+  const mjpeg = (url: string) => ({ codec: "mjpeg" as const, video: "/video/rov/websocket", url });
   it("adds the token to our own server's stream only", () => {
-    const video = "/video/rov/websocket";
-    expect(cameraWithToken({ url: "/camera/rov.mjpg", video }, "v1.a+b")).toEqual({ url: "/camera/rov.mjpg?token=v1.a%2Bb", video });
-    expect(cameraWithToken({ url: "/camera/rov.mjpg?x=1", video: null }, "t")).toEqual({ url: "/camera/rov.mjpg?x=1&token=t", video: null });
-    expect(cameraWithToken({ url: "/camera/rov.mjpg", video: null }, null)).toEqual({ url: "/camera/rov.mjpg", video: null });
-    expect(cameraWithToken({ url: "http://cam.example/video.mjpg", video: null }, "t")).toEqual({ url: "http://cam.example/video.mjpg", video: null });
-    expect(cameraWithToken({ url: "//cam.example/video.mjpg", video: null }, "t")).toEqual({ url: "//cam.example/video.mjpg", video: null });
-    expect(cameraWithToken({ url: null, video }, "t")).toEqual({ url: null, video });
+    expect(cameraWithToken(mjpeg("/camera/rov.mjpg"), "v1.a+b")).toEqual({
+      codec: "mjpeg",
+      video: "/video/rov/websocket?token=v1.a%2Bb",
+      url: "/camera/rov.mjpg?token=v1.a%2Bb",
+    });
+    expect(cameraWithToken(mjpeg("/camera/rov.mjpg?x=1"), "t")?.url).toBe("/camera/rov.mjpg?x=1&token=t");
+    expect(cameraWithToken(mjpeg("/camera/rov.mjpg"), null)).toEqual(mjpeg("/camera/rov.mjpg"));
+    expect(cameraWithToken(mjpeg("http://cam.example/video.mjpg"), "t")?.url).toBe("http://cam.example/video.mjpg");
+    expect(cameraWithToken(mjpeg("//cam.example/video.mjpg"), "t")?.url).toBe("//cam.example/video.mjpg");
     expect(cameraWithToken(null, "t")).toBeNull();
+  });
+
+  it("an H.264 camera has no <img> stream: only its video socket gets the token", () => {
+    const h264 = { codec: "h264" as const, video: "/video/rov/websocket", url: null };
+    expect(cameraWithToken(h264, "t")).toEqual({ codec: "h264", video: "/video/rov/websocket?token=t", url: null });
   });
 });
 
@@ -366,7 +375,11 @@ describe("recording and camera state in telemetry", () => {
     expect(decodeRecordingStatus({ on: false, error: "disk full" })).toEqual({ on: false, error: "disk full" });
     expect(decodeRecordingStatus({ on: "yes" })).toBeNull();
     expect(decodeRecordingStatus(undefined)).toBeNull();
-    expect(decodeCameraStatus({ running: true, fps: 15, error: null })).toEqual({ running: true, fps: 15, error: null });
+    const status = { running: true, fps: 15, error: null, state: "running", restarts: 0, codec: "h264", width: 640, height: 360 };
+    expect(decodeCameraStatus(status)).toEqual(status);
+    expect(decodeCameraStatus({ running: true, fps: 15, error: null })).toEqual({
+      running: true, fps: 15, error: null, state: null, restarts: null, codec: null, width: null, height: null,
+    });
     expect(decodeCameraStatus({ running: false, fps: 0, error: "ffmpeg is not installed" })?.error).toBe("ffmpeg is not installed");
     expect(decodeCameraStatus({ running: true })).toBeNull();
   });

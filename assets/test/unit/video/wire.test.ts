@@ -88,5 +88,8 @@ describe("the socket's address", () => {
   it("is ws on http and wss on https, with the token and the version", () => {
     expect(videoSocketUrl({ protocol: "http:", host: "10.0.0.2:4000" }, "/video/rov%201/websocket", "a+b")).toBe("ws://10.0.0.2:4000/video/rov%201/websocket?vsn=1&token=a%2Bb");
     expect(videoSocketUrl({ protocol: "https:", host: "rov.example" }, "/video/neptunus-1/websocket", null)).toBe("wss://rov.example/video/neptunus-1/websocket?vsn=1");
+    // the snapshot's path may carry a token already (cameraWithToken): the page's current one replaces it
+    expect(videoSocketUrl({ protocol: "http:", host: "h" }, "/video/v/websocket?token=old", "new")).toBe("ws://h/video/v/websocket?token=new&vsn=1");
+    expect(videoSocketUrl({ protocol: "http:", host: "h" }, "/video/v/websocket?token=old", null)).toBe("ws://h/video/v/websocket?token=old&vsn=1");
   });
 });
