@@ -10,7 +10,7 @@ import { render } from "preact";
 import { chooseVehicle } from "../lib/choose_vehicle";
 import { TelemetryClock } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
-import { parseRotation } from "../lib/prefs";
+import { browserStorage, parseRotation } from "../lib/prefs";
 import type { Rotation } from "../lib/prefs";
 import type { CameraInfo } from "../lib/protocol";
 import { PageSession, browserSessionEnv } from "../lib/session";
@@ -35,14 +35,6 @@ interface CameraPageState {
 
 const CLOCK_MS = 10_000;
 
-function storage(): Storage | null {
-  try {
-    return window.localStorage;
-  } catch {
-    return null;
-  }
-}
-
 class CameraPage {
   readonly store = new Store<CameraPageState>({ vehicleId: null, camera: null, joined: false, rotation: 0, status: "connecting", message: "" });
   readonly player: VideoPlayer;
@@ -57,7 +49,7 @@ class CameraPage {
       token: () => this.session.token,
       serverOffsetMs: () => this.clock.offset.offsetMs,
       readClock: () => this.clock.read(),
-      choice: loadPathChoice(params, storage()),
+      choice: loadPathChoice(params, browserStorage()),
     });
     this.camera = new CameraFeed({
       get: () => this.store.get(),

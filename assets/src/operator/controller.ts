@@ -33,7 +33,7 @@ import { beep } from "../lib/beep";
 import { TelemetryClock } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
 import { heartbeatMsOf, isPilot, seenView, stampOf } from "../lib/helm";
-import { loadGamepadOptions, loadInputMode, loadRotation, parseRotation } from "../lib/prefs";
+import { browserStorage, loadGamepadOptions, loadInputMode, loadRotation, parseRotation } from "../lib/prefs";
 import { cameraWithToken } from "../lib/protocol";
 import type { Telemetry } from "../lib/protocol";
 import { PageSession, browserSessionEnv } from "../lib/session";
@@ -62,14 +62,6 @@ export type { OperatorState } from "./state";
 
 /** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
 const CLOCK_MS = 10_000;
-
-function storage(): Storage | null {
-  try {
-    return window.localStorage;
-  } catch {
-    return null;
-  }
-}
 
 function touchFirstDevice(): boolean {
   return typeof window.matchMedia === "function" && window.matchMedia("(pointer: coarse)").matches;
@@ -102,7 +94,7 @@ export class OperatorController {
   private readonly clock = new TelemetryClock(() => this.vehicle);
 
   constructor(params: URLSearchParams) {
-    const prefs = storage();
+    const prefs = browserStorage();
     this.store = new Store<OperatorState>(initialState(loadInputMode(prefs, touchFirstDevice()), loadGamepadOptions(prefs)));
     this.session = new PageSession(
       browserSessionEnv((reason) =>
@@ -226,7 +218,7 @@ export class OperatorController {
     document.title = `Neptunus — ${id}`;
     // the camera rotation is the vehicle's (the server's settings); the browser's earlier
     // per-vehicle choice shows only until the server's comes (an older server sends none)
-    this.store.update({ vehicleId: id, rotation: loadRotation(storage(), id) });
+    this.store.update({ vehicleId: id, rotation: loadRotation(browserStorage(), id) });
   }
 
   // ------------------------------------------------------------------------------------------

@@ -9,6 +9,7 @@
  * `window.neptunusVideo` (frames received, decoded, shown, dropped, latencies…).
  */
 
+import { browserStorage } from "../lib/prefs";
 import { Store } from "../lib/store";
 import { hasWebCodecs, JpegSink, WebCodecsSink } from "./canvas_sinks";
 import { INITIAL_CORE, step } from "./core";
@@ -133,14 +134,6 @@ function newCounters(): VideoCounters {
   };
 }
 
-function storage(): Storage | null {
-  try {
-    return window.localStorage;
-  } catch {
-    return null;
-  }
-}
-
 /** Date.now() of a performance.now() reading */
 function wallMs(perfMs: number): number {
   return Date.now() - (performance.now() - perfMs);
@@ -213,7 +206,7 @@ export class VideoPlayer {
     if (choice === this.choice) return;
     this.choice = choice;
     this.broken.clear();
-    savePathChoice(storage(), choice);
+    savePathChoice(browserStorage(), choice);
     this.store.update({ choice });
     this.replaceSink(null);
     this.apply({ type: "decoder_error", reason: `decode path set to ${choice}` }, null);
