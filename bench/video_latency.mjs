@@ -15,8 +15,8 @@
 // sample (`window.neptunusVideo.samples`); the bench empties them after a warm-up and reads
 // them at the end of the window.
 //
-// The throttled viewer (VLAT_THROTTLED_WITH, default 10: measured after that count's window,
-// with its pages still open): one more Chromium page that reads its video socket slowly —
+// The throttled viewer (VLAT_THROTTLED_WITH, counts default "1,10": measured after each of these
+// counts' window, with its pages still open — with 1, where this machine keeps up, and with 10): one more Chromium page that reads its video socket slowly —
 // one message every VLAT_THROTTLE_READ_MS (default 200: 5 a second of a 30 fps camera)
 // through WebSocketStream, which reads only when asked, so the socket's buffers fill and the
 // server sees a slow viewer as over a slow link. (Chromium's network emulation would not
@@ -28,7 +28,7 @@
 // Environment: VLAT_URL (http://127.0.0.1:4000), VLAT_VEHICLE (neptunus-1), VLAT_PAGE (camera |
 // operator), VLAT_SERVER_PID
 // (the BEAM's OS pid: its CPU and its child processes' — the camera — are printed),
-// VLAT_PATH (auto | webcodecs | mse), VLAT_WARMUP_FRAMES (60), VLAT_WARMUP_S (60), VLAT_THROTTLED_WITH (10; 0:
+// VLAT_PATH (auto | webcodecs | mse), VLAT_WARMUP_FRAMES (60), VLAT_WARMUP_S (60), VLAT_THROTTLED_WITH (1,10; 0:
 // none), VLAT_THROTTLE_READ_MS (200), CHROMIUM_PATH (/usr/bin/chromium).
 
 import { createRequire } from 'node:module';
@@ -48,7 +48,7 @@ const COUNTS = (process.argv[2] ?? process.env.VLAT_VIEWERS ?? '1,10,50').split(
 const SECONDS = Number(process.argv[3] ?? process.env.VLAT_SECONDS ?? 20);
 const WARMUP_FRAMES = Number(process.env.VLAT_WARMUP_FRAMES ?? 60);
 const WARMUP_S = Number(process.env.VLAT_WARMUP_S ?? 60);
-const THROTTLED_WITH = Number(process.env.VLAT_THROTTLED_WITH ?? 10);
+const THROTTLED_WITH = new Set((process.env.VLAT_THROTTLED_WITH ?? '1,10').split(',').map(Number));
 const THROTTLE_READ_MS = Number(process.env.VLAT_THROTTLE_READ_MS ?? 200);
 const SERVER_PID = Number(process.env.VLAT_SERVER_PID ?? 0);
 const CHROMIUM = process.env.CHROMIUM_PATH ?? '/usr/bin/chromium';
@@ -256,6 +256,13 @@ function report(label, m) {
   out(`${label}: machine load`, loadLine());
 }
 
+/** The worst change of a page's p99 from window `a` to window `b`, and each page's. */
+function changes(a, b) {
+  const deltas = a.per.map((p, i) => b.per[i].p99 - p.p99);
+  const worst = deltas.reduce((x, y) => (Math.abs(y) > Math.abs(x) ? y : x), 0);
+  return `worst ${worst >= 0 ? '+' : ''}${worst.toFixed(0)} ms (per page: ${deltas.map((d) => d.toFixed(0)).join(' ')})`;
+}
+
 async function main() {
   if (!existsSync(CHROMIUM)) throw new Error(`no Chromium at ${CHROMIUM}`);
   console.log(`# video_latency: ${BASE}, vehicle ${VEHICLE}, ${PAGE} pages, path ${PATH}, ${SECONDS} s per measurement, viewers ${COUNTS.join(', ')}`);
@@ -283,9 +290,14 @@ async function main() {
       }
       if (failed > 0) out('pages not opened', `${failed} of ${n}`);
       await waitWarm(viewers);
+      const label = `${n} viewer${n === 1 ? '' : 's'}`;
       const m = await measure(viewers);
-      report(`${n} viewer${n === 1 ? '' : 's'}`, m);
-      if (n === THROTTLED_WITH) {
+      report(label, m);
+      if (THROTTLED_WITH.has(n)) {
+        // the same pages measured again without it: how much p99 moves between two windows anyway
+        const again = await measure(viewers);
+        out(`${label}, again: glass-to-glass p50 / p99`, `${ms(pct(again.per.flatMap((p) => p.samples), 50))} / ${ms(pct(again.per.flatMap((p) => p.samples), 99))}`);
+        out(`${label}, again: change of each page's p99 (noise)`, changes(m, again));
         const t = await openThrottled(browser, THROTTLE_READ_MS);
         const t0 = Date.now();
         // its buffers fill first: measure once the server skips frames for it
@@ -307,10 +319,8 @@ async function main() {
         const tBefore = await t.state();
         const withT = await measure(viewers);
         const tAfter = await t.state();
-        report(`${n} viewers + 1 throttled`, withT);
-        const deltas = m.per.map((p, i) => withT.per[i].p99 - p.p99);
-        const worst = deltas.reduce((a, b) => (Math.abs(b) > Math.abs(a) ? b : a), 0);
-        out('throttled viewer: change of the others\' p99', `worst ${worst >= 0 ? '+' : ''}${worst.toFixed(0)} ms (per page: ${deltas.map((d) => d.toFixed(0)).join(' ')})`);
+        report(`${label} + 1 throttled`, withT);
+        out('throttled viewer: change of the others\' p99', `${changes(again, withT)} (against the window just before it)`);
         out(`throttled viewer (reads 1 message / ${THROTTLE_READ_MS} ms)`, `${tAfter.frames - tBefore.frames} frames read, ${tAfter.skips - tBefore.skips} skips by the server (${tAfter.skipped - tBefore.skipped} frames), socket ${tAfter.closed ?? 'open'}`);
         await t.context.close();
       }
