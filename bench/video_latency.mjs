@@ -213,17 +213,20 @@ async function waitWarm(viewers) {
 /** Empties every page's samples, waits SECONDS, returns each page's samples and counter deltas. */
 async function measure(viewers) {
   const before = await Promise.all(viewers.map(counters));
-  await Promise.all(viewers.map((v) => v.page.evaluate(() => window.neptunusVideo.samples.splice(0))));
+  // a page whose script never loaded (a starved browser, the server closing its slow request) has no player
+  const take = (v) => v.page.evaluate(() => window.neptunusVideo?.samples.splice(0) ?? []);
+  await Promise.all(viewers.map(take));
   const cpu0 = cpuNow();
   const t0 = performance.now();
   await sleep(SECONDS * 1000);
-  const samples = await Promise.all(viewers.map((v) => v.page.evaluate(() => window.neptunusVideo.samples.splice(0))));
+  const samples = await Promise.all(viewers.map(take));
   const seconds = (performance.now() - t0) / 1000;
   const cpu = cpuSince(cpu0);
   const after = await Promise.all(viewers.map(counters));
+  const none = { path: 'none', received: 0, displayed: 0, dropped: 0, skipped: 0, errors: 0 };
   const per = viewers.map((v, i) => {
-    const a = after[i];
-    const b = before[i];
+    const a = after[i] ?? none;
+    const b = before[i] ?? none;
     return {
       name: v.name,
       path: a.path,
@@ -237,14 +240,16 @@ async function measure(viewers) {
       p99: pct(samples[i], 99),
     };
   });
-  return { per, cpu, seconds };
+  return { per, cpu, seconds, playerless: after.filter((c) => c === null).length };
 }
 
 function report(label, m) {
   const all = m.per.flatMap((p) => p.samples);
   const mean = (xs) => xs.reduce((a, b) => a + b, 0) / Math.max(1, xs.length);
   out(`${label}: glass-to-glass p50 / p99 (all pages)`, `${ms(pct(all, 50))} / ${ms(pct(all, 99))}  (${all.length} pictures, render→display from the corner stamp)`);
-  out(`${label}: worst page's p50 / p99`, `${ms(Math.max(...m.per.map((p) => p.p50)))} / ${ms(Math.max(...m.per.map((p) => p.p99)))}`);
+  const worst = (xs) => Math.max(...xs.filter(Number.isFinite));
+  out(`${label}: worst page's p50 / p99`, `${ms(worst(m.per.map((p) => p.p50)))} / ${ms(worst(m.per.map((p) => p.p99)))}`);
+  if (m.playerless > 0) out(`${label}: pages without a player`, `${m.playerless} (their script never ran: counted as showing nothing)`);
   out(`${label}: frames received per viewer per s`, `mean ${mean(m.per.map((p) => p.received)).toFixed(1)}, min ${Math.min(...m.per.map((p) => p.received)).toFixed(1)}`);
   out(`${label}: pictures shown per viewer per s`, `mean ${mean(m.per.map((p) => p.displayed)).toFixed(1)}, min ${Math.min(...m.per.map((p) => p.displayed)).toFixed(1)}`);
   out(`${label}: frames dropped (all pages) / server-skipped`, `${m.per.reduce((n, p) => n + p.dropped, 0)} / ${m.per.reduce((n, p) => n + p.skipped, 0)}; decoder errors ${m.per.reduce((n, p) => n + p.errors, 0)}`);
