@@ -118,6 +118,7 @@ bench: setup assets
 	bench/recorder_sync
 	bench/sim_camera
 	bench/position
+	bench/video_latency
 	bench/soak
 	@if [ "$$(id -u)" = 0 ]; then bench/slow_link; else echo "bench/slow_link skipped: it needs root (a network namespace and a shaped link)"; fi
 

@@ -2,9 +2,11 @@
 //   src/operator/main.tsx  → priv/static/assets/app.js (+ .map), bundled, minified, es2020
 //   src/developer/main.tsx → priv/static/assets/dev.js (+ .map)
 //   src/login/main.ts      → priv/static/assets/login.js (+ .map)
+//   src/camera/main.tsx    → priv/static/assets/camera.js (+ .map)
 //   static/index.html      → priv/static/index.html
 //   static/dev.html        → priv/static/dev.html
 //   static/login.html      → priv/static/login.html
+//   static/camera.html     → priv/static/camera.html
 //   static/app.css         → priv/static/assets/app.css
 //   uplot's uPlot.min.css  → priv/static/assets/uplot.css
 // TSX uses Preact's automatic JSX runtime (tsconfig.json: jsx react-jsx, jsxImportSource preact).
@@ -23,6 +25,7 @@ const copies = [
   [join(here, "static", "index.html"), join(outRoot, "index.html")],
   [join(here, "static", "login.html"), join(outRoot, "login.html")],
   [join(here, "static", "dev.html"), join(outRoot, "dev.html")],
+  [join(here, "static", "camera.html"), join(outRoot, "camera.html")],
   [join(here, "static", "app.css"), join(outAssets, "app.css")],
   [join(here, "node_modules", "uplot", "dist", "uPlot.min.css"), join(outAssets, "uplot.css")],
 ];
@@ -39,6 +42,7 @@ const options = {
     app: join(here, "src", "operator", "main.tsx"),
     dev: join(here, "src", "developer", "main.tsx"),
     login: join(here, "src", "login", "main.ts"),
+    camera: join(here, "src", "camera", "main.tsx"),
   },
   outdir: outAssets,
   bundle: true,

@@ -41,7 +41,7 @@ defmodule Neptunus.E2E.ExternalTest do
     unless File.exists?(Path.join(@root, "priv/static/index.html")),
       do: flunk("priv/static is not built: run `make assets`")
 
-    # a second vehicle whose camera is the fake camera program (two JPEG images in turn)
+    # a second vehicle whose camera is the fake camera program (two JPEG images in turn, MJPEG)
     # (named to sort after neptunus-1: pages without ?vehicle= open the first vehicle)
     camera_vehicle = "z-e2e-cam-#{System.unique_integer([:positive])}"
     script = Path.join(@root, "test/fixtures/camera/fake_camera.sh")
@@ -50,12 +50,18 @@ defmodule Neptunus.E2E.ExternalTest do
     {:ok, _} =
       Neptunus.Fleet.start_vehicle(%{id: camera_vehicle, board: :simulated, camera: camera})
 
+    # and one without a camera (the simulated vehicles of the configuration have the sim camera)
+    no_camera = "z-e2e-nocam-#{System.unique_integer([:positive])}"
+    {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: no_camera, board: :simulated})
+
     try do
       node_suite!("test/e2e/operator.e2e.mjs", [
-        {"E2E_CAMERA_VEHICLE", camera_vehicle}
+        {"E2E_CAMERA_VEHICLE", camera_vehicle},
+        {"E2E_NO_CAMERA_VEHICLE", no_camera}
       ])
     after
       Neptunus.Fleet.stop_vehicle(camera_vehicle)
+      Neptunus.Fleet.stop_vehicle(no_camera)
     end
   end
 
@@ -123,6 +129,81 @@ defmodule Neptunus.E2E.ExternalTest do
       ])
     after
       File.rm_rf!(dir)
+    end
+  end
+
+  @tag timeout: 900_000
+  test "the video in Chromium: both decode paths, yaw, late joiner, throttled viewer, camera restart, snapshots" do
+    unless File.exists?(Path.join(@root, "priv/static/index.html")),
+      do: flunk("priv/static is not built: run `make assets`")
+
+    # three vehicles: the sim camera; a camera that ends every 4 s (and alternates its size);
+    # a heavy one (about 3 Mbit/s) for the throttled viewer. Snapshots need a recordings directory.
+    n = System.unique_integer([:positive])
+    dir = Path.join(System.tmp_dir!(), "neptunus-e2e-video-#{n}")
+    File.rm_rf!(dir)
+    File.mkdir_p!(Path.join(dir, "state"))
+    NeptunusWeb.Test.Wire.settings!(recording_dir: dir)
+    script = Path.join(@root, "test/fixtures/camera/h264_camera.sh")
+    {:ok, sim} = Neptunus.Camera.Source.parse("sim")
+
+    vehicles = [
+      {"z-e2e-video-#{n}", sim},
+      {"z-e2e-restart-#{n}",
+       %{
+         kind: :exec,
+         codec: :h264,
+         program: "/bin/sh",
+         args: [script, "4", Path.join(dir, "state")]
+       }},
+      {"z-e2e-busy-#{n}",
+       %{kind: :exec, codec: :h264, program: "/bin/sh", args: [script, "0", "-", "noise"]}}
+    ]
+
+    try do
+      for {id, camera} <- vehicles,
+          do:
+            {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated, camera: camera})
+
+      [{video, _}, {restart, _}, {busy, _}] = vehicles
+
+      node_suite!("test/e2e/video.e2e.mjs", [
+        {"E2E_VIDEO_VEHICLE", video},
+        {"E2E_RESTART_VEHICLE", restart},
+        {"E2E_BUSY_VEHICLE", busy}
+      ])
+    after
+      for {id, _} <- vehicles, do: Neptunus.Fleet.stop_vehicle(id)
+      File.rm_rf!(dir)
+    end
+  end
+
+  test "the video socket in secure mode: refused without a login, an observer watches (Chromium)" do
+    logins = %{"e2e-olga" => "olga pw"}
+    hash = NeptunusWeb.Auth.Password.hash("olga pw", iterations: 1000)
+
+    NeptunusWeb.Test.Wire.settings!(
+      auth: %{
+        mode: :secure,
+        secret: Base.encode64(:crypto.strong_rand_bytes(32)),
+        users: %{"e2e-olga" => %{name: "e2e-olga", role: :observer, hash: hash}},
+        anonymous_observers: false,
+        origins: []
+      }
+    )
+
+    NeptunusWeb.Auth.RateLimit.reset()
+    id = "z-e2e-secure-video-#{System.unique_integer([:positive])}"
+    {:ok, sim} = Neptunus.Camera.Source.parse("sim")
+    {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated, camera: sim})
+
+    try do
+      node_suite!("test/e2e/video_secure.e2e.mjs", [
+        {"E2E_VIDEO_VEHICLE", id},
+        {"NEPTUNUS_E2E_LOGINS", :jiffy.encode(logins) |> IO.iodata_to_binary()}
+      ])
+    after
+      Neptunus.Fleet.stop_vehicle(id)
     end
   end
 

@@ -84,10 +84,10 @@ export async function launch() {
   return chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 30000 });
 }
 
-/** A fresh context and page at `path` (default the operator page as `name`). */
-export async function open(browser, { width, height, name, touch = false, path = null, init = null }) {
+/** A fresh context and page at `path` (default the operator page as `name`); `wait`: its timeouts (ms). */
+export async function open(browser, { width, height, name, touch = false, path = null, init = null, wait = WAIT_MS }) {
   const context = await browser.newContext({ viewport: { width, height }, hasTouch: touch, isMobile: false });
-  context.setDefaultTimeout(WAIT_MS);
+  context.setDefaultTimeout(wait);
   await reportCspViolations(context);
   const page = await context.newPage();
   if (init) await page.addInitScript(init);
@@ -95,11 +95,11 @@ export async function open(browser, { width, height, name, touch = false, path =
   page.on("console", (msg) => {
     if (msg.type() === "error") pageProblems.push(`[${name}] console.error: ${msg.text()}`);
   });
-  const response = await page.goto(`${BASE}${path ?? `/?name=${encodeURIComponent(name)}`}`, { waitUntil: "load", timeout: WAIT_MS });
+  const response = await page.goto(`${BASE}${path ?? `/?name=${encodeURIComponent(name)}`}`, { waitUntil: "load", timeout: wait });
   assertPageHeaders(response, name);
   await page
     .locator('#status[data-state="connected"]')
-    .waitFor({ timeout: WAIT_MS })
+    .waitFor({ timeout: wait })
     .catch(async () => {
       const status = await page.locator("#status").textContent();
       throw new Error(`[${name}] page never showed "connected" (status: "${status}")`);
@@ -163,4 +163,41 @@ export function assertNoPageProblems() {
 
 export async function screenshot(page, name, { fullPage = true } = {}) {
   await page.screenshot({ path: join(ARTIFACTS, name), fullPage });
+}
+
+/**
+ * A stubbed standard pad, an init script for `open`: `window.__pad` holds its axes and its 18
+ * buttons (the standard 17 and the PlayStation pads' touchpad); the page reads copies.
+ */
+export const stubPad = () => {
+  const buttons = () => Array.from({ length: 18 }, () => ({ value: 0, pressed: false, touched: false }));
+  window.__pad = { axes: [0, 0, 0, 0], buttons: buttons() };
+  Object.defineProperty(Navigator.prototype, "getGamepads", {
+    configurable: true,
+    value: () => [
+      {
+        id: "Stub pad (STANDARD GAMEPAD)",
+        index: 0,
+        connected: true,
+        mapping: "standard",
+        timestamp: performance.now(),
+        axes: window.__pad.axes.slice(),
+        buttons: window.__pad.buttons.map((b) => ({ ...b })),
+      },
+    ],
+  });
+};
+
+const setButton = (page, index, pressed) =>
+  page.evaluate(([i, p]) => (window.__pad.buttons[i] = { value: p ? 1 : 0, pressed: p, touched: p }), [index, pressed]);
+
+/** Presses `index` for `ms` (a few animation frames at least), then lets go. */
+export async function pressButton(page, index, ms = 120) {
+  await setButton(page, index, true);
+  try {
+    await page.waitForTimeout(ms);
+  } finally {
+    await setButton(page, index, false);
+  }
+  await page.waitForTimeout(60);
 }

@@ -22,8 +22,9 @@ import {
   launch,
   num,
   open,
-  pageProblems,
+  pressButton,
   screenshot,
+  stubPad,
   takeHelm,
   thrusterValues,
   until,
@@ -60,7 +61,8 @@ test("keyboard: request control, keys drive the vehicle, request → deny → ac
   try {
     assert.match((await page.locator("#vehicle-id").textContent()) ?? "", /\S/);
     assert.match((await page.locator("#mode-banner").textContent()) ?? "", /Local mode/);
-    await page.locator('[data-testid="no-camera"]').waitFor(); // the simulated vehicle has no camera
+    // the simulated vehicle has the sim camera, played over the video socket
+    await page.locator('[data-testid="camera"][data-camera="on"] [data-testid="video-feed"]').waitFor();
     // the HUD's depth: a number once the server says it is valid ("initialising" before, never a number)
     const depth = page.locator('[data-testid="hud-depth"]');
     await until(() => depth.getAttribute("data-state"), (state) => state === "valid", WAIT_MS, "a valid depth");
@@ -342,26 +344,6 @@ const afterFrames = (page, n = 2) =>
     n,
   );
 
-/** A stubbed standard pad: `window.__pad` holds its axes and buttons (the page reads copies). */
-const stubPad = () => {
-  const buttons = () => Array.from({ length: 17 }, () => ({ value: 0, pressed: false, touched: false }));
-  window.__pad = { axes: [0, 0, 0, 0], buttons: buttons() };
-  Object.defineProperty(Navigator.prototype, "getGamepads", {
-    configurable: true,
-    value: () => [
-      {
-        id: "Stub pad (STANDARD GAMEPAD)",
-        index: 0,
-        connected: true,
-        mapping: "standard",
-        timestamp: performance.now(),
-        axes: window.__pad.axes.slice(),
-        buttons: window.__pad.buttons.map((b) => ({ ...b })),
-      },
-    ],
-  });
-};
-
 test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard is ignored in gamepad mode", { timeout: TEST_MS }, async () => {
   const { context, page } = await operator({ ...DESKTOP, name: "e2e-gamepad", init: stubPad });
   const setPad = (axes) => page.evaluate((a) => (window.__pad.axes = a), axes);
@@ -405,20 +387,6 @@ test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard i
     await context.close();
   }
 });
-
-const setButton = (page, index, pressed) =>
-  page.evaluate(([i, p]) => (window.__pad.buttons[i] = { value: p ? 1 : 0, pressed: p, touched: p }), [index, pressed]);
-
-/** Presses `index` for `ms` (a few animation frames at least), then lets go. */
-async function pressButton(page, index, ms = 120) {
-  await setButton(page, index, true);
-  try {
-    await page.waitForTimeout(ms);
-  } finally {
-    await setButton(page, index, false);
-  }
-  await page.waitForTimeout(60);
-}
 
 const storedMapping = (page) =>
   page.evaluate(async () => {
@@ -582,50 +550,52 @@ test("settings: values go to the server and its reason is shown in the form; cam
   }
 });
 
-test("camera: the vehicle's MJPEG stream fills the camera area; a vehicle without one says so", { timeout: TEST_MS }, async () => {
+test("camera: the vehicle's MJPEG camera plays over the video socket and fills the camera area; a vehicle without one says so", { timeout: TEST_MS }, async () => {
   const id = process.env.E2E_CAMERA_VEHICLE;
   assert.ok(id, "E2E_CAMERA_VEHICLE names a vehicle with a camera (set by external_test.exs)");
+  // the video socket goes through a route the test can cut (then it passes on to the server)
+  let cut = false;
   const viewer = await open(browser, { ...TABLET, name: "e2e-cam", path: `/?vehicle=${encodeURIComponent(id)}&name=e2e-cam` });
   try {
     const { page } = viewer;
-    await page.locator('[data-testid="camera"][data-camera="on"] img.feed').waitFor();
-    // frames decode: the fixture images are 160×120
-    await until(
-      () => page.locator("img.feed").evaluate((img) => img.naturalWidth),
-      (w) => w === 160,
-      WAIT_MS,
-      "a decoded camera frame",
-    );
-    assert.match(await page.locator("img.feed").getAttribute("src"), new RegExp(`^/camera/${id}\\.mjpg`));
-    const box = await page.locator("img.feed").boundingBox();
+    await page.routeWebSocket(/\/video\//, (ws) => {
+      if (cut) ws.close({ code: 1011, reason: "cut by the test" });
+      else ws.connectToServer();
+    });
+    await page.reload();
+    // JPEG frames drawn on the canvas: the fixture images are 160×120
+    const feed = page.locator('[data-testid="camera"][data-camera="on"] [data-testid="video-feed"][data-path="jpeg"][data-showing="true"]');
+    await feed.waitFor();
+    await until(() => page.locator(".video-picture").evaluate((c) => c.width), (w) => w === 160, WAIT_MS, "a decoded camera frame");
+    const box = await page.locator(".video-picture").boundingBox();
     const area = await page.locator('[data-testid="camera"]').boundingBox();
-    assert.ok(box && area && box.width >= area.width - 2, "the image does not fill the camera area's width");
+    assert.ok(box && area && box.width >= area.width - 2, "the picture does not fill the camera area's width");
+    // the line under it and the HUD: MJPEG, its size, frames and the latency
+    await until(() => page.locator('[data-testid="video-health"]').textContent(), (t) => /MJPEG 160×120/.test(t ?? "") && /latency \d+ ms/.test(t ?? ""), WAIT_MS, "the health line");
+    await until(() => page.locator('[data-testid="hud-video-latency"]').textContent(), (t) => /video \d+ ms/.test(t ?? ""), WAIT_MS, "the video latency in the HUD");
     // the HUD says the camera runs (frame rate) and that this test server does not record
     await until(() => page.locator('[data-testid="hud-camera"]').textContent(), (t) => /cam \d+ fps/.test(t ?? ""), WAIT_MS, "camera fps in the HUD");
     assert.equal(await page.locator('[data-testid="hud-recording"]').getAttribute("data-state"), "off");
     await screenshot(page, "operator-camera-1024x768.png", { fullPage: false });
 
-    // a broken stream is said over the image and asked for again until it is back
-    await page.route("**/camera/**", (route) => route.abort());
+    // a broken stream is said over the picture and the socket opened again until it is back
+    cut = true;
     await page.reload();
-    await page.locator('[data-testid="camera-lost"]').waitFor();
-    await page.unroute("**/camera/**");
-    await until(
-      () => page.locator("img.feed").evaluate((img) => img.naturalWidth),
-      (w) => w === 160,
-      WAIT_MS,
-      "the camera back after a retry",
-    );
-    await page.locator('[data-testid="camera-lost"]').waitFor({ state: "detached" });
-    assert.match(await page.locator("img.feed").getAttribute("src"), /retry=\d+/);
-    // the aborted requests were ours: the browser logged them as failed loads, nothing else
-    const expected = pageProblems.splice(0);
-    assert.ok(expected.every((p) => p.includes("Failed to load resource")), `unexpected: ${expected}`);
+    await page.locator('[data-testid="video-waiting"]', { hasText: /interrupted|refused|unreachable/ }).waitFor();
+    cut = false;
+    await page.waitForFunction(() => window.neptunusVideo.displayed > 0, null, { timeout: 15_000 });
+    await page.locator('[data-testid="video-waiting"]').waitFor({ state: "detached" });
+    assertNoPageProblems();
 
-    await page.goto(`${BASE}/?vehicle=neptunus-1&name=e2e-cam`);
+    const none = process.env.E2E_NO_CAMERA_VEHICLE;
+    assert.ok(none, "E2E_NO_CAMERA_VEHICLE names a vehicle without a camera (set by external_test.exs)");
+    await page.goto(`${BASE}/?vehicle=${encodeURIComponent(none)}&name=e2e-cam`);
+    await waitTelemetry(page); // joined: the server has said what camera it has
     await page.locator('[data-testid="no-camera"]').waitFor();
+    assert.equal(await page.locator('[data-testid="video-health"]').count(), 0, "no health line without a camera");
     assertNoPageProblems();
   } finally {
     await viewer.context.close();
   }
 });
+

@@ -11,6 +11,7 @@ import { sortSeries } from "../plots/series";
 import { MAX_PLOTS } from "./controller";
 import type { DevController, DevState } from "./controller";
 import { TuningPanel } from "./tuning_panel";
+import { SnapshotList } from "../video/snapshot_list";
 
 /** Entries rendered at most (the download has all the matching ones). */
 const SHOWN = 400;
@@ -148,6 +149,7 @@ function Plots({ s, c }: { s: DevState; c: DevController }): preact.JSX.Element 
       </output>
       <ReplayBar s={s} c={c} />
       <Recordings s={s} c={c} />
+      <SnapshotList vehicle={s.vehicleId} token={c.tokenForLinks()} />
       <TuningPanel c={c.tuning} />
       {s.plots.length === 0 && <p class="note">No plots: “Add plot” shows one (up to {MAX_PLOTS}); each overlays any series.</p>}
       <div class="plot-list">

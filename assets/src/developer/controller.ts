@@ -19,6 +19,7 @@ import { decodeTelemetry } from "../lib/protocol";
 import type { Helm, Telemetry } from "../lib/protocol";
 import { TelemetryClock } from "../lib/clock";
 import type { TelemetryState } from "../lib/clock";
+import { chooseVehicle } from "../lib/choose_vehicle";
 import { PageSession, browserSessionEnv } from "../lib/session";
 import { KEPT_LOADING, KeptSetting } from "../lib/kept_setting";
 import type { KeptStatus } from "../lib/kept_setting";
@@ -73,7 +74,6 @@ export interface ReplayState {
   readonly error: string | null;
 }
 
-const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
 /** Series a new plot starts with (thesis table 7.3), taken in turn. */
 const STARTERS = [
   ["measurement.depth"],
@@ -180,7 +180,7 @@ export class DevController {
     // a refused upgrade (expired or revoked token) looks like a network error from here
     client.socket.onError(() => void this.session.recheck());
     client.connect();
-    const id = await this.chooseVehicle(client);
+    const id = await chooseVehicle(client, this.params.get("vehicle"), (message) => this.store.update({ message }));
     if (id === null) return;
     this.store.update({ vehicleId: id, message: "" });
     document.title = `Neptunus — developer — ${id}`;
@@ -229,26 +229,6 @@ export class DevController {
         this.add({ category: "error", level: "error", message: `cannot join log:${id}: ${reason}` });
       },
     );
-  }
-
-  private async chooseVehicle(client: NeptunusClient): Promise<string | null> {
-    const requested = this.params.get("vehicle");
-    if (requested !== null) {
-      if (VEHICLE_ID.test(requested)) return requested;
-      this.store.update({ message: `Invalid vehicle id in the address: "${requested}"` });
-      return null;
-    }
-    for (;;) {
-      try {
-        const fleet = await client.fleet();
-        const first = fleet.vehicles[0];
-        if (first) return first.id;
-        this.store.update({ message: "The server has no vehicles." });
-      } catch (err) {
-        this.store.update({ message: `Cannot list vehicles: ${reasonOf(err)}` });
-      }
-      await new Promise((r) => setTimeout(r, 2000));
-    }
   }
 
   private onTelemetry(t: Telemetry): void {

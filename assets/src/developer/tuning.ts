@@ -30,15 +30,20 @@ const RUN_TIMEOUT_MS = 15_000;
 
 export class TuningController {
   readonly store = new Store<TuningState>({ info: null, form: null, axis: "depth", preview: null, busy: null, message: "", error: false });
-  private vehicle: VehicleChannel | null = null;
+  private vehicle: Pick<VehicleChannel, "request"> | null = null;
+  /** the panel was opened before the page had its vehicle: the gains are read once it has */
+  private wanted = false;
 
   /** The vehicle channel to talk on (once joined). */
-  attach(vehicle: VehicleChannel): void {
+  attach(vehicle: Pick<VehicleChannel, "request">): void {
     this.vehicle = vehicle;
+    if (this.wanted) void this.load();
   }
 
+  /** Reads the gains in force (the panel opened); before the page has its vehicle, once it has. */
   async load(): Promise<void> {
     const v = this.vehicle;
+    this.wanted = v === null;
     if (v === null) return;
     this.store.update({ busy: "loading" });
     try {

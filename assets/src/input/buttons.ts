@@ -15,6 +15,7 @@
  *   A (×)            depth hold on/off    X (□)             heading hold on/off
  *   D-pad up/down    camera tilt up/down  L3                camera tilt centre
  *   R3               laser on/off         Home (PS)         gamepad as the input
+ *   button 17 (the PlayStation pads' touchpad press)     camera snapshot
  *
  * LT and RT are left free: they are the vertical thruster in manual mode (table 7.2).
  */
@@ -37,6 +38,7 @@ export const BUTTON_ACTIONS = [
   "tilt_centre",
   "laser",
   "input_gamepad",
+  "snapshot",
 ] as const;
 
 export type ButtonAction = (typeof BUTTON_ACTIONS)[number];
@@ -57,6 +59,7 @@ export const ACTION_LABELS: Readonly<Record<ButtonAction, string>> = {
   tilt_centre: "Camera tilt centre",
   laser: "Laser on/off",
   input_gamepad: "Gamepad as input (stops first)",
+  snapshot: "Camera snapshot",
 };
 
 /** Actions that repeat while their button is held (steps); the others act once per press. */
@@ -115,6 +118,7 @@ export const DEFAULT_MAPPING: ButtonMapping = Object.freeze({
     tilt_centre: 10,
     laser: 11,
     input_gamepad: 16,
+    snapshot: 17,
   }),
   repeatMs: REPEAT_MS.default,
 });
@@ -248,6 +252,7 @@ export type ButtonCommand =
   | { readonly kind: "set"; readonly field: "lights" | "gain" | "laser" | "tilt"; readonly value: number }
   | { readonly kind: "autopilot"; readonly axis: "depth" | "heading"; readonly action: "hold" | "off" }
   | { readonly kind: "input_gamepad" }
+  | { readonly kind: "snapshot" }
   /** nothing to do (already at the limit, no settings known yet): why */
   | { readonly kind: "none"; readonly why: string };
 
@@ -278,6 +283,8 @@ export function buttonCommand(action: ButtonAction, control: ControlSettings | n
       return { kind: "release_control" };
     case "input_gamepad":
       return { kind: "input_gamepad" };
+    case "snapshot":
+      return { kind: "snapshot" };
     default:
       break;
   }

@@ -18,6 +18,15 @@ export interface KeyValueStore {
   setItem(key: string, value: string): void;
 }
 
+/** This browser's localStorage, or null where the page may not use it (storage disabled, private mode). */
+export function browserStorage(): Storage | null {
+  try {
+    return window.localStorage;
+  } catch {
+    return null;
+  }
+}
+
 const rotationKey = (vehicle: string): string => `neptunus.camera.rotation.${vehicle}`;
 const INPUT_KEY = "neptunus.input.mode";
 const GAMEPAD_KEY = "neptunus.input.gamepad";

@@ -188,7 +188,7 @@ export function cameraWithToken(camera: CameraInfo | null, token: string | null)
 
 /** `url` with `token` added, when it is our own server's (a path); another server's as it is. */
 function withToken(url: string, token: string): string {
-  if (!url.startsWith("/") || url.startsWith("//")) return url;
+  if (!ownPath(url)) return url;
   const separator = url.includes("?") ? "&" : "?";
   return `${url}${separator}token=${encodeURIComponent(token)}`;
 }
@@ -429,11 +429,20 @@ export function decodeTelemetry(value: unknown): Telemetry | null {
   };
 }
 
-/** The camera: `camera: {url}` (or a bare URL) in the snapshot, else `vehicle.camera_url`. */
+/**
+ * The camera of the snapshot: `camera: {codec, video, url}` — this server's video socket (a path:
+ * the page never opens another host's socket with its token) and, for an MJPEG camera, the `<img>`
+ * stream (http(s) or a path).
+ */
 export function decodeCamera(snapshot: Record<string, unknown>): CameraInfo | null {
   const camera = wire.decodeCameraInfo(snapshot["camera"]);
-  if (camera === null || !safeUrl(camera.video) || (camera.url !== null && !safeUrl(camera.url))) return null;
+  if (camera === null || !ownPath(camera.video) || (camera.url !== null && !safeUrl(camera.url))) return null;
   return camera;
+}
+
+/** A path on this server (not another host's address, not a protocol-relative one). */
+function ownPath(url: string): boolean {
+  return url.startsWith("/") && !url.startsWith("//");
 }
 
 /** A URL a page may load: http(s) or a path on this server (never `javascript:` and the like). */

@@ -3,6 +3,8 @@
  * the JSON lines the developer page replays. Pure decoding plus thin fetch wrappers.
  */
 
+import { responseReason } from "./errors";
+
 export interface RecordingInfo {
   readonly vehicle: string;
   readonly name: string;
@@ -102,22 +104,12 @@ export function formatBytes(bytes: number): string {
   return `${(bytes / 1e9).toFixed(2)} GB`;
 }
 
-async function errorOf(response: Response): Promise<string> {
-  try {
-    const body: unknown = await response.json();
-    if (isRecord(body) && typeof body["error"] === "string") return body["error"];
-  } catch {
-    // not JSON
-  }
-  return `HTTP ${response.status}`;
-}
-
 /** `GET /api/recordings?vehicle=…`. Rejects with the server's reason. */
 export async function fetchRecordings(vehicle: string, token: string | null, fetchFn: Fetch = fetch): Promise<RecordingList> {
   const headers: Record<string, string> = {};
   if (token !== null) headers["authorization"] = `Bearer ${token}`;
   const response = await fetchFn(`/api/recordings?${new URLSearchParams({ vehicle }).toString()}`, { headers, cache: "no-store" });
-  if (!response.ok) throw new Error(await errorOf(response));
+  if (!response.ok) throw new Error(await responseReason(response));
   const list = decodeRecordingList(await response.json());
   if (list === null) throw new Error("unexpected reply to /api/recordings");
   return list;
@@ -126,7 +118,7 @@ export async function fetchRecordings(vehicle: string, token: string | null, fet
 /** A recording's entries, thinned by the server to at most `max` telemetry samples. */
 export async function fetchRecording(info: RecordingInfo, token: string | null, max: number, fetchFn: Fetch = fetch): Promise<ParsedRecording> {
   const response = await fetchFn(recordingUrl(info, "jsonl", token, max), { cache: "no-store" });
-  if (!response.ok) throw new Error(await errorOf(response));
+  if (!response.ok) throw new Error(await responseReason(response));
   return parseRecordingLines(await response.text());
 }
 
@@ -135,5 +127,5 @@ export async function deleteRecording(info: Pick<RecordingInfo, "vehicle" | "nam
   const headers: Record<string, string> = {};
   if (token !== null) headers["authorization"] = `Bearer ${token}`;
   const response = await fetchFn(`/api/recordings/${encodeURIComponent(info.vehicle)}/${encodeURIComponent(info.name)}`, { method: "DELETE", headers });
-  if (!response.ok) throw new Error(await errorOf(response));
+  if (!response.ok) throw new Error(await responseReason(response));
 }

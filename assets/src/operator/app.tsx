@@ -18,6 +18,7 @@ import { NavigationPanel } from "./panels/navigation";
 import { SettingsPanel } from "./panels/settings";
 import { ThrusterPanel } from "./panels/thrusters";
 import { TouchPad } from "./touchpad";
+import { VideoHealthLine, VideoLatency } from "../video/view";
 
 function statusText(s: OperatorState): string {
   if (s.status === "connected") return "connected";
@@ -136,11 +137,12 @@ export function App({ controller }: { controller: OperatorController }): preact.
       <FirmwareNotice />
       <main class="layout">
         <div class="view-column">
-          <Camera camera={s.camera} rotation={s.rotation} status={s.telemetry?.camera_status ?? null}>
-            <Hud s={s} />
+          <Camera camera={s.camera} rotation={s.rotation} video={controller.video}>
+            <Hud s={s} video={<VideoLatency player={controller.video} />} />
             <StopBanner s={s} />
             {s.inputMode === "touch" && <TouchPad controller={controller} touch={s.touch} mode={mode} sway={canSway(s.axes)} />}
           </Camera>
+          {s.camera !== null && <VideoHealthLine player={controller.video} onSnapshot={() => controller.camera.snapshot()} />}
           <div class="readout-grid">
             <NavigationPanel s={s} />
             <ThrusterPanel thrusters={s.telemetry?.thrusters ?? null} />

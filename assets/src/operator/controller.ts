@@ -16,6 +16,8 @@
  * - `heartbeat.ts`: the pilot's heartbeat every `heartbeat_ms`, the round-trip latency;
  * - `headset.ts`: head tracking → heading setpoint and camera tilt;
  * - `mission_commands.ts`: the waypoints planned on the map, start / pause / resume / abort.
+ * - `camera_feed.ts`: the vehicle's camera played over the video socket (`VideoPlayer`,
+ *   src/video/) and the pilot's snapshots.
  *
  * What the helm, stops and the connection mean for the page is decided by `react`
  * (reactions.ts, pure); this class feeds it the vehicle's events, the page's own stops and the
@@ -32,7 +34,7 @@ import { beep } from "../lib/beep";
 import { TelemetryClock } from "../lib/clock";
 import { reasonOf } from "../lib/errors";
 import { heartbeatMsOf, isPilot, seenView, stampOf } from "../lib/helm";
-import { loadGamepadOptions, loadInputMode, loadRotation, parseRotation } from "../lib/prefs";
+import { browserStorage, loadGamepadOptions, loadInputMode, loadRotation, parseRotation } from "../lib/prefs";
 import { cameraWithToken } from "../lib/protocol";
 import type { Telemetry } from "../lib/protocol";
 import { PageSession, browserSessionEnv } from "../lib/session";
@@ -48,6 +50,10 @@ import { HelmCommands } from "./helm_commands";
 import { withTrackPoint } from "./map";
 import { MissionCommands } from "./mission_commands";
 import { PilotInput } from "./pilot_input";
+import { CameraFeed } from "./camera_feed";
+import { loadPathChoice } from "../video/path";
+import { VideoPlayer } from "../video/player";
+import { takeSnapshot } from "../video/snapshots";
 import { INITIAL_REACTIONS, TONES, isNewGrant, react } from "./reactions";
 import type { Effect, MessageKind, ReactionEvent, ReactionState } from "./reactions";
 import { SettingsFields } from "./settings_fields";
@@ -59,14 +65,6 @@ export type { OperatorState } from "./state";
 
 /** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
 const CLOCK_MS = 10_000;
-
-function storage(): Storage | null {
-  try {
-    return window.localStorage;
-  } catch {
-    return null;
-  }
-}
 
 function touchFirstDevice(): boolean {
   return typeof window.matchMedia === "function" && window.matchMedia("(pointer: coarse)").matches;
@@ -90,6 +88,10 @@ export class OperatorController {
   readonly headset: HeadsetInput;
   /** the mission planned on the map and sent */
   readonly missions: MissionCommands;
+  /** the vehicle's camera over the video socket (src/video/): the picture, its health, its latency */
+  readonly video: VideoPlayer;
+  /** what the page does with the camera: plays the joined vehicle's, takes snapshots */
+  readonly camera: CameraFeed;
   private readonly session: PageSession;
   /** the socket and the vehicle's channel */
   private readonly connection: OperatorConnection;
@@ -97,7 +99,7 @@ export class OperatorController {
   private readonly clock = new TelemetryClock(() => this.vehicle);
 
   constructor(params: URLSearchParams) {
-    const prefs = storage();
+    const prefs = browserStorage();
     this.store = new Store<OperatorState>(initialState(loadInputMode(prefs, touchFirstDevice()), loadGamepadOptions(prefs)));
     this.session = new PageSession(
       browserSessionEnv((reason) =>
@@ -178,6 +180,18 @@ export class OperatorController {
       },
       params,
     );
+    this.video = new VideoPlayer({
+      token: () => this.session.token,
+      serverOffsetMs: () => this.clock.offset.offsetMs,
+      readClock: () => this.clock.read(),
+      choice: loadPathChoice(params, prefs),
+    });
+    this.camera = new CameraFeed({
+      get: () => this.state,
+      player: this.video,
+      takeSnapshot: (vehicle) => takeSnapshot(vehicle, this.session.token),
+      showMessage: (text, kind, source) => this.showMessage(text, kind, source),
+    });
   }
 
   private get state(): OperatorState {
@@ -217,7 +231,7 @@ export class OperatorController {
     document.title = `Neptunus — ${id}`;
     // the camera rotation is the vehicle's (the server's settings); the browser's earlier
     // per-vehicle choice shows only until the server's comes (an older server sends none)
-    this.store.update({ vehicleId: id, rotation: loadRotation(storage(), id) });
+    this.store.update({ vehicleId: id, rotation: loadRotation(browserStorage(), id) });
   }
 
   // ------------------------------------------------------------------------------------------
@@ -237,6 +251,7 @@ export class OperatorController {
           sent: null,
           mission: snapshot.mission ?? null,
         });
+        this.camera.show(snapshot.camera);
         if (snapshot.telemetry) this.onTelemetry(snapshot.telemetry);
       },
       telemetry: (t) => this.onTelemetry(t),
@@ -377,6 +392,9 @@ export class OperatorController {
         return;
       case "input_gamepad":
         this.setInputMode("gamepad");
+        return;
+      case "snapshot":
+        this.camera.snapshot();
         return;
       case "set": {
         const { field, value } = command;

@@ -54,22 +54,6 @@ export function measurementHeading(rad: number | null | undefined, state: Measur
   return formatHeading(rad ?? Number.NaN);
 }
 
-/** Video files play in <video>; anything else (MJPEG streams, snapshots) in <img>. */
-/** How long a broken camera stream waits before it is asked for again. */
-export const CAMERA_RETRY_MS = 3000;
-
-/** The feed's address for the n-th attempt (a fresh request; the first is the address itself). */
-export function retryUrl(url: string, attempt: number): string {
-  if (attempt <= 0) return url;
-  const [path, hash] = url.split("#", 2) as [string, string | undefined];
-  const separator = path.includes("?") ? "&" : "?";
-  return `${path}${separator}retry=${attempt}${hash !== undefined ? `#${hash}` : ""}`;
-}
-
-export function cameraElement(url: string): "video" | "img" {
-  return /\.(mp4|webm|ogv|m3u8)(\?|#|$)/i.test(url) ? "video" : "img";
-}
-
 /** "reconnecting for 12 s" style text for a connection lost `ms` ago. */
 export function downFor(ms: number): string {
   const s = Math.max(0, Math.floor(ms / 1000));

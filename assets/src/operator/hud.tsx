@@ -4,25 +4,23 @@
  */
 
 import type { ComponentChildren } from "preact";
-import { useEffect, useState } from "preact/hooks";
 import { bugPosition, compassTicks } from "../lib/compass";
 import { formatMs } from "../lib/latency";
 import type { Rotation } from "../lib/prefs";
 import type { BoardLinkDetails, CameraInfo, CameraStatus, RecordingStatus } from "../lib/protocol";
 import { formatHeading, headingDeg, radToDeg } from "../lib/units";
 import type { OperatorState } from "./controller";
+import type { VideoPlayer } from "../video/player";
+import { VideoFeed } from "../video/view";
 import { DEPTH_TOLERANCE, HEADING_TOLERANCE, movingReference } from "./reference";
 import type { MeasurementState } from "../lib/protocol";
 import {
-  CAMERA_RETRY_MS,
   barGeometry,
   boardLinkText,
-  cameraElement,
   fmt,
   measurementDeg,
   measurementHeading,
   measurementText,
-  retryUrl,
   showsUnit,
 } from "./format";
 
@@ -105,16 +103,17 @@ function HudBox(props: { title: string; children: ComponentChildren; class?: str
   );
 }
 
+/**
+ * The camera area: the vehicle's camera played over this server's video socket (src/video/:
+ * H.264 or MJPEG, the player says over the picture what it waits for), or "No camera".
+ */
 export function Camera(props: {
   camera: CameraInfo | null;
   rotation: Rotation;
-  /** the server's word on the camera (from telemetry) */
-  status?: CameraStatus | null;
+  video: VideoPlayer;
   children?: ComponentChildren;
 }): preact.JSX.Element {
   const { camera, rotation } = props;
-  const down = props.status && !props.status.running && props.status.error !== null ? props.status.error : null;
-  const style = { transform: `rotate(${rotation}deg)` };
   return (
     <div class="camera" data-testid="camera" data-rotation={rotation} data-camera={camera ? "on" : "none"}>
       {camera === null ? (
@@ -122,54 +121,11 @@ export function Camera(props: {
           <strong>No camera</strong>
           <span>This vehicle publishes no video stream.</span>
         </div>
-      ) : camera.url === null ? (
-        <div class="no-camera" data-testid="no-camera">
-          <strong>No picture</strong>
-          <span>This page cannot show the camera's {camera.codec === "h264" ? "H.264" : camera.codec} stream.</span>
-        </div>
-      ) : cameraElement(camera.url) === "video" ? (
-        <video class="feed" src={camera.url} style={style} autoplay muted playsInline />
       ) : (
-        <ImageFeed key={camera.url} url={camera.url} style={style} />
-      )}
-      {camera !== null && down !== null && (
-        <div class="camera-lost camera-down" data-testid="camera-down" role="status">
-          Camera: {down}
-        </div>
+        <VideoFeed player={props.video} rotation={rotation} />
       )}
       {props.children}
     </div>
-  );
-}
-
-/** An MJPEG/JPEG feed that says so when the stream breaks and asks for it again every 3 s. */
-function ImageFeed(props: { url: string; style: { transform: string } }): preact.JSX.Element {
-  const [attempt, setAttempt] = useState(0);
-  const [failed, setFailed] = useState(false);
-  useEffect(() => {
-    if (!failed) return undefined;
-    const timer = window.setTimeout(() => {
-      setFailed(false);
-      setAttempt((a) => a + 1);
-    }, CAMERA_RETRY_MS);
-    return () => window.clearTimeout(timer);
-  }, [failed]);
-  return (
-    <>
-      <img
-        class="feed"
-        src={retryUrl(props.url, attempt)}
-        style={props.style}
-        alt="camera image"
-        draggable={false}
-        onError={() => setFailed(true)}
-      />
-      {failed && (
-        <div class="camera-lost" data-testid="camera-lost" role="status">
-          Camera stream interrupted — retrying…
-        </div>
-      )}
-    </>
   );
 }
 
@@ -213,7 +169,7 @@ function BoardLink(props: { details: BoardLinkDetails }): preact.JSX.Element {
   );
 }
 
-export function Hud(props: { s: OperatorState }): preact.JSX.Element {
+export function Hud(props: { s: OperatorState; video?: ComponentChildren }): preact.JSX.Element {
   const { s } = props;
   const t = s.telemetry;
   const m = t?.measurement;
@@ -291,6 +247,7 @@ export function Hud(props: { s: OperatorState }): preact.JSX.Element {
             <small> (max {formatMs(s.latency.max)})</small>
           </span>
           <RecCamera recording={t?.recording ?? null} camera={t?.camera_status ?? null} />
+          {props.video}
         </HudBox>
         <HudBox title="Thrusters">
           <span class="hud-thrusters" data-testid="hud-thrusters">

@@ -104,7 +104,7 @@ describe("pressedButtons", () => {
 });
 
 describe("mapping", () => {
-  it("the default maps every action to its own button of the standard layout, leaving LT and RT free", () => {
+  it("the default maps every action to its own button of the standard layout (and the snapshot to 17), leaving LT and RT free", () => {
     const buttons = BUTTON_ACTIONS.map((a) => DEFAULT_MAPPING.actions[a]);
     expect(buttons.every((b) => typeof b === "number")).toBe(true);
     expect(new Set(buttons).size).toBe(BUTTON_ACTIONS.length);
@@ -113,6 +113,7 @@ describe("mapping", () => {
     expect(actionFor(DEFAULT_MAPPING, 1)).toBe("stop");
     expect(actionFor(DEFAULT_MAPPING, 9)).toBe("request_control");
     expect(actionFor(DEFAULT_MAPPING, 7)).toBeNull();
+    expect(actionFor(DEFAULT_MAPPING, 17)).toBe("snapshot");
     expect(buttonName(1)).toBe("B");
     expect(buttonName(20)).toBe("Button 20");
   });
@@ -181,6 +182,7 @@ describe("buttonCommand", () => {
     expect(buttonCommand("request_control", null, 255)).toEqual({ kind: "request_control" });
     expect(buttonCommand("release_control", null, 255)).toEqual({ kind: "release_control" });
     expect(buttonCommand("input_gamepad", null, 255)).toEqual({ kind: "input_gamepad" });
+    expect(buttonCommand("snapshot", null, 255)).toEqual({ kind: "snapshot" });
     expect(buttonCommand("gain_up", null, 255).kind).toBe("none");
   });
 

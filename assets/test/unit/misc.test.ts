@@ -22,13 +22,11 @@ import {
   boardLinkText,
   boardSettingsText,
   THRUST_HELD,
-  cameraElement,
   downFor,
   formatDeg,
   measurementDeg,
   measurementHeading,
   measurementText,
-  retryUrl,
   showsUnit,
 } from "../../src/operator/format";
 import { decodeLinkStatus } from "../../src/lib/protocol";
@@ -249,22 +247,10 @@ describe("store and display helpers", () => {
   });
 
   it("formats", () => {
-    expect(cameraElement("http://cam:8080/?action=stream")).toBe("img");
-    expect(cameraElement("/v/a.mp4")).toBe("video");
-    expect(cameraElement("/v/a.m3u8?x=1")).toBe("video");
     expect(downFor(12_400)).toBe("12 s");
     expect(downFor(75_000)).toBe("1 min 15 s");
     expect(formatDeg(Math.PI / 2, true)).toBe("+90.0");
     expect(formatDeg(null)).toBe("—");
-  });
-});
-
-describe("camera feed retries", () => {
-  it("asks for the stream again with a fresh address each attempt", () => {
-    expect(retryUrl("/camera/rov.mjpg", 0)).toBe("/camera/rov.mjpg");
-    expect(retryUrl("/camera/rov.mjpg", 1)).toBe("/camera/rov.mjpg?retry=1");
-    expect(retryUrl("/camera/rov.mjpg?token=t", 2)).toBe("/camera/rov.mjpg?token=t&retry=2");
-    expect(retryUrl("http://cam/x.jpg#f", 3)).toBe("http://cam/x.jpg?retry=3#f");
   });
 });
 

@@ -165,6 +165,13 @@ describe("control settings replies and the camera", () => {
     expect(decodeCamera({ vehicle, camera: "/video/v.mp4" })).toBeNull();
     expect(decodeCamera({ vehicle })).toBeNull();
   });
+
+  it("never takes another host's video socket", () => {
+    const vehicle = { id: "v", board: "simulated" };
+    expect(decodeCamera({ vehicle, camera: { codec: "h264", video: "//evil.example/ws", url: null } })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: { codec: "h264", video: "https://evil.example/ws", url: null } })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: { codec: "h264", video: 7, url: null } })).toBeNull();
+  });
 });
 
 describe("join replies", () => {

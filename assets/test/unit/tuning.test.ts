@@ -1,4 +1,6 @@
 import { describe, expect, it } from "vitest";
+import { TuningController } from "../../src/developer/tuning";
+import type { VehicleChannel } from "../../src/lib/vehicle_client";
 import { decodeSetTuning, decodeStepResponse, decodeTuningInfo, figures, formOf, parseForm, polylines } from "../../src/developer/tuning_model";
 
 const gains = { depth: { kp: 3, ki: 0.1, kd: 1.5 }, heading: { kp: 4, ki: 0.3, kd: 2 } };
@@ -50,5 +52,25 @@ describe("autopilot tuning on the developer page", () => {
     expect(p.setpoint.split(" ")[3]).toBe("300.0,0.6");
     expect(figures(r)).toBe("overshoot 0.6 cm, within ±5 cm after 1.9 s");
     expect(figures({ ...r, axis: "heading", overshoot: Math.PI / 180, band: (2 * Math.PI) / 180, settle: null })).toBe("overshoot 1.0°, never within ±2° in 3 s");
+  });
+});
+
+describe("the tuning panel opened before the page has its vehicle", () => {
+  it("reads the gains once the vehicle is attached", async () => {
+    const asked: string[] = [];
+    const vehicle: Pick<VehicleChannel, "request"> = {
+      request: <T>(event: string, _payload: unknown, decode: (v: unknown) => T | null): Promise<T> => {
+        asked.push(event);
+        const value = decode(info);
+        return value === null ? Promise.reject(new Error("bad reply")) : Promise.resolve(value);
+      },
+    };
+    const c = new TuningController();
+    await c.load();
+    expect(c.store.get().form).toBeNull();
+    c.attach(vehicle);
+    await new Promise((r) => setTimeout(r, 0));
+    expect(asked).toEqual(["get_tuning"]);
+    expect(c.store.get().form).toEqual(formOf(gains));
   });
 });

@@ -26,6 +26,8 @@ defmodule NeptunusWeb.Endpoint.Guard do
            "script-src 'self'",
            "style-src 'self'",
            "img-src 'self' data: blob:",
+           # the video player's MSE path plays a MediaSource through its blob: address
+           "media-src 'self' blob:",
            "connect-src 'self'",
            "object-src 'none'",
            "base-uri 'none'",
