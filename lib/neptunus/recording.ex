@@ -139,26 +139,51 @@ defmodule Neptunus.Recording do
   """
   @spec entries(Path.t()) :: Enumerable.t()
   def entries(path) do
+    path
+    |> stream(true)
+    |> Stream.filter(&match?({at, event, %{}} when is_integer(at) and is_binary(event), &1))
+  end
+
+  @doc """
+  The file's entries as `entries/1` gives them (and any other term in it), with
+  `{:unreadable, path, bytes}` where bytes could not be read as entries (a torn end, a
+  damaged block: reading goes on after them), `{:unreadable, path, :rest}` when the rest of
+  the file cannot be read, and `{:unreadable, path, :file}` when the file cannot be opened.
+  Never raises.
+  """
+  @spec read(Path.t()) :: Enumerable.t()
+  def read(path), do: stream(path, false)
+
+  defp stream(path, raise?) do
     Stream.resource(
-      fn -> open!(path) end,
+      fn -> open(path, raise?) end,
       fn
+        :unopened ->
+          {[{:unreadable, path, :file}], :done}
+
+        :done ->
+          {:halt, :done}
+
         {log, :eof} ->
           {:halt, {log, :eof}}
 
         {log, cont} ->
           case :disk_log.chunk(log, cont) do
             :eof -> {:halt, {log, :eof}}
-            {:error, _reason} -> {:halt, {log, :eof}}
+            {:error, _reason} -> {if(raise?, do: [], else: [{:unreadable, path, :rest}]), {log, :eof}}
             {cont, terms} -> {terms, {log, cont}}
-            {cont, terms, _bad_bytes} -> {terms, {log, cont}}
+            {cont, terms, 0} -> {terms, {log, cont}}
+            {cont, terms, bad} -> {terms ++ [{:unreadable, path, bad}], {log, cont}}
           end
       end,
-      fn {log, _} -> :disk_log.close(log) end
+      fn
+        {log, _} -> :disk_log.close(log)
+        _ -> :ok
+      end
     )
-    |> Stream.filter(&match?({at, event, %{}} when is_integer(at) and is_binary(event), &1))
   end
 
-  defp open!(path) do
+  defp open(path, raise?) do
     name = {__MODULE__, :reader, make_ref()}
 
     case :disk_log.open(name: name, file: String.to_charlist(path), mode: :read_only) do
@@ -167,6 +192,10 @@ defmodule Neptunus.Recording do
 
       {:repaired, log, _recovered, _bad} ->
         {log, :start}
+
+      {:error, reason} when not raise? ->
+        _ = reason
+        :unopened
 
       {:error, {:file_error, _file, posix}} ->
         raise File.Error, reason: posix, action: "read recording", path: path
