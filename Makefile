@@ -9,9 +9,11 @@ APT_PACKAGES := elixir erlang-dev erlang-src erlang-yaws erlang-jiffy erlang-pro
                 ffmpeg
 YAWS_DIR := $(firstword $(wildcard /usr/lib/yaws-*))
 ASSETS_STAMP := assets/node_modules/.package-lock.json
-# pymavlink, for the MAVLink interoperability tests only, in a project-local virtualenv
+# pymavlink (the MAVLink interoperability tests) and mcap (the MCAP reader the dive exports
+# are checked with), test-only, in a project-local virtualenv
 PYMAVLINK_VERSION := 2.4.50
-VENV_STAMP := .venv/.pymavlink-$(PYMAVLINK_VERSION)
+MCAP_VERSION := 1.6.0
+VENV_STAMP := .venv/.pymavlink-$(PYMAVLINK_VERSION)-mcap-$(MCAP_VERSION)
 
 .PHONY: help setup setup-apt setup-links setup-npm setup-venv assets compile run test bench release clean \
         setup-armhf release-armhf test-target setup-firmware firmware upload test-firmware
@@ -71,13 +73,15 @@ $(ASSETS_STAMP): assets/package.json assets/package-lock.json
 	cd assets && npm install --no-audit --no-fund --loglevel=error
 	@touch $@
 
-# pymavlink (PyPI) for test/support/pymavlink_interop.py, in .venv/ made with Debian's Python:
-# nothing is installed system-wide and the server never uses it.
+# pymavlink (PyPI) for test/support/pymavlink_interop.py and mcap for test/support/mcap_read.py,
+# in .venv/ made with Debian's Python: nothing is installed system-wide and the server never
+# uses them.
 setup-venv: $(VENV_STAMP)
 
 $(VENV_STAMP): | setup-apt
 	/usr/bin/python3 -m venv .venv
-	.venv/bin/pip install --quiet --disable-pip-version-check pymavlink==$(PYMAVLINK_VERSION)
+	.venv/bin/pip install --quiet --disable-pip-version-check pymavlink==$(PYMAVLINK_VERSION) \
+	  mcap==$(MCAP_VERSION)
 	@touch $@
 
 assets: setup-npm

@@ -265,8 +265,9 @@ defmodule Neptunus.Dive do
   defp string_or_nil(s) when is_binary(s), do: s
   defp string_or_nil(_), do: nil
 
-  defp video_problems(%{"video" => %{"frames" => frames}}, nil) when is_integer(frames) and frames > 0,
-    do: ["the video is missing (#{frames} frames were recorded)"]
+  defp video_problems(%{"video" => %{"frames" => frames}}, nil)
+       when is_integer(frames) and frames > 0,
+       do: ["the video is missing (#{frames} frames were recorded)"]
 
   defp video_problems(_summary, _video), do: []
 
@@ -292,7 +293,8 @@ defmodule Neptunus.Dive do
     end
   end
 
-  defp count_snapshots(path), do: path |> snapshots_folder() |> ls() |> Enum.count(&String.ends_with?(&1, ".jpg"))
+  defp count_snapshots(path),
+    do: path |> snapshots_folder() |> ls() |> Enum.count(&String.ends_with?(&1, ".jpg"))
 
   # bytes and the newest modification (ms) of every file under `path`
   defp du(path) do
@@ -337,7 +339,10 @@ defmodule Neptunus.Dive do
   """
   @spec write_summary(Path.t(), Summary.t(), boolean(), map()) :: :ok | {:error, term()}
   def write_summary(folder, %Summary{} = summary, closed, extra \\ %{}) do
-    write_json(Path.join(folder, "summary.json"), Map.merge(Summary.to_map(summary, closed), extra))
+    write_json(
+      Path.join(folder, "summary.json"),
+      Map.merge(Summary.to_map(summary, closed), extra)
+    )
   end
 
   defp write_json(path, value) do
@@ -438,8 +443,11 @@ defmodule Neptunus.Dive do
       }
 
       case write_json(Path.join(folder, "notes.json"), new) do
-        :ok -> {:ok, new}
-        {:error, reason} -> {:error, :failed, "cannot save the notes: #{:file.format_error(reason)}"}
+        :ok ->
+          {:ok, new}
+
+        {:error, reason} ->
+          {:error, :failed, "cannot save the notes: #{:file.format_error(reason)}"}
       end
     end
   end
@@ -478,7 +486,10 @@ defmodule Neptunus.Dive do
           String.length(value) > max ->
             {:error, :invalid, "#{key} must be at most #{max} characters"}
 
-          Regex.match?(if(multiline?, do: ~r/[\x00-\x08\x0B-\x1F\x7F]/, else: ~r/[\x00-\x1F\x7F]/), value) ->
+          Regex.match?(
+            if(multiline?, do: ~r/[\x00-\x08\x0B-\x1F\x7F]/, else: ~r/[\x00-\x1F\x7F]/),
+            value
+          ) ->
             {:error, :invalid,
              "#{key} must not contain control characters#{if multiline?, do: " (but new lines and tabs)", else: " or new lines"}"}
 

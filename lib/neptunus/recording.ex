@@ -169,11 +169,20 @@ defmodule Neptunus.Recording do
 
         {log, cont} ->
           case :disk_log.chunk(log, cont) do
-            :eof -> {:halt, {log, :eof}}
-            {:error, _reason} -> {if(raise?, do: [], else: [{:unreadable, path, :rest}]), {log, :eof}}
-            {cont, terms} -> {terms, {log, cont}}
-            {cont, terms, 0} -> {terms, {log, cont}}
-            {cont, terms, bad} -> {terms ++ [{:unreadable, path, bad}], {log, cont}}
+            :eof ->
+              {:halt, {log, :eof}}
+
+            {:error, _reason} ->
+              {if(raise?, do: [], else: [{:unreadable, path, :rest}]), {log, :eof}}
+
+            {cont, terms} ->
+              {terms, {log, cont}}
+
+            {cont, terms, 0} ->
+              {terms, {log, cont}}
+
+            {cont, terms, bad} ->
+              {terms ++ [{:unreadable, path, bad}], {log, cont}}
           end
       end,
       fn

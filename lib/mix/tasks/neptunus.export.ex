@@ -78,7 +78,10 @@ defmodule Mix.Tasks.Neptunus.Export do
 
   defp write_file(plan, out) do
     tmp =
-      Path.join(Path.dirname(out), ".#{Path.basename(out)}.#{System.unique_integer([:positive])}.tmp")
+      Path.join(
+        Path.dirname(out),
+        ".#{Path.basename(out)}.#{System.unique_integer([:positive])}.tmp"
+      )
 
     started = Neptunus.Clock.monotonic_ms()
 

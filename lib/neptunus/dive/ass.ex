@@ -118,8 +118,7 @@ defmodule Neptunus.Dive.ASS do
   defp pad(n), do: n |> Integer.to_string() |> String.pad_leading(2, "0")
 
   defp text(at_ms, payload, s) do
-    clock =
-      at_ms |> DateTime.from_unix!(:millisecond) |> Calendar.strftime("%H:%M:%S")
+    clock = at_ms |> DateTime.from_unix!(:millisecond) |> Calendar.strftime("%H:%M:%S")
 
     depth =
       case value(payload, :depth) do

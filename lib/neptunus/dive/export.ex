@@ -114,6 +114,7 @@ defmodule Neptunus.Dive.Export do
            format: "mp4",
            video: video,
            zero_ms: div(video.zero_us, 1000),
+           end_ms: video_end_ms(video),
            title: label,
            ffmpeg: ffmpeg,
            file: label <> ".mp4",
@@ -132,6 +133,7 @@ defmodule Neptunus.Dive.Export do
        video: video,
        title: label,
        telemetry_schema: get_in(options, ["schemas", "telemetry"]) || %{type: "object"},
+       chunk_bytes: chunk_bytes(options["chunk_bytes"]),
        metadata: metadata(path, label),
        file: label <> ".mcap",
        mime: "application/octet-stream"
@@ -189,7 +191,11 @@ defmodule Neptunus.Dive.Export do
 
   defp metadata(path, label) do
     info =
-      case Dive.info(Path.dirname(Path.dirname(path)), Path.basename(Path.dirname(path)), Path.basename(path)) do
+      case Dive.info(
+             Path.dirname(Path.dirname(path)),
+             Path.basename(Path.dirname(path)),
+             Path.basename(path)
+           ) do
         nil -> %{}
         info -> info
       end
@@ -226,12 +232,32 @@ defmodule Neptunus.Dive.Export do
   end
 
   def stream(%{format: "ass"} = plan) do
-    cues = plan.path |> Dive.entries() |> ASS.cues(plan.zero_ms) |> Stream.map(&ASS.dialogue/1)
-    Stream.concat([ASS.header(plan.title)], cues)
+    cues = plan.path |> Dive.entries() |> ASS.cues(plan.zero_ms) |> until(plan[:end_ms])
+    Stream.concat([ASS.header(plan.title)], Stream.map(cues, &ASS.dialogue/1))
   end
 
   def stream(%{format: "mcap"} = plan), do: mcap(plan)
   def stream(%{format: "mp4"} = plan), do: mp4(plan)
+
+  # an MP4's cues end with its video
+  defp until(cues, nil), do: cues
+
+  defp until(cues, end_ms) do
+    cues
+    |> Stream.take_while(fn {start, _end, _text} -> start < end_ms end)
+    |> Stream.map(fn {start, stop, text} -> {start, min(stop, end_ms), text} end)
+  end
+
+  # the video's end, relative to its first frame: its last frame's time plus one frame
+  defp video_end_ms(video) do
+    last = video.folder |> Video.read(List.last(video.numbers))
+
+    case Enum.take(last.frames, -2) do
+      [a, b] -> div(b.at_us - video.zero_us + (b.at_us - a.at_us) + 500, 1000)
+      [b] -> div(b.at_us - video.zero_us + 500, 1000)
+      [] -> nil
+    end
+  end
 
   # MCAP
 
@@ -277,14 +303,36 @@ defmodule Neptunus.Dive.Export do
 
   defp mcap_options(plan) do
     schemas = [
-      %{id: 1, name: "neptunus.Telemetry", encoding: "jsonschema", data: JSON.encode!(plan.telemetry_schema)},
-      %{id: 2, name: "neptunus.VehicleEvent", encoding: "jsonschema", data: JSON.encode!(event_schema())},
+      %{
+        id: 1,
+        name: "neptunus.Telemetry",
+        encoding: "jsonschema",
+        data: JSON.encode!(plan.telemetry_schema)
+      },
+      %{
+        id: 2,
+        name: "neptunus.VehicleEvent",
+        encoding: "jsonschema",
+        data: JSON.encode!(event_schema())
+      },
       %{id: 3, name: "foxglove.Log", encoding: "jsonschema", data: JSON.encode!(log_schema())}
     ]
 
     channels = [
-      %{id: @telemetry_ch, schema_id: 1, topic: "/vehicle/telemetry", message_encoding: "json", metadata: %{}},
-      %{id: @events_ch, schema_id: 2, topic: "/vehicle/events", message_encoding: "json", metadata: %{}},
+      %{
+        id: @telemetry_ch,
+        schema_id: 1,
+        topic: "/vehicle/telemetry",
+        message_encoding: "json",
+        metadata: %{}
+      },
+      %{
+        id: @events_ch,
+        schema_id: 2,
+        topic: "/vehicle/events",
+        message_encoding: "json",
+        metadata: %{}
+      },
       %{id: @log_ch, schema_id: 3, topic: "/vehicle/log", message_encoding: "json", metadata: %{}}
     ]
 
@@ -298,10 +346,25 @@ defmodule Neptunus.Dive.Export do
 
           {schemas ++ [%{id: 4, name: name, encoding: "jsonschema", data: JSON.encode!(schema)}],
            channels ++
-             [%{id: @camera_ch, schema_id: 4, topic: "/camera", message_encoding: "json", metadata: %{"codec" => video.codec}}]}
+             [
+               %{
+                 id: @camera_ch,
+                 schema_id: 4,
+                 topic: "/camera",
+                 message_encoding: "json",
+                 metadata: %{"codec" => video.codec}
+               }
+             ]}
       end
 
-    [schemas: schemas, channels: channels, metadata: plan.metadata, profile: "", library: "neptunus"]
+    [
+      schemas: schemas,
+      channels: channels,
+      metadata: plan.metadata,
+      profile: "",
+      library: "neptunus",
+      chunk_bytes: plan.chunk_bytes
+    ]
   end
 
   # entries and frames, merged by time
@@ -533,7 +596,13 @@ defmodule Neptunus.Dive.Export do
   end
 
   defp feed(socket, video) do
-    track = %{codec: video.codec, width: video.width, height: video.height, sps: video.sps, pps: video.pps}
+    track = %{
+      codec: video.codec,
+      width: video.width,
+      height: video.height,
+      sps: video.sps,
+      pps: video.pps
+    }
 
     frames =
       video.folder
@@ -619,7 +688,9 @@ defmodule Neptunus.Dive.Export do
   defp format(format) when format in @formats, do: {:ok, format}
 
   defp format(other),
-    do: {:error, :invalid, "format must be one of #{Enum.join(@formats, ", ")}, got #{inspect(other)}"}
+    do:
+      {:error, :invalid,
+       "format must be one of #{Enum.join(@formats, ", ")}, got #{inspect(other)}"}
 
   defp max_rows(nil), do: {:ok, nil}
   defp max_rows(text), do: count("max", text)
@@ -633,6 +704,10 @@ defmodule Neptunus.Dive.Export do
         {:error, :invalid, "#{name} must be an integer in 1..1000000, got #{inspect(text)}"}
     end
   end
+
+  # MCAP chunks of 1 MiB, or (tests) smaller
+  defp chunk_bytes(n) when is_integer(n) and n >= 1024, do: n
+  defp chunk_bytes(_), do: 1_048_576
 
   defp ceil_div(a, b), do: max(1, div(a + b - 1, b))
 end

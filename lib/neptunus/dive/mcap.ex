@@ -82,15 +82,24 @@ defmodule Neptunus.Dive.MCAP do
   def new(opts) do
     schemas = Keyword.get(opts, :schemas, [])
     channels = Keyword.get(opts, :channels, [])
+
     state = %__MODULE__{
       schemas: schemas,
       channels: channels,
       chunk_bytes: Keyword.get(opts, :chunk_bytes, @default_chunk_bytes)
     }
 
-    header = record(0x01, [str(Keyword.get(opts, :profile, "")), str(Keyword.get(opts, :library, "neptunus"))])
+    header =
+      record(0x01, [
+        str(Keyword.get(opts, :profile, "")),
+        str(Keyword.get(opts, :library, "neptunus"))
+      ])
 
-    {state, out} = emit(state, [@magic, header | Enum.map(schemas, &schema/1) ++ Enum.map(channels, &channel/1)])
+    {state, out} =
+      emit(state, [
+        @magic,
+        header | Enum.map(schemas, &schema/1) ++ Enum.map(channels, &channel/1)
+      ])
 
     Enum.reduce(Keyword.get(opts, :metadata, []), {state, out}, fn {name, map}, {state, out} ->
       rec = record(0x0C, [str(name), string_map(map)])
@@ -116,7 +125,14 @@ defmodule Neptunus.Dive.MCAP do
       ])
 
     size = IO.iodata_length(rec)
-    index = Map.update(state.chunk_index, channel_id, [{log_time, state.chunk_size}], &[{log_time, state.chunk_size} | &1])
+
+    index =
+      Map.update(
+        state.chunk_index,
+        channel_id,
+        [{log_time, state.chunk_size}],
+        &[{log_time, state.chunk_size} | &1]
+      )
 
     state = %{
       state
@@ -157,7 +173,9 @@ defmodule Neptunus.Dive.MCAP do
       state.chunk_index
       |> Enum.sort()
       |> Enum.reduce({state, [], []}, fn {ch, entries}, {state, acc, offsets} ->
-        pairs = entries |> Enum.reverse() |> Enum.map(fn {t, o} -> <<t::little-64, o::little-64>> end)
+        pairs =
+          entries |> Enum.reverse() |> Enum.map(fn {t, o} -> <<t::little-64, o::little-64>> end)
+
         rec = record(0x07, [<<ch::little-16>>, array(pairs)])
         at = state.offset
         {state, bytes} = emit(state, rec)
@@ -214,7 +232,9 @@ defmodule Neptunus.Dive.MCAP do
     metadata_indexes =
       state.metadata
       |> Enum.reverse()
-      |> Enum.map(fn {at, len, name} -> record(0x0D, [<<at::little-64, len::little-64>>, str(name)]) end)
+      |> Enum.map(fn {at, len, name} ->
+        record(0x0D, [<<at::little-64, len::little-64>>, str(name)])
+      end)
 
     groups = [
       {0x03, Enum.map(state.schemas, &schema/1)},
@@ -236,7 +256,10 @@ defmodule Neptunus.Dive.MCAP do
       end)
 
     summary_offset_start = summary_start + IO.iodata_length(summary)
-    footer_head = <<0x02, 20::little-64, summary_start::little-64, summary_offset_start::little-64>>
+
+    footer_head =
+      <<0x02, 20::little-64, summary_start::little-64, summary_offset_start::little-64>>
+
     summary_crc = :erlang.crc32([summary, offsets, footer_head])
 
     [last, data_end, summary, offsets, footer_head, <<summary_crc::little-32>>, @magic]
@@ -244,10 +267,22 @@ defmodule Neptunus.Dive.MCAP do
 
   # bytes out: the offset and the data section's CRC go on
   defp emit(state, iodata),
-    do: {%{state | offset: state.offset + IO.iodata_length(iodata), crc: :erlang.crc32(state.crc, iodata)}, iodata}
+    do:
+      {%{
+         state
+         | offset: state.offset + IO.iodata_length(iodata),
+           crc: :erlang.crc32(state.crc, iodata)
+       }, iodata}
 
   defp schema(s),
-    do: record(0x03, [<<s.id::little-16>>, str(s.name), str(s.encoding), <<byte_size(s.data)::little-32>>, s.data])
+    do:
+      record(0x03, [
+        <<s.id::little-16>>,
+        str(s.name),
+        str(s.encoding),
+        <<byte_size(s.data)::little-32>>,
+        s.data
+      ])
 
   defp channel(c),
     do:
@@ -263,5 +298,9 @@ defmodule Neptunus.Dive.MCAP do
   defp array(items), do: [<<IO.iodata_length(items)::little-32>>, items]
 
   defp string_map(map),
-    do: map |> Enum.sort() |> Enum.map(fn {k, v} -> [str(to_string(k)), str(to_string(v))] end) |> array()
+    do:
+      map
+      |> Enum.sort()
+      |> Enum.map(fn {k, v} -> [str(to_string(k)), str(to_string(v))] end)
+      |> array()
 end

@@ -54,17 +54,25 @@ defmodule Neptunus.Dive.Replay do
     with {:ok, from} <- ms("from", from),
          {:ok, to} <- ms("to", to) do
       cond do
-        to < from -> {:error, :invalid, "to must not be before from"}
-        to - from > @max_window_ms -> {:error, :invalid, "a window is at most #{div(@max_window_ms, 1000)} s"}
-        true -> {:ok, from, to}
+        to < from ->
+          {:error, :invalid, "to must not be before from"}
+
+        to - from > @max_window_ms ->
+          {:error, :invalid, "a window is at most #{div(@max_window_ms, 1000)} s"}
+
+        true ->
+          {:ok, from, to}
       end
     end
   end
 
   defp ms(name, text) do
     case is_binary(text) && Integer.parse(text) do
-      {n, ""} when n >= 0 -> {:ok, n}
-      _ -> {:error, :invalid, "#{name} must be a time in ms since the epoch, got #{inspect(text)}"}
+      {n, ""} when n >= 0 ->
+        {:ok, n}
+
+      _ ->
+        {:error, :invalid, "#{name} must be a time in ms since the epoch, got #{inspect(text)}"}
     end
   end
 

@@ -62,11 +62,20 @@ defmodule Neptunus.Dive.Summary do
     s = %{s | entries: s.entries + 1, ended_at: max(at, s.ended_at || at)}
 
     case event do
-      "telemetry" -> %{s | telemetry: s.telemetry + 1, max_depth: deeper(s.max_depth, depth(payload))}
-      "helm" -> %{s | pilots: add_pilot(s.pilots, pilot_name(payload))}
-      "stopped" -> %{s | stops: s.stops + 1}
-      "snapshot" -> %{s | snapshots: s.snapshots + 1}
-      _ -> s
+      "telemetry" ->
+        %{s | telemetry: s.telemetry + 1, max_depth: deeper(s.max_depth, depth(payload))}
+
+      "helm" ->
+        %{s | pilots: add_pilot(s.pilots, pilot_name(payload))}
+
+      "stopped" ->
+        %{s | stops: s.stops + 1}
+
+      "snapshot" ->
+        %{s | snapshots: s.snapshots + 1}
+
+      _ ->
+        s
     end
   end
 

@@ -137,7 +137,14 @@ defmodule Neptunus.Dive.Video do
          <<at::64, capture::64, offset::64, size::32, flags::8, _::24, rest::binary>>,
          acc
        ) do
-    frame = %{at_us: at, capture_us: capture, offset: offset, size: size, keyframe: (flags &&& 1) == 1}
+    frame = %{
+      at_us: at,
+      capture_us: capture,
+      offset: offset,
+      size: size,
+      keyframe: (flags &&& 1) == 1
+    }
+
     parse_records(rest, [frame | acc])
   end
 
@@ -230,18 +237,30 @@ defmodule Neptunus.Dive.Video do
 
   defp read_index(path) do
     case File.read(path) do
-      {:ok, bytes} -> {:ok, bytes}
-      {:error, :enoent} -> {:error, "no index (#{Path.basename(path)} is missing)"}
-      {:error, reason} -> {:error, "cannot read #{Path.basename(path)}: #{:file.format_error(reason)}"}
+      {:ok, bytes} ->
+        {:ok, bytes}
+
+      {:error, :enoent} ->
+        {:error, "no index (#{Path.basename(path)} is missing)"}
+
+      {:error, reason} ->
+        {:error, "cannot read #{Path.basename(path)}: #{:file.format_error(reason)}"}
     end
   end
 
   defp data_size(path) do
     case File.stat(path) do
-      {:ok, %File.Stat{type: :regular, size: size}} -> {:ok, size}
-      {:ok, _} -> {:error, "#{Path.basename(path)} is not a file"}
-      {:error, :enoent} -> {:error, "#{Path.basename(path)} is missing"}
-      {:error, reason} -> {:error, "cannot read #{Path.basename(path)}: #{:file.format_error(reason)}"}
+      {:ok, %File.Stat{type: :regular, size: size}} ->
+        {:ok, size}
+
+      {:ok, _} ->
+        {:error, "#{Path.basename(path)} is not a file"}
+
+      {:error, :enoent} ->
+        {:error, "#{Path.basename(path)} is missing"}
+
+      {:error, reason} ->
+        {:error, "cannot read #{Path.basename(path)}: #{:file.format_error(reason)}"}
     end
   end
 
@@ -320,8 +339,7 @@ defmodule Neptunus.Dive.Video do
   """
   @spec window([segment()], non_neg_integer(), non_neg_integer()) :: [{segment(), [frame()]}]
   def window(segments, at_us, to_us) do
-    keyed =
-      for s <- segments, f <- s.frames, f.keyframe, f.at_us <= at_us, do: {s.n, f.at_us}
+    keyed = for s <- segments, f <- s.frames, f.keyframe, f.at_us <= at_us, do: {s.n, f.at_us}
 
     {start_n, start_us} =
       case List.last(keyed) do

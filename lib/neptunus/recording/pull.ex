@@ -355,7 +355,7 @@ defmodule Neptunus.Recording.Pull do
          true <- Dive.valid?(vehicle, name) || {:error, :not_found, "no such recording"},
          path = Dive.path(dir, vehicle, name),
          true <-
-           (if Dive.legacy?(name), do: File.regular?(path), else: File.dir?(path)) ||
+           if(Dive.legacy?(name), do: File.regular?(path), else: File.dir?(path)) ||
              {:error, :not_found, "no such recording: #{vehicle}/#{name}"} do
       {:ok, path}
     end

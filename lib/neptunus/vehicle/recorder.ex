@@ -116,7 +116,7 @@ defmodule Neptunus.Vehicle.Recorder do
             min_free_bytes: non_neg_integer(),
             free_bytes: (Path.t() -> non_neg_integer() | nil),
             keep_ms: pos_integer() | nil,
-            wall_ms: (-> integer()),
+            wall_ms: (() -> integer()),
             rm: (Path.t() -> :ok | {:error, File.posix()}),
             low_disk: boolean(),
             sync_ms: pos_integer(),
@@ -318,7 +318,10 @@ defmodule Neptunus.Vehicle.Recorder do
   def handle_info(:expire, state), do: {:noreply, expire(state)}
 
   def handle_info({:EXIT, pid, reason}, %State{video: pid} = state) when reason != :normal do
-    Logger.error("vehicle #{state.id}: the video writer stopped: #{inspect(reason)}; starting it again")
+    Logger.error(
+      "vehicle #{state.id}: the video writer stopped: #{inspect(reason)}; starting it again"
+    )
+
     state = start_video(%{state | video: nil})
     if state.video && state.folder, do: Video.record(state.video, Dive.video_folder(state.folder))
     {:noreply, state}
@@ -728,10 +731,14 @@ defmodule Neptunus.Vehicle.Recorder do
       for folder <- Dive.unclosed(dir, id), folder != current do
         case Dive.repair(folder) do
           :ok ->
-            Logger.info("vehicle #{id}: dive #{Path.basename(folder)} was interrupted: its summary is made again from what was recorded")
+            Logger.info(
+              "vehicle #{id}: dive #{Path.basename(folder)} was interrupted: its summary is made again from what was recorded"
+            )
 
           {:error, reason} ->
-            Logger.warning("vehicle #{id}: cannot repair the summary of #{folder}: #{inspect(reason)}")
+            Logger.warning(
+              "vehicle #{id}: cannot repair the summary of #{folder}: #{inspect(reason)}"
+            )
         end
       end
     end)

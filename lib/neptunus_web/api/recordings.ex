@@ -86,8 +86,7 @@ defmodule NeptunusWeb.API.Recordings do
           {:status, 200},
           {:header, {:cache_control, ~c"no-store"}},
           {:header,
-           {~c"Content-Disposition",
-            String.to_charlist("attachment; filename=\"#{plan.file}\"")}}
+           {~c"Content-Disposition", String.to_charlist("attachment; filename=\"#{plan.file}\"")}}
           | Response.stream(arg, String.to_charlist(plan.mime), stream, "recording export")
         ]
 

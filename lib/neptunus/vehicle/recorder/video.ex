@@ -254,7 +254,8 @@ defmodule Neptunus.Vehicle.Recorder.Video do
 
       %{state | segment: segment, segments: state.segments + 1, codec: codec, info: info}
     else
-      {:error, reason} -> failed(state, "cannot write video in #{state.folder}: #{reason(reason)}")
+      {:error, reason} ->
+        failed(state, "cannot write video in #{state.folder}: #{reason(reason)}")
     end
   end
 
