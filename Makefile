@@ -109,6 +109,7 @@ bench: setup assets
 	bench/protocol_fuzz
 	bench/mavlink_fuzz
 	bench/control_latency
+	bench/open_reset
 	bench/recording_export
 	bench/recorder_sync
 	bench/sim_camera

@@ -356,6 +356,21 @@ defmodule NeptunusWeb.WireSchema do
          firmware_mismatch: {:boolean, optional: true},
          commands_sent: {:integer, optional: true, doc: "commands written"},
          commands_confirmed: {:integer, optional: true, doc: "commands the board echoed"},
+         board_settings:
+           {{:enum, ~w(confirmed pending failed)},
+            optional: true,
+            doc:
+              "`confirmed`: the board echoed every setting it was sent (motor modifiers, lights, laser, tilt); `pending`; `failed`: one was not echoed after 8 writes (see docs/OPENROV.md, Settings)"},
+         board_settings_pending:
+           {{:list, {:enum, ~w(mtrmod1 mtrmod2 lights laser tilt)}},
+            optional: true, doc: "the settings not confirmed yet"},
+         board_settings_reason:
+           {:string, optional: true, null: true, doc: "why a setting failed; null: none did"},
+         thrust_held:
+           {:boolean,
+            optional: true,
+            doc:
+              "thrust other than neutral is held (the board gets neutral) until the motor modifiers are confirmed"},
          mavlink: {:mavlink_status, optional: true, doc: "a mavlink vehicle's state"}
        ]},
     mavlink_status:
@@ -594,9 +609,10 @@ defmodule NeptunusWeb.WireSchema do
          reason: {:string, optional: true, doc: "why not (`ok: false`)"}
        ]},
     board_event:
-      {:object, "The board restarted, or its deadman tripped and was cleared.",
+      {:object,
+       "The board restarted (its uptime went backwards, or it printed its start-up line `boot:1;`), or its deadman tripped and was cleared (the link sent its whole state again); or thrust is held at neutral until the board confirms its motor modifiers.",
        [
-         event: {{:enum, ~w(reset deadman_recovery)}, essential: true},
+         event: {{:enum, ~w(reset deadman_recovery thrust_held)}, essential: true},
          reason: :string
        ]},
     firmware_event:

@@ -142,6 +142,14 @@ export interface BoardLinkDetails {
   readonly firmware_mismatch: boolean;
   readonly commands_sent: number | null;
   readonly commands_confirmed: number | null;
+  /** whether the board confirmed (echoed) every setting sent to it; null: not reported */
+  readonly board_settings: "confirmed" | "pending" | "failed" | null;
+  /** the settings it has not confirmed: mtrmod1, mtrmod2 (motor modifiers), lights, laser, tilt */
+  readonly board_settings_pending: readonly string[];
+  /** why a setting failed (past the bound of writes), else null */
+  readonly board_settings_reason: string | null;
+  /** thrust other than neutral is held (sent as neutral) until the motor modifiers are confirmed */
+  readonly thrust_held: boolean;
 }
 
 export interface WildPoints {
@@ -312,6 +320,10 @@ function linkStatus(l: wire.LinkStatus): LinkStatus {
           firmware_mismatch: l.firmware_mismatch === true,
           commands_sent: l.commands_sent,
           commands_confirmed: l.commands_confirmed,
+          board_settings: l.board_settings,
+          board_settings_pending: l.board_settings_pending ?? [],
+          board_settings_reason: l.board_settings_reason,
+          thrust_held: l.thrust_held === true,
         };
   const mavlink = l.mavlink && mavlinkStatus(l.mavlink);
   return { up: l.up, reason: l.reason, ...(board ? { board } : {}), ...(mavlink ? { mavlink } : {}) };

@@ -654,6 +654,21 @@ export interface LinkStatus {
   readonly commands_sent: number | null;
   /** commands the board echoed; absent from some payloads */
   readonly commands_confirmed: number | null;
+  /**
+   * `confirmed`: the board echoed every setting it was sent (motor modifiers, lights, laser,
+   * tilt); `pending`; `failed`: one was not echoed after 8 writes (see docs/OPENROV.md, Settings);
+   * absent from some payloads
+   */
+  readonly board_settings: "confirmed" | "pending" | "failed" | null;
+  /** the settings not confirmed yet; absent from some payloads */
+  readonly board_settings_pending: readonly ("mtrmod1" | "mtrmod2" | "lights" | "laser" | "tilt")[] | null;
+  /** why a setting failed; null: none did; absent from some payloads */
+  readonly board_settings_reason: string | null;
+  /**
+   * thrust other than neutral is held (the board gets neutral) until the motor modifiers are
+   * confirmed; absent from some payloads
+   */
+  readonly thrust_held: boolean | null;
   /** a mavlink vehicle's state; absent from some payloads */
   readonly mavlink: MavlinkStatus | null;
 }
@@ -674,6 +689,10 @@ function readLinkStatus(json: unknown): LinkStatus | undefined {
     firmware_mismatch: readBoolean(json["firmware_mismatch"]) ?? null,
     commands_sent: readInteger(json["commands_sent"]) ?? null,
     commands_confirmed: readInteger(json["commands_confirmed"]) ?? null,
+    board_settings: readEnum(json["board_settings"], ["confirmed", "pending", "failed"] as const) ?? null,
+    board_settings_pending: readList(json["board_settings_pending"], (item) => readEnum(item, ["mtrmod1", "mtrmod2", "lights", "laser", "tilt"] as const)) ?? null,
+    board_settings_reason: readString(json["board_settings_reason"]) ?? null,
+    thrust_held: readBoolean(json["thrust_held"]) ?? null,
     mavlink: readMavlinkStatus(json["mavlink"]) ?? null,
   };
 }
@@ -1437,15 +1456,19 @@ function readVehicleAnswer(json: unknown): VehicleAnswer | undefined {
 
 export const decodeVehicleAnswer = (json: unknown): VehicleAnswer | null => readVehicleAnswer(json) ?? null;
 
-/** The board restarted, or its deadman tripped and was cleared. */
+/**
+ * The board restarted (its uptime went backwards, or it printed its start-up line `boot:1;`), or
+ * its deadman tripped and was cleared (the link sent its whole state again); or thrust is held at
+ * neutral until the board confirms its motor modifiers.
+ */
 export interface BoardEvent {
-  readonly event: "reset" | "deadman_recovery";
+  readonly event: "reset" | "deadman_recovery" | "thrust_held";
   readonly reason: string | null;
 }
 
 function readBoardEvent(json: unknown): BoardEvent | undefined {
   if (!isRecord(json)) return undefined;
-  const event = readEnum(json["event"], ["reset", "deadman_recovery"] as const);
+  const event = readEnum(json["event"], ["reset", "deadman_recovery", "thrust_held"] as const);
   if (event === undefined) return undefined;
   return {
     event,

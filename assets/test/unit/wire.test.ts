@@ -31,6 +31,10 @@ describe("a field that is not essential", () => {
       firmware_mismatch: null,
       commands_sent: null,
       commands_confirmed: null,
+      board_settings: null,
+      board_settings_pending: null,
+      board_settings_reason: null,
+      thrust_held: null,
       mavlink: null,
     });
   });

@@ -111,6 +111,23 @@ defmodule Neptunus.Vehicle.Telemetry do
   def log_topic(id), do: "log:" <> id
 
   @doc """
+  Publishes an entry for vehicle `id`'s developer logger (and its recording) on `log_topic/1`:
+  `category` (`"link"`, `"autopilot"`, …), `level` (`"info"`, `"warning"`, `"error"`), the
+  message, stamped with the wall clock.
+  """
+  @spec log(String.t(), String.t(), String.t(), String.t()) :: :ok
+  def log(id, category, level, message) do
+    PubSub.broadcast(log_topic(id), "log", %{
+      category: category,
+      level: level,
+      message: message,
+      at: Neptunus.Clock.wall_ms()
+    })
+
+    :ok
+  end
+
+  @doc """
   Reports a board sample (called by `Neptunus.Vehicle.Navigation`, with the filtered
   `measurement`, the `estimate` and the `wild_points` counts).
   """
