@@ -25,8 +25,7 @@ defmodule NeptunusWeb.API.RecordingsTest do
     end
 
     PubSub.broadcast(Telemetry.topic(id), "stopped", %{reason: "deadman"})
-    [file] = Recorder.status(id).files
-    {:ok, id: id, name: Path.basename(file)}
+    {:ok, id: id, name: Path.basename(Recorder.status(id).folder)}
   end
 
   defp port, do: Application.fetch_env!(:neptunus, :endpoint).port
@@ -105,8 +104,8 @@ defmodule NeptunusWeb.API.RecordingsTest do
       PubSub.broadcast(Telemetry.topic(long), "telemetry", payload)
     end
 
-    [file] = Recorder.status(long).files
-    name = Path.basename(file)
+    folder = Recorder.status(long).folder
+    name = Path.basename(folder)
     {200, _headers, csv} = get("/api/recordings/#{long}/#{name}")
     assert byte_size(csv) > 3 * 65_536
     # httpc hides the encoding: read the headers off the socket
@@ -116,8 +115,8 @@ defmodule NeptunusWeb.API.RecordingsTest do
     Recorder.sync(long)
 
     assert csv ==
-             file
-             |> Neptunus.Recording.entries()
+             folder
+             |> Neptunus.Dive.entries()
              |> Neptunus.Recording.csv()
              |> IO.iodata_to_binary()
 
@@ -139,7 +138,7 @@ defmodule NeptunusWeb.API.RecordingsTest do
 
   test "bad requests change nothing and say why", %{id: id, name: name} do
     for {path, status, message} <- [
-          {"/api/recordings/#{id}/#{name}?format=xml", 400, "format must be csv or jsonl"},
+          {"/api/recordings/#{id}/#{name}?format=xml", 400, "format must be one of csv, jsonl"},
           {"/api/recordings/#{id}/#{name}?every=0", 400, "every must be an integer"},
           {"/api/recordings/#{id}/#{name}?format=jsonl&max=x", 400, "max must be an integer"},
           {"/api/recordings/#{id}/20200101-000000Z-1.log", 404, "no such recording"},
