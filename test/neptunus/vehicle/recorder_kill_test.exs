@@ -4,7 +4,9 @@ defmodule Neptunus.Vehicle.RecorderKillTest do
   # up to 0.25 s before the node's last broadcast, and reads back.
   use ExUnit.Case, async: true
 
-  import Neptunus.Test.Vehicles, only: [free_port: 0]
+  import Neptunus.Test.OSNode, only: [read_witness: 1]
+
+  alias Neptunus.Test.OSNode
 
   alias Neptunus.Dive.Video
   alias Neptunus.Recording
@@ -12,7 +14,6 @@ defmodule Neptunus.Vehicle.RecorderKillTest do
   @moduletag :boot
   @moduletag :tmp_dir
   @moduletag timeout: 120_000
-  @root Path.expand("../../..", __DIR__)
   @bound_ms 250
 
   # The node under test records its simulated vehicle. A witness process subscribed like the
@@ -56,36 +57,25 @@ defmodule Neptunus.Vehicle.RecorderKillTest do
   test "kill -9 loses at most 0.25 s of telemetry and no event before that", %{tmp_dir: dir} do
     recordings = Path.join(dir, "recordings")
     witness = Path.join(dir, "witness")
-    mix = System.find_executable("mix") || flunk("mix not found")
 
-    port =
-      Port.open({:spawn_executable, mix}, [
-        :binary,
-        :exit_status,
-        :stderr_to_stdout,
-        {:line, 4096},
-        {:cd, @root},
-        {:args, ["run", "--no-compile", "-e", @script]},
-        {:env,
-         [
-           {~c"MIX_ENV", ~c"test"},
-           {~c"NEPTUNUS_PORT", ~c"#{free_port()}"},
-           {~c"NEPTUNUS_VEHICLES", ~c"neptunus-1=simulated"},
-           {~c"NEPTUNUS_RECORDINGS", String.to_charlist(recordings)},
-           {~c"NEPTUNUS_RECORDING_MIN_FREE_MB", ~c"1"},
-           {~c"WITNESS", String.to_charlist(witness)}
-         ]}
+    {port, _http} =
+      OSNode.start(@script, [
+        {~c"NEPTUNUS_RECORDINGS", String.to_charlist(recordings)},
+        {~c"WITNESS", String.to_charlist(witness)}
       ])
 
-    os_pid = await_pid(port, [])
+    os_pid = OSNode.await_pid(port)
     # whatever happens to the test, the node goes
     on_exit(fn -> System.cmd("kill", ["-9", os_pid], stderr_to_stdout: true) end)
 
     # let it record a few seconds: at least 3 marks and 60 telemetry broadcasts witnessed
-    wait_for(fn ->
-      lines = read_witness(witness)
-      Enum.count(lines, &match?({"mark", _, _}, &1)) >= 3 and length(lines) >= 63
-    end)
+    OSNode.wait_for(
+      fn ->
+        lines = read_witness(witness)
+        Enum.count(lines, &match?({"mark", _, _}, &1)) >= 3 and length(lines) >= 63
+      end,
+      "record"
+    )
 
     {_, 0} = System.cmd("kill", ["-9", os_pid])
     assert_receive {^port, {:exit_status, status}}, 10_000
@@ -156,18 +146,18 @@ defmodule Neptunus.Vehicle.RecorderKillTest do
     recordings = Path.join(dir, "recordings")
     witness = Path.join(dir, "witness")
 
-    port =
-      start_node(@video_script, [
+    {port, _http} =
+      OSNode.start(@video_script, [
         {~c"NEPTUNUS_RECORDINGS", String.to_charlist(recordings)},
         {~c"NEPTUNUS_CAMERAS", ~c"neptunus-1=testsrc@h264@160x120@15"},
         {~c"WITNESS", String.to_charlist(witness)}
       ])
 
-    os_pid = await_pid(port, [])
+    os_pid = OSNode.await_pid(port)
     on_exit(fn -> System.cmd("kill", ["-9", os_pid], stderr_to_stdout: true) end)
 
     # about 4 s of video witnessed (15 frames a second): three segments or more
-    wait_for(fn -> length(read_witness(witness)) >= 60 end)
+    OSNode.wait_for(fn -> length(read_witness(witness)) >= 60 end, "record video")
 
     {_, 0} = System.cmd("kill", ["-9", os_pid])
     assert_receive {^port, {:exit_status, status}}, 10_000
@@ -238,73 +228,7 @@ defmodule Neptunus.Vehicle.RecorderKillTest do
     String.to_integer(String.trim(out))
   end
 
-  defp start_node(script, env) do
-    mix = System.find_executable("mix") || flunk("mix not found")
-
-    Port.open({:spawn_executable, mix}, [
-      :binary,
-      :exit_status,
-      :stderr_to_stdout,
-      {:line, 4096},
-      {:cd, @root},
-      {:args, ["run", "--no-compile", "-e", script]},
-      {:env,
-       [
-         {~c"MIX_ENV", ~c"test"},
-         {~c"NEPTUNUS_PORT", ~c"#{free_port()}"},
-         {~c"NEPTUNUS_VEHICLES", ~c"neptunus-1=simulated"},
-         {~c"NEPTUNUS_RECORDING_MIN_FREE_MB", ~c"1"}
-       ] ++ env}
-    ])
-  end
-
   # as the witness wrote them
   defp key("telemetry", %{t: t}), do: to_string(t)
   defp key("mark", %{n: n}), do: Integer.to_string(n)
-
-  defp await_pid(port, acc) do
-    receive do
-      {^port, {:data, {:eol, "PID " <> pid}}} ->
-        pid
-
-      {^port, {:data, {_, line}}} ->
-        await_pid(port, [line | acc])
-
-      {^port, {:exit_status, status}} ->
-        flunk("the node exited (#{status}):\n" <> Enum.join(Enum.reverse(acc), "\n"))
-    after
-      60_000 -> flunk("the node did not start:\n" <> Enum.join(Enum.reverse(acc), "\n"))
-    end
-  end
-
-  defp wait_for(fun, tries \\ 300) do
-    cond do
-      fun.() ->
-        :ok
-
-      tries == 0 ->
-        flunk("the node did not record")
-
-      true ->
-        Process.sleep(100)
-        wait_for(fun, tries - 1)
-    end
-  end
-
-  # the witness' complete lines: {kind, value, wall clock ms}
-  defp read_witness(path) do
-    case File.read(path) do
-      {:ok, text} ->
-        text
-        |> String.split("\n")
-        |> Enum.drop(-1)
-        |> Enum.map(fn line ->
-          [kind, value, at] = String.split(line, " ")
-          {kind, value, String.to_integer(at)}
-        end)
-
-      {:error, :enoent} ->
-        []
-    end
-  end
 end
