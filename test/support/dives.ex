@@ -59,6 +59,24 @@ defmodule Neptunus.Test.Dives do
   def keyframe?(au),
     do: au |> Dive.Matroska.nals() |> Neptunus.Camera.H264.keyframe?()
 
+  @doc """
+  What the `mcap` package (PyPI, in the project's `.venv`) reads from an MCAP file
+  (`test/support/mcap_read.py`), as a map.
+  """
+  @spec mcap_read!(Path.t()) :: map()
+  def mcap_read!(file) do
+    root = Path.expand("../..", __DIR__)
+    python = Path.join(root, ".venv/bin/python")
+    unless File.exists?(python), do: raise("#{python} is missing: run `make setup` (mcap)")
+
+    case System.cmd(python, [Path.join(root, "test/support/mcap_read.py"), file],
+           stderr_to_stdout: true
+         ) do
+      {out, 0} -> :jiffy.decode(out, [:return_maps])
+      {out, _} -> raise "the mcap reader failed:\n#{out}"
+    end
+  end
+
   defp ffmpeg!, do: System.find_executable("ffmpeg") || raise("ffmpeg is not installed")
 
   @doc """

@@ -54,9 +54,15 @@ defmodule Mix.Tasks.Neptunus.Export do
       Keyword.get(opts, :dir) || get_in(Application.get_env(:neptunus, :recording, []), [:dir]) ||
         Mix.raise("recording is off (NEPTUNUS_RECORDINGS=off): give the folder with --dir")
 
-    unless Dive.valid?(vehicle, name), do: Mix.raise("no such dive: #{vehicle}/#{name}")
-    path = Dive.path(dir, vehicle, name)
-    unless File.exists?(path), do: Mix.raise("no such dive: #{path}")
+    path = dive!(dir, vehicle, name)
+    unless format in Export.formats(), do: Mix.raise(bad_format(format))
+    out_dir = Path.dirname(Path.expand(out))
+
+    cond do
+      File.dir?(out) -> Mix.raise("--out #{out} is a folder: give a file name")
+      not File.dir?(out_dir) -> Mix.raise("--out #{out}: the folder #{out_dir} does not exist")
+      true -> :ok
+    end
 
     options = %{
       "format" => format,
@@ -71,6 +77,39 @@ defmodule Mix.Tasks.Neptunus.Export do
 
     write_file(plan, out)
   end
+
+  # The dive's path, or a message that says what is there instead.
+  defp dive!(dir, vehicle, name) do
+    path = Dive.path(dir, vehicle, name)
+
+    cond do
+      not File.dir?(dir) ->
+        Mix.raise("the recordings folder #{dir} does not exist")
+
+      not Dive.valid_vehicle?(vehicle) ->
+        Mix.raise(
+          "VEHICLE must be a vehicle id (letters, digits, - and _), got #{inspect(vehicle)}"
+        )
+
+      not File.dir?(Path.join(dir, vehicle)) ->
+        Mix.raise(
+          "no recordings of vehicle #{vehicle} in #{dir}#{known(Dive.vehicles(dir), "vehicles")}"
+        )
+
+      not Dive.valid?(vehicle, name) or not File.exists?(path) ->
+        names = dir |> Dive.list(vehicle) |> Enum.map(& &1.name)
+        Mix.raise("no such dive: #{vehicle}/#{name} in #{dir}#{known(names, "dives")}")
+
+      true ->
+        path
+    end
+  end
+
+  defp known([], what), do: " (no #{what} there)"
+  defp known(names, what), do: " (#{what} there: #{Enum.join(Enum.take(names, 10), ", ")})"
+
+  defp bad_format(format),
+    do: "--format must be one of #{Enum.join(Export.formats(), ", ")}, got #{inspect(format)}"
 
   defp usage,
     do:
@@ -91,7 +130,7 @@ defmodule Mix.Tasks.Neptunus.Export do
           plan
           |> Export.stream()
           |> Enum.reduce(0, fn piece, bytes ->
-            :ok = IO.binwrite(device, piece)
+            :ok = :file.write(device, piece)
             bytes + IO.iodata_length(piece)
           end)
         end)

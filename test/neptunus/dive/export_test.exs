@@ -14,7 +14,6 @@ defmodule Neptunus.Dive.ExportTest do
   @moduletag :tmp_dir
   @moduletag timeout: 180_000
 
-  @root Path.expand("../../..", __DIR__)
   @vehicle "rov-x"
   @fps 15
   @frame_us div(1_000_000, @fps)
@@ -144,7 +143,7 @@ defmodule Neptunus.Dive.ExportTest do
     mcap =
       export!(path, "mcap", dir, %{"schemas" => %{"telemetry" => schema}, "chunk_bytes" => 4096})
 
-    read = mcap_read!(mcap)
+    read = Dives.mcap_read!(mcap)
 
     ns = fn ms -> ms * 1_000_000 end
     telemetry = for {at, "telemetry", _} <- entries, do: ns.(at)
@@ -181,7 +180,7 @@ defmodule Neptunus.Dive.ExportTest do
 
     path = Dives.write!(dir, @vehicle, "20261118-110640Z-3", entries, [])
 
-    read = path |> export!("mcap", dir) |> mcap_read!()
+    read = path |> export!("mcap", dir) |> Dives.mcap_read!()
     assert read["topics"]["/vehicle/telemetry"]["count"] == 40
     refute Map.has_key?(read["topics"], "/camera")
 
@@ -240,7 +239,7 @@ defmodule Neptunus.Dive.ExportTest do
     [v] = for s <- streams, s["codec_type"] == "video", do: s
     assert String.to_integer(v["nb_read_frames"]) == kept
 
-    read = path |> export!("mcap", dir) |> mcap_read!()
+    read = path |> export!("mcap", dir) |> Dives.mcap_read!()
     assert read["topics"]["/camera"]["count"] == kept
   end
 
@@ -272,7 +271,7 @@ defmodule Neptunus.Dive.ExportTest do
     kept = Enum.count(read, &(tuple_size(&1) == 3 and is_integer(elem(&1, 0))))
     assert kept > length(entries) / 2 and kept < length(entries)
 
-    mcap = path |> export!("mcap", dir) |> mcap_read!()
+    mcap = path |> export!("mcap", dir) |> Dives.mcap_read!()
     assert mcap["statistics"]["messages"] == kept
 
     assert :ok = Dive.repair(path)
@@ -295,7 +294,7 @@ defmodule Neptunus.Dive.ExportTest do
              Dive.list(dir, @vehicle)
 
     assert path |> Dive.entries() |> Enum.count() == 10
-    read = path |> export!("mcap", dir) |> mcap_read!()
+    read = path |> export!("mcap", dir) |> Dives.mcap_read!()
     assert read["topics"]["/vehicle/telemetry"]["count"] == 10
 
     assert {:error, :conflict, _} = Dive.put_notes(path, %{"title" => "x"}, "ada", 0)
@@ -385,18 +384,5 @@ defmodule Neptunus.Dive.ExportTest do
 
       {start, text |> Enum.join(" ") |> String.replace(~r/<[^>]*>/, "")}
     end)
-  end
-
-  defp mcap_read!(file) do
-    python = Path.join(@root, ".venv/bin/python")
-    unless File.exists?(python), do: flunk("#{python} is missing: run `make setup` (mcap)")
-
-    {out, status} =
-      System.cmd(python, [Path.join(@root, "test/support/mcap_read.py"), file],
-        stderr_to_stdout: true
-      )
-
-    assert status == 0, "the mcap reader failed:\n#{out}"
-    :jiffy.decode(out, [:return_maps])
   end
 end
