@@ -23,6 +23,7 @@ const copies = [
   [join(here, "static", "index.html"), join(outRoot, "index.html")],
   [join(here, "static", "login.html"), join(outRoot, "login.html")],
   [join(here, "static", "dev.html"), join(outRoot, "dev.html")],
+  [join(here, "static", "replay.html"), join(outRoot, "replay.html")],
   [join(here, "static", "app.css"), join(outAssets, "app.css")],
   [join(here, "node_modules", "uplot", "dist", "uPlot.min.css"), join(outAssets, "uplot.css")],
 ];
@@ -39,6 +40,7 @@ const options = {
     app: join(here, "src", "operator", "main.tsx"),
     dev: join(here, "src", "developer", "main.tsx"),
     login: join(here, "src", "login", "main.ts"),
+    replay: join(here, "src", "replay", "main.tsx"),
   },
   outdir: outAssets,
   bundle: true,

@@ -222,7 +222,7 @@ export interface RecordedFrame {
   readonly generation: number;
   /** arrival time, µs since the epoch (the dive's clock) */
   readonly atUs: number;
-  readonly payload: Uint8Array;
+  readonly payload: Uint8Array<ArrayBuffer>;
 }
 
 const HEADER_BYTES = 28;
