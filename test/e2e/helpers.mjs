@@ -84,8 +84,11 @@ export async function launch() {
   return chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 30000 });
 }
 
-/** A fresh context and page at `path` (default the operator page as `name`). */
-export async function open(browser, { width, height, name, touch = false, path = null, init = null }) {
+/**
+ * A fresh context and page at `path` (default the operator page as `name`), once `ready` (a
+ * selector; default: connected to the server) shows.
+ */
+export async function open(browser, { width, height, name, touch = false, path = null, init = null, ready = '#status[data-state="connected"]' }) {
   const context = await browser.newContext({ viewport: { width, height }, hasTouch: touch, isMobile: false });
   context.setDefaultTimeout(WAIT_MS);
   await reportCspViolations(context);
@@ -98,7 +101,7 @@ export async function open(browser, { width, height, name, touch = false, path =
   const response = await page.goto(`${BASE}${path ?? `/?name=${encodeURIComponent(name)}`}`, { waitUntil: "load", timeout: WAIT_MS });
   assertPageHeaders(response, name);
   await page
-    .locator('#status[data-state="connected"]')
+    .locator(ready)
     .waitFor({ timeout: WAIT_MS })
     .catch(async () => {
       const status = await page.locator("#status").textContent();
