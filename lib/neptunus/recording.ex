@@ -89,28 +89,6 @@ defmodule Neptunus.Recording do
   end
 
   @doc """
-  The recordings of `list` (from `list/2`) to delete under a retention of `keep_ms`: those
-  last written more than `keep_ms` before `now_wall_ms`, never `current` (the path being written;
-  `dir` is the recordings directory). Oldest first.
-
-      iex> list = [%{vehicle: "rov", name: "b.log", modified_at: 9_000},
-      ...>         %{vehicle: "rov", name: "a.log", modified_at: 1_000}]
-      iex> Neptunus.Recording.expired(list, "recs", 10_000, 5_000, nil) |> Enum.map(& &1.name)
-      ["a.log"]
-      iex> Neptunus.Recording.expired(list, "recs", 10_000, 5_000, "recs/rov/a.log")
-      []
-  """
-  @spec expired([map()], Path.t(), integer(), pos_integer(), Path.t() | nil) :: [map()]
-  def expired(list, dir, now_wall_ms, keep_ms, current)
-      when is_integer(keep_ms) and keep_ms > 0 do
-    list
-    |> Enum.filter(
-      &(&1.modified_at < now_wall_ms - keep_ms and path(dir, &1.vehicle, &1.name) != current)
-    )
-    |> Enum.sort_by(& &1.modified_at)
-  end
-
-  @doc """
   When a recording started (ms since the epoch), from its name.
 
       iex> Neptunus.Recording.started_at("20261122-130509Z-1.log")
