@@ -172,10 +172,11 @@ defmodule Neptunus.Vehicle.RecorderTest do
     start_supervised!({Recorder, id: id, recording: [dir: blocker]})
 
     assert_receive {:pubsub, _, "log",
-                    %{category: "errors", message: "recording stopped: " <> why}}
+                    %{category: "errors", message: "recording stopped: " <> why}},
+                   5_000
 
     assert why =~ "cannot record to"
-    assert_receive {:pubsub, _, "recording", %{recording: false, error: ^why}}
+    assert_receive {:pubsub, _, "recording", %{recording: false, error: ^why}}, 5_000
     assert %{recording: false, error: ^why} = Recorder.status(id)
     # still alive and harmless
     publish(id, "telemetry", %{t: 1.0})
@@ -282,13 +283,15 @@ defmodule Neptunus.Vehicle.RecorderTest do
 
     for name <- ["20260101-000000Z-1", "20260102-000000Z-1.log"] do
       assert_receive {:pubsub, _, "log",
-                      %{category: "recording", level: "info", name: ^name, message: message}}
+                      %{category: "recording", level: "info", name: ^name, message: message}},
+                     5_000
 
       assert message == "recording #{name} deleted: older than 10 days (retention)"
     end
 
     assert_receive {:pubsub, _, "log",
-                    %{category: "errors", name: "20260103-000000Z-1", message: message}}
+                    %{category: "errors", name: "20260103-000000Z-1", message: message}},
+                   5_000
 
     assert message =~ "cannot be deleted: eacces"
     refute_received {:pubsub, _, "log", %{name: "20260104-000000Z-1.log"}}
@@ -332,7 +335,8 @@ defmodule Neptunus.Vehicle.RecorderTest do
 
     # 10 MB free, 100 MB needed: no file at all, and it says why
     assert_receive {:pubsub, _, "log",
-                    %{category: "errors", message: "recording stopped: " <> why}}
+                    %{category: "errors", message: "recording stopped: " <> why}},
+                   5_000
 
     assert why ==
              "disk nearly full: 10 MB free (below the 100 MB kept free, " <>
