@@ -378,6 +378,5 @@ defmodule Neptunus.Vehicle.Recorder.Video do
     %{state | segment: nil, folder: nil, unsynced: false, error: message}
   end
 
-  defp reason(reason) when is_atom(reason), do: :file.format_error(reason) |> to_string()
-  defp reason(reason), do: inspect(reason)
+  defp reason(reason), do: reason |> :file.format_error() |> to_string()
 end
