@@ -97,7 +97,8 @@ export function indexAt(times: ArrayLike<number>, t: number): number {
  * null when there is no frame that way.
  */
 export function frameStep(frameUs: ArrayLike<number>, pos: number, dir: 1 | -1): number | null {
-  const shown = indexAt(frameUs, Math.floor(pos * 1000));
+  // µs rounded: a position set to a frame's time (µs / 1000) must find that frame again
+  const shown = indexAt(frameUs, Math.round(pos * 1000));
   const target = shown + dir;
   const us = frameUs[target];
   return target >= 0 && us !== undefined ? us / 1000 : null;

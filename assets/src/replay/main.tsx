@@ -234,6 +234,8 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
     const onKey = (e: KeyboardEvent): void => {
       if (e.ctrlKey || e.metaKey || e.altKey) return;
       if (e.target instanceof HTMLInputElement && e.target.type !== "range") return;
+      // a focused button (reached by Tab) is pressed by space or Enter, as everywhere
+      if (e.target instanceof HTMLButtonElement && (e.key === " " || e.key === "Enter")) return;
       const action = keyAction(e.key);
       if (action === null) return;
       e.preventDefault();
@@ -301,7 +303,8 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
           </div>
         ) : null}
       </div>
-      <div class="replay-controls">
+      {/* a click or tap does not leave the focus on a button, so space keeps playing and pausing */}
+      <div class="replay-controls" onMouseDown={(e) => e.preventDefault()}>
         <button type="button" data-testid="replay-prev-event" title="previous event (p)" onClick={() => jump(-1)}>
           ⏮
         </button>

@@ -69,8 +69,9 @@ export class ReplayVideo {
       this.load(posMs);
       if (w === null || posMs < w.fromMs || posMs > w.toMs) return;
     }
-    const index = indexAt(w.times, Math.floor(posMs * 1000));
-    if (index < 0 || index === this.wanted) return;
+    // before the first frame, the first picture; µs rounded as frame steps set them
+    const index = Math.max(0, indexAt(w.times, Math.round(posMs * 1000)));
+    if (w.frames.length === 0 || index === this.wanted) return;
     this.wanted = index;
     if (!this.busy) void this.drawWanted();
   }

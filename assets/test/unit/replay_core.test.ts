@@ -157,3 +157,8 @@ it("formats an offset as minutes and seconds", () => {
   expect(formatOffset(75_250)).toBe("1:15.3");
   expect(formatOffset(-5)).toBe("0:00.0");
 });
+
+it("a frame step from a frame's own time (µs / 1000, not exact in binary) finds that frame", () => {
+  const times = [0, 66_666, 133_332, 1_795_000_002_066_646];
+  expect(frameStep(times, 1_795_000_002_066_646 / 1000, -1)).toBe(133.332);
+});
