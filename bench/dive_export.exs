@@ -28,7 +28,10 @@ defmodule Bench.DiveExport do
       end
 
     {:ok, _} = Application.ensure_all_started(:jiffy)
-    dir = Path.join(System.tmp_dir!(), "neptunus-dive-export-#{System.unique_integer([:positive])}")
+
+    dir =
+      Path.join(System.tmp_dir!(), "neptunus-dive-export-#{System.unique_integer([:positive])}")
+
     File.mkdir_p!(dir)
 
     try do
