@@ -108,7 +108,7 @@ test("replay: the dive listed with its summary; picked, its picture and HUD; it 
       events.map((e) => e.replace(/^\S+ /, "")),
       ["helm: ada", "stop: deadman", "autopilot: depth hold 2 m", "snapshot x.jpg"],
     );
-    await screenshot(page, "replay-desktop");
+    await screenshot(page, "replay-desktop.png");
     assert.deepEqual(sockets, [], "the replay page opened a WebSocket");
   } finally {
     await context.close();
@@ -179,6 +179,8 @@ test("replay: frame steps, previous/next event and the keyboard shortcuts", { ti
     await until(() => shown(page), (s) => s.rate === "0.5", WAIT_MS, "0.5×");
     await page.keyboard.press("k");
     await until(() => shown(page), (s) => s.playing === "false", WAIT_MS, "paused");
+    // the cursor is drawn at the next animation frame
+    await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
     const paused = await shown(page);
     await new Promise((r) => setTimeout(r, 300));
     assert.equal((await shown(page)).cursor, paused.cursor, "the cursor moved while paused");
@@ -204,7 +206,7 @@ test("replay on a 1024×768 tablet by touch: every control on screen, play by a 
     await until(() => shown(page), (s) => s.frame > 10, WAIT_MS, "the picture moving on");
     await page.locator('[data-testid="replay-play"]').tap();
     await until(() => shown(page), (s) => s.playing === "false", WAIT_MS, "paused after a tap");
-    await screenshot(page, "replay-tablet");
+    await screenshot(page, "replay-tablet.png");
   } finally {
     await context.close();
   }
