@@ -9,13 +9,15 @@ APT_PACKAGES := elixir erlang-dev erlang-src erlang-yaws erlang-jiffy erlang-pro
                 ffmpeg
 YAWS_DIR := $(firstword $(wildcard /usr/lib/yaws-*))
 ASSETS_STAMP := assets/node_modules/.package-lock.json
-# pymavlink and MAVProxy, for the MAVLink interoperability tests only, in a project-local
-# virtualenv. MAVProxy without its optional dependencies (maps, consoles, plots: ~1 GB, none
-# of it used headless); pyserial is the one it imports at start.
+# pymavlink and MAVProxy (the MAVLink interoperability tests) and mcap (the MCAP reader the
+# dive exports are checked with), test-only, in a project-local virtualenv. MAVProxy without
+# its optional dependencies (maps, consoles, plots: ~1 GB, none of it used headless); pyserial
+# is the one it imports at start.
 PYMAVLINK_VERSION := 2.4.50
 MAVPROXY_VERSION := 1.8.75
 PYSERIAL_VERSION := 3.5
-VENV_STAMP := .venv/.pymavlink-$(PYMAVLINK_VERSION)-mavproxy-$(MAVPROXY_VERSION)
+MCAP_VERSION := 1.6.0
+VENV_STAMP := .venv/.pymavlink-$(PYMAVLINK_VERSION)-mavproxy-$(MAVPROXY_VERSION)-mcap-$(MCAP_VERSION)
 
 .PHONY: help setup setup-apt setup-links setup-npm setup-venv assets compile run test bench release clean \
         setup-armhf release-armhf test-target setup-firmware firmware upload test-firmware
@@ -76,14 +78,14 @@ $(ASSETS_STAMP): assets/package.json assets/package-lock.json
 	@touch $@
 
 # pymavlink and MAVProxy (PyPI) for the interoperability tests (test/support/pymavlink_interop.py,
-# fake_ardusub.py, the ground station tests), in .venv/ made with Debian's Python: nothing is
-# installed system-wide and the server never uses them.
+# fake_ardusub.py, the ground station tests) and mcap for test/support/mcap_read.py, in .venv/
+# made with Debian's Python: nothing is installed system-wide and the server never uses them.
 setup-venv: $(VENV_STAMP)
 
 $(VENV_STAMP): | setup-apt
 	/usr/bin/python3 -m venv .venv
 	.venv/bin/pip install --quiet --disable-pip-version-check pymavlink==$(PYMAVLINK_VERSION) \
-	  pyserial==$(PYSERIAL_VERSION)
+	  pyserial==$(PYSERIAL_VERSION) mcap==$(MCAP_VERSION)
 	.venv/bin/pip install --quiet --disable-pip-version-check --no-deps MAVProxy==$(MAVPROXY_VERSION)
 	@touch $@
 

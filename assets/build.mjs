@@ -26,6 +26,7 @@ const copies = [
   [join(here, "static", "login.html"), join(outRoot, "login.html")],
   [join(here, "static", "dev.html"), join(outRoot, "dev.html")],
   [join(here, "static", "camera.html"), join(outRoot, "camera.html")],
+  [join(here, "static", "replay.html"), join(outRoot, "replay.html")],
   [join(here, "static", "app.css"), join(outAssets, "app.css")],
   [join(here, "node_modules", "uplot", "dist", "uPlot.min.css"), join(outAssets, "uplot.css")],
 ];
@@ -43,6 +44,7 @@ const options = {
     dev: join(here, "src", "developer", "main.tsx"),
     login: join(here, "src", "login", "main.ts"),
     camera: join(here, "src", "camera", "main.tsx"),
+    replay: join(here, "src", "replay", "main.tsx"),
   },
   outdir: outAssets,
   bundle: true,

@@ -97,7 +97,8 @@ defmodule Neptunus.ReleaseTest do
       end
 
       # the vehicle records to the configured directory
-      assert [_file] = Path.wildcard(Path.join([dir, "recordings", "neptunus-1", "*.log"]))
+      assert [_file] =
+               Path.wildcard(Path.join([dir, "recordings", "neptunus-1", "*", "entries-*.log"]))
     after
       {_, _} = System.cmd(bin, ["stop"], env: env, stderr_to_stdout: true)
     end

@@ -19,6 +19,7 @@ defmodule Neptunus.Config do
   | `NEPTUNUS_RECORDING_MAX_MB` | one recording file's size (MiB)  | 256                    |
   | `NEPTUNUS_RECORDING_MIN_FREE_MB` | stop recording below this free disk (MiB) | 512 |
   | `NEPTUNUS_RECORDING_KEEP_DAYS` | delete recordings older than this (days), or `forever` | `forever` |
+  | `NEPTUNUS_DIVE_GAP_MIN` | helm free this long (min) ends a dive; 0: never | 10 |
   | `NEPTUNUS_SETTINGS` | per-user and per-vehicle settings directory | `settings`           |
   | `NEPTUNUS_OS_SLICE_US` | OS time slice the server's threads ask for (µs, 100..100000), or `default` | 100 |
   | `NEPTUNUS_MAX_CONNECTIONS` | concurrent client connections (1..1048576); more are closed at once | from the descriptor limit |

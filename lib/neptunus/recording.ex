@@ -89,28 +89,6 @@ defmodule Neptunus.Recording do
   end
 
   @doc """
-  The recordings of `list` (from `list/2`) to delete under a retention of `keep_ms`: those
-  last written more than `keep_ms` before `now_wall_ms`, never `current` (the path being written;
-  `dir` is the recordings directory). Oldest first.
-
-      iex> list = [%{vehicle: "rov", name: "b.log", modified_at: 9_000},
-      ...>         %{vehicle: "rov", name: "a.log", modified_at: 1_000}]
-      iex> Neptunus.Recording.expired(list, "recs", 10_000, 5_000, nil) |> Enum.map(& &1.name)
-      ["a.log"]
-      iex> Neptunus.Recording.expired(list, "recs", 10_000, 5_000, "recs/rov/a.log")
-      []
-  """
-  @spec expired([map()], Path.t(), integer(), pos_integer(), Path.t() | nil) :: [map()]
-  def expired(list, dir, now_wall_ms, keep_ms, current)
-      when is_integer(keep_ms) and keep_ms > 0 do
-    list
-    |> Enum.filter(
-      &(&1.modified_at < now_wall_ms - keep_ms and path(dir, &1.vehicle, &1.name) != current)
-    )
-    |> Enum.sort_by(& &1.modified_at)
-  end
-
-  @doc """
   When a recording started (ms since the epoch), from its name.
 
       iex> Neptunus.Recording.started_at("20261122-130509Z-1.log")
@@ -139,26 +117,60 @@ defmodule Neptunus.Recording do
   """
   @spec entries(Path.t()) :: Enumerable.t()
   def entries(path) do
+    path
+    |> stream(true)
+    |> Stream.filter(&match?({at, event, %{}} when is_integer(at) and is_binary(event), &1))
+  end
+
+  @doc """
+  The file's entries as `entries/1` gives them (and any other term in it), with
+  `{:unreadable, path, bytes}` where bytes could not be read as entries (a torn end, a
+  damaged block: reading goes on after them), `{:unreadable, path, :rest}` when the rest of
+  the file cannot be read, and `{:unreadable, path, :file}` when the file cannot be opened.
+  Never raises.
+  """
+  @spec read(Path.t()) :: Enumerable.t()
+  def read(path), do: stream(path, false)
+
+  defp stream(path, raise?) do
     Stream.resource(
-      fn -> open!(path) end,
+      fn -> open(path, raise?) end,
       fn
+        :unopened ->
+          {[{:unreadable, path, :file}], :done}
+
+        :done ->
+          {:halt, :done}
+
         {log, :eof} ->
           {:halt, {log, :eof}}
 
         {log, cont} ->
           case :disk_log.chunk(log, cont) do
-            :eof -> {:halt, {log, :eof}}
-            {:error, _reason} -> {:halt, {log, :eof}}
-            {cont, terms} -> {terms, {log, cont}}
-            {cont, terms, _bad_bytes} -> {terms, {log, cont}}
+            :eof ->
+              {:halt, {log, :eof}}
+
+            {:error, _reason} ->
+              {if(raise?, do: [], else: [{:unreadable, path, :rest}]), {log, :eof}}
+
+            {cont, terms} ->
+              {terms, {log, cont}}
+
+            {cont, terms, 0} ->
+              {terms, {log, cont}}
+
+            {cont, terms, bad} ->
+              {terms ++ [{:unreadable, path, bad}], {log, cont}}
           end
       end,
-      fn {log, _} -> :disk_log.close(log) end
+      fn
+        {log, _} -> :disk_log.close(log)
+        _ -> :ok
+      end
     )
-    |> Stream.filter(&match?({at, event, %{}} when is_integer(at) and is_binary(event), &1))
   end
 
-  defp open!(path) do
+  defp open(path, raise?) do
     name = {__MODULE__, :reader, make_ref()}
 
     case :disk_log.open(name: name, file: String.to_charlist(path), mode: :read_only) do
@@ -167,6 +179,10 @@ defmodule Neptunus.Recording do
 
       {:repaired, log, _recovered, _bad} ->
         {log, :start}
+
+      {:error, reason} when not raise? ->
+        _ = reason
+        :unopened
 
       {:error, {:file_error, _file, posix}} ->
         raise File.Error, reason: posix, action: "read recording", path: path

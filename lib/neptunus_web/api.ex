@@ -10,7 +10,8 @@ defmodule NeptunusWeb.API do
   | `/api/health`                        | GET                           | `API.Health`     |
   | `/api/login`                         | POST                          | `API.Login`      |
   | `/api/session`                       | GET                           | `API.Session`    |
-  | `/api/recordings[/<vehicle>/<name>]` | GET; GET, DELETE for one      | `API.Recordings` |
+  | `/api/recordings[/<vehicle>/<name>]` | GET; GET, PUT, DELETE for one | `API.Recordings` |
+  | `/api/recordings/<v>/<name>/summary`, `…/video` | GET                | `API.Recordings` |
   | `/api/settings[/<key>]`              | GET; GET, PUT, DELETE for one | `API.Settings`   |
   | `/api/snapshots[/<vehicle>/<name>]`  | GET                           | `API.Snapshots`  |
   | `/api/vehicles/<id>/snapshot`        | POST                          | `API.Snapshots`  |
@@ -49,10 +50,11 @@ defmodule NeptunusWeb.API do
   defp route(_method, "/api/session", _arg), do: not_allowed("GET")
   defp route(:GET, "/api/recordings", arg), do: Recordings.index(arg)
   defp route(:GET, "/api/recordings/" <> rest, arg), do: Recordings.show(arg, parts(rest))
+  defp route(:PUT, "/api/recordings/" <> rest, arg), do: Recordings.update(arg, parts(rest))
   defp route(:DELETE, "/api/recordings/" <> rest, arg), do: Recordings.delete(arg, parts(rest))
 
   defp route(_method, "/api/recordings" <> _, _arg),
-    do: not_allowed("GET (or DELETE for one recording)")
+    do: not_allowed("GET (or PUT, DELETE for one recording)")
 
   defp route(:GET, "/api/settings", arg), do: Settings.index(arg)
 

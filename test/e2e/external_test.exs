@@ -178,6 +178,71 @@ defmodule Neptunus.E2E.ExternalTest do
     end
   end
 
+  test "the replay page in Chromium: a dive's video, HUD and plots in sync, controls, keys, touch" do
+    unless File.exists?(Path.join(@root, "priv/static/replay.html")),
+      do: flunk("priv/static is not built: run `make assets`")
+
+    # the server's recordings: one dive of neptunus-1, 6 s of H.264 at 15 fps (a keyframe a
+    # second) from ffmpeg's test pattern, telemetry at 20 Hz down to 3 m, a handover, a stop,
+    # an autopilot change and a snapshot
+    dir =
+      Path.join(System.tmp_dir!(), "neptunus-e2e-replay-#{System.unique_integer([:positive])}")
+
+    File.rm_rf!(dir)
+    NeptunusWeb.Test.Wire.settings!(recording_dir: dir)
+
+    try do
+      start = System.os_time(:millisecond) - 600_000
+      frame_us = div(1_000_000, 15)
+
+      frames =
+        Neptunus.Test.Dives.h264(90, fps: 15, gop: 15)
+        |> Enum.with_index()
+        |> Enum.map(fn {au, i} ->
+          {start * 1000 + i * frame_us, Neptunus.Test.Dives.keyframe?(au), au}
+        end)
+
+      telemetry =
+        for i <- 0..129 do
+          {start - 200 + i * 50, "telemetry",
+           %{
+             t: i * 0.05,
+             estimate: %{depth: 3.0 * i / 129, heading: 1.0 + i / 200},
+             measurement: %{depth: 3.0 * i / 129, heading: 1.0 + i / 200},
+             thrusters: %{port: 0.1, vertical: 0.3, starboard: 0.1}
+           }}
+        end
+
+      events = [
+        {start + 1_000, "helm", %{state: "piloted", pilot: %{name: "ada", role: "pilot"}}},
+        {start + 2_500, "stopped", %{reason: "deadman"}},
+        {start + 3_000, "log",
+         %{category: "autopilot", level: "info", message: "depth hold 2 m", at: start + 3_000}},
+        {start + 4_000, "snapshot", %{name: "x.jpg", depth: 2.0, heading: 1.0}}
+      ]
+
+      name = Calendar.strftime(DateTime.from_unix!(start, :millisecond), "%Y%m%d-%H%M%SZ") <> "-1"
+
+      Neptunus.Test.Dives.write!(
+        dir,
+        "neptunus-1",
+        name,
+        Enum.sort_by(telemetry ++ events, &elem(&1, 0)),
+        frames,
+        started_at: start - 200,
+        info: %{codec: "h264", generation: 1, width: 160, height: 120, fps: 15}
+      )
+
+      node_suite!("test/e2e/replay.e2e.mjs", [
+        {"E2E_DIVE", name},
+        {"E2E_FRAMES_US", Enum.map_join(frames, ",", &elem(&1, 0))},
+        {"E2E_EVENTS_MS", Enum.map_join(events, ",", &elem(&1, 0))}
+      ])
+    after
+      File.rm_rf!(dir)
+    end
+  end
+
   test "the video socket in secure mode: refused without a login, an observer watches (Chromium)" do
     logins = %{"e2e-olga" => "olga pw"}
     hash = NeptunusWeb.Auth.Password.hash("olga pw", iterations: 1000)

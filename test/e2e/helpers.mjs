@@ -84,8 +84,11 @@ export async function launch() {
   return chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 30000 });
 }
 
-/** A fresh context and page at `path` (default the operator page as `name`); `wait`: its timeouts (ms). */
-export async function open(browser, { width, height, name, touch = false, path = null, init = null, wait = WAIT_MS }) {
+/**
+ * A fresh context and page at `path` (default the operator page as `name`), once `ready` (a
+ * selector; default: connected to the server) shows; `wait`: its timeouts (ms).
+ */
+export async function open(browser, { width, height, name, touch = false, path = null, init = null, wait = WAIT_MS, ready = '#status[data-state="connected"]' }) {
   const context = await browser.newContext({ viewport: { width, height }, hasTouch: touch, isMobile: false });
   context.setDefaultTimeout(wait);
   await reportCspViolations(context);
@@ -98,7 +101,7 @@ export async function open(browser, { width, height, name, touch = false, path =
   const response = await page.goto(`${BASE}${path ?? `/?name=${encodeURIComponent(name)}`}`, { waitUntil: "load", timeout: wait });
   assertPageHeaders(response, name);
   await page
-    .locator('#status[data-state="connected"]')
+    .locator(ready)
     .waitFor({ timeout: wait })
     .catch(async () => {
       const status = await page.locator("#status").textContent();

@@ -623,7 +623,7 @@ defmodule Neptunus.ChaosTest do
   defp assert_recordings(ctx, vehicles, log) do
     for {id, _} <- vehicles do
       times =
-        Path.join([ctx.dir, id, "**", "*"])
+        Path.join([ctx.dir, id, "**", "entries-*.log"])
         |> Path.wildcard()
         |> Enum.filter(&File.regular?/1)
         |> Enum.flat_map(fn path ->

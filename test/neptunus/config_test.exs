@@ -259,7 +259,8 @@ defmodule Neptunus.ConfigTest do
                  dir: "/tmp/rec-x",
                  max_bytes: 256 * 1024 * 1024,
                  min_free_bytes: 512 * 1024 * 1024,
-                 keep_ms: nil
+                 keep_ms: nil,
+                 gap_ms: 600_000
                }
 
       assert Config.Recording.recording!(%{}, nil).dir == nil
@@ -289,6 +290,15 @@ defmodule Neptunus.ConfigTest do
 
       assert Config.Recording.recording!(%{"NEPTUNUS_RECORDING_MIN_FREE_MB" => "0"}, nil).min_free_bytes ==
                0
+    end
+
+    test "the helm's free time that ends a dive: minutes, 0 for never, or a clear error" do
+      gap = &Config.Recording.recording!(%{"NEPTUNUS_DIVE_GAP_MIN" => &1}, nil).gap_ms
+      assert gap.("1") == 60_000 and gap.("1440") == 1440 * 60_000 and gap.("0") == nil
+
+      for bad <- ["-1", "1441", "ten"] do
+        assert_raise ArgumentError, ~r/NEPTUNUS_DIVE_GAP_MIN/, fn -> gap.(bad) end
+      end
     end
 
     test "retention: days, forever, or a clear error" do

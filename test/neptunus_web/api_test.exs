@@ -22,9 +22,9 @@ defmodule NeptunusWeb.APITest do
           {:post, "/api/health", "GET"},
           {:get, "/api/login", "POST"},
           {:delete, "/api/session", "GET"},
-          {:put, "/api/recordings", "GET (or DELETE for one recording)"},
+          {:put, "/api/recordings", "GET (or PUT, DELETE for one recording)"},
           {:post, "/api/recordings/rov/20200101-000000Z-1.log",
-           "GET (or DELETE for one recording)"},
+           "GET (or PUT, DELETE for one recording)"},
           {:delete, "/api/settings", "GET (or GET, PUT, DELETE for one setting)"},
           {:post, "/api/settings/gamepad", "GET, PUT or DELETE"}
         ] do

@@ -129,7 +129,7 @@ export function Camera(props: {
   );
 }
 
-/** "● REC" while the server records the vehicle, "not recording" (and why) when it does not; the camera's frame rate. */
+/** "● REC" while the server records the vehicle, "⚠ not recording: why" when it stopped, "not recording" when it is off; the camera's frame rate. */
 function RecCamera(props: { recording: RecordingStatus | null; camera: CameraStatus | null }): preact.JSX.Element | null {
   const { recording, camera } = props;
   if (recording === null && camera === null) return null;
@@ -141,7 +141,8 @@ function RecCamera(props: { recording: RecordingStatus | null; camera: CameraSta
           data-state={recording.on ? "on" : recording.error !== null ? "error" : "off"}
           title={recording.error ?? (recording.on ? "the server records everything this vehicle sends" : "recording is off on this server")}
         >
-          {recording.on ? "● REC" : recording.error !== null ? "⚠ not recording" : "not recording"}
+          {/* the reason's first clause on the HUD (a tablet has no tooltip), all of it in the title */}
+          {recording.on ? "● REC" : recording.error !== null ? `⚠ not recording: ${recording.error.split(":")[0] ?? ""}` : "not recording"}
         </span>
       )}
       {camera !== null && (

@@ -1,8 +1,11 @@
 defmodule Neptunus.Camera.Snapshot do
   @moduledoc """
-  Snapshots: the camera's current picture at full resolution, saved as a JPEG next to the
-  vehicle's recordings — `<dir>/<vehicle>/snapshots/<name>.jpg`, where `dir` is the
-  recordings' directory (`NEPTUNUS_RECORDINGS`).
+  Snapshots: the camera's current picture at full resolution, saved as a JPEG in the dive
+  the vehicle records — `<dir>/<vehicle>/<dive>/snapshots/<name>.jpg`, where `dir` is the
+  recordings' directory (`NEPTUNUS_RECORDINGS`), and recorded in the dive as a `snapshot`
+  entry (`Neptunus.Vehicle.Recorder.note/3`: its name, depth and heading), so a replay shows
+  it at its time. When the vehicle records no dive (the disk is full), the snapshot goes to
+  `<dir>/<vehicle>/snapshots/`, where snapshots were kept before dives; both are listed.
 
   The name says the vehicle, the time (UTC, to the millisecond), the depth and the heading
   (`name/4`): `neptunus-1-20261128-081500.123Z-2.31m-123deg.jpg` (`na` for a value not
@@ -17,7 +20,8 @@ defmodule Neptunus.Camera.Snapshot do
   """
 
   alias Neptunus.Camera.MJPEG
-  alias Neptunus.Vehicle.{Camera, Telemetry}
+  alias Neptunus.Dive
+  alias Neptunus.Vehicle.{Camera, Recorder, Telemetry}
 
   @name_re ~r/\A(?<vehicle>[A-Za-z0-9_-]{1,32})-(?<date>\d{8}-\d{6}\.\d{3})Z-(?<depth>\d+\.\d{2}|na)m-(?<heading>\d{3}|na)deg(?:-\d+)?\.jpg\z/
   @decode_timeout_s 30
@@ -61,7 +65,15 @@ defmodule Neptunus.Camera.Snapshot do
 
       jpeg = with_comment(jpeg, comment(meta))
 
-      with {:ok, name} <- save(dir, id, name, jpeg) do
+      with {:ok, name} <- save(save_folder(dir, id), name, jpeg) do
+        Recorder.note(id, "snapshot", %{
+          name: name,
+          depth: depth,
+          heading: heading,
+          width: width,
+          height: height
+        })
+
         {:ok,
          %{
            vehicle: id,
@@ -129,9 +141,15 @@ defmodule Neptunus.Camera.Snapshot do
     end
   end
 
-  defp save(dir, id, name, jpeg) do
-    folder = folder(dir, id)
+  # the dive being recorded, else the vehicle's own folder
+  defp save_folder(dir, id) do
+    case Recorder.dive_folder(id) do
+      nil -> folder(dir, id)
+      dive -> Dive.snapshots_folder(dive)
+    end
+  end
 
+  defp save(folder, name, jpeg) do
     with :ok <- mkdir(folder) do
       name = free_name(folder, name, 1)
       path = Path.join(folder, name)
@@ -168,9 +186,41 @@ defmodule Neptunus.Camera.Snapshot do
       else: candidate
   end
 
-  @doc "Where vehicle `id`'s snapshots are, under the recordings' directory `dir`."
+  @doc """
+  Where vehicle `id`'s snapshots taken outside a dive are, under the recordings' directory
+  `dir` (those of a dive are in its folder, `folders/2`).
+  """
   @spec folder(Path.t(), String.t()) :: Path.t()
   def folder(dir, id), do: Path.join([dir, id, "snapshots"])
+
+  @doc "Every folder vehicle `id`'s snapshots are in: its own, then each dive's."
+  @spec folders(Path.t(), String.t()) :: [Path.t()]
+  def folders(dir, id) do
+    dives =
+      case File.ls(Path.join(dir, id)) do
+        {:ok, names} ->
+          for name <- Enum.sort(names),
+              Dive.valid?(id, name),
+              not Dive.legacy?(name),
+              do: Dive.snapshots_folder(Dive.path(dir, id, name))
+
+        {:error, _} ->
+          []
+      end
+
+    [folder(dir, id) | dives]
+  end
+
+  @doc "The path of snapshot `name` of vehicle `id` (nil when there is none)."
+  @spec find(Path.t(), String.t(), String.t()) :: Path.t() | nil
+  def find(dir, id, name) do
+    if valid?(id, name) do
+      dir
+      |> folders(id)
+      |> Enum.map(&Path.join(&1, name))
+      |> Enum.find(&File.regular?/1)
+    end
+  end
 
   @doc """
   A snapshot's file name (pure): the vehicle, the UTC time to the millisecond, the depth
@@ -241,13 +291,16 @@ defmodule Neptunus.Camera.Snapshot do
       end
 
     vehicles
+    |> Enum.filter(&Dive.valid_vehicle?/1)
     |> Enum.flat_map(fn id ->
-      folder = folder(dir, id)
-
-      case File.ls(folder) do
-        {:ok, names} -> for name <- names, valid?(id, name), do: entry(folder, id, name)
-        {:error, _} -> []
-      end
+      dir
+      |> folders(id)
+      |> Enum.flat_map(fn folder ->
+        case File.ls(folder) do
+          {:ok, names} -> for name <- names, valid?(id, name), do: entry(folder, id, name)
+          {:error, _} -> []
+        end
+      end)
     end)
     |> Enum.reject(&is_nil/1)
     |> Enum.sort_by(& &1.taken_at, :desc)

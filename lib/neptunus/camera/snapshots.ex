@@ -136,7 +136,8 @@ defmodule Neptunus.Camera.Snapshots do
   @spec read_here(String.t(), String.t(), dir()) :: {:ok, binary()} | error()
   def read_here(vehicle, name, {m, f, a}) do
     with dir when is_binary(dir) <- apply(m, f, a),
-         {:ok, jpeg} <- File.read(Path.join(Snapshot.folder(dir, vehicle), name)) do
+         path when is_binary(path) <- Snapshot.find(dir, vehicle, name),
+         {:ok, jpeg} <- File.read(path) do
       {:ok, jpeg}
     else
       _ -> {:error, :not_found, "no such snapshot: #{vehicle}/#{name}"}

@@ -2,7 +2,7 @@ defmodule Neptunus.Config.Recording do
   @moduledoc """
   Recording (`config :neptunus, :recording`, see `Neptunus.Vehicle.Recorder`):
   `NEPTUNUS_RECORDINGS`, `NEPTUNUS_RECORDING_MAX_MB`, `NEPTUNUS_RECORDING_MIN_FREE_MB`,
-  `NEPTUNUS_RECORDING_KEEP_DAYS` (see `recording!/2`).
+  `NEPTUNUS_RECORDING_KEEP_DAYS`, `NEPTUNUS_DIVE_GAP_MIN` (see `recording!/2`).
   """
 
   alias Neptunus.Config
@@ -13,13 +13,17 @@ defmodule Neptunus.Config.Recording do
   Recording (`config :neptunus, :recording`, see `Neptunus.Vehicle.Recorder`):
   `NEPTUNUS_RECORDINGS` — the directory (relative to the working directory, created when
   needed) or `off`; `NEPTUNUS_RECORDING_MIN_FREE_MB` — recording stops while less disk is
-  free (default 512); `NEPTUNUS_RECORDING_MAX_MB` — size of one file before the next is
-  started (1..65536, default 256); `NEPTUNUS_RECORDING_KEEP_DAYS` — each vehicle's recorder
-  deletes its recordings last written more than this many days ago (1..3650), or `forever`
-  (the default: nothing is deleted by the server).
+  free (default 512); `NEPTUNUS_RECORDING_MAX_MB` — size of one entries file of a dive before
+  the next is started (1..65536, default 256); `NEPTUNUS_RECORDING_KEEP_DAYS` — each
+  vehicle's recorder deletes its dives last written more than this many days ago (1..3650),
+  or `forever` (the default: nothing is deleted by the server); `NEPTUNUS_DIVE_GAP_MIN` — a
+  pilot taking the helm after it was free this many minutes begins a new dive (0..1440,
+  default 10; 0: a dive lasts as long as the recorder runs).
 
       iex> Neptunus.Config.Recording.recording!(%{}, "recordings")
-      %{dir: "recordings", max_bytes: 268435456, min_free_bytes: 536870912, keep_ms: nil}
+      %{dir: "recordings", max_bytes: 268435456, min_free_bytes: 536870912, keep_ms: nil, gap_ms: 600000}
+      iex> Neptunus.Config.Recording.recording!(%{"NEPTUNUS_DIVE_GAP_MIN" => "0"}, "recordings").gap_ms
+      nil
       iex> Neptunus.Config.Recording.recording!(%{"NEPTUNUS_RECORDING_KEEP_DAYS" => "30"}, "recordings").keep_ms
       2592000000
       iex> Neptunus.Config.Recording.recording!(%{"NEPTUNUS_RECORDINGS" => "off"}, "recordings").dir
@@ -29,7 +33,8 @@ defmodule Neptunus.Config.Recording do
           dir: Path.t() | nil,
           max_bytes: pos_integer(),
           min_free_bytes: non_neg_integer(),
-          keep_ms: pos_integer() | nil
+          keep_ms: pos_integer() | nil,
+          gap_ms: pos_integer() | nil
         }
   def recording!(env, default_dir) do
     dir =
@@ -53,7 +58,17 @@ defmodule Neptunus.Config.Recording do
           mib(defaults.min_free_bytes),
           0..1_048_576
         ) * @mib,
-      keep_ms: keep_ms!(env)
+      keep_ms: keep_ms!(env),
+      gap_ms:
+        case Config.env_integer!(
+               env,
+               "NEPTUNUS_DIVE_GAP_MIN",
+               div(defaults.gap_ms, 60_000),
+               0..1440
+             ) do
+          0 -> nil
+          minutes -> minutes * 60_000
+        end
     }
   end
 

@@ -1,21 +1,26 @@
 defmodule Neptunus.Recording.Pull do
   @moduledoc """
-  The recordings of a whole fleet, from any of its nodes. A vehicle records on its own node
-  (`Neptunus.Vehicle.Recorder`); this module lists every node's recordings, exports one from
-  its vehicle's node and deletes one there, so that any node can serve them (the HTTP API,
-  `NeptunusWeb.API.Recordings`, is the edge that calls it).
+  The dives of a whole fleet, from any of its nodes. A vehicle records on its own node
+  (`Neptunus.Vehicle.Recorder`, `Neptunus.Dive`); this module lists every node's dives,
+  reads, exports, annotates and deletes one on its vehicle's node, so that any node can
+  serve them (the HTTP API, `NeptunusWeb.API.Recordings`, and `mix neptunus.export` are the
+  edges that call it).
 
-    * `list/2` — every node's recordings (one `:erpc` call per node, at once; a node that
-      fails or does not answer within 5 s is left out), or one vehicle's, from its node;
-    * `export/4` — an export is planned on the recording's node (`plan/4`: the request
-      checked, the columns and counts read in a first pass) and its lines read there. From
-      another node they are pulled: a process on the recording's node (`serve/2`) sends a
-      batch of 256 lines each time the exporting process asks for more, so a slow client
-      holds back the reading, never a mailbox, and the file is never held in memory;
-    * `delete/3` — deletes a finished recording on its node (`delete_here/3`), never the
-      one being written.
+    * `list/2` — every node's dives (one `:erpc` call per node, at once; a node that fails
+      or does not answer within 5 s is left out), or one vehicle's, from its node;
+    * `details/3` — one dive as listed, with its video's segments and keyframes
+      (`Neptunus.Dive.Replay.video/1`);
+    * `export/4` — an export is planned on the dive's node (`plan/4`: the request checked,
+      what a first pass must know read; `Neptunus.Dive.Export`) and read there. From another
+      node it is pulled: a process on the dive's node (`serve/2`) sends a batch of up to 256
+      pieces (or 1 MB) each time the exporting process asks for more, so a slow client
+      holds back the reading, never a mailbox, and the dive is never held in memory;
+    * `video/5` — the frames of a time window, read on the dive's node the same way;
+    * `put_notes/5` — a dive's title and notes, saved on its node;
+    * `delete/3` — deletes a finished dive on its node (`delete_here/3`), never the one
+      being recorded.
 
-  Each node keeps its recordings in its own directory: the caller says where with `dir`, a
+  Each node keeps its dives in its own directory: the caller says where with `dir`, a
   function `{module, function, args}` that gives a node's directory (nil: recording is off
   there) and is applied on each node.
 
@@ -25,7 +30,8 @@ defmodule Neptunus.Recording.Pull do
   """
   require Logger
 
-  alias Neptunus.{Fleet, Recording}
+  alias Neptunus.{Dive, Fleet}
+  alias Neptunus.Dive.{Export, Replay}
   alias Neptunus.Vehicle.Recorder
 
   @typedoc """
@@ -35,45 +41,30 @@ defmodule Neptunus.Recording.Pull do
   @type dir :: {module(), atom(), [term()]}
 
   @typedoc """
-  Why a request is refused: `:invalid` (a malformed request), `:not_found` (no such
-  recording, or recording off), `:conflict` (the recording is being written),
+  Why a request is refused: `:invalid` (a malformed request), `:not_found` (no such dive,
+  or recording off), `:conflict` (the dive is being recorded, or cannot do what is asked),
   `:unreachable` (its vehicle's node is cut off), `:failed` (the file system refused).
   """
   @type error ::
           {:error, :invalid | :not_found | :conflict | :unreachable | :failed, String.t()}
 
-  @typedoc "Recordings, as listed (`Recording.info/0`), each with its node's name."
+  @typedoc "Dives, as listed (`Neptunus.Dive.info/3`), each with its node's name."
   @type listing :: %{recording: boolean(), recordings: [map()]}
 
-  @typedoc """
-  What an export reads, decided on the recording's node: the file, the format (`"csv"` or
-  `"jsonl"`), every how many telemetry entries to keep, how many entries to read (the first
-  pass's), the CSV columns, and the name of the file for a download (without extension).
-  """
-  @type plan :: %{
-          path: Path.t(),
-          format: String.t(),
-          every: pos_integer(),
-          count: non_neg_integer(),
-          columns: [String.t()],
-          file: String.t()
-        }
-
   @list_timeout_ms 5_000
-  @call_timeout_ms 10_000
-  @pull_timeout_ms 30_000
+  @call_timeout_ms 30_000
+  @pull_timeout_ms 60_000
   @batch 256
-
-  # a recording name, to check a vehicle id alone with Recording.valid?/2
-  @any_name "00000000-000000Z-1.log"
+  @batch_bytes 1_048_576
 
   @doc """
-  Every node's recordings, newest first, or only those of `vehicle` (from its node; none when
-  that node is cut off). `recording` is whether any node records.
+  Every node's dives, newest first, or only those of `vehicle` (from its node; none when
+  that node is cut off). `recording` is whether any node records. The dive being recorded
+  has `recording: true`.
   """
   @spec list(String.t() | nil, dir()) :: {:ok, listing()} | error()
   def list(vehicle, dir) do
-    if vehicle != nil and not Recording.valid?(vehicle, @any_name) do
+    if vehicle != nil and not Dive.valid_vehicle?(vehicle) do
       {:error, :invalid, "vehicle must be a vehicle id"}
     else
       nodes =
@@ -85,14 +76,19 @@ defmodule Neptunus.Recording.Pull do
 
       results = on_nodes(nodes, :list_here, [vehicle, dir])
       list = Enum.flat_map(results, & &1.recordings)
-      list = if length(results) > 1, do: Enum.sort_by(list, & &1.modified_at, :desc), else: list
+
+      list =
+        if length(results) > 1,
+          do: Enum.sort_by(list, &{&1.started_at || 0, &1.vehicle, &1.name}, :desc),
+          else: list
+
       {:ok, %{recording: Enum.any?(results, & &1.recording), recordings: list}}
     end
   end
 
   @doc """
-  This node's recordings (of one vehicle, or all), each with this node's name (`list/2` on
-  each node).
+  This node's dives (of one vehicle, or all), each with this node's name and whether it is
+  being recorded (`list/2` on each node).
   """
   @spec list_here(String.t() | nil, dir()) :: listing()
   def list_here(vehicle, dir) do
@@ -102,89 +98,141 @@ defmodule Neptunus.Recording.Pull do
 
       path ->
         here = Atom.to_string(node())
+        writing = writing_folders(path, vehicle)
 
         %{
           recording: true,
-          recordings: Enum.map(Recording.list(path, vehicle), &Map.put(&1, :node, here))
+          recordings:
+            path
+            |> Dive.list(vehicle)
+            |> Enum.map(fn info ->
+              info
+              |> Map.put(:node, here)
+              |> Map.put(:recording, Dive.path(path, info.vehicle, info.name) in writing)
+            end)
         }
     end
   end
 
+  # the dive folders this node's recorders write now (of one vehicle, or all)
+  defp writing_folders(dir, vehicle) do
+    vehicles = if vehicle, do: [vehicle], else: Dive.vehicles(dir)
+
+    for v <- vehicles, folder = recording_folder(v), folder != nil, do: folder
+  end
+
+  defp recording_folder(vehicle) do
+    Recorder.status(vehicle).folder
+  catch
+    :exit, _ -> nil
+  end
+
   @doc """
-  Exports recording `name` of `vehicle` from its node: the plan (`plan/4`) and the export's
-  lines, a lazy enumerable of iodata read on that node as it is enumerated (in batches
-  pulled from there, when it is another node). `options` are as a query string gives them
-  (`"format"`, `"every"`, `"max"`; see `plan/4`).
+  Dive `name` of `vehicle`, read on its node: as listed, with `video` the segments and their
+  keyframes (`Neptunus.Dive.Replay.video/1`) and the video's problems added to `problems`.
   """
-  @spec export(String.t(), String.t(), %{optional(String.t()) => String.t()}, dir()) ::
-          {:ok, plan(), Enumerable.t()} | error()
+  @spec details(String.t(), String.t(), dir()) :: {:ok, map()} | error()
+  def details(vehicle, name, dir) do
+    case on_vehicle_node(vehicle, :details_here, [vehicle, name, dir]) do
+      {:ok, _node, result} -> result
+      {:error, _, _} = error -> error
+    end
+  end
+
+  @doc false
+  # On the dive's node.
+  @spec details_here(String.t(), String.t(), dir()) :: {:ok, map()} | error()
+  def details_here(vehicle, name, dir) do
+    with {:ok, path} <- dive_here(vehicle, name, dir),
+         %{} = info <- Dive.info(Path.dirname(Path.dirname(path)), vehicle, name) do
+      Recorder.sync(vehicle)
+      video = Replay.video(path)
+
+      {:ok,
+       info
+       |> Map.put(:node, Atom.to_string(node()))
+       |> Map.put(:recording, recording_folder(vehicle) == path)
+       |> Map.put(:segments, video.segments)
+       |> Map.update!(:problems, &Enum.uniq(&1 ++ video.problems))}
+    else
+      nil -> {:error, :not_found, "no such dive: #{vehicle}/#{name}"}
+      error -> error
+    end
+  end
+
+  @doc """
+  Exports dive `name` of `vehicle` from its node: the plan (`plan/4`) and the export, a
+  lazy enumerable of iodata read on that node as it is enumerated (in batches pulled from
+  there, when it is another node). `options` are as a query string gives them (`"format"`,
+  `"every"`, `"max"`), and `"schemas"` from the edge (see `Neptunus.Dive.Export.plan/3`).
+  """
+  @spec export(String.t(), String.t(), map(), dir()) ::
+          {:ok, Export.plan(), Enumerable.t()} | error()
   def export(vehicle, name, options, dir) do
     case on_vehicle_node(vehicle, :plan, [vehicle, name, options, dir]) do
-      {:ok, node, {:ok, plan}} when node == node() -> {:ok, plan, lines(plan)}
-      {:ok, node, {:ok, plan}} -> {:ok, plan, pull(node, plan)}
+      {:ok, node, {:ok, plan}} when node == node() -> {:ok, plan, Export.stream(plan)}
+      {:ok, node, {:ok, plan}} -> {:ok, plan, pull(node, {Export, :stream, [plan]})}
       {:ok, _node, {:error, _, _} = error} -> error
       {:error, _, _} = error -> error
     end
   end
 
   @doc """
-  Plans an export of this node's recording `name` of `vehicle` (`export/4` on its node):
-  the recording must exist; then `options` (text, as a query string gives them):
-
-    * `"format"` — `"csv"` (default: the telemetry, one column per numeric series) or
-      `"jsonl"` (every entry as a JSON line);
-    * `"every"` — every how many telemetry entries to keep, 1..1 000 000 (default 1);
-    * `"max"` — at most this many telemetry entries (1..1 000 000): `every` is raised to
-      keep no more.
-
-  What the vehicle's recorder still buffers goes to disk first. The plan's `count` bounds
-  the second pass to what the first one read, though the recorder may have written more.
+  Plans an export of this node's dive `name` of `vehicle` (`export/4` on its node): the dive
+  must exist; then `options` are checked (`Neptunus.Dive.Export.plan/3`). What the vehicle's
+  recorder still buffers goes to disk first.
   """
-  @spec plan(String.t(), String.t(), %{optional(String.t()) => String.t()}, dir()) ::
-          {:ok, plan()} | error()
+  @spec plan(String.t(), String.t(), map(), dir()) :: {:ok, Export.plan()} | error()
   def plan(vehicle, name, options, dir) do
-    with {:ok, path} <- recording_here(vehicle, name, dir),
-         {:ok, format} <- format(Map.get(options, "format", "csv")),
-         {:ok, every} <- count("every", Map.get(options, "every", "1")),
-         {:ok, max} <- max_rows(Map.get(options, "max")) do
+    with {:ok, path} <- dive_here(vehicle, name, dir) do
       Recorder.sync(vehicle)
-      summary = path |> Recording.entries() |> Recording.scan()
-      every = if max, do: max(every, ceil_div(summary.telemetry, max)), else: every
-
-      {:ok,
-       %{
-         path: path,
-         format: format,
-         every: every,
-         count: summary.entries,
-         columns: summary.columns,
-         file: "#{vehicle}-#{Path.rootname(name)}"
-       }}
-    end
-  end
-
-  @doc "The export's lines, read on this node: a lazy enumerable of iodata."
-  @spec lines(plan()) :: Enumerable.t()
-  def lines(plan) do
-    entries = plan.path |> Recording.entries() |> Stream.take(plan.count)
-
-    case plan.format do
-      "csv" -> Recording.csv_stream(entries, plan.columns, plan.every)
-      "jsonl" -> Recording.json_lines_stream(entries, plan.every)
+      Export.plan(path, "#{vehicle}-#{Path.rootname(name)}", options)
     end
   end
 
   @doc """
-  The export's lines, read on `node` by a process there (`serve/2`), pulled a batch at a
-  time as they are enumerated. Raises `ErlangError` with `{:recording_node, reason}` when
-  that process ends before the last batch or does not answer within 30 s; the process ends
-  when the enumeration does.
+  The frames of dive `name`'s video from `from` to `to` (ms since the epoch, as text), read
+  on its node (`Neptunus.Dive.Replay.frames/3`), lazily.
   """
-  @spec pull(node(), plan()) :: Enumerable.t()
-  def pull(node, plan) do
+  @spec video(String.t(), String.t(), term(), term(), dir()) :: {:ok, Enumerable.t()} | error()
+  def video(vehicle, name, from, to, dir) do
+    with {:ok, from, to} <- Replay.window(from, to) do
+      case on_vehicle_node(vehicle, :video_here, [vehicle, name, dir]) do
+        {:ok, node, {:ok, path}} when node == node() ->
+          {:ok, Replay.frames(path, from, to)}
+
+        {:ok, node, {:ok, path}} ->
+          {:ok, pull(node, {Replay, :frames, [path, from, to]})}
+
+        {:ok, _node, {:error, _, _} = error} ->
+          error
+
+        {:error, _, _} = error ->
+          error
+      end
+    end
+  end
+
+  @doc false
+  # On the dive's node: its path, once the recorder wrote what it buffers.
+  @spec video_here(String.t(), String.t(), dir()) :: {:ok, Path.t()} | error()
+  def video_here(vehicle, name, dir) do
+    with {:ok, path} <- dive_here(vehicle, name, dir) do
+      {:ok, path}
+    end
+  end
+
+  @doc """
+  The export's pieces, read on `node` by a process there (`serve/2`) from the enumerable
+  `{module, function, args}` gives, pulled a batch at a time as they are enumerated. Raises
+  `ErlangError` with `{:recording_node, reason}` when that process ends before the last
+  batch or does not answer within 60 s; the process ends when the enumeration does.
+  """
+  @spec pull(node(), {module(), atom(), [term()]}) :: Enumerable.t()
+  def pull(node, mfa) do
     Stream.resource(
       fn ->
-        pid = Node.spawn(node, __MODULE__, :serve, [self(), plan])
+        pid = Node.spawn(node, __MODULE__, :serve, [self(), mfa])
         {pid, Process.monitor(pid)}
       end,
       fn {pid, ref} = acc ->
@@ -206,17 +254,30 @@ defmodule Neptunus.Recording.Pull do
   end
 
   @doc """
-  On the recording's node (`pull/2`): sends `to` the export's lines, a batch of up to
-  #{@batch} for each `{:more, to}` as `{:lines, self(), batch}`, then `{:done, self()}`;
-  ends when `to` does.
+  On the dive's node (`pull/2`): sends `to` the pieces of the enumerable
+  `{module, function, args}` gives, a batch of up to #{@batch} (or about 1 MB) for each
+  `{:more, to}` as `{:lines, self(), batch}`, then `{:done, self()}`; ends when `to` does.
   """
-  @spec serve(pid(), plan()) :: :ok
-  def serve(to, plan) do
+  @spec serve(pid(), {module(), atom(), [term()]}) :: :ok
+  def serve(to, {module, fun, args}) do
     ref = Process.monitor(to)
 
-    plan
-    |> lines()
-    |> Stream.chunk_every(@batch)
+    module
+    |> apply(fun, args)
+    |> Stream.chunk_while(
+      {[], 0, 0},
+      fn piece, {acc, n, bytes} ->
+        bytes = bytes + IO.iodata_length(piece)
+
+        if n + 1 >= @batch or bytes >= @batch_bytes,
+          do: {:cont, Enum.reverse([piece | acc]), {[], 0, 0}},
+          else: {:cont, {[piece | acc], n + 1, bytes}}
+      end,
+      fn
+        {[], _, _} -> {:cont, {[], 0, 0}}
+        {acc, _, _} -> {:cont, Enum.reverse(acc), {[], 0, 0}}
+      end
+    )
     |> Stream.concat([:done])
     |> Enum.each(fn batch ->
       receive do
@@ -232,8 +293,29 @@ defmodule Neptunus.Recording.Pull do
   end
 
   @doc """
-  Deletes recording `name` of `vehicle` on its node (`delete_here/3` there): `:ok`, or why
-  not.
+  Gives dive `name` of `vehicle` a title and notes on its node (`Neptunus.Dive.put_notes/4`):
+  the notes as saved, or why not.
+  """
+  @spec put_notes(String.t(), String.t(), map(), String.t() | nil, dir()) ::
+          {:ok, map()} | error()
+  def put_notes(vehicle, name, changes, by, dir) do
+    case on_vehicle_node(vehicle, :put_notes_here, [vehicle, name, changes, by, dir]) do
+      {:ok, _node, result} -> result
+      {:error, _, _} = error -> error
+    end
+  end
+
+  @doc false
+  @spec put_notes_here(String.t(), String.t(), map(), String.t() | nil, dir()) ::
+          {:ok, map()} | error()
+  def put_notes_here(vehicle, name, changes, by, dir) do
+    with {:ok, path} <- dive_here(vehicle, name, dir) do
+      Dive.put_notes(path, changes, by, Neptunus.Clock.wall_ms())
+    end
+  end
+
+  @doc """
+  Deletes dive `name` of `vehicle` on its node (`delete_here/3` there): `:ok`, or why not.
   """
   @spec delete(String.t(), String.t(), dir()) :: :ok | error()
   def delete(vehicle, name, dir) do
@@ -244,14 +326,14 @@ defmodule Neptunus.Recording.Pull do
   end
 
   @doc """
-  Deletes this node's recording `name` of `vehicle`, never the file being written
-  (`:conflict`), and logs it.
+  Deletes this node's dive `name` of `vehicle` (its folder: entries, video, snapshots), never
+  the one being recorded (`:conflict`), and logs it.
   """
   @spec delete_here(String.t(), String.t(), dir()) :: :ok | error()
   def delete_here(vehicle, name, dir) do
-    with {:ok, path} <- recording_here(vehicle, name, dir),
+    with {:ok, path} <- dive_here(vehicle, name, dir),
          :ok <- not_writing(vehicle, name, path) do
-      case File.rm(path) do
+      case Dive.delete(path) do
         :ok ->
           Logger.info(
             "recording #{Neptunus.Log.safe(vehicle)}/#{Neptunus.Log.safe(name)} deleted"
@@ -265,15 +347,15 @@ defmodule Neptunus.Recording.Pull do
     end
   end
 
-  # The path of this node's recording, if there is one.
-  defp recording_here(vehicle, name, dir) do
+  # The path of this node's dive, if there is one.
+  defp dive_here(vehicle, name, dir) do
     dir = dir_here(dir)
 
     with true <- dir != nil || {:error, :not_found, "recording is off on this server"},
-         true <- Recording.valid?(vehicle, name) || {:error, :not_found, "no such recording"},
-         path = Recording.path(dir, vehicle, name),
+         true <- Dive.valid?(vehicle, name) || {:error, :not_found, "no such recording"},
+         path = Dive.path(dir, vehicle, name),
          true <-
-           File.regular?(path) ||
+           if(Dive.legacy?(name), do: File.regular?(path), else: File.dir?(path)) ||
              {:error, :not_found, "no such recording: #{vehicle}/#{name}"} do
       {:ok, path}
     end
@@ -282,15 +364,9 @@ defmodule Neptunus.Recording.Pull do
   defp dir_here({module, fun, args}), do: apply(module, fun, args)
 
   defp not_writing(vehicle, name, path) do
-    if writing?(vehicle, path),
+    if recording_folder(vehicle) == path,
       do: {:error, :conflict, "#{name} is being recorded now"},
       else: :ok
-  end
-
-  defp writing?(vehicle, path) do
-    Recorder.status(vehicle).file == path
-  catch
-    :exit, _ -> false
   end
 
   # `fun(args)` of this module on each of `nodes` (this one directly); nodes that fail or do
@@ -324,25 +400,4 @@ defmodule Neptunus.Recording.Pull do
   end
 
   defp unreachable(vehicle), do: {:error, :unreachable, "vehicle unreachable: #{vehicle}"}
-
-  defp format(format) when format in ["csv", "jsonl"], do: {:ok, format}
-
-  defp format(other),
-    do: {:error, :invalid, "format must be csv or jsonl, got #{inspect(other)}"}
-
-  defp max_rows(nil), do: {:ok, nil}
-  defp max_rows(text), do: count("max", text)
-
-  # an option that counts entries
-  defp count(name, text) do
-    case is_binary(text) && Integer.parse(text) do
-      {n, ""} when n in 1..1_000_000 ->
-        {:ok, n}
-
-      _ ->
-        {:error, :invalid, "#{name} must be an integer in 1..1000000, got #{inspect(text)}"}
-    end
-  end
-
-  defp ceil_div(a, b), do: max(1, div(a + b - 1, b))
 end

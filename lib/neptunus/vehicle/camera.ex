@@ -125,6 +125,14 @@ defmodule Neptunus.Vehicle.Camera do
   @spec topic(String.t()) :: String.t()
   def topic(id), do: "camera:" <> id
 
+  @doc """
+  The topic the vehicle's recorder gets the frames on (`"stream"` and `"frame"` messages, as
+  on `topic/1`): the same shared binaries, but recording is not watching — a simulated
+  camera renders while someone watches it, whether it is recorded or not.
+  """
+  @spec record_topic(String.t()) :: String.t()
+  def record_topic(id), do: "camera-record:" <> id
+
   @doc "Where browsers watch an MJPEG camera in an `<img>` (nil: no camera, or not MJPEG)."
   @spec url(String.t()) :: String.t() | nil
   def url(id) do
@@ -525,6 +533,7 @@ defmodule Neptunus.Vehicle.Camera do
 
   defp publish({:stream, info}, state) do
     PubSub.broadcast(topic(state.id), "stream", info)
+    PubSub.broadcast(record_topic(state.id), "stream", info)
 
     case state.info do
       %{width: w, height: h} = old when old.codec == info.codec ->
@@ -539,7 +548,9 @@ defmodule Neptunus.Vehicle.Camera do
   end
 
   defp publish({:frame, %Frame{} = frame}, state) do
-    PubSub.broadcast(topic(state.id), "frame", %{frame: frame})
+    message = %{frame: frame}
+    PubSub.broadcast(topic(state.id), "frame", message)
+    PubSub.broadcast(record_topic(state.id), "frame", message)
     now = now()
 
     state =

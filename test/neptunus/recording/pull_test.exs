@@ -6,6 +6,7 @@ defmodule Neptunus.Recording.PullTest do
   use ExUnit.Case, async: true
 
   alias Neptunus.Recording
+  alias Neptunus.Dive.Export
   alias Neptunus.Recording.Pull
 
   @moduletag :tmp_dir
@@ -59,7 +60,7 @@ defmodule Neptunus.Recording.PullTest do
              Pull.plan(v, "20200101-000000Z-2.log", %{"every" => "0"}, dir(tmp))
 
     for {options, reason} <- [
-          {%{"format" => "xml"}, ~s(format must be csv or jsonl, got "xml")},
+          {%{"format" => "xml"}, ~s(format must be one of csv, jsonl, ass, mp4, mcap, got "xml")},
           {%{"every" => "0"}, ~s(every must be an integer in 1..1000000, got "0")},
           {%{"every" => "2x"}, ~s(every must be an integer in 1..1000000, got "2x")},
           {%{"max" => "1000001"}, ~s(max must be an integer in 1..1000000, got "1000001")}
@@ -80,7 +81,8 @@ defmodule Neptunus.Recording.PullTest do
              every: 1,
              count: 31,
              columns: ["depth", "t"],
-             file: "#{v}-20200101-000000Z-1"
+             file: "#{v}-20200101-000000Z-1.csv",
+             mime: "text/csv; charset=utf-8"
            }
 
     assert {:ok, %{format: "jsonl", every: 5}} =
@@ -108,8 +110,8 @@ defmodule Neptunus.Recording.PullTest do
     write!(tmp, v, @name, telemetry(1_000))
     {:ok, plan} = Pull.plan(v, @name, %{"format" => "jsonl"}, dir(tmp))
 
-    pulled = Pull.pull(node(), plan) |> Enum.to_list()
-    assert pulled == plan |> Pull.lines() |> Enum.to_list()
+    pulled = Pull.pull(node(), {Export, :stream, [plan]}) |> Enum.to_list()
+    assert pulled == plan |> Export.stream() |> Enum.to_list()
     assert length(pulled) == 1_000
   end
 
@@ -120,26 +122,24 @@ defmodule Neptunus.Recording.PullTest do
     before = Process.list()
 
     # one batch taken, then the enumeration stops: the server is killed
-    assert [_header | _] = Pull.pull(node(), plan) |> Enum.take(1)
+    assert [_header | _] = Pull.pull(node(), {Export, :stream, [plan]}) |> Enum.take(1)
     Enum.each(Process.list() -- before, &refute(serving?(&1)))
 
     # a puller that dies: the server sees it and ends
     puller = spawn(fn -> receive do: (:never -> :ok) end)
-    server = Node.spawn(node(), Pull, :serve, [puller, plan])
+    server = Node.spawn(node(), Pull, :serve, [puller, {Export, :stream, [plan]}])
     ref = Process.monitor(server)
     Process.exit(puller, :kill)
     assert_receive {:DOWN, ^ref, :process, ^server, :normal}, 5_000
   end
 
   test "pull: a server that fails ends the pull with the reason", %{tmp_dir: tmp} do
-    v = vehicle()
-    write!(tmp, v, @name, telemetry(10))
-    {:ok, plan} = Pull.plan(v, @name, %{}, dir(tmp))
-    # the file is gone between the two passes
-    File.rm!(plan.path)
+    # an export reads what is readable of a damaged dive; a file that cannot be read at all
+    # makes the serving process fail
+    missing = Path.join(tmp, "gone.csv")
 
     assert {:recording_node, {%File.Error{reason: :enoent}, _stack}} =
-             catch_error(Pull.pull(node(), plan) |> Enum.to_list())
+             catch_error(Pull.pull(node(), {File, :stream!, [missing]}) |> Enum.to_list())
   end
 
   test "delete: a finished recording, never one that is not there", %{tmp_dir: tmp} do
@@ -155,16 +155,16 @@ defmodule Neptunus.Recording.PullTest do
              Pull.delete(v, @name, dir(nil))
   end
 
-  test "delete: never the file being recorded now", %{tmp_dir: tmp} do
+  test "delete: never the dive being recorded now", %{tmp_dir: tmp} do
     v = vehicle()
     start_supervised!({Neptunus.Vehicle.Recorder, id: v, recording: [dir: tmp]})
     Neptunus.PubSub.broadcast(Neptunus.Vehicle.Telemetry.topic(v), "stopped", %{reason: "x"})
-    [file] = Neptunus.Vehicle.Recorder.status(v).files
-    name = Path.basename(file)
+    folder = Neptunus.Vehicle.Recorder.status(v).folder
+    name = Path.basename(folder)
 
     assert {:error, :conflict, reason} = Pull.delete(v, name, dir(tmp))
     assert reason == "#{name} is being recorded now"
-    assert File.exists?(file)
+    assert File.dir?(folder)
   end
 
   defp serving?(pid) do

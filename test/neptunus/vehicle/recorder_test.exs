@@ -1,7 +1,7 @@
 defmodule Neptunus.Vehicle.RecorderTest do
   use ExUnit.Case, async: true
 
-  alias Neptunus.{PubSub, Recording}
+  alias Neptunus.{Dive, PubSub, Recording}
   alias Neptunus.Vehicle.{Recorder, Telemetry}
 
   @moduletag :tmp_dir
@@ -39,9 +39,13 @@ defmodule Neptunus.Vehicle.RecorderTest do
     assert {_, "stopped", %{reason: "deadman"}} = List.last(recorded)
     assert Enum.map(recorded, &elem(&1, 0)) == Enum.sort(Enum.map(recorded, &elem(&1, 0)))
 
-    assert %{recording: true, entries: 51, error: nil, file: file} = Recorder.status(id)
-    assert [%{vehicle: ^id, name: name}] = Recording.list(dir, id)
-    assert Path.basename(file) == name
+    assert %{recording: true, entries: 51, error: nil, file: file, dive: dive} =
+             Recorder.status(id)
+
+    assert [%{vehicle: ^id, name: ^dive, entries: 51, telemetry: 50, stops: 1, closed: false}] =
+             Dive.list(dir, id)
+
+    assert file == Path.join([dir, id, dive, "entries-0001.log"])
   end
 
   test "records the vehicle's log entries too (safety, link, errors), on disk at once", %{
@@ -126,7 +130,9 @@ defmodule Neptunus.Vehicle.RecorderTest do
     end
   end
 
-  test "a full file is closed and the next one opened: nothing is refused", %{tmp_dir: dir} do
+  test "a full part is closed and the dive goes on in the next: nothing is refused", %{
+    tmp_dir: dir
+  } do
     id = start!(dir, max_bytes: 4_000)
     payload = %{t: 0.0, blob: String.duplicate("x", 300)}
 
@@ -136,10 +142,12 @@ defmodule Neptunus.Vehicle.RecorderTest do
     assert length(files) >= 3
     recorded = entries(id)
     assert Enum.map(recorded, fn {_, _, p} -> p.t end) == Enum.map(1..40, &(&1 * 1.0))
-    assert length(Recording.list(dir, id)) == length(files)
+    assert [%{name: dive}] = Dive.list(dir, id)
+    assert Dive.parts(Dive.path(dir, id, dive)) == files
+    assert length(Enum.to_list(Dive.entries(Dive.path(dir, id, dive)))) == 40
   end
 
-  test "a restart opens a new file and keeps the old one", %{tmp_dir: dir} do
+  test "a restart begins a new dive and closes the old one", %{tmp_dir: dir} do
     id = start!(dir)
     publish(id, "telemetry", %{t: 1.0})
     Recorder.sync(id)
@@ -149,9 +157,9 @@ defmodule Neptunus.Vehicle.RecorderTest do
     start_supervised!({Recorder, id: id, recording: [dir: dir]})
     publish(id, "telemetry", %{t: 2.0})
     [second] = Recorder.status(id).files
-    assert first != second
+    assert Path.dirname(first) != Path.dirname(second)
     assert [{_, "telemetry", %{t: 1.0}}] = Enum.to_list(Recording.entries(first))
-    assert length(Recording.list(dir, id)) == 2
+    assert [%{closed: false}, %{closed: true, entries: 1}] = Dive.list(dir, id)
   end
 
   test "when the directory cannot be used, recording stops and says so", %{tmp_dir: dir} do
@@ -164,10 +172,11 @@ defmodule Neptunus.Vehicle.RecorderTest do
     start_supervised!({Recorder, id: id, recording: [dir: blocker]})
 
     assert_receive {:pubsub, _, "log",
-                    %{category: "errors", message: "recording stopped: " <> why}}
+                    %{category: "errors", message: "recording stopped: " <> why}},
+                   5_000
 
     assert why =~ "cannot record to"
-    assert_receive {:pubsub, _, "recording", %{recording: false, error: ^why}}
+    assert_receive {:pubsub, _, "recording", %{recording: false, error: ^why}}, 5_000
     assert %{recording: false, error: ^why} = Recorder.status(id)
     # still alive and harmless
     publish(id, "telemetry", %{t: 1.0})
@@ -229,46 +238,60 @@ defmodule Neptunus.Vehicle.RecorderTest do
                    2_000
   end
 
-  test "retention: deletes the vehicle's recordings older than keep_ms, each one said", %{
+  test "retention: deletes the vehicle's dives older than keep_ms, each one said", %{
     tmp_dir: dir
   } do
     id = "rec-#{System.unique_integer([:positive])}"
     now = System.os_time(:second)
     day = 86_400
 
+    # a dive folder (its files as old as it is) or a recording file from before dives
     old = fn vehicle, name, age_s ->
       path = Path.join([dir, vehicle, name])
-      File.mkdir_p!(Path.dirname(path))
-      File.write!(path, "x")
-      File.touch!(path, now - age_s)
+
+      if String.ends_with?(name, ".log") do
+        File.mkdir_p!(Path.dirname(path))
+        File.write!(path, "x")
+        File.touch!(path, now - age_s)
+      else
+        File.mkdir_p!(Path.join(path, "video"))
+        File.write!(Path.join(path, "entries-0001.log"), "x")
+        File.write!(Path.join(path, "video/000001.h264"), "x")
+
+        for f <- ["entries-0001.log", "video/000001.h264"],
+            do: File.touch!(Path.join(path, f), now - age_s)
+      end
+
       path
     end
 
-    expired = old.(id, "20260101-000000Z-1.log", 20 * day)
+    expired = old.(id, "20260101-000000Z-1", 20 * day)
     also_expired = old.(id, "20260102-000000Z-1.log", 11 * day)
-    recent = old.(id, "20261120-000000Z-1.log", 1 * day)
-    other_vehicle = old.("other-#{id}", "20260101-000000Z-1.log", 20 * day)
+    recent = old.(id, "20261120-000000Z-1", 1 * day)
+    other_vehicle = old.("other-#{id}", "20260101-000000Z-1", 20 * day)
     # one the file system refuses to delete: said, not hidden
-    stuck = old.(id, "20260103-000000Z-1.log", 30 * day)
-    rm = fn path -> if path == stuck, do: {:error, :eacces}, else: File.rm(path) end
-    # a directory is not a recording, whatever its name
+    stuck = old.(id, "20260103-000000Z-1", 30 * day)
+    rm = fn path -> if path == stuck, do: {:error, :eacces}, else: Dive.delete(path) end
+    # a directory is not a recording from before dives, whatever its name
     not_a_file = Path.join([dir, id, "20260104-000000Z-1.log"])
     File.mkdir_p!(not_a_file)
     File.touch!(not_a_file, now - 30 * day)
 
     PubSub.subscribe(Telemetry.log_topic(id))
     start_supervised!({Recorder, id: id, recording: [dir: dir, keep_ms: 10 * day * 1000, rm: rm]})
-    %{file: current, recording: true} = Recorder.status(id)
+    %{file: current, folder: folder, recording: true} = Recorder.status(id)
 
-    for name <- ["20260101-000000Z-1.log", "20260102-000000Z-1.log"] do
+    for name <- ["20260101-000000Z-1", "20260102-000000Z-1.log"] do
       assert_receive {:pubsub, _, "log",
-                      %{category: "recording", level: "info", name: ^name, message: message}}
+                      %{category: "recording", level: "info", name: ^name, message: message}},
+                     5_000
 
       assert message == "recording #{name} deleted: older than 10 days (retention)"
     end
 
     assert_receive {:pubsub, _, "log",
-                    %{category: "errors", name: "20260103-000000Z-1.log", message: message}}
+                    %{category: "errors", name: "20260103-000000Z-1", message: message}},
+                   5_000
 
     assert message =~ "cannot be deleted: eacces"
     refute_received {:pubsub, _, "log", %{name: "20260104-000000Z-1.log"}}
@@ -276,9 +299,9 @@ defmodule Neptunus.Vehicle.RecorderTest do
     assert File.exists?(recent) and File.exists?(other_vehicle) and File.exists?(current)
     assert File.exists?(stuck) and File.dir?(not_a_file)
 
-    # the file being written is never deleted, however old it looks
-    File.touch!(current, now - 100 * day)
-    send(GenServer.whereis(Neptunus.Fleet.via(Recorder, id)), :check_disk)
+    # the dive being written is never deleted, however old it looks
+    for name <- File.ls!(folder), do: File.touch!(Path.join(folder, name), now - 100 * day)
+    send(GenServer.whereis(Neptunus.Fleet.via(Recorder, id)), :expire)
     assert %{recording: true, file: ^current} = Recorder.status(id)
     assert File.exists?(current)
   end
@@ -294,7 +317,9 @@ defmodule Neptunus.Vehicle.RecorderTest do
     assert File.exists?(path)
   end
 
-  test "stops before the disk fills and resumes in a new file when there is room", %{tmp_dir: dir} do
+  test "stops before the disk fills and resumes in a new dive when there is room", %{
+    tmp_dir: dir
+  } do
     free = start_supervised!({Agent, fn -> 10 * 1_048_576 end}, id: :free)
     id = "rec-#{System.unique_integer([:positive])}"
     PubSub.subscribe(Telemetry.log_topic(id))
@@ -310,9 +335,13 @@ defmodule Neptunus.Vehicle.RecorderTest do
 
     # 10 MB free, 100 MB needed: no file at all, and it says why
     assert_receive {:pubsub, _, "log",
-                    %{category: "errors", message: "recording stopped: " <> why}}
+                    %{category: "errors", message: "recording stopped: " <> why}},
+                   5_000
 
-    assert why == "disk nearly full: 10 MB free (below 100 MB)"
+    assert why ==
+             "disk nearly full: 10 MB free (below the 100 MB kept free, " <>
+               "NEPTUNUS_RECORDING_MIN_FREE_MB): recording stopped; what was recorded is kept"
+
     assert %{recording: false, error: ^why, files: []} = Recorder.status(id)
     publish(id, "telemetry", %{t: 1.0})
     assert %{entries: 0} = Recorder.status(id)
@@ -323,10 +352,11 @@ defmodule Neptunus.Vehicle.RecorderTest do
     assert %{recording: true, error: nil, files: [file]} = Recorder.status(id)
     publish(id, "telemetry", %{t: 2.0})
 
-    # nearly full again: the file is closed with what it holds
+    # nearly full again: the dive is closed with what it holds
     Agent.update(free, fn _ -> 1_048_576 end)
     send(GenServer.whereis(Neptunus.Fleet.via(Recorder, id)), :check_disk)
     assert %{recording: false, error: "disk nearly full: 1 MB free" <> _} = Recorder.status(id)
     assert [{_, "telemetry", %{t: 2.0}}] = Enum.to_list(Recording.entries(file))
+    assert [%{closed: true, telemetry: 1}] = Dive.list(dir, id)
   end
 end

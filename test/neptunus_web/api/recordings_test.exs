@@ -25,8 +25,7 @@ defmodule NeptunusWeb.API.RecordingsTest do
     end
 
     PubSub.broadcast(Telemetry.topic(id), "stopped", %{reason: "deadman"})
-    [file] = Recorder.status(id).files
-    {:ok, id: id, name: Path.basename(file)}
+    {:ok, id: id, name: Path.basename(Recorder.status(id).folder)}
   end
 
   defp port, do: Application.fetch_env!(:neptunus, :endpoint).port
@@ -105,8 +104,8 @@ defmodule NeptunusWeb.API.RecordingsTest do
       PubSub.broadcast(Telemetry.topic(long), "telemetry", payload)
     end
 
-    [file] = Recorder.status(long).files
-    name = Path.basename(file)
+    folder = Recorder.status(long).folder
+    name = Path.basename(folder)
     {200, _headers, csv} = get("/api/recordings/#{long}/#{name}")
     assert byte_size(csv) > 3 * 65_536
     # httpc hides the encoding: read the headers off the socket
@@ -116,8 +115,8 @@ defmodule NeptunusWeb.API.RecordingsTest do
     Recorder.sync(long)
 
     assert csv ==
-             file
-             |> Neptunus.Recording.entries()
+             folder
+             |> Neptunus.Dive.entries()
              |> Neptunus.Recording.csv()
              |> IO.iodata_to_binary()
 
@@ -139,7 +138,7 @@ defmodule NeptunusWeb.API.RecordingsTest do
 
   test "bad requests change nothing and say why", %{id: id, name: name} do
     for {path, status, message} <- [
-          {"/api/recordings/#{id}/#{name}?format=xml", 400, "format must be csv or jsonl"},
+          {"/api/recordings/#{id}/#{name}?format=xml", 400, "format must be one of csv, jsonl"},
           {"/api/recordings/#{id}/#{name}?every=0", 400, "every must be an integer"},
           {"/api/recordings/#{id}/#{name}?format=jsonl&max=x", 400, "max must be an integer"},
           {"/api/recordings/#{id}/20200101-000000Z-1.log", 404, "no such recording"},
@@ -156,6 +155,130 @@ defmodule NeptunusWeb.API.RecordingsTest do
         body_format: :binary
       )
       |> then(fn {:ok, {{_, status, _}, h, b}} -> {status, h, b} end)
+  end
+
+  # a finished dive of the vehicle with 2 s of H.264 video (15 fps) and 2.5 s of telemetry
+  defp video_dive!(dir, id) do
+    start = 1_795_000_000_000
+
+    frames =
+      Neptunus.Test.Dives.h264(30, fps: 15, gop: 15)
+      |> Enum.with_index()
+      |> Enum.map(fn {au, i} ->
+        {start * 1000 + i * div(1_000_000, 15), Neptunus.Test.Dives.keyframe?(au), au}
+      end)
+
+    entries = Neptunus.Test.Dives.telemetry(start - 200, 50)
+    name = "20261118-110640Z-1"
+    Neptunus.Test.Dives.write!(dir, id, name, entries, frames, started_at: start - 200)
+    {name, start, frames, entries}
+  end
+
+  test "a dive's summary, video frames, MP4 and MCAP over HTTP", %{id: id, tmp_dir: dir} do
+    {name, start, frames, entries} = video_dive!(dir, id)
+
+    {200, _, body} = get("/api/recordings/#{id}/#{name}/summary")
+
+    assert %{
+             "name" => ^name,
+             "closed" => true,
+             "video" => %{"codec" => "h264"},
+             "segments" => [s]
+           } = json(body)
+
+    assert s["frames"] == 30 and s["first_us"] == start * 1000 and length(s["keyframes"]) == 2
+
+    # the frames of a window, from the keyframe before it: length-prefixed, with their header
+    {200, headers, video} =
+      get("/api/recordings/#{id}/#{name}/video?from=#{start + 1_100}&to=#{start + 1_500}")
+
+    assert headers["content-type"] =~ "application/octet-stream"
+
+    times =
+      for <<len::32, frame::binary-size(len) <- video>>,
+        do: elem(Neptunus.Camera.Frame.parse(frame), 1).arrival_us
+
+    # the keyframe before `from` is the 16th frame (a keyframe a second)
+    expected = for {at, _, _} <- Enum.drop(frames, 15), at <= (start + 1_500) * 1000, do: at
+
+    assert times == expected
+
+    for {query, message} <- [
+          {"from=x&to=1", "from must be a time"},
+          {"from=10&to=5", "to must not be before from"},
+          {"from=0&to=200000", "a window is at most 120 s"}
+        ] do
+      {400, _, body} = get("/api/recordings/#{id}/#{name}/video?#{query}")
+      assert json(body)["error"] =~ message
+    end
+
+    {200, headers, mp4} = get("/api/recordings/#{id}/#{name}?format=mp4")
+    assert headers["content-disposition"] =~ ~s(filename="#{id}-#{name}.mp4")
+    path = Path.join(dir, "http.mp4")
+    File.write!(path, mp4)
+
+    {out, 0} =
+      System.cmd(
+        "ffprobe",
+        ~w(-v error -count_frames -select_streams v:0 -show_entries
+                                stream=nb_read_frames -of csv=p=0) ++ [path]
+      )
+
+    assert String.trim(out) == "30"
+
+    {200, _, mcap} = get("/api/recordings/#{id}/#{name}?format=mcap")
+    path = Path.join(dir, "http.mcap")
+    File.write!(path, mcap)
+    read = Neptunus.Test.Dives.mcap_read!(path)
+    assert read["topics"]["/vehicle/telemetry"]["count"] == length(entries)
+    assert read["topics"]["/camera"]["count"] == 30
+
+    {200, _, ass} = get("/api/recordings/#{id}/#{name}?format=ass")
+    assert ass =~ "[Events]"
+  end
+
+  test "an MP4 of a dive without video is refused and says why", %{id: id, name: name} do
+    {409, _, body} = get("/api/recordings/#{id}/#{name}?format=mp4")
+    assert json(body)["error"] =~ "this dive has no video"
+  end
+
+  defp put(path, body, headers \\ []) do
+    url = ~c"http://127.0.0.1:#{port()}#{path}"
+
+    {:ok, {{_, status, _}, _, reply}} =
+      :httpc.request(:put, {url, headers, ~c"application/json", body}, [], body_format: :binary)
+
+    {status, json(reply)}
+  end
+
+  test "PUT: a dive's title and notes; bad text and foreign pages refused", %{
+    id: id,
+    tmp_dir: dir
+  } do
+    {name, _, _, _} = video_dive!(dir, id)
+    path = "/api/recordings/#{id}/#{name}"
+
+    assert {200,
+            %{
+              "notes" => %{
+                "title" => "Pier inspection",
+                "notes" => "north side",
+                "edited_by" => "local"
+              }
+            }} = put(path, ~s({"title": "Pier inspection", "notes": "north side"}))
+
+    {200, _, body} = get("/api/recordings?vehicle=#{id}")
+
+    assert %{"title" => "Pier inspection"} =
+             Enum.find(json(body)["recordings"], &(&1["name"] == name))
+
+    assert {400, %{"error" => _}} = put(path, ~s({"title": "a\\nb"}))
+    assert {400, _} = put(path, "[1]")
+    assert {403, _} = put(path, ~s({"title": "x"}), [{~c"origin", ~c"http://evil.example"}])
+    assert {404, _} = put("/api/recordings/#{id}/20200101-000000Z-9", ~s({"title": "x"}))
+
+    {200, _, body} = get("/api/recordings/#{id}/#{name}/summary")
+    assert json(body)["title"] == "Pier inspection"
   end
 
   test "recording off: an empty list, exports 404" do
