@@ -60,9 +60,9 @@ setup-links: setup-apt
 setup-npm: $(ASSETS_STAMP)
 
 $(ASSETS_STAMP): assets/package.json assets/package-lock.json
-	# `npm install`, not `npm ci`: the registry mirror lacks some other-platform optional
-	# packages, so the lock omits them and `npm ci` would refuse it (see assets/README.md).
-	cd assets && npm install --no-audit --no-fund --loglevel=error
+	# `npm ci`: installs exactly what the lock says and never rewrites it (`npm install` would
+	# re-resolve and rewrite the lock whenever the registry's metadata differs from it).
+	cd assets && npm ci --no-audit --no-fund --loglevel=error
 	@touch $@
 
 # pymavlink (PyPI) for test/support/pymavlink_interop.py, in .venv/ made with Debian's Python:
