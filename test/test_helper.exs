@@ -11,4 +11,12 @@
 #
 # After ExUnit's summary, Neptunus.Test.FailureRecap repeats which tests failed and the end
 # of their reports (a CI log often keeps only its tail).
-ExUnit.start(exclude: [:target], formatters: [ExUnit.CLIFormatter, Neptunus.Test.FailureRecap])
+#
+# A wait for an event (`assert_receive` without a timeout, the waits in test/support) gives up
+# after Neptunus.Test.Patience.ms/0: generous, since the machine may be busy; it returns as soon
+# as the event comes.
+ExUnit.start(
+  exclude: [:target],
+  formatters: [ExUnit.CLIFormatter, Neptunus.Test.FailureRecap],
+  assert_receive_timeout: Neptunus.Test.Patience.ms()
+)

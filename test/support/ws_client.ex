@@ -75,7 +75,7 @@ defmodule NeptunusWeb.Test.WSClient do
     * `:headers` — extra request headers, a list of `{name, value}` (a `Host` here
       replaces the default `host:port`)
     * `:owner` — process that receives the reports, default `self()`
-    * `:timeout` — for connect and handshake, ms, default 5000
+    * `:timeout` — for connect and handshake, ms, default `Neptunus.Test.Patience.ms/0`
 
   Errors: `{:error, {:http_status, code, %{headers: [{name, value}], body: binary}}}`
   when the server answers other than 101 (header names downcased);
@@ -87,7 +87,7 @@ defmodule NeptunusWeb.Test.WSClient do
   def connect(port, path_and_query, opts \\ []) do
     host = Keyword.get(opts, :host, "127.0.0.1")
     owner = Keyword.get(opts, :owner, self())
-    timeout = Keyword.get(opts, :timeout, 5_000)
+    timeout = Keyword.get(opts, :timeout, Neptunus.Test.Patience.ms())
     deadline = System.monotonic_time(:millisecond) + timeout
     tcp_opts = [:binary, active: false, packet: :raw, nodelay: true]
 
@@ -163,7 +163,7 @@ defmodule NeptunusWeb.Test.WSClient do
   `nil`). Raises on timeout, on close and on a text that is not such a list.
   """
   @spec recv_frame(pid(), timeout()) :: frame()
-  def recv_frame(pid, timeout \\ 1_000) do
+  def recv_frame(pid, timeout \\ Neptunus.Test.Patience.ms()) do
     receive do
       {:ws, ^pid, {:text, text}} ->
         decode_frame!(text)
@@ -186,14 +186,14 @@ defmodule NeptunusWeb.Test.WSClient do
   frames before it are discarded. `timeout` bounds the whole wait.
   """
   @spec recv_until(pid(), (frame() -> as_boolean(term())), timeout()) :: frame()
-  def recv_until(pid, fun, timeout \\ 1_000) do
+  def recv_until(pid, fun, timeout \\ Neptunus.Test.Patience.ms()) do
     deadline = System.monotonic_time(:millisecond) + timeout
     do_recv_until(pid, fun, deadline, timeout, [])
   end
 
   @doc """
   Joins `topic`: pushes `phx_join` with `params` (ref = `join_ref`) and waits
-  up to 5 s for the matching `phx_reply`. Without `join_ref` a unique one is
+  for the matching `phx_reply` (`Neptunus.Test.Patience`). Without `join_ref` a unique one is
   generated; pass your own when you need it for later pushes.
   """
   @spec join(pid(), String.t(), map(), String.t() | nil) :: {:ok, map()} | {:error, map()}
@@ -205,7 +205,7 @@ defmodule NeptunusWeb.Test.WSClient do
       recv_until(
         pid,
         &match?([^join_ref, ^join_ref, ^topic, "phx_reply", %{"status" => _}], &1),
-        5_000
+        Neptunus.Test.Patience.ms()
       )
 
     case status do
