@@ -56,10 +56,10 @@ defmodule Neptunus.Test.FakeArduSub do
 
   @doc """
   The next report for which `pred` is true (reports before it are dropped), or a test
-  failure after `timeout` ms.
+  failure after `timeout` ms (`Neptunus.Test.Patience`).
   """
   @spec expect!(%{port: port()}, (map() -> boolean()), timeout()) :: map()
-  def expect!(%{port: port} = fake, pred, timeout \\ 5_000) do
+  def expect!(%{port: port} = fake, pred, timeout \\ Neptunus.Test.Patience.ms()) do
     deadline = System.monotonic_time(:millisecond) + timeout
     wait(fake, port, pred, deadline)
   end
