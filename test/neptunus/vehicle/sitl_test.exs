@@ -9,6 +9,8 @@ defmodule Neptunus.Vehicle.SITLTest do
 
   import Neptunus.Test.Pty, only: [wait_until: 2, wait_until: 3]
 
+  alias Neptunus.Test.Patience
+
   alias Neptunus.{Allocation, Fleet, PubSub, Wiring}
   alias Neptunus.Vehicle.{Board, Control, Telemetry}
   alias Neptunus.Vehicle.Board.SITL
@@ -22,7 +24,7 @@ defmodule Neptunus.Vehicle.SITLTest do
 
     {:ok, _} = Fleet.start_vehicle(vehicle)
     on_exit(fn -> Fleet.stop_vehicle(id) end)
-    assert_receive {:pubsub, _, "link", %{up: true}}, 5_000
+    assert_receive {:pubsub, _, "link", %{up: true}}
     id
   end
 
@@ -38,13 +40,12 @@ defmodule Neptunus.Vehicle.SITLTest do
     # prints a 0.00 placeholder until its depth sensor's first reading, about 1 s after boot,
     # and navigation trusts depth only once the readings agree
     assert_receive {:pubsub, _, "telemetry",
-                    %{sim: nil, measurement: m, measurement_state: %{depth: "valid"}}},
-                   5_000
+                    %{sim: nil, measurement: m, measurement_state: %{depth: "valid"}}}
 
     assert_in_delta m.depth, 1.0, 0.02
 
     # and the link's state rides along
-    assert_receive {:pubsub, _, "telemetry", %{link: %{up: true, reason: "open"}}}, 2_000
+    assert_receive {:pubsub, _, "telemetry", %{link: %{up: true, reason: "open"}}}
 
     start = truth(id)
     assert {:ok, %{thrusters: thr}} = Control.thrust(id, motion(1, 1, 0))
@@ -82,7 +83,7 @@ defmodule Neptunus.Vehicle.SITLTest do
     assert_in_delta Telemetry.latest(id).measurement.depth, truth(id).z, 0.05
 
     # control is alive, so the board's deadman is fed
-    wait_until(fn -> SITL.Device.state(id).firmware.last_ping != nil end, "a ping", 3_000)
+    wait_until(fn -> SITL.Device.state(id).firmware.last_ping != nil end, "a ping")
     assert %{up: true, counters: %{pings: pings}} = Board.link_status(id)
     assert pings >= 1
 
@@ -101,9 +102,9 @@ defmodule Neptunus.Vehicle.SITLTest do
 
     old = Fleet.whereis(SITL.Device, id)
     Process.exit(old, :kill)
-    assert_receive {:pubsub, _, "link", %{up: false, reason: reason}}, 5_000
+    assert_receive {:pubsub, _, "link", %{up: false, reason: reason}}
     assert reason =~ "hangup"
-    assert_receive {:pubsub, _, "link", %{up: true}}, 5_000
+    assert_receive {:pubsub, _, "link", %{up: true}}
     assert Fleet.whereis(SITL.Device, id) not in [nil, old]
 
     # a new board, neutral, and commands reach it again
@@ -117,14 +118,12 @@ defmodule Neptunus.Vehicle.SITLTest do
 
     wait_until(
       fn -> Board.link_status(id).counters.out_of_range > 0 end,
-      "wild points counted",
-      5_000
+      "wild points counted"
     )
 
     # and nothing out of range reached the telemetry
     assert_receive {:pubsub, _, "telemetry",
-                    %{measurement: m, measurement_state: %{depth: "valid", voltage: "valid"}}},
-                   4_000
+                    %{measurement: m, measurement_state: %{depth: "valid", voltage: "valid"}}}
 
     assert m.voltage >= 5.0 and m.voltage <= 20.0
     assert m.depth >= -10.0 and m.depth <= 200.0
@@ -145,7 +144,7 @@ defmodule Neptunus.Vehicle.SITLTest do
     :sys.suspend(control)
 
     try do
-      wait_until(fn -> SITL.Device.state(id).firmware.tripped end, "the deadman", 5_000)
+      wait_until(fn -> SITL.Device.state(id).firmware.tripped end, "the deadman")
 
       # its internal stop() takes effect at the next 50 ms tick
       wait_until(
@@ -159,7 +158,7 @@ defmodule Neptunus.Vehicle.SITLTest do
     end
 
     # control is back: pings resume and the board takes commands again
-    wait_until(fn -> not SITL.Device.state(id).firmware.tripped end, "recovery", 5_000)
+    wait_until(fn -> not SITL.Device.state(id).firmware.tripped end, "recovery")
   end
 
   test "a board reset mid-dive: the board forgets its state, the vehicle does not, depth comes back" do
@@ -167,7 +166,7 @@ defmodule Neptunus.Vehicle.SITLTest do
     :ok = Board.lights(id, 120)
     wait_until(fn -> SITL.Device.state(id).firmware.lights == 120 end, "the lights")
 
-    wait_until(fn -> depth_right?(id) end, "depth telemetry", 5_000)
+    wait_until(fn -> depth_right?(id) end, "depth telemetry")
 
     z = truth(id).z
     :ok = SITL.Device.reset(id)
@@ -179,8 +178,7 @@ defmodule Neptunus.Vehicle.SITLTest do
     # the board prints 0.00 for about a second, then its first reading
     wait_until(
       fn -> SITL.Device.state(id).firmware.depth > 0.5 end,
-      "the board's first reading",
-      3_000
+      "the board's first reading"
     )
 
     assert Board.link_status(id).up
@@ -196,13 +194,13 @@ defmodule Neptunus.Vehicle.SITLTest do
     id = start_sitl(%{initial: [z: 3.0]})
     board_read? = fn -> SITL.Device.state(id).firmware.depth > 0.0 end
 
-    wait_until(board_read?, "the board's first depth reading", 3_000)
-    wait_until(fn -> depth_right?(id) end, "depth telemetry after the boot placeholder", 4_000)
+    wait_until(board_read?, "the board's first depth reading")
+    wait_until(fn -> depth_right?(id) end, "depth telemetry after the boot placeholder")
     flush_telemetry()
 
     :ok = SITL.Device.reset(id)
-    wait_until(board_read?, "the board's first depth reading after its reset", 3_000)
-    wait_until(fn -> depth_right?(id) end, "depth telemetry after the board reset", 4_000)
+    wait_until(board_read?, "the board's first depth reading after its reset")
+    wait_until(fn -> depth_right?(id) end, "depth telemetry after the board reset")
 
     # every telemetry frame since the reset: a depth is either initialising (nil) or right
     frames = collect_telemetry()
@@ -264,7 +262,7 @@ defmodule Neptunus.Vehicle.SITLTest do
     test "openrov_30: every command is accepted and the deadman is fed" do
       id = start_sitl(%{firmware: :openrov_30})
       {:ok, _} = Control.thrust(id, motion(0, 1, 0))
-      wait_until(fn -> SITL.Device.state(id).firmware.last_ping != nil end, "a ping", 3_000)
+      wait_until(fn -> SITL.Device.state(id).firmware.last_ping != nil end, "a ping")
       wait_until(fn -> SITL.Device.state(id).firmware.thrusters.vertical > 0 end, "thrust")
       fw = SITL.Device.state(id).firmware
       assert fw.bad_commands == 0 and fw.commands > 0
@@ -287,8 +285,7 @@ defmodule Neptunus.Vehicle.SITLTest do
             fw = SITL.Device.state(id).firmware
             fw.lights == 105 and fw.laser == 15 and fw.tilt == Board.tilt_us(0.25)
           end,
-          "the last of each command",
-          3_000
+          "the last of each command"
         )
 
         state = SITL.Device.state(id)
@@ -316,15 +313,14 @@ defmodule Neptunus.Vehicle.SITLTest do
       wait_until(
         fn -> (Board.link_status(id).board_uptime_ms || 0) > 3_000 end,
         "3 s of the board's uptime",
-        6_000
+        3_000 + Patience.ms()
       )
 
       :ok = SITL.Device.reset(id)
 
       wait_until(
         fn -> settled.() and SITL.Device.state(id).firmware.tilt == tilt end,
-        "restored",
-        3_000
+        "restored"
       )
     end
   end
