@@ -1,4 +1,6 @@
 import { describe, expect, it } from "vitest";
+import { TuningController } from "../../src/developer/tuning";
+import type { VehicleChannel } from "../../src/lib/vehicle_client";
 import { decodeSetTuning, decodeStepResponse, decodeTuningInfo, figures, formOf, parseForm, polylines } from "../../src/developer/tuning_model";
 
 const gains = { depth: { kp: 3, ki: 0.1, kd: 1.5 }, heading: { kp: 4, ki: 0.3, kd: 2 } };
@@ -50,5 +52,36 @@ describe("autopilot tuning on the developer page", () => {
     expect(p.setpoint.split(" ")[3]).toBe("300.0,0.6");
     expect(figures(r)).toBe("overshoot 0.6 cm, within ±5 cm after 1.9 s");
     expect(figures({ ...r, axis: "heading", overshoot: Math.PI / 180, band: (2 * Math.PI) / 180, settle: null })).toBe("overshoot 1.0°, never within ±2° in 3 s");
+  });
+
+  // the part of a VehicleChannel the tuning panel uses: joined or not, and requests (answered
+  // with the tuning above)
+  class StubChannel {
+    joined = false;
+    readonly asked: string[] = [];
+    request<T>(event: string, _payload: object, decode: (response: unknown) => T | null): Promise<T> {
+      this.asked.push(event);
+      const decoded = decode(info);
+      return decoded === null ? Promise.reject(new Error("bad reply")) : Promise.resolve(decoded);
+    }
+  }
+
+  it("opened before the vehicle's channel joins, reads the gains once it has", async () => {
+    const tuning = new TuningController();
+    const channel = new StubChannel();
+    tuning.attach(channel as unknown as VehicleChannel);
+
+    await tuning.load();
+    expect(channel.asked).toEqual([]);
+    expect(tuning.store.get()).toMatchObject({ busy: "loading", form: null });
+
+    channel.joined = true;
+    await tuning.joined();
+    expect(channel.asked).toEqual(["get_tuning"]);
+    expect(tuning.store.get()).toMatchObject({ busy: null, form: formOf(gains), error: false });
+
+    // a later rejoin does not read them again unasked
+    await tuning.joined();
+    expect(channel.asked).toEqual(["get_tuning"]);
   });
 });
