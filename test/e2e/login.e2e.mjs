@@ -25,9 +25,11 @@ const ARTIFACTS = join(here, "artifacts");
 const LOGINS = JSON.parse(process.env.NEPTUNUS_E2E_LOGINS || "{}");
 const CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking"];
 
-const WAIT_MS = 5000;
-const TAKEOVER_WAIT_MS = 10000;
-const TEST_MS = 60000;
+// bounds of waits for what must happen (generous: the machine may be busy), not speeds
+const WAIT_MS = 15000;
+// the main station's takeover waits 3 s for the pilot first
+const TAKEOVER_WAIT_MS = 3000 + WAIT_MS;
+const TEST_MS = 120000;
 
 let browser;
 const pageProblems = [];
