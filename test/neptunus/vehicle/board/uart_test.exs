@@ -40,7 +40,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
   end
 
   defp link_event(up) do
-    assert_receive {:pubsub, _, "link", %{up: ^up, reason: reason}}, 5_000
+    assert_receive {:pubsub, _, "link", %{up: ^up, reason: reason}}
     reason
   end
 
@@ -256,6 +256,21 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     assert link_event(false) == "port program exited with status 137"
     assert link_event(true) == "open"
     assert recv_until(ctx.board, &String.starts_with?(&1, @opening)) =~ @neutral
+  end
+
+  test "its port closed without an exit status (a write that found the program gone) is a link down too, then it reopens",
+       ctx do
+    start_uart(ctx)
+    link_event(true)
+    recv_until(ctx.board, &String.starts_with?(&1, @opening))
+
+    # the port ends with only its exit signal, as when a write fails (epipe) before the
+    # program's exit status reached the VM
+    Port.close(:sys.get_state(Board.via(ctx.id)).port)
+
+    assert link_event(false) =~ "port program gone"
+    assert link_event(true) == "open"
+    assert %{up: true, counters: %{opens: 2}} = UART.link_status(ctx.id)
   end
 
   test "the port program asks for the OS time slice of its option (Neptunus.OS)", ctx do
