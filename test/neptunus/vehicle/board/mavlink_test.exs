@@ -284,6 +284,23 @@ defmodule Neptunus.Vehicle.Board.MAVLinkSerialTest do
     assert Board.MAVLink.link_status(id).transport == "serial open"
   end
 
+  test "serial: its port closed without an exit status (a write that found the program gone) is reopened" do
+    pair = Pty.socat_pair!()
+    _vehicle = Pty.open!(pair.a)
+    id = "mav-serial-#{System.unique_integer([:positive])}"
+    start_supervised!({Board.MAVLink, id: id, link: {:serial, pair.b, 115_200}, reconnect_ms: 50})
+    Pty.wait_until(fn -> Board.MAVLink.link_status(id).transport == "serial open" end, "open")
+
+    # the port ends with only its exit signal, as when a write fails (epipe) before the
+    # program's exit status reached the VM
+    Port.close(:sys.get_state(Board.via(id)).socket)
+
+    Pty.wait_until(
+      fn -> Board.MAVLink.link_status(id).counters.opens >= 2 end,
+      "a second open"
+    )
+  end
+
   test "serial: a device that cannot be opened is retried, and said why" do
     id = "mav-serial-#{System.unique_integer([:positive])}"
 
