@@ -112,7 +112,7 @@ defmodule NeptunusWeb.FdLimitTest do
 
     test = self()
     driver = spawn_link(fn -> drive(test, ctx.port) end)
-    assert_receive {:driving, epoch}, 10_000
+    assert_receive {:driving, epoch}
 
     # the flood: twice the limit, and more than the node's descriptors, nothing sent (this
     # VM's own limit must hold them)
@@ -163,7 +163,7 @@ defmodule NeptunusWeb.FdLimitTest do
 
     # the pilot drove throughout, was never stopped and still holds control with its epoch
     send(driver, {:finish, self()})
-    assert_receive {:driven, ^epoch, result}, 10_000
+    assert_receive {:driven, ^epoch, result}
     assert result == :ok
 
     # and the endpoint never restarted

@@ -130,12 +130,12 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
       {:ok, client} =
         transport.connect(~c"127.0.0.1", port, [:binary, active: false] ++ connect_opts)
 
-      assert_receive :accepted, 5_000
+      assert_receive :accepted
       before = HeaderDeadline.sent_bytes(acceptor)
       assert is_integer(before), "#{transport}: no socket found"
 
       :ok = transport.send(client, "ask")
-      assert_receive :answered, 5_000
+      assert_receive :answered
       assert HeaderDeadline.sent_bytes(acceptor) > before, "#{transport}: the answer not counted"
 
       transport.close(client)

@@ -82,8 +82,8 @@ defmodule NeptunusWeb.SocketTest do
   test "a client's close is echoed (clean close, not 1006)" do
     ws = connect!()
     WSClient.close(ws, 1001, "going away")
-    assert_receive {:ws, ^ws, {:close, 1001, _}}, 1000
-    assert_receive {:ws, ^ws, :closed}, 1000
+    assert_receive {:ws, ^ws, {:close, 1001, _}}
+    assert_receive {:ws, ^ws, :closed}
   end
 
   test "fleet lists the vehicles", %{id: id} do
@@ -434,7 +434,7 @@ defmodule NeptunusWeb.SocketTest do
 
       # the pilot's helm is freed and the vehicle stopped (the deadman already had, as the
       # frozen client sent no heartbeats either)
-      assert_receive {:pubsub, ^topic, "helm", %{pilot: nil}}, 2_000
+      assert_receive {:pubsub, ^topic, "helm", %{pilot: nil}}
       assert %{pilot: nil} = Neptunus.Vehicle.Helm.status(id)
 
       assert %{thrusters: %{port: +0.0, vertical: +0.0, starboard: +0.0}} =
@@ -460,7 +460,7 @@ defmodule NeptunusWeb.SocketTest do
 
         ref = Process.monitor(pid)
         WSClient.close(ws)
-        assert_receive {:DOWN, ^ref, :process, ^pid, _}, 5_000
+        assert_receive {:DOWN, ^ref, :process, ^pid, _}
       end
     end
 
@@ -484,7 +484,7 @@ defmodule NeptunusWeb.SocketTest do
       refute_receive {:DOWN, ^ref, :process, ^pid, _}, 200
       # ... until its next idle check (every quarter of the idle timeout)
       send(pid, :check_idle)
-      assert_receive {:DOWN, ^ref, :process, ^pid, _}, 1_000
+      assert_receive {:DOWN, ^ref, :process, ^pid, _}
       :sys.resume(ws)
     end
   end

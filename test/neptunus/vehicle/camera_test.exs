@@ -22,9 +22,9 @@ defmodule Neptunus.Vehicle.CameraTest do
 
   test "frames from the camera program reach subscribers whole, in order" do
     id = start!(fake(0))
-    assert_receive {:pubsub, _, "frame", %{jpeg: first}}, 2_000
+    assert_receive {:pubsub, _, "frame", %{jpeg: first}}
     assert first in [@frame1, @frame2]
-    assert_receive {:pubsub, _, "frame", %{jpeg: second}}, 1_000
+    assert_receive {:pubsub, _, "frame", %{jpeg: second}}
     assert Enum.sort([first, second]) == Enum.sort([@frame1, @frame2])
 
     assert Camera.latest(id) in [@frame1, @frame2]
@@ -57,7 +57,7 @@ defmodule Neptunus.Vehicle.CameraTest do
     end
   end
 
-  defp wait_until(fun, tries \\ 50) do
+  defp wait_until(fun, tries \\ div(Neptunus.Test.Patience.ms(), 50)) do
     cond do
       fun.() -> true
       tries == 0 -> false
@@ -67,16 +67,15 @@ defmodule Neptunus.Vehicle.CameraTest do
 
   test "when the program exits the camera says why and starts it again" do
     id = start!(fake(1))
-    assert_receive {:pubsub, _, "frame", _}, 2_000
+    assert_receive {:pubsub, _, "frame", _}
 
     assert_receive {:pubsub, _, "log",
-                    %{category: "errors", message: "camera: the camera program exited (status 0)"}},
-                   2_000
+                    %{category: "errors", message: "camera: the camera program exited (status 0)"}}
 
     assert %{running: false, error: "the camera program exited (status 0)"} = Camera.status(id)
     # restarted after 1 s: frames again
     flush_frames()
-    assert_receive {:pubsub, _, "frame", _}, 3_000
+    assert_receive {:pubsub, _, "frame", _}
     assert %{running: true, restarts: 1} = Camera.status(id)
   end
 
@@ -84,8 +83,7 @@ defmodule Neptunus.Vehicle.CameraTest do
     id = start!(%{kind: :exec, program: "/nonexistent/camera", args: []})
 
     assert_receive {:pubsub, _, "log",
-                    %{message: "camera: camera program /nonexistent/camera not found"}},
-                   1_000
+                    %{message: "camera: camera program /nonexistent/camera not found"}}
 
     assert %{running: false, configured: true} = Camera.status(id)
   end
@@ -100,7 +98,7 @@ defmodule Neptunus.Vehicle.CameraTest do
 
   test "stopping the camera stops its program" do
     id = start!(fake(0))
-    assert_receive {:pubsub, _, "frame", _}, 2_000
+    assert_receive {:pubsub, _, "frame", _}
     {:os_pid, os_pid} = Port.info(:sys.get_state(Neptunus.Fleet.via(Camera, id)).port, :os_pid)
     stop_supervised!(Camera)
     # the shell gets EOF/SIGPIPE on its next write and exits

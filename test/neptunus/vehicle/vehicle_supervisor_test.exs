@@ -16,7 +16,7 @@ defmodule Neptunus.Vehicle.SupervisorTest do
     {:ok, _} = Fleet.start_vehicle(%{id: id, board: :simulated, recording: [dir: dir]})
     on_exit(fn -> Fleet.stop_vehicle(id) end)
     # the helm's own stop as it starts
-    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}, 2_000
+    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}
 
     assert {:ok, _} =
              Control.thrust(id, %{"mode" => "motion", "surge" => 1, "heave" => 0, "yaw" => 0})
@@ -33,7 +33,7 @@ defmodule Neptunus.Vehicle.SupervisorTest do
 
     # the new Control says it stopped, and the board is neutral, while the recorder is still
     # busy
-    assert_receive {:pubsub, _, "stopped", _}, 2_000
+    assert_receive {:pubsub, _, "stopped", _}
     assert Fleet.whereis(Control, id) != control
     assert Enum.all?(Map.values(Board.Simulated.state(id).sim.thrusters), &(&1 == 0))
     assert Fleet.whereis(Recorder, id) == recorder

@@ -120,7 +120,7 @@ defmodule NeptunusWeb.Socket.MemoryTest do
     # is scheduled out in hibernation only when the idle check hibernates it
     :erlang.trace(pid, true, [:running])
     send(pid, :check_idle)
-    assert_receive {:trace, ^pid, :out, {:erlang, :hibernate, 3}}, 2_000
+    assert_receive {:trace, ^pid, :out, {:erlang, :hibernate, 3}}
     :erlang.trace(pid, false, [:running])
 
     # and it streams on

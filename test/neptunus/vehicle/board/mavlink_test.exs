@@ -168,8 +168,7 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
     vehicle_says(ctx, from, frame(:statustext, %{severity: 4, text: "Leak!"}, 1))
 
     assert_receive {:pubsub, _, "log",
-                    %{category: "vehicle", level: "warning", message: "Leak!", severity: 4}},
-                   2_000
+                    %{category: "vehicle", level: "warning", message: "Leak!", severity: 4}}
   end
 
   test "frames lost are counted from the vehicle's sequence numbers", ctx do

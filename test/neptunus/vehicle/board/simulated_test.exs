@@ -31,8 +31,7 @@ defmodule Neptunus.Vehicle.Board.SimulatedTest do
                       measurement: m,
                       sim: truth,
                       measurement_state: %{depth: "valid", heading: "valid"}
-                    }},
-                   3_000
+                    }}
 
     assert Map.keys(truth) |> Enum.sort() == ~w(p phi psi q r theta u v w x y z)a
     assert is_float(m.depth) and is_float(m.heading)
@@ -46,8 +45,7 @@ defmodule Neptunus.Vehicle.Board.SimulatedTest do
     assert Sim.status(state.sim).seed == 3
 
     assert_receive {:pubsub, _, "telemetry",
-                    %{measurement: m, sim: truth, measurement_state: %{depth: "valid"}}},
-                   3_000
+                    %{measurement: m, sim: truth, measurement_state: %{depth: "valid"}}}
 
     assert m.depth == truth.z
     assert_in_delta truth.z, 4.0, 0.01

@@ -78,7 +78,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     write(a, "hello")
     recv_until(b, &(&1 == "hello"))
     Port.command(a, "s")
-    assert_receive {^a, {:data, "s" <> stats}}, 2_000
+    assert_receive {^a, {:data, "s" <> stats}}
     assert stats =~ ~r/^rx=0 tx=5 dropped=0 queued=0$/
   end
 
@@ -140,20 +140,20 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     link = pty_link()
 
     master = spawn_program(["pty", link])
-    assert_receive {^master, {:data, "o/dev/pts/" <> _}}, 5_000
+    assert_receive {^master, {:data, "o/dev/pts/" <> _}}
     assert {:ok, "/dev/pts/" <> _} = File.read_link(link)
 
     slave = open!(link)
     Port.command(master, ["w", "from master\n"])
     assert recv_until(slave, &(&1 == "from master\n")) == "from master\n"
     write(slave, "ping(1);")
-    assert_receive {^master, {:data, "rping(1);"}}, 2_000
+    assert_receive {^master, {:data, "rping(1);"}}
 
     # the board side closes and reopens its end: no hangup on the master side
     Port.close(slave)
     slave = open!(link)
     write(slave, "again")
-    assert_receive {^master, {:data, "ragain"}}, 2_000
+    assert_receive {^master, {:data, "ragain"}}
 
     # the master side goes: the slave hangs up, the link is removed
     Port.close(master)
@@ -167,9 +167,9 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     kernel_reports_slices? = Enum.any?(vm, fn {_tid, ns} -> ns > 0 end)
 
     sliced = spawn_program(["pty", pty_link()], [{~c"NEPTUNUS_SLICE_NS", ~c"250000"}])
-    assert_receive {^sliced, {:data, "o" <> _}}, 5_000
+    assert_receive {^sliced, {:data, "o" <> _}}
     plain = spawn_program(["pty", pty_link()], [{~c"NEPTUNUS_SLICE_NS", ~c"fast"}])
-    assert_receive {^plain, {:data, "o" <> _}}, 5_000
+    assert_receive {^plain, {:data, "o" <> _}}
 
     {:ok, [{_, sliced_ns}]} = Neptunus.OS.thread_slices(os_pid(sliced))
     {:ok, [{_, plain_ns}]} = Neptunus.OS.thread_slices(os_pid(plain))
@@ -185,22 +185,22 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
   test "NEPTUNUS_UART_RX_STAMPS=1: each read comes after a frame with its CLOCK_MONOTONIC time" do
     link = pty_link()
     master = spawn_program(["pty", link], [{~c"NEPTUNUS_UART_RX_STAMPS", ~c"1"}])
-    assert_receive {^master, {:data, "o" <> _}}, 5_000
+    assert_receive {^master, {:data, "o" <> _}}
     slave = open!(link)
 
     before = os_monotonic_ns()
     write(slave, "hdgd:90;")
-    assert_receive {^master, {:data, "t" <> stamp}}, 2_000
-    assert_receive {^master, {:data, "rhdgd:90;"}}, 2_000
+    assert_receive {^master, {:data, "t" <> stamp}}
+    assert_receive {^master, {:data, "rhdgd:90;"}}
     stamp = String.to_integer(stamp)
     assert before <= stamp and stamp <= os_monotonic_ns()
 
     # without the variable (the VM's board link): 'r' frames only
     plain_link = pty_link()
     plain = spawn_program(["pty", plain_link])
-    assert_receive {^plain, {:data, "o" <> _}}, 5_000
+    assert_receive {^plain, {:data, "o" <> _}}
     write(open!(plain_link), "x")
-    assert_receive {^plain, {:data, frame}}, 2_000
+    assert_receive {^plain, {:data, frame}}
     assert frame == "rx"
   end
 end

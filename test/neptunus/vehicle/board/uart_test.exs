@@ -142,8 +142,8 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     recv_until(ctx.board, &String.starts_with?(&1, @opening))
     write(ctx.board, @nav <> @status <> @nav)
 
-    assert_receive {:"$gen_cast", {:sample, s1}}, 2_000
-    assert_receive {:"$gen_cast", {:sample, s2}}, 2_000
+    assert_receive {:"$gen_cast", {:sample, s1}}
+    assert_receive {:"$gen_cast", {:sample, s2}}
     assert %{sim: nil, t: t, measurement: m, board: extra} = s1
     assert is_float(t) and s2.t >= t
     assert m.depth == 2.5 and m.voltage == 12.2 and m.current == 0.4
@@ -159,7 +159,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     pid = start_uart(ctx, max_line: 128)
     recv_until(ctx.board, &String.starts_with?(&1, @opening))
     write(ctx.board, @nav <> @status)
-    assert_receive {:"$gen_cast", {:sample, _}}, 2_000
+    assert_receive {:"$gen_cast", {:sample, _}}
 
     garbage = [
       "hdgd:pitc;deap:2000;vout:1.2;iout:nan;\n",
@@ -171,7 +171,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
     Enum.each(garbage, &write(ctx.board, &1))
     write(ctx.board, "deap:3.0;\n")
-    assert_receive {:"$gen_cast", {:sample, %{measurement: m}}}, 2_000
+    assert_receive {:"$gen_cast", {:sample, %{measurement: m}}}
     assert m.depth == 3.0 and m.voltage == 12.2 and m.heading > 3.0
 
     c = UART.link_status(ctx.id).counters
