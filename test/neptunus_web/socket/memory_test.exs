@@ -47,7 +47,7 @@ defmodule NeptunusWeb.Socket.MemoryTest do
   end
 
   defp telemetry!(ws, topic, k),
-    do: WSClient.recv_until(ws, &match?([_, _, ^topic, "telemetry", %{"k" => ^k}], &1), 5_000)
+    do: WSClient.recv_until(ws, &match?([_, _, ^topic, "telemetry", %{"k" => ^k}], &1))
 
   test "a broadcast frame goes out as the shared binary: the connection holds no copy of it",
        %{topic: topic} do

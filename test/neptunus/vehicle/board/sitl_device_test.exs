@@ -6,7 +6,7 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
   @moduletag :uart
   @moduletag :capture_log
 
-  import Neptunus.Test.Pty, only: [open!: 1, write: 2, recv_until: 3, drain: 2, wait_until: 3]
+  import Neptunus.Test.Pty, only: [open!: 1, write: 2, recv_until: 2, drain: 2, wait_until: 2]
 
   alias Neptunus.Protocol.OpenROV
   alias Neptunus.Vehicle.Board.SITL.Device
@@ -28,9 +28,9 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
   test "lines end in CRLF, the echo and the glued pong come back, depth is a placeholder at first" do
     {id, port} = start_device()
     write(port, "ping(5);")
-    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/), 2_000)
+    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/))
     assert out =~ "cmd:ping(5);\r\npong:1,"
-    out = recv_until(port, &(&1 =~ ~r/deap:[1-9]/), 3_000)
+    out = recv_until(port, &(&1 =~ ~r/deap:[1-9]/))
     assert out =~ ~r/\r\n;time:\d+\.00;\r\n/
     refute out =~ ~r/[^\r]\n/
     assert Device.state(id).firmware.depth > 1.9
@@ -40,8 +40,8 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
     {id, port} = start_device()
     write(port, "ligt(77);")
     write(port, "mtrmod1(100,100,100);")
-    wait_until(fn -> Device.state(id).firmware.lights == 77 end, "lights", 2_000)
-    wait_until(fn -> Device.state(id).firmware.depth > 1.9 end, "the first depth reading", 3_000)
+    wait_until(fn -> Device.state(id).firmware.lights == 77 end, "lights")
+    wait_until(fn -> Device.state(id).firmware.depth > 1.9 end, "the first depth reading")
     before = truth(id)
 
     :ok = Device.reset(id)
@@ -55,11 +55,11 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
     assert_in_delta state.sim.dyn.z, before.z, 0.05
     assert state.sim.steps > 0
 
-    out = recv_until(port, &(&1 =~ "Depth Sensor setup.\r\n" and &1 =~ "hdgd:"), 2_000)
+    out = recv_until(port, &(&1 =~ "Depth Sensor setup.\r\n" and &1 =~ "hdgd:"))
     assert out =~ ";deap:0.00;"
     _ = drain(port, 20)
     write(port, "ping(1);")
-    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/), 2_000)
+    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/))
     [millis] = millis_of_pong(out)
     assert String.to_integer(millis) < 2_000
   end
@@ -67,19 +67,19 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
   test "30.x: framed commands pass, plain ones fail their CRC" do
     {id, port} = start_device(firmware: :openrov_30)
     write(port, OpenROV.frame("ping(3);", :openrov_30))
-    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/), 2_000)
+    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/))
     assert out =~ ~r/rawcmd:[0-9A-F,]+;\r\ncrc:pass;cmd:ping\(3\);\r\npong:1,\d+;/
     write(port, "ping(4);")
-    out = recv_until(port, &(&1 =~ "crc:fail,"), 2_000)
+    out = recv_until(port, &(&1 =~ "crc:fail,"))
     assert out =~ ~r/crc:fail,[0-9A-F]+\/70;/
     assert Device.state(id).firmware.bad_commands == 1
   end
 
   test "a 100-byte burst overflows the 64-byte receive buffer; paced writes lose nothing" do
     {id, port} = start_device()
-    _ = recv_until(port, &(&1 =~ "hdgd:"), 2_000)
+    _ = recv_until(port, &(&1 =~ "hdgd:"))
     write(port, String.duplicate("tilt(1500);", 9) <> "ping(1);")
-    wait_until(fn -> Device.state(id).rx_dropped > 0 end, "dropped bytes", 2_000)
+    wait_until(fn -> Device.state(id).rx_dropped > 0 end, "dropped bytes")
     # the whole burst is in once a command sent after it has been carried out (the ';' first
     # ends what is left of the burst's cut command, as it would on the board)
     Process.sleep(50)
@@ -87,8 +87,7 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
 
     wait_until(
       fn -> Device.state(id).firmware.lights == 99 end,
-      "the command after the burst",
-      2_000
+      "the command after the burst"
     )
 
     dropped = Device.state(id).rx_dropped
@@ -100,14 +99,14 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
       Process.sleep(15)
     end
 
-    wait_until(fn -> Device.state(id).firmware.lights == 20 end, "the last command", 2_000)
+    wait_until(fn -> Device.state(id).firmware.lights == 20 end, "the last command")
     assert Device.state(id).rx_dropped == dropped
   end
 
   describe "straight surge with the thesis wiring (port reversed)" do
     defp heading_change(commands) do
       {id, port} = start_device()
-      _ = recv_until(port, &(&1 =~ "hdgd:"), 2_000)
+      _ = recv_until(port, &(&1 =~ "hdgd:"))
       for c <- commands, do: write(port, c) && Process.sleep(5)
       psi0 = truth(id).psi
       Process.sleep(1_500)

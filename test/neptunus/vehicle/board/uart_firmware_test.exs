@@ -34,7 +34,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
   # 30.x commands: one CRC byte, then the text up to ';'. Returns the commands read so far
   # (each {crc_ok?, text}) once `count` have arrived.
   defp recv_framed(board, count) do
-    bytes = recv_until(board, &(length(split_framed(&1)) >= count), 3_000)
+    bytes = recv_until(board, &(length(split_framed(&1)) >= count))
     split_framed(bytes)
   end
 

@@ -6,7 +6,7 @@ defmodule Neptunus.Vehicle.Board.UARTReopenTest do
   @moduletag :uart
   @moduletag :capture_log
 
-  import Neptunus.Test.Pty, only: [wait_until: 3]
+  import Neptunus.Test.Pty, only: [wait_until: 2]
 
   alias Neptunus.{Fleet, PubSub, Wiring}
   alias Neptunus.Vehicle.{Board, Control, Telemetry}
@@ -40,8 +40,7 @@ defmodule Neptunus.Vehicle.Board.UARTReopenTest do
 
     wait_until(
       fn -> SITL.Device.state(id).firmware.target_us != neutral end,
-      "the board to drive",
-      2_000
+      "the board to drive"
     )
 
     {:os_pid, os_pid} = :sys.get_state(Fleet.whereis(Board, id)).port |> Port.info(:os_pid)
