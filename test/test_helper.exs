@@ -14,9 +14,11 @@
 #
 # A wait for an event (`assert_receive` without a timeout, the waits in test/support) gives up
 # after Neptunus.Test.Patience.ms/0: generous, since the machine may be busy; it returns as soon
-# as the event comes.
+# as the event comes. A test is ended as hung after 5 minutes (ExUnit's 60 s default was too
+# short for the property tests' CPU work on a machine busy with other programs).
 ExUnit.start(
   exclude: [:target],
   formatters: [ExUnit.CLIFormatter, Neptunus.Test.FailureRecap],
-  assert_receive_timeout: Neptunus.Test.Patience.ms()
+  assert_receive_timeout: Neptunus.Test.Patience.ms(),
+  timeout: 300_000
 )
