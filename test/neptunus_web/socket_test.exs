@@ -66,17 +66,28 @@ defmodule NeptunusWeb.SocketTest do
   end
 
   test "a silent connection is closed; heartbeats keep it open" do
-    NeptunusWeb.Test.Wire.settings!(idle_timeout_ms: 300)
-    silent = connect!()
+    # a timeout far beyond the heartbeats' 100 ms, so a busy machine's pause in them does not
+    # reach it
+    NeptunusWeb.Test.Wire.settings!(idle_timeout_ms: 2_000)
     lively = connect!()
+    silent = connect!()
 
-    for i <- 1..8 do
-      WSClient.push(lively, nil, "hb#{i}", "phoenix", "heartbeat", %{})
-      Process.sleep(100)
-    end
+    spawn_link(fn ->
+      Stream.iterate(1, &(&1 + 1))
+      |> Enum.each(fn i ->
+        WSClient.push(lively, nil, "hb#{i}", "phoenix", "heartbeat", %{})
+        Process.sleep(100)
+      end)
+    end)
 
-    assert_received {:ws, ^silent, {:close, 1000, "heartbeat timeout"}}
+    # the silent one is closed; the lively one, connected before it and so silent longer had
+    # it not heartbeated, is still served
+    assert_receive {:ws, ^silent, {:close, 1000, "heartbeat timeout"}}
     refute_received {:ws, ^lively, {:close, _, _}}
+    WSClient.push(lively, nil, "after", "phoenix", "heartbeat", %{})
+
+    assert [_, "after", "phoenix", "phx_reply", %{"status" => "ok"}] =
+             WSClient.recv_until(lively, &match?([_, "after" | _], &1))
   end
 
   test "a client's close is echoed (clean close, not 1006)" do
