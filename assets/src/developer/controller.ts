@@ -19,6 +19,7 @@ import { decodeTelemetry } from "../lib/protocol";
 import type { Helm, Telemetry } from "../lib/protocol";
 import { TelemetryClock } from "../lib/clock";
 import type { TelemetryState } from "../lib/clock";
+import { NewestWriter } from "../lib/newest_writer";
 import { PageSession, browserSessionEnv } from "../lib/session";
 import { DEVELOPER_PLOTS_KEY, SettingsClient, notKept } from "../lib/settings";
 import { Store } from "../lib/store";
@@ -111,6 +112,8 @@ export class DevController {
   private token: string | null = null;
   private readonly session: PageSession;
   private readonly settings: SettingsClient;
+  /** the user's plots are written one request at a time, the newest last */
+  private readonly plotsWriter = new NewestWriter();
   private vehicle: VehicleChannel | null = null;
   private readonly clock = new TelemetryClock(() => this.vehicle);
 
@@ -322,8 +325,11 @@ export class DevController {
   /** Back to the default plots (the user's stored set is deleted on the server). */
   resetPlots(): void {
     this.store.update({ plots: this.specs(DEFAULT_PLOT_SET), plotsStatus: { state: "saving", text: "Resetting…" } });
-    this.settings.delete(DEVELOPER_PLOTS_KEY).then(
-      () => this.store.update({ plotsStatus: { state: "default", text: "Default plots." } }),
+    const plots = this.store.get().plots;
+    this.plotsWriter.write(() => this.settings.delete(DEVELOPER_PLOTS_KEY)).then(
+      () => {
+        if (this.store.get().plots === plots) this.store.update({ plotsStatus: { state: "default", text: "Default plots." } });
+      },
       (err: unknown) => this.plotsError(err),
     );
   }
@@ -351,7 +357,7 @@ export class DevController {
 
   private savePlots(plots: readonly PlotSpec[]): void {
     this.store.update({ plots, plotsStatus: { state: "saving", text: "Saving…" } });
-    this.settings.put(DEVELOPER_PLOTS_KEY, encodePlotSet(plots.map((p) => p.series))).then(
+    this.plotsWriter.write(() => this.settings.put(DEVELOPER_PLOTS_KEY, encodePlotSet(plots.map((p) => p.series)))).then(
       () => {
         // a later change may have been saved meanwhile: only the newest says "saved"
         if (this.store.get().plots === plots) this.store.update({ plotsStatus: { state: "saved", text: "Saved on the server." } });
