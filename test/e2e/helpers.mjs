@@ -49,6 +49,33 @@ export async function reportCspViolations(context) {
   });
 }
 
+/**
+ * Keeps every text `#message` shows on the pages of `context`, in order (`window.__messages`):
+ * a later message replaces the one shown (on a busy machine a deadman stop of the next pilot
+ * may come within the same second), so a check that a message was shown reads this.
+ */
+export async function recordMessages(context) {
+  await context.addInitScript(() => {
+    const seen = [];
+    window.__messages = seen;
+    const look = () => {
+      const text = document.querySelector("#message")?.textContent ?? "";
+      if (text !== "" && seen[seen.length - 1] !== text) seen.push(text);
+    };
+    new MutationObserver(look).observe(document, { childList: true, subtree: true, characterData: true });
+  });
+}
+
+/** How many messages `page` has shown so far: `messageShown` after them waits for a newer one. */
+export const messageCount = (page) => page.evaluate(() => window.__messages.length);
+
+/** Waits until `page` has shown, after its first `since` messages, one containing `text`. */
+export async function messageShown(page, text, since = 0) {
+  await page.waitForFunction(([t, n]) => window.__messages.slice(n).some((m) => m.includes(t)), [text, since], {
+    timeout: WAIT_MS,
+  });
+}
+
 /** The page response carries the anti-framing headers (see NeptunusWeb.Guard). */
 export function assertPageHeaders(response, where) {
   assert.ok(response, `${where}: no response`);
@@ -92,6 +119,7 @@ export async function open(browser, { width, height, name, touch = false, path =
   const context = await browser.newContext({ viewport: { width, height }, hasTouch: touch, isMobile: false });
   context.setDefaultTimeout(WAIT_MS);
   await reportCspViolations(context);
+  await recordMessages(context);
   const page = await context.newPage();
   if (init) await page.addInitScript(init);
   page.on("pageerror", (err) => pageProblems.push(`[${name}] uncaught: ${err.message}`));

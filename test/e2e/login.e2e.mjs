@@ -14,6 +14,7 @@ import { createRequire } from "node:module";
 import { dirname, join } from "node:path";
 import { after, before, test } from "node:test";
 import { fileURLToPath } from "node:url";
+import { messageCount, messageShown, recordMessages } from "./helpers.mjs";
 
 const here = dirname(fileURLToPath(import.meta.url));
 const root = join(here, "..", "..");
@@ -52,6 +53,7 @@ after(async () => {
 async function newPage(label) {
   const context = await browser.newContext({ viewport: { width: 1280, height: 800 } });
   context.setDefaultTimeout(WAIT_MS);
+  await recordMessages(context);
   // Content-Security-Policy violations become console errors, which are problems
   await context.addInitScript(() => {
     document.addEventListener("securitypolicyviolation", (e) => {
@@ -117,6 +119,7 @@ test("login, roles, and the main station's takeover with a warning", { timeout: 
     assert.equal(await olga.page.locator("#take-control").isVisible(), false);
 
     // the main station takes control: both are warned, with a countdown, before the transfer
+    const shownBefore = await messageCount(pilot.page);
     await main.page.locator("#take-control").click();
     await pilot.page.locator('#helm-state[data-state="takeover"][data-warning="true"]').waitFor();
     assert.match((await helm(pilot.page).textContent()) ?? "", /Main station e2e-main takes control from you in \d s/);
@@ -125,7 +128,7 @@ test("login, roles, and the main station's takeover with a warning", { timeout: 
     await pilot.page.screenshot({ path: join(ARTIFACTS, "takeover-warning.png") });
 
     await main.page.locator('#helm-state[data-me="pilot"]').waitFor({ timeout: TAKEOVER_WAIT_MS });
-    await pilot.page.locator("#message", { hasText: "main_station_takeover" }).waitFor();
+    await messageShown(pilot.page, "main_station_takeover", shownBefore);
     await pilot.page.locator('#helm-state[data-me="watching"]').waitFor();
     assert.equal(await olga.page.locator("#pilot").textContent(), "e2e-main");
 
