@@ -94,13 +94,18 @@ defmodule NeptunusWeb.HeaderDeadlineTest do
   test "empty lines instead of a request line do not hold a connection" do
     # yaws skips an empty line with a fresh read timeout: only the deadline ends this
     timeout = NeptunusWeb.Endpoint.header_timeout_ms()
+    starvation = Neptunus.Test.Starvation.start_link()
     socket = connect!()
     started = System.monotonic_time(:millisecond)
     lines = drip(socket, div(timeout, 5), fn _ -> "\r\n" end)
     lasted = System.monotonic_time(:millisecond) - started
 
     assert lines < 40, "#{lines} empty lines sent and the connection was never closed"
-    assert lasted < 2 * timeout, "closed after #{lasted} ms"
+    # within two timeouts, plus the time a busy machine kept the node from a core meanwhile
+    starved = Neptunus.Test.Starvation.waited(starvation, started, started + lasted)
+
+    assert lasted < 2 * timeout + (starved || 0),
+           "closed after #{lasted} ms, the node kept from a core #{starved} ms"
   end
 
   @tag :tmp_dir
