@@ -104,12 +104,22 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
   end
 
   describe "straight surge with the thesis wiring (port reversed)" do
+    # the heading's change over 1.5 s of the simulation's time (it keeps pace with the clock,
+    # and skips what a stalled machine could not step: its own time is what counts)
     defp heading_change(commands) do
       {id, port} = start_device()
       _ = recv_until(port, &(&1 =~ "hdgd:"))
       for c <- commands, do: write(port, c) && Process.sleep(5)
-      psi0 = truth(id).psi
-      Process.sleep(1_500)
+      # measured from the moment the board has taken the last command
+      wait_until(fn -> Device.state(id).firmware.target_us == {1300, 1500, 1700} end, "go()")
+      %{sim: sim} = Device.state(id)
+      {psi0, t0} = {sim.dyn.psi, Neptunus.Sim.time(sim)}
+
+      wait_until(
+        fn -> Neptunus.Sim.time(Device.state(id).sim) >= t0 + 1.5 end,
+        "1.5 s of simulated time"
+      )
+
       abs(truth(id).psi - psi0)
     end
 
