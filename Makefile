@@ -5,7 +5,8 @@ SHELL := /bin/bash
 .DEFAULT_GOAL := help
 
 APT_PACKAGES := elixir erlang-dev erlang-src erlang-yaws erlang-jiffy erlang-proper \
-                erlang-dialyzer socat chromium gcc libc6-dev python3 python3-venv openssl
+                erlang-dialyzer socat chromium gcc libc6-dev python3 python3-venv openssl \
+                ffmpeg
 YAWS_DIR := $(firstword $(wildcard /usr/lib/yaws-*))
 ASSETS_STAMP := assets/node_modules/.package-lock.json
 # pymavlink, for the MAVLink interoperability tests only, in a project-local virtualenv
@@ -13,7 +14,7 @@ PYMAVLINK_VERSION := 2.4.50
 VENV_STAMP := .venv/.pymavlink-$(PYMAVLINK_VERSION)
 
 .PHONY: help setup setup-apt setup-links setup-npm setup-venv assets compile run test bench release clean \
-        setup-armhf release-armhf test-target
+        setup-armhf release-armhf test-target setup-firmware firmware upload test-firmware
 
 help:
 	@echo "make run    - install what is missing, build, start the server (http://127.0.0.1:4000)"
@@ -26,6 +27,10 @@ help:
 	@echo "make release-armhf - the node for a Debian 12 armhf board (BeagleBone), built here:"
 	@echo "                     _build/armhf/neptunus-<version>-armhf.tar.gz (see README, Deploy)"
 	@echo "make test-target - the slow release tests: armhf tarball booted under qemu, install/rollback"
+	@echo "make firmware - the BeagleBone SD-card image and its signed update, built here:"
+	@echo "                _build/firmware/neptunus-<version>-beaglebone.img.xz and .fw (README, Flash)"
+	@echo "make upload HOST=192.168.254.1 - send the update to a vehicle over the tether (A/B, rollback)"
+	@echo "make test-firmware - the image booted under qemu-system-arm: updates, rollback, power loss"
 	@echo "make clean  - remove build output"
 
 setup: setup-apt setup-links setup-npm setup-venv
@@ -38,7 +43,8 @@ setup-apt:
 	if [ -n "$$missing" ]; then \
 	  if [ "$$(id -u)" = 0 ]; then \
 	    echo "Installing Debian packages:" $$missing; \
-	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
+	    apt-get update -qq || echo "apt-get update failed for some lists: installing from those it has"; \
+	    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
 	  else \
 	    echo "Missing Debian packages. Run:"; \
 	    echo "  sudo apt-get update && sudo apt-get install -y" $$missing; \
@@ -103,8 +109,10 @@ bench: setup assets
 	bench/protocol_fuzz
 	bench/mavlink_fuzz
 	bench/control_latency
+	bench/open_reset
 	bench/recording_export
 	bench/recorder_sync
+	bench/sim_camera
 	bench/soak
 	@if [ "$$(id -u)" = 0 ]; then bench/slow_link; else echo "bench/slow_link skipped: it needs root (a network namespace and a shaped link)"; fi
 
@@ -144,6 +152,36 @@ release-armhf: setup assets setup-armhf
 test-target: release-armhf
 	MIX_ENV=test mix compile --warnings-as-errors
 	mix test --only target
+
+# The SD-card image (rel/firmware/build): Debian's armhf packages through mmdebstrap, run
+# under qemu-user; the image's filesystems made without mounting anything; qemu-system-arm
+# and u-boot-qemu boot it in the test.
+FIRMWARE_HOST_PACKAGES := mmdebstrap arch-test qemu-system-arm u-boot-qemu u-boot-tools e2fsprogs \
+                          dosfstools mtools fdisk xz-utils zstd openssl openssh-client
+
+setup-firmware: setup-armhf
+	@missing=$$(for p in $(FIRMWARE_HOST_PACKAGES); do \
+	    dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || echo $$p; \
+	  done); \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" != 0 ]; then \
+	    echo "Building the image needs, as root:"; \
+	    echo "  sudo apt-get update && sudo apt-get install -y --no-install-recommends" $$missing; \
+	    exit 1; \
+	  fi; \
+	  echo "Installing Debian packages:" $$missing; \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null; \
+	fi
+
+firmware: release-armhf setup-firmware
+	rel/firmware/build
+
+upload:
+	rel/firmware/upload "$(HOST)" $(FW)
+
+test-firmware: firmware
+	MIX_ENV=test mix compile --warnings-as-errors
+	mix test --only firmware
 
 clean:
 	rm -rf _build priv/static test/e2e/artifacts

@@ -4,7 +4,8 @@ defmodule Mix.Tasks.Compile.PortPrograms do
   Builds every `c_src/NAME.c` into `priv/NAME` with the system C compiler (`$CC`, else `cc`,
   else `gcc`; `make setup` installs gcc) and `-Wall -Wextra -Werror -O2`; a `c_src/NAME_nif.c`
   becomes the shared library `priv/NAME_nif.so` (with Erlang's `erl_nif.h` from `erlang-dev`,
-  and `-ffp-contract=off` so its floating point matches the BEAM's). A program is rebuilt
+  and `-ffp-contract=off` so its floating point matches the BEAM's); everything is linked with
+  the maths library (`-lm`). A program is rebuilt
   when it is missing or any file in `c_src/` is at least as new as it (mtimes have 1 s
   resolution, so "as new" rebuilds rather than misses a change made in the same second).
   The binary is written to a temporary name and renamed into place, so builds from several
@@ -64,7 +65,7 @@ defmodule Mix.Tasks.Compile.PortPrograms do
     end
   end
 
-  defp libs(source), do: if(nif?(source), do: ["-lm"], else: [])
+  defp libs(_source), do: ["-lm"]
 
   defp stale?(target, newest), do: not File.exists?(target) or mtime(target) <= newest
 
@@ -137,8 +138,10 @@ defmodule Neptunus.MixProject do
       elixir: "~> 1.14",
       start_permanent: Mix.env() == :prod,
       elixirc_paths: elixirc_paths(Mix.env()),
-      # c_src/neptunus_uart.c → priv/neptunus_uart (the serial port program), the NIFs
-      # neptunus_dynamics_nif and neptunus_os_nif → priv/*.so, see above
+      # c_src/neptunus_uart.c → priv/neptunus_uart (the serial port program),
+      # c_src/neptunus_camera.c → priv/neptunus_camera (the camera port program and the
+      # simulated camera's renderer), the NIFs neptunus_dynamics_nif and neptunus_os_nif →
+      # priv/*.so, see above
       compilers: Mix.compilers() ++ [:port_programs],
       deps: [],
       # dev tooling that is not part of the running application (mix neptunus.dialyzer)

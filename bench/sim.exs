@@ -6,6 +6,8 @@
 # asserts. Starts only what vehicles need (PubSub and the fleet), not the web endpoint.
 # BENCH_SMOKE=1: a smoke run (bench/smoke): 1 000 headless steps once, a short warm-up.
 
+Code.require_file("support/proc.exs", __DIR__)
+
 defmodule Bench.Sim do
   alias Neptunus.{Scenario, Sim}
   alias Neptunus.Vehicle.Board
@@ -208,23 +210,10 @@ defmodule Bench.Sim do
     if total == 0, do: 0.0, else: active / total
   end
 
-  defp cpu_ticks do
-    fields =
-      "/proc/self/stat" |> File.read!() |> String.split(") ") |> List.last() |> String.split()
-
-    String.to_integer(Enum.at(fields, 11)) + String.to_integer(Enum.at(fields, 12))
-  end
+  defp cpu_ticks, do: Bench.Proc.cpu_ticks()
 
   # {busy, total} jiffies of the whole machine (/proc/stat)
-  defp machine_ticks do
-    ["cpu" | values] =
-      "/proc/stat" |> File.read!() |> String.split("\n") |> hd() |> String.split()
-
-    values = Enum.map(values, &String.to_integer/1)
-    idle = Enum.at(values, 3) + Enum.at(values, 4)
-    total = Enum.sum(Enum.take(values, 8))
-    {total - idle, total}
-  end
+  defp machine_ticks, do: Bench.Proc.machine_ticks()
 
   # total µs some task waited for a CPU (/proc/pressure/cpu), 0 where unavailable
   defp cpu_pressure do

@@ -12,6 +12,9 @@
  *   VM -> program   'w' DATA     write DATA to the line (queued while the line is busy)
  *                   's'          ask for counters; answered with 's'
  *   program -> VM   'o' PATH     the line is open and configured (for pty: the slave's path)
+ *                   'O'          pty mode: someone opened the slave end (a board link opening
+ *                                the line; the SITL board resets on it, as a USB Arduino
+ *                                does). Seen with inotify; none where inotify is missing.
  *                   'r' DATA     bytes read from the line
  *                   'd' N        N bytes (decimal text) of a 'w' dropped: output queue full
  *                   's' TEXT     "rx=N tx=N dropped=N queued=N"
@@ -47,6 +50,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sched.h>
+#include <sys/inotify.h>
 #include <sys/ioctl.h>
 #include <sys/syscall.h>
 #include <termios.h>
@@ -83,6 +87,7 @@ static int rx_stamps = 0;
 static char link_path[4096];
 static char slave_path[256];
 static int slave_keepalive_fd = -1;
+static int open_watch_fd = -1; /* inotify: opens of the slave end */
 
 /* ---- frames to the VM ------------------------------------------------------------- */
 
@@ -240,6 +245,13 @@ static void open_pty(const char *link)
     if (slave_keepalive_fd < 0 || configure_raw(slave_keepalive_fd, (speed_t)0) < 0)
         fail(EXIT_OPEN, "open %s: %s", slave_path, strerror(errno));
 
+    /* Best effort: without inotify the board just never hears of opens. */
+    open_watch_fd = inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+    if (open_watch_fd >= 0 && inotify_add_watch(open_watch_fd, slave_path, IN_OPEN) < 0) {
+        close(open_watch_fd);
+        open_watch_fd = -1;
+    }
+
     strcpy(link_path, link);
     snprintf(tmp, sizeof tmp, "%s.%ld", link, (long)getpid());
     unlink(tmp);
@@ -299,6 +311,26 @@ static void read_line_fd(void)
         if (errno == EIO)
             fail(EXIT_HANGUP, "hangup: %s", strerror(errno));
         fail(EXIT_IO, "read: %s", strerror(errno));
+    }
+}
+
+/* pty mode: one 'O' frame for every open of the slave end since the last read. */
+static void read_open_watch(void)
+{
+    unsigned char buf[4096] __attribute__((aligned(__alignof__(struct inotify_event))));
+    for (;;) {
+        ssize_t n = read(open_watch_fd, buf, sizeof buf);
+        size_t pos = 0;
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0)
+            return;
+        while (pos + sizeof(struct inotify_event) <= (size_t)n) {
+            const struct inotify_event *event = (const struct inotify_event *)(buf + pos);
+            if (event->mask & IN_OPEN)
+                send_frame('O', NULL, 0);
+            pos += sizeof(struct inotify_event) + event->len;
+        }
     }
 }
 
@@ -455,21 +487,28 @@ int main(int argc, char **argv)
     }
 
     for (;;) {
-        struct pollfd fds[2];
+        struct pollfd fds[3];
         fds[0].fd = STDIN_FILENO;
         fds[0].events = POLLIN;
         fds[0].revents = 0;
         fds[1].fd = line_fd;
         fds[1].events = (short)(POLLIN | (out_len > 0 ? POLLOUT : 0));
         fds[1].revents = 0;
+        fds[2].fd = open_watch_fd; /* -1 (ignored by poll) unless in pty mode */
+        fds[2].events = POLLIN;
+        fds[2].revents = 0;
 
-        if (poll(fds, 2, -1) < 0) {
+        if (poll(fds, 3, -1) < 0) {
             if (errno == EINTR)
                 continue;
             fail(EXIT_IO, "poll: %s", strerror(errno));
         }
         if (fds[0].revents & (POLLIN | POLLHUP | POLLERR))
             read_stdin();
+        /* an open is reported before the bytes the opener then writes: the event is queued
+         * by open() itself, before any write could be made */
+        if (fds[2].revents & POLLIN)
+            read_open_watch();
         if (fds[1].revents & POLLIN)
             read_line_fd(); /* a hangup with data pending reads the data first, then EOF */
         else if (fds[1].revents & (POLLHUP | POLLERR | POLLNVAL))

@@ -15,7 +15,7 @@ import Config
 #                        whole burst (Neptunus.Vehicle.Telemetry, Neptunus.PubSub.broadcast_paced/5;
 #                        the pilot's connection is served first)
 #
-# The web layer's (read once at boot into NeptunusWeb.Settings; defaults in
+# The web layer's (read once at boot into NeptunusWeb.Endpoint.Settings; defaults in
 # Neptunus.Config.Endpoint.web_settings!/1):
 #
 #   send_timeout_ms      a send to a client that has not read for this long closes the

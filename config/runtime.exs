@@ -19,6 +19,8 @@ import Config
 # NEPTUNUS_RECORDING_MAX_MB, NEPTUNUS_RECORDING_MIN_FREE_MB, NEPTUNUS_RECORDING_KEEP_DAYS.
 # Settings (Neptunus.Config.Settings, Neptunus.Settings): NEPTUNUS_SETTINGS, the per-user and
 # per-vehicle settings' directory (default settings).
+# Firmware (Neptunus.FirmwareRecord): NEPTUNUS_FIRMWARE_RECORD, the SD-card image's record of
+# its last update (kept or rolled back), shown by /api/health and the operator page.
 # Scheduling (Neptunus.Config.OS, Neptunus.OS): NEPTUNUS_OS_SLICE_US.
 # Connections (Neptunus.Config.Endpoint, NeptunusWeb.Endpoint):
 # NEPTUNUS_MAX_CONNECTIONS, the most client connections at once (1..1048576); more are closed
@@ -47,6 +49,11 @@ config :neptunus,
       env,
       Application.get_env(:neptunus, :default_recordings, "recordings")
     ),
+  firmware_record:
+    (case String.trim(Map.get(env, "NEPTUNUS_FIRMWARE_RECORD", "")) do
+       "" -> nil
+       path -> path
+     end),
   settings_dir:
     Neptunus.Config.Settings.settings_dir!(
       env,

@@ -81,13 +81,7 @@ defmodule Neptunus.InstallTest do
       root = Path.join(dir, "root")
       File.mkdir_p!(root)
 
-      # a systemctl that records its calls
-      bin = Path.join(dir, "bin")
-      File.mkdir_p!(bin)
-      calls = Path.join(dir, "systemctl.calls")
-      File.write!(Path.join(bin, "systemctl"), "#!/bin/sh\necho \"$*\" >> #{calls}\n")
-      File.chmod!(Path.join(bin, "systemctl"), 0o755)
-      env = [{"PATH", bin <> ":" <> System.get_env("PATH")}]
+      {calls, env} = recording_systemctl(dir)
 
       assert {out, 1} = install(["--root", root, "--no-user", "--timeout", "1", tarball], env)
       assert out =~ "did not become healthy within 1s"
@@ -115,6 +109,46 @@ defmodule Neptunus.InstallTest do
       assert File.ls!(Path.join(root, "opt/neptunus/releases")) |> Enum.sort() == ~w(9.9.10 9.9.9)
       assert File.read_link!(current) == "releases/9.9.9"
     end
+  end
+
+  describe "checks of the running node and --no-start (the firmware image uses them)" do
+    @describetag :tmp_dir
+
+    test "no node answering: the helm is free, the node is not healthy", %{tmp_dir: dir} do
+      File.mkdir_p!(Path.join(dir, "etc"))
+      File.write!(Path.join(dir, "etc/neptunus.env"), "NEPTUNUS_PORT=#{free_port()}\n")
+      assert {out, 0} = install(["--root", dir, "--check-helm"])
+      assert out =~ "no node answers; the helm is free"
+      assert {out, 1} = install(["--root", dir, "--check-healthy", "--timeout", "1"])
+      assert out =~ "the node is not healthy after 1s (/api/health: no answer)"
+      assert {out, 2} = install(["--root", dir, "--check-helm", "x.tar.gz"])
+      assert out =~ "--check-helm takes no tarball"
+    end
+
+    test "--no-start installs the release, the unit and the settings, and starts nothing",
+         %{tmp_dir: dir} do
+      tarball = tar!(fake_release(dir, "9.9.9"), Path.join(dir, "fake.tar.gz"))
+      root = Path.join(dir, "root")
+      File.mkdir_p!(root)
+      {calls, env} = recording_systemctl(dir)
+
+      assert {out, 0} = install(["--root", root, "--no-user", "--no-start", tarball], env)
+      assert out =~ "installed neptunus 9.9.9 (not started: --no-start)"
+      assert File.read_link!(Path.join(root, "opt/neptunus/current")) == "releases/9.9.9"
+      assert File.exists?(Path.join(root, "etc/systemd/system/neptunus.service"))
+      assert File.exists?(Path.join(root, "etc/neptunus.env"))
+      refute File.exists?(calls)
+    end
+  end
+
+  # A systemctl on PATH that records its calls: the file of calls, the environment to use.
+  defp recording_systemctl(dir) do
+    bin = Path.join(dir, "bin")
+    File.mkdir_p!(bin)
+    calls = Path.join(dir, "systemctl.calls")
+    File.write!(Path.join(bin, "systemctl"), "#!/bin/sh\necho \"$*\" >> #{calls}\n")
+    File.chmod!(Path.join(bin, "systemctl"), 0o755)
+    {calls, [{"PATH", bin <> ":" <> System.get_env("PATH")}]}
   end
 
   # A release that never becomes healthy: the layout neptunus-install looks for, a bin/neptunus

@@ -37,7 +37,8 @@ defmodule Neptunus.ReleaseArmhfTest do
     objects = ReleaseRig.elf_files(rel)
     names = Enum.map(objects, &Path.basename/1)
 
-    for name <- ~w(beam.smp erlexec erl_child_setup epmd neptunus_uart neptunus_dynamics_nif.so
+    for name <- ~w(beam.smp erlexec erl_child_setup epmd neptunus_uart neptunus_camera
+                   neptunus_dynamics_nif.so
                    neptunus_os_nif.so crypto.so jiffy.so) do
       assert name in names, "#{name} is not in the tarball"
     end

@@ -17,7 +17,7 @@ defmodule Neptunus.Settings do
   from her tablet she finds on the main station's laptop. Anonymous observers have no
   settings (their name is made up per connection). In local mode there are no logins and
   every connection's name is only a label, so the whole node has one user, `"local"`
-  (`local_user/0`; `NeptunusWeb.API.user_scope/1` maps a request to its scope).
+  (`local_user/0`; `NeptunusWeb.API.Request.user_scope/1` maps a request to its scope).
 
   ## Durability
 

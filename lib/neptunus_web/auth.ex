@@ -9,9 +9,9 @@ defmodule NeptunusWeb.Auth do
       connection is a `pilot` named by its `name` parameter, and the pages show a banner
       saying so. Every HTTP request — pages, assets, the API, the camera, WebSocket
       upgrades — must name a loopback host (`Host: localhost`, `127.x.x.x`, `[::1]`;
-      `check_host/2`, applied by `NeptunusWeb.Guard`), so a web page on another site cannot
-      reach the vehicle or its recordings through the operator's browser, not even by DNS
-      rebinding.
+      `check_host/2`, applied by `NeptunusWeb.Endpoint.Guard`), so a web page on another site
+      cannot reach the vehicle or its recordings through the operator's browser, not even by
+      DNS rebinding.
     * **secure** — users with roles `pilot`, `observer` and at most one `main_station` log in
       with `POST /api/login` and get a signed, expiring token (`NeptunusWeb.Auth.Token`),
       passed to the WebSocket as the `token` query parameter. Connections without a token
@@ -31,11 +31,12 @@ defmodule NeptunusWeb.Auth do
         users: %{name => %{name, role, hash}}, anonymous_observers: boolean,
         origins: [String.t()], token_ttl_s: pos_integer, login_attempts_per_minute: pos_integer}
 
-  It is read once at boot into the web settings (`NeptunusWeb.Settings`, `auth`), which
-  every connection and login reads.
+  It is read once at boot into the web settings (`NeptunusWeb.Endpoint.Settings`, `auth`),
+  which every connection and login reads.
   """
 
   alias NeptunusWeb.Auth.{Password, RateLimit, Token}
+  alias NeptunusWeb.Endpoint.Settings
 
   @type role :: :pilot | :observer | :main_station
   @type user :: %{id: String.t(), name: String.t(), role: role()}
@@ -49,9 +50,9 @@ defmodule NeptunusWeb.Auth do
           login_attempts_per_minute: pos_integer()
         }
 
-  @doc "The configuration, from the web settings (`NeptunusWeb.Settings`)."
+  @doc "The configuration, from the web settings (`NeptunusWeb.Endpoint.Settings`)."
   @spec config() :: config()
-  def config, do: NeptunusWeb.Settings.get().auth
+  def config, do: Settings.get().auth
 
   @doc "`:local` or `:secure`."
   @spec mode() :: :local | :secure
@@ -237,9 +238,11 @@ defmodule NeptunusWeb.Auth do
     if allowed?, do: :ok, else: {:error, 403, "origin not allowed: #{origin}"}
   end
 
-  @doc "`\"https\"` when the endpoint serves TLS (`NeptunusWeb.Settings`), else `\"http\"`."
+  @doc """
+  `"https"` when the endpoint serves TLS (`NeptunusWeb.Endpoint.Settings`), else `"http"`.
+  """
   @spec server_scheme() :: String.t()
-  def server_scheme, do: NeptunusWeb.Settings.scheme(NeptunusWeb.Settings.get())
+  def server_scheme, do: Settings.scheme(Settings.get())
 
   defp same_origin?(_origin, nil, _server_scheme), do: false
 

@@ -1,10 +1,14 @@
 defmodule NeptunusWeb.CameraRelay do
   @moduledoc """
   One stream of a camera's frames per node: the camera of a vehicle on another node of the
-  fleet reaches this node's viewers (`NeptunusWeb.CameraStream`) through one relay process
-  here, the only subscriber of the camera's topic on this node. The camera's node sends
-  each frame once to this node, whatever the number of viewers here; the relay hands it to
-  each of them (a JPEG is a shared binary: a local send copies no pixels).
+  fleet reaches this node's viewers (`NeptunusWeb.VideoSocket`, `NeptunusWeb.CameraStream`)
+  through one relay process here, the only subscriber of the camera's topic on this node.
+  The camera's node sends each frame once to this node, whatever the number of viewers
+  here; the relay hands it to each of them (a frame is a shared binary: a local send copies
+  no pixels), with the camera's `stream` and `camera` messages in their order.
+
+  Viewers call `watch/1`, which subscribes them to a camera here directly and to a camera
+  elsewhere through this node's relay.
 
   A relay is started for the first viewer (under `Neptunus.Fleet`'s relays supervisor,
   named in its registry) and stops when the last one has gone. Viewers monitor it: if it
@@ -40,9 +44,35 @@ defmodule NeptunusWeb.CameraRelay do
     do: %{id: {__MODULE__, id}, start: {__MODULE__, :start_link, [id]}, restart: :temporary}
 
   @doc """
-  Subscribes the calling process to vehicle `id`'s camera frames through this node's relay
-  (term messages `{:pubsub, topic, "frame", %{jpeg: binary}}`, as from `Neptunus.PubSub`);
-  returns a monitor of the relay: on its `:DOWN`, subscribe again.
+  Subscribes the calling process to vehicle `id`'s camera (see `Neptunus.Vehicle.Camera`,
+  the topic's messages): a vehicle on another node through this node's relay, a vehicle
+  here directly. Returns a monitor of what serves the messages (the relay or the PubSub
+  scope): on its `:DOWN`, watch again. While the PubSub scope restarts it waits.
+  """
+  @spec watch(String.t()) :: reference()
+  def watch(id) do
+    case Fleet.vehicle_node(id) do
+      {:ok, node} when node != node() -> subscribe(id)
+      _here_or_unreachable -> watch_here(id)
+    end
+  end
+
+  # Subscribes to the camera's topic, watching the PubSub scope (waits while it restarts).
+  defp watch_here(id) do
+    with {:ok, ref} <- PubSub.monitor(),
+         :ok <- subscribe_or_demonitor(Camera.topic(id), ref) do
+      ref
+    else
+      {:error, :not_running} ->
+        Process.sleep(20)
+        watch(id)
+    end
+  end
+
+  @doc """
+  Subscribes the calling process to vehicle `id`'s camera through this node's relay
+  (term messages as from `Neptunus.PubSub`); returns a monitor of the relay: on its
+  `:DOWN`, subscribe again.
   """
   @spec subscribe(String.t()) :: reference()
   def subscribe(id), do: subscribe(id, 5)
@@ -83,8 +113,8 @@ defmodule NeptunusWeb.CameraRelay do
   end
 
   @impl true
-  def handle_info({:pubsub, _topic, "frame", _payload} = frame, state) do
-    Enum.each(Map.keys(state.viewers), &send(&1, frame))
+  def handle_info({:pubsub, _topic, _event, _payload} = message, state) do
+    Enum.each(Map.keys(state.viewers), &send(&1, message))
     {:noreply, state}
   end
 

@@ -5,17 +5,29 @@ defmodule NeptunusWeb.Endpoint do
     * `priv/static` (the operator page and its assets) at `/`,
     * the HTTP API (`NeptunusWeb.API`) under `/api`,
     * the Phoenix Channels v2 WebSocket (`NeptunusWeb.Socket`) at `/socket/websocket`,
-    * the vehicles' cameras (`NeptunusWeb.CameraStream`) at `/camera/<id>.mjpg`.
+    * the vehicles' cameras: the video WebSocket (`NeptunusWeb.VideoSocket`) at
+      `/video/<id>/websocket`, MJPEG for `<img>` (`NeptunusWeb.CameraStream`) at
+      `/camera/<id>.mjpg`.
 
   It starts last in the application and so stops first. Its option is the web layer's
-  settings (`NeptunusWeb.Settings`, built from the configuration once at boot by
+  settings (`NeptunusWeb.Endpoint.Settings`, built from the configuration once at boot by
   `Neptunus.Config.Endpoint.web_settings!/1`), which it stores for the connection processes
   when it starts: with `tls: %{certfile, keyfile}` it serves HTTPS and `wss:` only (yaws
   sconf `ssl`).
 
-  Every request passes `NeptunusWeb.Guard` first (the `Host` check against DNS rebinding)
-  and every response gets its security headers (`Content-Security-Policy`,
+  Every request passes `NeptunusWeb.Endpoint.Guard` first (the `Host` check against DNS
+  rebinding) and every response gets its security headers (`Content-Security-Policy`,
   `X-Frame-Options`, `X-Content-Type-Options`).
+
+  What serves a request is elsewhere (the modules above); what the endpoint itself is made of
+  sits beside it, in `lib/neptunus_web/endpoint/`:
+
+    * `NeptunusWeb.Endpoint.Settings` — the web layer's settings, stored here at start;
+    * `NeptunusWeb.Endpoint.Yaws` — yaws' records and the request helpers every module that
+      yaws calls shares;
+    * `NeptunusWeb.Endpoint.Guard` — the `Host` check and the security headers;
+    * `NeptunusWeb.Endpoint.HeaderDeadline`, `NeptunusWeb.Endpoint.ConnectionLog` — the
+      helpers below that protect the endpoint.
 
   ## Supervision
 
@@ -26,8 +38,9 @@ defmodule NeptunusWeb.Endpoint do
        closing every connection; its server process is killed rather than stopped, which
        would wait a second first);
     2. `NeptunusWeb.Auth.RateLimit` — the login rate limiter;
-    3. `NeptunusWeb.ConnectionLog` — the count of connections closed to protect the endpoint;
-    4. `NeptunusWeb.HeaderDeadline` — the deadline on request heads (it watches yaws'
+    3. `NeptunusWeb.Endpoint.ConnectionLog` — the count of connections closed to protect the
+       endpoint;
+    4. `NeptunusWeb.Endpoint.HeaderDeadline` — the deadline on request heads (it watches yaws'
        connection processes, so it restarts with yaws).
 
   A helper that crashes restarts alone (with the helpers after it) and never takes yaws or
@@ -43,20 +56,20 @@ defmodule NeptunusWeb.Endpoint do
   limit (`Neptunus.OS.socket_limit/0`), which leaves room for files, port programs and the
   recorder. A connection beyond it is accepted and closed at once, before anything is read
   from it; the established ones are not touched. yaws' log line for each is counted
-  instead (`NeptunusWeb.ConnectionLog`: one warning at most every 10 s).
+  instead (`NeptunusWeb.Endpoint.ConnectionLog`: one warning at most every 10 s).
 
   A connection that holds a descriptor without completing a request is closed within
   `header_timeout_ms/0` (5 s by default): yaws' `keepalive_timeout` bounds each read of
   the request line and of each header (and the wait for the next request on a kept-alive
-  connection), and `NeptunusWeb.HeaderDeadline` bounds the whole request head, against a
-  client that trickles a byte at a time. WebSocket and camera connections, once upgraded or
+  connection), and `NeptunusWeb.Endpoint.HeaderDeadline` bounds the whole request head,
+  against a client that trickles a byte at a time. WebSocket and camera connections, once upgraded or
   streaming, are not affected.
   """
   use Supervisor
 
   require Logger
 
-  alias NeptunusWeb.Settings
+  alias NeptunusWeb.Endpoint.Settings
 
   @server_id ~c"neptunus"
   # descriptors kept for everything but client connections: files, port programs, the
@@ -73,7 +86,7 @@ defmodule NeptunusWeb.Endpoint do
 
   @impl true
   def init(%Settings{port: port, bind: bind} = settings) do
-    # read by every connection process (NeptunusWeb.Settings)
+    # read by every connection process (NeptunusWeb.Endpoint.Settings)
     Settings.put(settings)
     docroot = Application.app_dir(:neptunus, "priv/static") |> String.to_charlist()
     logdir = Path.join(System.tmp_dir!(), "neptunus-yaws-#{port}")
@@ -104,12 +117,13 @@ defmodule NeptunusWeb.Endpoint do
       appmods: [
         {~c"/api", NeptunusWeb.API},
         {~c"/socket", NeptunusWeb.Socket},
-        {~c"/camera", NeptunusWeb.CameraStream}
+        {~c"/camera", NeptunusWeb.CameraStream},
+        {~c"/video", NeptunusWeb.VideoSocket}
       ],
       flags: [access_log: false, auth_log: false],
       # every request: the Host check first, the security headers on every response
-      arg_rewrite_mod: NeptunusWeb.Guard,
-      extra_response_headers: [{:extramod, NeptunusWeb.Guard}],
+      arg_rewrite_mod: NeptunusWeb.Endpoint.Guard,
+      extra_response_headers: [{:extramod, NeptunusWeb.Endpoint.Guard}],
       # Accepted sockets inherit these. Without nodelay, Nagle holds each small reply until
       # the client's delayed ACK (~40 ms on every reply; figures in bench/README.md).
       # A send that cannot go on for send_timeout_ms (the client stopped reading: a frozen
@@ -158,10 +172,10 @@ defmodule NeptunusWeb.Endpoint do
       type: :supervisor
     }
 
-    deadline = {NeptunusWeb.HeaderDeadline, timeout_ms: settings.header_timeout_ms}
+    deadline = {NeptunusWeb.Endpoint.HeaderDeadline, timeout_ms: settings.header_timeout_ms}
 
     Supervisor.init(
-      [server, NeptunusWeb.Auth.RateLimit, NeptunusWeb.ConnectionLog, deadline],
+      [server, NeptunusWeb.Auth.RateLimit, NeptunusWeb.Endpoint.ConnectionLog, deadline],
       strategy: :rest_for_one
     )
   end
@@ -187,15 +201,15 @@ defmodule NeptunusWeb.Endpoint do
 
   @doc """
   How long (ms) a send to a client may wait for the client to read before the connection
-  is closed (`NeptunusWeb.Settings`, `config :neptunus, :send_timeout_ms`).
+  is closed (`NeptunusWeb.Endpoint.Settings`, `config :neptunus, :send_timeout_ms`).
   """
   @spec send_timeout_ms() :: pos_integer()
   def send_timeout_ms, do: Settings.get().send_timeout_ms
 
   @doc """
   How long (ms) a client may take to send a request's head (request line and headers), and
-  how long a kept-alive connection may wait for its next request (`NeptunusWeb.Settings`,
-  `config :neptunus, :header_timeout_ms`).
+  how long a kept-alive connection may wait for its next request
+  (`NeptunusWeb.Endpoint.Settings`, `config :neptunus, :header_timeout_ms`).
   """
   @spec header_timeout_ms() :: pos_integer()
   def header_timeout_ms, do: Settings.get().header_timeout_ms

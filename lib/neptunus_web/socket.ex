@@ -1,27 +1,38 @@
 defmodule NeptunusWeb.Socket do
   @moduledoc """
   A Phoenix Channels v2 WebSocket connection, served by yaws (`/socket/websocket`): one
-  process per connection. This module is the process shell; the decisions are pure:
+  process per connection. This module is the process shell: yaws' WebSocket callbacks, and
+  carrying out what these decide:
 
-    * `NeptunusWeb.Socket.Router` — the Channels protocol and the joined channels: what to
-      answer to each frame and which effects (subscribe, leave, log) to carry out;
-    * `NeptunusWeb.Socket.FlowControl` — the process priority (the pilot's `:high` within
-      its frame budget) and which telemetry frames to drop for a slow client.
+    * `NeptunusWeb.WebSocket.Upgrade` — who may open the connection (as for every WebSocket
+      endpoint of the node);
+    * `NeptunusWeb.Socket.Router` (pure) — the Channels protocol and the joined channels:
+      what to answer to each frame and which effects (watch, subscribe, leave, log) to carry
+      out;
+    * `NeptunusWeb.Socket.FlowControl` (pure) — the process priority (the pilot's `:high`
+      within its frame budget), which telemetry frames to drop for a slow client, and the
+      effects of both (priority, the pilot's telemetry first, log lines);
+    * `NeptunusWeb.Socket.Watch` — the monitors of the PubSub scope and the presence server,
+      and what their restarts mean;
+    * `NeptunusWeb.WebSocket.Transport` — the socket itself: frames written without a copy,
+      `TCP_NOTSENT_LOWAT`, whether the client is still there.
 
-  The shell upgrades the HTTP request, runs yaws' WebSocket callbacks, feeds the router and
-  the flow control, and carries out their answers: it sends the frames, subscribes and
-  unsubscribes, sets the process priority, sets the socket's options, checks that the
-  client is alive, and watches the PubSub scope and the presence server.
+  The shell feeds the router and the flow control the client's frames, the channels'
+  messages and the clock, sends the frames they answer and carries out their effects in
+  order (`Router`'s requests for a watch or a subscription are answered with a message to
+  the router), checks the client's liveness, and keeps its own memory small.
 
   Connection parameters (query string): `vsn` must be `2.x`; `token` is the login token
   (`POST /api/login`; required in secure mode unless anonymous observers are allowed);
   `name` is the display name in local mode (trimmed to 40 characters; default
-  `guest-XXXX`). The upgrade is refused with HTTP 403 `{"error": reason}` for an `Origin`
-  (or, in local mode, a `Host`) that is not allowed and with 401 for a missing, invalid or
-  expired token (see `NeptunusWeb.Auth`). A refused upgrade is the only refusal that closes
-  anything: who may *command* is decided per command by the vehicle's helm.
+  `guest-XXXX`). Who may connect is decided as for every WebSocket endpoint
+  (`NeptunusWeb.WebSocket.Upgrade`): the upgrade is refused with HTTP 403 `{"error": reason}`
+  for an `Origin` (or, in local mode, a `Host`) that is not allowed and with 401 for a
+  missing, invalid or expired token (see `NeptunusWeb.Auth`). A refused upgrade is the only
+  refusal that closes anything: who may *command* is decided per command by the vehicle's
+  helm.
 
-  The settings below are `NeptunusWeb.Settings`, read when the connection starts.
+  The settings below are `NeptunusWeb.Endpoint.Settings`, read when the connection starts.
 
   Liveness: a connection silent for 60 s (`idle_timeout_ms`; the phoenix
   client heartbeats every 30 s) is closed with 1000 "heartbeat timeout". A client that
@@ -40,16 +51,11 @@ defmodule NeptunusWeb.Socket do
   a topic the connection has left (still in flight, or from a paced broadcast's later
   slice) are dropped.
 
-  Restarts of the PubSub scope and of the presence server (see `Neptunus.PubSub`, "When the
-  scope restarts"): the connection watches both from its first join. When the scope stops,
-  the connection's subscriptions are gone and its client may have missed any broadcast (a
-  `stopped`, a `helm`, a presence diff); only a rejoin gives a client the whole state again,
-  so the connection closes with 1012 "service restart", and the phoenix client reconnects
-  and rejoins (a pilot's channel is left like on any close: the helm is freed and the vehicle
-  stops, `pilot_disconnected`). When the presence server stops, the connection waits for the
-  new one and sends each joined channel `:presence_restarted` (see `NeptunusWeb.Channel`):
-  the vehicle channel tracks again and pushes a fresh `presence_state`. A join while either
-  is restarting is refused with "server restarting: join again" (the client retries).
+  Restarts of the PubSub scope and of the presence server: the connection watches both from
+  its first join (`NeptunusWeb.Socket.Watch`). When the scope stops, the connection closes
+  with 1012 "service restart" and the phoenix client reconnects and rejoins; when the
+  presence server stops, the connection waits for the new one and its channels track again.
+  A join while either is restarting is refused with "server restarting: join again".
 
   ## Memory
 
@@ -74,22 +80,19 @@ defmodule NeptunusWeb.Socket do
   """
   require Logger
 
-  import NeptunusWeb.Yaws
+  import NeptunusWeb.Endpoint.Yaws
 
   alias Neptunus.PubSub
-  alias NeptunusWeb.{Auth, Presence}
   alias NeptunusWeb.Channels.{FleetChannel, LogChannel, VehicleChannel}
-  alias NeptunusWeb.Socket.{FlowControl, Router, WsFrame}
+  alias NeptunusWeb.Presence
+  alias NeptunusWeb.Socket.{FlowControl, Router, Watch, WsFrame}
+  alias NeptunusWeb.WebSocket.{Transport, Upgrade}
 
   @routes [{"fleet", FleetChannel}, {"vehicle:*", VehicleChannel}, {"log:*", LogChannel}]
 
-  @ipproto_tcp 6
   # see "Memory"
   @fullsweep_after 0
-  @tcp_notsent_lowat 25
   @max_message_bytes 65_536
-  # how often to look for the presence server while it restarts
-  @presence_retry_ms 20
   # an idle connection (nothing received for this long) hibernates (see "Memory")
   @hibernate_after_ms 1_000
 
@@ -100,12 +103,11 @@ defmodule NeptunusWeb.Socket do
             flow: NeptunusWeb.Socket.FlowControl.t(),
             last_seen_ms: integer(),
             idle_timeout_ms: pos_integer(),
-            sock: port() | {:ssl, :ssl.sslsocket()} | nil,
-            pubsub: reference() | nil,
-            presence: reference() | nil
+            sock: NeptunusWeb.WebSocket.Transport.socket() | nil,
+            watch: NeptunusWeb.Socket.Watch.t()
           }
     @enforce_keys [:router, :flow, :last_seen_ms, :idle_timeout_ms]
-    defstruct [:router, :flow, :last_seen_ms, :idle_timeout_ms, :sock, :pubsub, :presence]
+    defstruct [:router, :flow, :last_seen_ms, :idle_timeout_ms, :sock, watch: %Watch{}]
   end
 
   # yaws appmod: upgrade /socket/websocket
@@ -113,48 +115,21 @@ defmodule NeptunusWeb.Socket do
   @doc false
   def out(arg) do
     path = arg(arg, :server_path) |> to_string()
-    params = query(arg)
 
     cond do
       path != "/socket/websocket" ->
-        http_error(404, "no such socket endpoint: #{path}")
+        Upgrade.refuse(404, "no such socket endpoint: #{path}")
 
-      not String.starts_with?(Map.get(params, "vsn", ""), "2.") ->
-        http_error(400, "unsupported protocol version: use vsn=2.0.0")
+      not String.starts_with?(Map.get(query(arg), "vsn", ""), "2.") ->
+        Upgrade.refuse(400, "unsupported protocol version: use vsn=2.0.0")
 
       true ->
-        upgrade(arg, params)
+        Upgrade.upgrade(arg, __MODULE__, %{},
+          hibernate_after: @hibernate_after_ms,
+          max_frame_size: @max_message_bytes,
+          max_message_size: @max_message_bytes
+        )
     end
-  end
-
-  defp upgrade(arg, params) do
-    headers = arg(arg, :headers)
-
-    request = %{
-      origin: header(headers, "origin"),
-      host: text(headers(headers, :host)),
-      token: params["token"],
-      name: params["name"]
-    }
-
-    case Auth.connect(request) do
-      {:ok, user} ->
-        opts = [
-          {:callback, {:basic, %{user: user}}},
-          {:hibernate_after, @hibernate_after_ms},
-          {:max_frame_size, @max_message_bytes},
-          {:max_message_size, @max_message_bytes}
-        ]
-
-        {:websocket, __MODULE__, opts}
-
-      {:error, status, reason} ->
-        http_error(status, reason)
-    end
-  end
-
-  defp http_error(status, reason) do
-    [{:status, status}, {:content, ~c"application/json", Neptunus.JSON.encode!(%{error: reason})}]
   end
 
   # yaws WebSocket callbacks (basic mode). yaws does not catch exceptions from handle_info
@@ -163,7 +138,7 @@ defmodule NeptunusWeb.Socket do
 
   @doc false
   def init([_arg, %{user: user}]) do
-    settings = NeptunusWeb.Settings.get()
+    settings = NeptunusWeb.Endpoint.Settings.get()
     idle_timeout_ms = settings.idle_timeout_ms
 
     flow =
@@ -191,15 +166,17 @@ defmodule NeptunusWeb.Socket do
   def handle_open(ws_state, state) do
     # The upgrade leaves garbage behind; collecting it now keeps an idle connection small.
     send(self(), :gc)
-    sock = ws_state(ws_state, :sock)
-    limit_unsent(sock)
+    sock = Transport.socket(ws_state)
+    # the backlog of a slow client forms in the mailbox, where FlowControl drops it
+    Transport.limit_unsent(sock, NeptunusWeb.Endpoint.Settings.get().unsent_bytes)
     {:ok, %{state | sock: sock}}
   end
 
   @doc false
   def handle_message({:text, data}, state) do
     now = now_ms()
-    state = %{state | last_seen_ms: now} |> count_frame(now)
+    {flow, effects} = FlowControl.frame_received(state.flow, now, name(state))
+    state = carry_out_all(effects, %{state | last_seen_ms: now, flow: flow})
     guarded(state, fn -> route(state, {:text, data}) end)
   end
 
@@ -215,9 +192,19 @@ defmodule NeptunusWeb.Socket do
   @doc false
   def handle_info({:pubsub_frame, topic, event, frame}, state) do
     cond do
-      not Router.joined?(state.router, topic) -> {:noreply, state}
-      FlowControl.deliver?(state.flow, event, waiting()) -> push(state, frame)
-      true -> shed(state)
+      not Router.joined?(state.router, topic) ->
+        {:noreply, state}
+
+      FlowControl.deliver?(state.flow, event, waiting()) ->
+        push(state, frame)
+
+      # behind: a send may have waited for the client until the send timeout closed the socket
+      not Transport.connected?(state.sock) ->
+        gone(state)
+
+      true ->
+        {flow, effects} = FlowControl.telemetry_dropped(state.flow, now_ms(), name(state))
+        {:noreply, carry_out_all(effects, %{state | flow: flow})}
     end
   end
 
@@ -226,7 +213,7 @@ defmodule NeptunusWeb.Socket do
   @doc false
   def terminate(reason, state) do
     {router, _frames, effects} = Router.handle_message(state.router, {:closed, reason})
-    Enum.reduce(effects, %{state | router: router}, &carry_out_effect/2)
+    carry_out_all(effects, %{state | router: router})
     :ok
   end
 
@@ -252,10 +239,8 @@ defmodule NeptunusWeb.Socket do
   end
 
   defp carry_out({:watch, msg}, state) do
-    case watch(state) do
-      {:ok, state} -> {:answer, {:watched, msg, :ok}, state}
-      :restarting -> {:answer, {:watched, msg, :restarting}, state}
-    end
+    {result, watch} = Watch.watch(state.watch, Router.topics(state.router))
+    {:answer, {:watched, msg, result}, %{state | watch: watch}}
   end
 
   defp carry_out({:subscribe, msg, frame}, state) do
@@ -299,23 +284,17 @@ defmodule NeptunusWeb.Socket do
     state
   end
 
-  # Watches the PubSub scope and the presence server from the first join on (see the
-  # moduledoc): :restarting while either is down.
-  defp watch(%State{pubsub: nil} = state) do
-    case PubSub.monitor() do
-      {:ok, ref} -> watch(%{state | pubsub: ref})
-      {:error, :not_running} -> :restarting
-    end
+  defp carry_out_effect({:priority, priority}, state) do
+    Process.flag(:priority, priority)
+    state
   end
 
-  defp watch(%State{presence: nil} = state) do
-    case Presence.monitor() do
-      {:ok, ref} -> {:ok, presence_back(state, ref)}
-      {:error, :not_running} -> :restarting
-    end
+  defp carry_out_effect({:prioritize, topic, first?}, state) do
+    PubSub.prioritize(topic, first?)
+    state
   end
 
-  defp watch(state), do: {:ok, state}
+  defp carry_out_all(effects, state), do: Enum.reduce(effects, state, &carry_out_effect/2)
 
   # Messages to the connection process
 
@@ -324,17 +303,15 @@ defmodule NeptunusWeb.Socket do
   # any other runs at :low (FlowControl).
   defp handle_other({:channel_info, topic, {:helm, event, _}} = msg, state)
        when event in ["control_granted", "control_lost"] do
-    granted? = event == "control_granted"
-    PubSub.prioritize(topic, granted?)
-    state = set_priority(state, FlowControl.piloting(state.flow, topic, granted?))
-    route(state, msg)
+    {flow, effects} = FlowControl.control_changed(state.flow, topic, event == "control_granted")
+    route(carry_out_all(effects, %{state | flow: flow}), msg)
   end
 
   defp handle_other({:channel_info, _topic, _msg} = msg, state), do: route(state, msg)
 
   defp handle_other(:check_idle, state) do
     cond do
-      not connected?(state) ->
+      not Transport.connected?(state.sock) ->
         gone(state)
 
       now_ms() - state.last_seen_ms > state.idle_timeout_ms ->
@@ -346,59 +323,48 @@ defmodule NeptunusWeb.Socket do
     end
   end
 
-  # The PubSub scope stopped: every subscription of this connection is gone.
-  defp handle_other({:DOWN, ref, :process, _pid, _reason}, %State{pubsub: ref} = state),
-    do: {:close, {1012, "service restart"}, %{state | pubsub: nil}}
+  # The PubSub scope or the presence server stopped (Watch).
+  defp handle_other({:DOWN, ref, :process, _pid, _reason} = msg, state) do
+    case Watch.down(state.watch, ref) do
+      # every subscription of this connection is gone
+      {:scope_stopped, watch} ->
+        {:close, {1012, "service restart"}, %{state | watch: watch}}
 
-  # The presence server stopped: its presences are gone; track again once it is back.
-  defp handle_other({:DOWN, ref, :process, _pid, _reason}, %State{presence: ref} = state),
-    do: handle_other(:presence_back?, %{state | presence: nil})
+      # its presences are gone: track again once it is back
+      {:presence_stopped, watch} ->
+        handle_other(:presence_back?, %{state | watch: watch})
 
-  defp handle_other(:presence_back?, %State{presence: nil} = state) do
-    case Presence.monitor() do
-      {:ok, ref} ->
-        {:noreply, presence_back(state, ref)}
-
-      {:error, :not_running} ->
-        Process.send_after(self(), :presence_back?, @presence_retry_ms)
-        {:noreply, state}
+      :other ->
+        ignored(msg, state)
     end
   end
 
-  defp handle_other(:presence_back?, state), do: {:noreply, state}
+  defp handle_other(:presence_back?, state),
+    do:
+      {:noreply, %{state | watch: Watch.presence_back(state.watch, Router.topics(state.router))}}
 
   defp handle_other(:gc, state) do
     :erlang.garbage_collect()
     {:noreply, state}
   end
 
-  defp handle_other(msg, state) do
+  defp handle_other(msg, state), do: ignored(msg, state)
+
+  defp ignored(msg, state) do
     Logger.debug("socket ignored message #{inspect(msg)}")
     {:noreply, state}
-  end
-
-  # A presence server is watched again: the joined channels track again (none on the first
-  # join; after a restart, whichever of a join and the retry finds the new server first).
-  defp presence_back(state, ref) do
-    for topic <- Router.topics(state.router),
-        do: send(self(), {:channel_info, topic, :presence_restarted})
-
-    %{state | presence: ref}
   end
 
   # A broadcast frame, shared with every other connection that receives it: sent as the
   # header and that binary, not through yaws, which would copy it (see "Memory"). The result
   # is ignored as yaws ignores it: a socket closed by the send timeout is found by
-  # `connected?/1`, one the client closed by yaws.
+  # `Transport.connected?/1`, one the client closed by yaws.
   defp push(%State{sock: nil} = state, frame), do: {:reply, {:text, frame}, state}
 
   defp push(%State{sock: sock} = state, frame) do
-    _ = send_data(sock, WsFrame.text(frame))
+    _ = Transport.write(sock, WsFrame.text(frame))
     {:noreply, state}
   end
-
-  defp send_data({:ssl, sock}, data), do: :ssl.send(sock, data)
-  defp send_data(sock, data), do: :gen_tcp.send(sock, data)
 
   defp reply(state, []), do: {:noreply, state}
   defp reply(state, frames), do: {:reply, Enum.map(frames, &{:text, &1}), state}
@@ -425,82 +391,17 @@ defmodule NeptunusWeb.Socket do
     waiting
   end
 
-  # Behind: a send may have waited for the client until the send timeout closed the socket.
-  defp shed(state) do
-    if connected?(state) do
-      {flow, report} = FlowControl.dropped(state.flow, now_ms())
-
-      case report do
-        {:report, count, since_ms} ->
-          Logger.info(
-            "#{inspect(state.router.user.name)} reads slower than its telemetry arrives: " <>
-              "dropped #{count} stale telemetry frame(s)" <>
-              if(since_ms == nil, do: "", else: " in the last #{div(since_ms, 1000)} s")
-          )
-
-        nil ->
-          :ok
-      end
-
-      {:noreply, %{state | flow: flow}}
-    else
-      gone(state)
-    end
-  end
-
-  # Linux: the kernel takes a frame only while less than `unsent_bytes` of this
-  # connection's earlier frames wait there unsent (TCP_NOTSENT_LOWAT). On a slow link the
-  # backlog then forms in the mailbox, where stale telemetry is dropped, instead of in a
-  # send buffer that the kernel grows to megabytes: seconds of old data for the client.
-  defp limit_unsent(sock) do
-    case {:os.type(), NeptunusWeb.Settings.get().unsent_bytes} do
-      {{:unix, :linux}, bytes} when is_integer(bytes) and bytes > 0 and sock != nil ->
-        # best effort: a kernel without the option only keeps the larger buffer
-        _ = setopts(sock, [{:raw, @ipproto_tcp, @tcp_notsent_lowat, <<bytes::native-32>>}])
-        :ok
-
-      _ ->
-        :ok
-    end
-  end
-
-  defp setopts({:ssl, sock}, opts), do: :ssl.setopts(sock, opts)
-  defp setopts(sock, opts), do: :inet.setopts(sock, opts)
-
-  defp connected?(%State{sock: nil}), do: true
-  defp connected?(%State{sock: {:ssl, sock}}), do: match?({:ok, _}, :ssl.peername(sock))
-  defp connected?(%State{sock: sock}), do: match?({:ok, _}, :inet.peername(sock))
-
   # The socket is closed under yaws (the send timeout): end the connection now.
   defp gone(state) do
     Logger.info(
-      "#{inspect(state.router.user.name)}'s client read nothing for " <>
+      "#{inspect(name(state))}'s client read nothing for " <>
         "#{NeptunusWeb.Endpoint.send_timeout_ms()} ms: connection closed"
     )
 
     {:close, {1000, "send timeout"}, state}
   end
 
-  # Priority (see FlowControl)
-
-  defp count_frame(state, now) do
-    {flow, verdict} = FlowControl.frame(state.flow, now)
-
-    if verdict == :over_budget,
-      do:
-        Logger.warning(
-          "pilot #{inspect(state.router.user.name)} sends more than #{flow.frame_limit} " <>
-            "frames/s: its connection runs at :normal for the rest of this second"
-        )
-
-    set_priority(state, flow)
-  end
-
-  defp set_priority(state, flow) do
-    priority = FlowControl.priority(flow)
-    if priority != FlowControl.priority(state.flow), do: Process.flag(:priority, priority)
-    %{state | flow: flow}
-  end
+  defp name(state), do: state.router.user.name
 
   defp now_ms, do: Neptunus.Clock.monotonic_ms()
 end

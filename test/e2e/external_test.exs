@@ -45,7 +45,7 @@ defmodule Neptunus.E2E.ExternalTest do
     # (named to sort after neptunus-1: pages without ?vehicle= open the first vehicle)
     camera_vehicle = "z-e2e-cam-#{System.unique_integer([:positive])}"
     script = Path.join(@root, "test/fixtures/camera/fake_camera.sh")
-    camera = %{kind: :exec, program: "/bin/sh", args: [script, "0"]}
+    camera = %{kind: :exec, codec: :mjpeg, program: "/bin/sh", args: [script, "0"]}
 
     {:ok, _} =
       Neptunus.Fleet.start_vehicle(%{id: camera_vehicle, board: :simulated, camera: camera})

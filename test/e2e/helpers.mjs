@@ -76,7 +76,7 @@ export async function messageShown(page, text, since = 0) {
   });
 }
 
-/** The page response carries the anti-framing headers (see NeptunusWeb.Guard). */
+/** The page response carries the anti-framing headers (see NeptunusWeb.Endpoint.Guard). */
 export function assertPageHeaders(response, where) {
   assert.ok(response, `${where}: no response`);
   const headers = response.headers();

@@ -38,7 +38,8 @@ defmodule Neptunus.ConfigTest do
 
   describe "vehicles!/1" do
     test "default is one simulated vehicle" do
-      assert Config.Vehicles.vehicles!(%{}) == [%{id: "neptunus-1", board: :simulated}]
+      assert [%{id: "neptunus-1", board: :simulated, camera: %{kind: :sim}}] =
+               Config.Vehicles.vehicles!(%{})
     end
 
     test "several vehicles, whitespace tolerated" do
@@ -70,7 +71,8 @@ defmodule Neptunus.ConfigTest do
     test "sitl and uart vehicles get the thesis wiring and the openrov-2.5 firmware by default" do
       assert Config.Vehicles.vehicles!(%{
                "NEPTUNUS_VEHICLES" => "s=sitl,u=uart:/dev/ttyO1,m=simulated"
-             }) ==
+             })
+             |> Enum.map(&Map.delete(&1, :camera)) ==
                [
                  %{id: "s", board: :sitl, wiring: Wiring.default(), firmware: :openrov_25},
                  %{
@@ -257,13 +259,30 @@ defmodule Neptunus.ConfigTest do
       }
 
       assert [a, b] = Config.Vehicles.vehicles!(env)
-      assert a.camera == %{kind: :testsrc, width: 640, height: 480, fps: 15}
-      assert b.camera == %{kind: :v4l2, device: "/dev/video0", width: 1280, height: 720, fps: 30}
+      assert a.camera == %{kind: :testsrc, codec: :mjpeg, width: 640, height: 480, fps: 15}
 
-      refute Map.has_key?(
-               hd(Config.Vehicles.vehicles!(%{"NEPTUNUS_VEHICLES" => "a=simulated"})),
-               :camera
-             )
+      assert b.camera == %{
+               kind: :v4l2,
+               device: "/dev/video0",
+               codec: :auto,
+               width: 1280,
+               height: 720,
+               fps: 30
+             }
+    end
+
+    test "simulated and SITL vehicles have the simulated camera unless told otherwise" do
+      env = %{"NEPTUNUS_VEHICLES" => "a=simulated,b=sitl,c=uart:/dev/ttyO1,d=simulated"}
+      [a, b, c, d] = Config.Vehicles.vehicles!(env)
+      {:ok, sim} = Neptunus.Camera.Source.parse("sim")
+      assert a.camera == sim and b.camera == sim and d.camera == sim
+      refute Map.has_key?(c, :camera)
+
+      [a, _, _, d] =
+        Config.Vehicles.vehicles!(Map.put(env, "NEPTUNUS_CAMERAS", "a=none,d=sim@mjpeg"))
+
+      refute Map.has_key?(a, :camera)
+      assert d.camera.codec == :mjpeg
     end
 
     for {cameras, message} <- [

@@ -17,7 +17,7 @@ defmodule NeptunusWeb.CameraStreamTest do
 
   setup do
     id = "camv-#{System.unique_integer([:positive])}"
-    camera = %{kind: :exec, program: "/bin/sh", args: [@script, "0"]}
+    camera = %{kind: :exec, codec: :mjpeg, program: "/bin/sh", args: [@script, "0"]}
     {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated, camera: camera})
     on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
     {:ok, id: id}
@@ -114,8 +114,16 @@ defmodule NeptunusWeb.CameraStreamTest do
     big = String.duplicate("j", 512 * 1024)
     started = System.monotonic_time(:millisecond)
 
-    for _ <- 1..60 do
-      Neptunus.PubSub.broadcast(topic, "frame", %{jpeg: big})
+    for seq <- 1..60 do
+      frame =
+        Neptunus.Camera.Frame.new(:jpeg, big,
+          keyframe: true,
+          generation: 1,
+          seq: seq,
+          arrival_us: 1
+        )
+
+      Neptunus.PubSub.broadcast(topic, "frame", %{frame: frame})
       Process.sleep(10)
     end
 
@@ -127,7 +135,12 @@ defmodule NeptunusWeb.CameraStreamTest do
 
   test "the snapshot gives the camera's address; a vehicle without camera has none", %{id: id} do
     %{snapshot: snapshot} = client!("vehicle:" <> id, %{"name" => "cam-viewer"})
-    assert snapshot["camera"] == %{"url" => "/camera/#{id}.mjpg"}
+
+    assert snapshot["camera"] == %{
+             "codec" => "mjpeg",
+             "url" => "/camera/#{id}.mjpg",
+             "video" => "/video/#{id}/websocket"
+           }
 
     other = start_vehicle!("nocam")
     %{snapshot: snapshot} = client!(other.topic, %{"name" => "cam-viewer"})

@@ -15,8 +15,8 @@ defmodule NeptunusWeb.EndpointSupervisionTest do
 
   for helper <- [
         NeptunusWeb.Auth.RateLimit,
-        NeptunusWeb.ConnectionLog,
-        NeptunusWeb.HeaderDeadline
+        NeptunusWeb.Endpoint.ConnectionLog,
+        NeptunusWeb.Endpoint.HeaderDeadline
       ] do
     test "killing #{inspect(helper)} keeps the pilot's connection and control", %{topic: topic} do
       helper = unquote(helper)

@@ -249,7 +249,7 @@ defmodule NeptunusWeb.FleetClusterTest do
   test "recordings and camera of a vehicle on V: listed, exported and watched from T", ctx do
     script = Path.expand("../fixtures/camera/fake_camera.sh", __DIR__)
     id = "far-cam-#{System.unique_integer([:positive])}"
-    camera = %{kind: :exec, program: "/bin/sh", args: [script, "0"]}
+    camera = %{kind: :exec, codec: :mjpeg, program: "/bin/sh", args: [script, "0"]}
     recording = Map.put(Application.get_env(:neptunus, :recording), :dir, ctx.tmp_dir)
     name = :"fleet_v#{port()}_#{System.unique_integer([:positive])}"
 
@@ -299,7 +299,7 @@ defmodule NeptunusWeb.FleetClusterTest do
   test "camera frames cross to T once per frame, not once per viewer on T" do
     script = Path.expand("../fixtures/camera/fake_camera.sh", __DIR__)
     id = "far-cam-#{System.unique_integer([:positive])}"
-    camera = %{kind: :exec, program: "/bin/sh", args: [script, "0"]}
+    camera = %{kind: :exec, codec: :mjpeg, program: "/bin/sh", args: [script, "0"]}
     name = :"fleet_v#{port()}_#{System.unique_integer([:positive])}"
     peer = Cluster.start_node!(name, port() + 5, [%{id: id, board: :simulated, camera: camera}])
     on_exit(fn -> Cluster.stop_node(peer) end)
@@ -328,6 +328,36 @@ defmodule NeptunusWeb.FleetClusterTest do
 
     # the last viewer gone, the relay stops
     for {socket, _} <- viewers, do: :gen_tcp.close(socket)
+    Cluster.wait!(fn -> NeptunusWeb.CameraRelay.whereis(id) == nil end, "the relay stops")
+  end
+
+  test "video frames cross to T once per frame, not once per viewer on T" do
+    id = "far-video-#{System.unique_integer([:positive])}"
+    {:ok, camera} = Neptunus.Camera.Source.parse("testsrc@h264@320x240@15")
+    name = :"fleet_v#{port()}_#{System.unique_integer([:positive])}"
+    peer = Cluster.start_node!(name, port() + 9, [%{id: id, board: :simulated, camera: camera}])
+    on_exit(fn -> Cluster.stop_node(peer) end)
+
+    broadcaster = Cluster.call(peer, Fleet, :whereis, [Neptunus.Vehicle.Camera, id])
+    {:ok, tracer} = Cluster.call(peer, Cluster.SendTracer, :start, [broadcaster])
+
+    # three video viewers on T: each gets the stream and frames from a keyframe
+    viewers =
+      for _ <- 1..3 do
+        {:ok, ws} = NeptunusWeb.Test.Video.connect(id)
+        ws
+      end
+
+    for ws <- viewers do
+      {[first | _], texts} = NeptunusWeb.Test.Video.frames(ws, 5)
+      assert first.keyframe
+      assert Enum.any?(texts, &(&1["event"] == "stream" and &1["codec"] == "h264"))
+    end
+
+    receivers = Cluster.call(peer, Cluster.SendTracer, :remote_receivers, [tracer])
+    assert Map.keys(receivers) == [NeptunusWeb.CameraRelay.whereis(id)]
+
+    for ws <- viewers, do: NeptunusWeb.Test.WSClient.close(ws)
     Cluster.wait!(fn -> NeptunusWeb.CameraRelay.whereis(id) == nil end, "the relay stops")
   end
 

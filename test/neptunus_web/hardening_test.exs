@@ -14,7 +14,7 @@ defmodule NeptunusWeb.HardeningTest do
   @secret "hardening-test-secret-" <> String.duplicate("z", 20)
   @name "20260101-000000Z-1.log"
 
-  doctest NeptunusWeb.Guard
+  doctest NeptunusWeb.Endpoint.Guard
 
   setup %{tmp_dir: dir} do
     NeptunusWeb.Test.Wire.settings!(recording_dir: dir)
@@ -142,7 +142,7 @@ defmodule NeptunusWeb.HardeningTest do
         assert {200, headers, _} = request("GET", page, [{"Host", "127.0.0.1"}])
         assert headers["content-type"] =~ "text/html", page
         assert headers["x-frame-options"] == "DENY", page
-        assert headers["content-security-policy"] == NeptunusWeb.Guard.csp(), page
+        assert headers["content-security-policy"] == NeptunusWeb.Endpoint.Guard.csp(), page
         assert headers["content-security-policy"] =~ "frame-ancestors 'none'"
         assert headers["content-security-policy"] =~ "script-src 'self';"
         assert headers["x-content-type-options"] == "nosniff", page

@@ -123,7 +123,7 @@ defmodule NeptunusWeb.RestartTest do
     setup do
       id = "resub-cam-#{System.unique_integer([:positive])}"
       script = Path.expand("../fixtures/camera/fake_camera.sh", __DIR__)
-      camera = %{kind: :exec, program: "/bin/sh", args: [script, "0"]}
+      camera = %{kind: :exec, codec: :mjpeg, program: "/bin/sh", args: [script, "0"]}
       {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated, camera: camera})
       on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
       {:ok, id: id}

@@ -409,7 +409,7 @@ defmodule NeptunusWeb.SocketTest do
       assert [_, _, ^topic, "stopped", %{"reason" => "test"}] =
                Enum.find(frames, &match?([_, _, _, "stopped", %{"reason" => "test"}], &1))
 
-      backlog = NeptunusWeb.Settings.get().backlog
+      backlog = NeptunusWeb.Endpoint.Settings.get().backlog
       assert length(ks) in 1..backlog
       assert List.last(ks) == 100
       assert ks == Enum.sort(ks) and hd(ks) > 100 - backlog
@@ -457,7 +457,7 @@ defmodule NeptunusWeb.SocketTest do
     test "the kernel holds at most `unsent_bytes` of a connection's frames unsent",
          %{topic: topic} do
       # the default, then another value for the connections opened after it is set
-      assert NeptunusWeb.Settings.get().unsent_bytes == 4_096
+      assert NeptunusWeb.Endpoint.Settings.get().unsent_bytes == 4_096
 
       for bytes <- [4_096, 8_192] do
         NeptunusWeb.Test.Wire.settings!(unsent_bytes: bytes)

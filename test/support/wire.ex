@@ -193,15 +193,15 @@ defmodule NeptunusWeb.Test.Wire do
   end
 
   @doc """
-  Changes the running endpoint's settings (`NeptunusWeb.Settings`, read by every new
+  Changes the running endpoint's settings (`NeptunusWeb.Endpoint.Settings`, read by every new
   connection and request) for the rest of the calling test: `changes` are fields of the
   settings, and an `auth` map is completed with local mode's defaults
   (`Neptunus.Config.Auth.local/0`). The previous settings come back when the test exits.
   """
   @spec settings!(keyword()) :: :ok
   def settings!(changes) do
-    previous = NeptunusWeb.Settings.get()
-    ExUnit.Callbacks.on_exit(fn -> NeptunusWeb.Settings.put(previous) end)
+    previous = NeptunusWeb.Endpoint.Settings.get()
+    ExUnit.Callbacks.on_exit(fn -> NeptunusWeb.Endpoint.Settings.put(previous) end)
 
     changes =
       case Keyword.fetch(changes, :auth) do
@@ -209,7 +209,7 @@ defmodule NeptunusWeb.Test.Wire do
         :error -> changes
       end
 
-    NeptunusWeb.Settings.put(struct!(previous, changes))
+    NeptunusWeb.Endpoint.Settings.put(struct!(previous, changes))
   end
 
   @doc """

@@ -76,6 +76,10 @@ defmodule NeptunusWeb.Test.WSClient do
       replaces the default `host:port`)
     * `:owner` — process that receives the reports, default `self()`
     * `:timeout` — for connect and handshake, ms, default `Neptunus.Test.Patience.ms/0`
+    * `:paused` — `true`: read nothing after the handshake until `resume/1` (a client that
+      stops reading, for slow-client tests); default `false`
+    * `:recbuf` — the socket's receive buffer in bytes (small: a paused client's buffers
+      fill sooner)
 
   Errors: `{:error, {:http_status, code, %{headers: [{name, value}], body: binary}}}`
   when the server answers other than 101 (header names downcased);
@@ -89,14 +93,17 @@ defmodule NeptunusWeb.Test.WSClient do
     owner = Keyword.get(opts, :owner, self())
     timeout = Keyword.get(opts, :timeout, Neptunus.Test.Patience.ms())
     deadline = System.monotonic_time(:millisecond) + timeout
-    tcp_opts = [:binary, active: false, packet: :raw, nodelay: true]
+
+    tcp_opts =
+      [:binary, active: false, packet: :raw, nodelay: true] ++
+        if(opts[:recbuf], do: [recbuf: opts[:recbuf]], else: [])
 
     with {:ok, socket} <- :gen_tcp.connect(String.to_charlist(host), port, tcp_opts, timeout) do
       case handshake(socket, host, port, path_and_query, opts, deadline) do
         {:ok, rest} ->
           {:ok, pid} = GenServer.start(__MODULE__, {socket, owner, rest})
           :ok = :gen_tcp.controlling_process(socket, pid)
-          GenServer.cast(pid, :activate)
+          unless opts[:paused], do: GenServer.cast(pid, :activate)
           {:ok, pid}
 
         {:error, _} = error ->
@@ -105,6 +112,10 @@ defmodule NeptunusWeb.Test.WSClient do
       end
     end
   end
+
+  @doc "Starts reading a client connected with `paused: true`."
+  @spec resume(pid()) :: :ok
+  def resume(pid), do: GenServer.cast(pid, :activate)
 
   @doc "Sends a text message (one masked frame)."
   @spec send_text(pid(), iodata()) :: :ok | {:error, term()}

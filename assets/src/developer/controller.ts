@@ -12,16 +12,17 @@
 import { LogBook, entryFromRecordedEvent, entryFromServerLog, linkEntry, recorded, stopEntry, telemetryChanges, telemetryFacts } from "../logger/model";
 import type { NewEntry, TelemetryFacts } from "../logger/model";
 import { SeriesRecorder } from "../plots/recorder";
-import { flattenNumeric } from "../plots/series";
+import { flattenNumeric, wrapPeriod } from "../plots/series";
 import { deleteRecording, fetchRecording, fetchRecordings } from "../lib/recordings";
 import type { ParsedRecording, RecordingInfo, RecordingList } from "../lib/recordings";
 import { decodeTelemetry } from "../lib/protocol";
 import type { Helm, Telemetry } from "../lib/protocol";
 import { TelemetryClock } from "../lib/clock";
 import type { TelemetryState } from "../lib/clock";
-import { NewestWriter } from "../lib/newest_writer";
 import { PageSession, browserSessionEnv } from "../lib/session";
-import { DEVELOPER_PLOTS_KEY, SettingsClient, notKept } from "../lib/settings";
+import { KEPT_LOADING, KeptSetting } from "../lib/kept_setting";
+import type { KeptStatus } from "../lib/kept_setting";
+import { DEVELOPER_PLOTS_KEY, SettingsClient } from "../lib/settings";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
 import type { ConnectionStatus, VehicleChannel } from "../lib/vehicle_client";
@@ -30,12 +31,6 @@ import type { PlotSet } from "./plot_set";
 import { TuningController } from "./tuning";
 
 export { MAX_PLOTS };
-
-/** Where the user's plot set stands: read from the server, saved, or why not. */
-export interface PlotsStatus {
-  readonly state: "loading" | "default" | "stored" | "saving" | "saved" | "not_kept" | "error";
-  readonly text: string;
-}
 
 /** how often the page reads the server's clock (to tell how old telemetry is on arrival) */
 const CLOCK_MS = 10_000;
@@ -57,7 +52,8 @@ export interface DevState {
   /** series known so far, in arrival order */
   readonly series: readonly string[];
   readonly plots: readonly PlotSpec[];
-  readonly plotsStatus: PlotsStatus;
+  /** where the user's plot set stands: read from the server, saved, or why not */
+  readonly plotsStatus: KeptStatus;
   readonly telemetryState: TelemetryState;
   readonly telemetryAgeMs: number;
   readonly message: string;
@@ -111,15 +107,15 @@ export class DevController {
   private starter = 0;
   private token: string | null = null;
   private readonly session: PageSession;
-  private readonly settings: SettingsClient;
-  /** the user's plots are written one request at a time, the newest last */
-  private readonly plotsWriter = new NewestWriter();
+  /** the plots, kept on the server */
+  private readonly kept: KeptSetting<readonly PlotSpec[]>;
   private vehicle: VehicleChannel | null = null;
   private readonly clock = new TelemetryClock(() => this.vehicle);
 
   constructor(params: URLSearchParams, capacity?: number) {
     this.params = params;
-    this.recorder = new SeriesRecorder(capacity);
+    // angles that wrap (headings) also get their continuous line, for the plots
+    this.recorder = new SeriesRecorder(capacity, wrapPeriod);
     this.store = new Store<DevState>({
       status: "connecting",
       vehicleId: null,
@@ -129,7 +125,7 @@ export class DevController {
       dataVersion: 0,
       series: [],
       plots: [],
-      plotsStatus: { state: "loading", text: "" },
+      plotsStatus: KEPT_LOADING,
       telemetryState: "none",
       telemetryAgeMs: 0,
       message: "",
@@ -141,7 +137,24 @@ export class DevController {
     this.session = new PageSession(
       browserSessionEnv((reason) => this.store.update({ message: reason === null ? "" : `Cannot reach the server: ${reason}` })),
     );
-    this.settings = new SettingsClient(() => this.session.token);
+    this.kept = new KeptSetting<readonly PlotSpec[]>({
+      key: DEVELOPER_PLOTS_KEY,
+      client: new SettingsClient(() => this.session.token),
+      parse: (stored) => {
+        const parsed = parsePlotSet(stored);
+        return parsed.ok ? { ok: true, value: this.specs(parsed.plots) } : parsed;
+      },
+      encode: (plots) => encodePlotSet(plots.map((p) => p.series)),
+      texts: {
+        default: "Default plots.",
+        stored: "Your plots, from the server.",
+        unusable: (reason) => `Your stored plots cannot be used (${reason}): the defaults apply.`,
+        notKept: "Not kept: log in to keep your plots.",
+        notSaved: (reason) => `Plots not saved: ${reason}`,
+      },
+      get: () => ({ value: this.store.get().plots, status: this.store.get().plotsStatus }),
+      set: ({ value, status }) => this.store.update({ ...(value !== undefined ? { plots: value } : {}), plotsStatus: status }),
+    });
   }
 
   async start(): Promise<void> {
@@ -160,7 +173,7 @@ export class DevController {
     if (session === null) return; // leaving for the login page
     const token = this.session.token;
     this.token = token;
-    void this.loadPlots();
+    void this.kept.load();
     const name = (this.params.get("name") ?? "").trim().slice(0, 40) || "developer";
     const client = new NeptunusClient({ name, ...(token !== null ? { token } : {}) });
     client.socket.onOpen(() => this.store.update({ status: "connected" }));
@@ -177,7 +190,6 @@ export class DevController {
       snapshot: (snapshot) => {
         this.lastHelm = snapshot.helm;
         if (snapshot.telemetry) this.onTelemetry(snapshot.telemetry);
-        void this.tuning.joined();
       },
       telemetry: (t) => this.onTelemetry(t),
       helm: (h) => this.onHelm(h),
@@ -324,54 +336,15 @@ export class DevController {
 
   /** Back to the default plots (the user's stored set is deleted on the server). */
   resetPlots(): void {
-    this.store.update({ plots: this.specs(DEFAULT_PLOT_SET), plotsStatus: { state: "saving", text: "Resetting…" } });
-    const plots = this.store.get().plots;
-    this.plotsWriter.write(() => this.settings.delete(DEVELOPER_PLOTS_KEY)).then(
-      () => {
-        if (this.store.get().plots === plots) this.store.update({ plotsStatus: { state: "default", text: "Default plots." } });
-      },
-      (err: unknown) => this.plotsError(err),
-    );
+    this.kept.reset(this.specs(DEFAULT_PLOT_SET));
   }
 
   private specs(set: PlotSet): PlotSpec[] {
     return set.map((series) => ({ id: this.nextPlotId++, series: [...series] }));
   }
 
-  private async loadPlots(): Promise<void> {
-    try {
-      const stored = await this.settings.get(DEVELOPER_PLOTS_KEY);
-      // the user changed the plots while we asked: theirs win (and are being saved)
-      if (this.store.get().plotsStatus.state !== "loading") return;
-      if (stored === undefined) {
-        this.store.update({ plotsStatus: { state: "default", text: "Default plots." } });
-        return;
-      }
-      const parsed = parsePlotSet(stored);
-      if (parsed.ok) this.store.update({ plots: this.specs(parsed.plots), plotsStatus: { state: "stored", text: "Your plots, from the server." } });
-      else this.store.update({ plotsStatus: { state: "error", text: `Your stored plots cannot be used (${parsed.reason}): the defaults apply.` } });
-    } catch (err) {
-      this.plotsError(err);
-    }
-  }
-
   private savePlots(plots: readonly PlotSpec[]): void {
-    this.store.update({ plots, plotsStatus: { state: "saving", text: "Saving…" } });
-    this.plotsWriter.write(() => this.settings.put(DEVELOPER_PLOTS_KEY, encodePlotSet(plots.map((p) => p.series)))).then(
-      () => {
-        // a later change may have been saved meanwhile: only the newest says "saved"
-        if (this.store.get().plots === plots) this.store.update({ plotsStatus: { state: "saved", text: "Saved on the server." } });
-      },
-      (err: unknown) => this.plotsError(err),
-    );
-  }
-
-  private plotsError(err: unknown): void {
-    this.store.update({
-      plotsStatus: notKept(err)
-        ? { state: "not_kept", text: "Not kept: log in to keep your plots." }
-        : { state: "error", text: `Plots not saved: ${reasonOf(err)}` },
-    });
+    this.kept.save(plots);
   }
 
   // Recordings on the server

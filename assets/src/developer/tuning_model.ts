@@ -5,6 +5,8 @@
  * round trip and says what is wrong next to the field.
  */
 
+import * as wire from "../lib/wire.gen";
+
 export type Axis = "depth" | "heading";
 export type GainKey = "kp" | "ki" | "kd";
 export const AXES: readonly Axis[] = ["depth", "heading"];
@@ -20,75 +22,36 @@ export interface TuningInfo {
   readonly model: string;
 }
 
-export interface StepResponse {
-  readonly axis: Axis;
-  readonly step: number;
-  readonly target: number;
-  readonly band: number;
-  readonly t: readonly number[];
-  readonly setpoint: readonly (number | null)[];
-  readonly reference: readonly (number | null)[];
-  readonly value: readonly number[];
-  readonly overshoot: number;
-  /** s after the step to stay within the band; null: it does not settle */
-  readonly settle: number | null;
-}
+/** The `step_response` reply (`wire.StepResponse`). */
+export type StepResponse = wire.StepResponse;
 
-const isRecord = (v: unknown): v is Record<string, unknown> => typeof v === "object" && v !== null && !Array.isArray(v);
-const isNum = (v: unknown): v is number => typeof v === "number" && Number.isFinite(v);
+const isNum = (v: number | null): v is number => v !== null;
 
-function decodeGains(v: unknown): Gains | null {
-  if (!isRecord(v) || !isNum(v["kp"]) || !isNum(v["ki"]) || !isNum(v["kd"])) return null;
-  return { kp: v["kp"], ki: v["ki"], kd: v["kd"] };
-}
-
-export function decodeAxisGains(v: unknown): AxisGains | null {
-  if (!isRecord(v)) return null;
-  const depth = decodeGains(v["depth"]);
-  const heading = decodeGains(v["heading"]);
-  return depth && heading ? { depth, heading } : null;
+/** `[min, max]`, or null when it is not a pair. */
+function pair(range: readonly number[]): readonly [number, number] | null {
+  const [lo, hi] = range;
+  return range.length === 2 && lo !== undefined && hi !== undefined ? [lo, hi] : null;
 }
 
 /** The `get_tuning` reply, or null. */
 export function decodeTuningInfo(v: unknown): TuningInfo | null {
-  if (!isRecord(v) || !isRecord(v["ranges"]) || typeof v["model"] !== "string") return null;
-  const gains = decodeAxisGains(v["gains"]);
-  const defaults = decodeAxisGains(v["defaults"]);
-  const r = v["ranges"];
-  const range = (k: GainKey): readonly [number, number] | null => {
-    const x = r[k];
-    return Array.isArray(x) && x.length === 2 && isNum(x[0]) && isNum(x[1]) ? [x[0], x[1]] : null;
-  };
-  const kp = range("kp");
-  const ki = range("ki");
-  const kd = range("kd");
-  if (!gains || !defaults || !kp || !ki || !kd) return null;
-  return { gains, defaults, ranges: { kp, ki, kd }, model: v["model"] };
+  const info = wire.decodeTuningInfo(v);
+  if (!info) return null;
+  const kp = pair(info.ranges.kp);
+  const ki = pair(info.ranges.ki);
+  const kd = pair(info.ranges.kd);
+  return kp && ki && kd ? { gains: info.gains, defaults: info.defaults, ranges: { kp, ki, kd }, model: info.model } : null;
 }
 
 /** The `set_tuning` reply's gains in force, or null. */
 export function decodeSetTuning(v: unknown): AxisGains | null {
-  return isRecord(v) ? decodeAxisGains(v["tuning"]) : null;
+  return wire.decodeTuningReply(v)?.tuning ?? null;
 }
 
-const numList = (v: unknown): number[] | null => (Array.isArray(v) && v.every(isNum) ? (v as number[]) : null);
-const maybeList = (v: unknown): (number | null)[] | null =>
-  Array.isArray(v) && v.every((x) => x === null || isNum(x)) ? (v as (number | null)[]) : null;
-
-/** The `step_response` reply, or null. */
+/** The `step_response` reply, or null (also when its curves are not of one length). */
 export function decodeStepResponse(v: unknown): StepResponse | null {
-  if (!isRecord(v)) return null;
-  const axis = v["axis"];
-  const t = numList(v["t"]);
-  const value = numList(v["value"]);
-  const setpoint = maybeList(v["setpoint"]);
-  const reference = maybeList(v["reference"]);
-  const settle = v["settle"];
-  if ((axis !== "depth" && axis !== "heading") || !t || !value || !setpoint || !reference) return null;
-  if (!isNum(v["step"]) || !isNum(v["target"]) || !isNum(v["band"]) || !isNum(v["overshoot"])) return null;
-  if (settle !== null && !isNum(settle)) return null;
-  if (value.length !== t.length) return null;
-  return { axis, step: v["step"], target: v["target"], band: v["band"], t, setpoint, reference, value, overshoot: v["overshoot"], settle };
+  const r = wire.decodeStepResponse(v);
+  return r && r.value.length === r.t.length ? r : null;
 }
 
 export type GainsForm = Readonly<Record<Axis, Readonly<Record<GainKey, string>>>>;

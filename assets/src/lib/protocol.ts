@@ -1,9 +1,43 @@
 /**
- * Wire types of the Neptunus channels (`fleet`, `vehicle:<id>`) and decoders that turn the
- * untyped JSON the phoenix client hands us into these types, or `null` when the shape is wrong.
+ * The pages' view of the Neptunus channels (`fleet`, `vehicle:<id>`), on the decoders generated
+ * from the wire schema (`wire.gen.ts`, from lib/neptunus_web/wire_schema.ex: every field's type,
+ * unit and meaning is there). Where a type here is the generated one it is re-exported; the
+ * others are views the pages were written against: a measurement or estimate not known reads NaN
+ * (the plots draw numbers), a manual command is `manual` beside a null motion `command`, a serial
+ * link's details are grouped under `link.board`, and a snapshot from a server without `helm` or
+ * `session` reads them null.
  *
  * Units are SI throughout (m, m/s, rad, rad/s); degrees exist only in the view (see units.ts).
  */
+
+import * as wire from "./wire.gen";
+import { isRecord } from "./wire_runtime";
+
+export { isRecord };
+
+export type SimState = wire.SimState;
+export type MotionCommand = wire.MotionCommand;
+export type ThrusterOutputs = wire.ThrusterOutputs;
+export type Thrusters = wire.Thrusters;
+export type ControlMode = wire.ControlMode;
+export type RunMode = wire.RunMode;
+export type MeasurementState = wire.MeasurementState;
+export type MeasurementStates = wire.MeasurementStates;
+export type Role = wire.Role;
+export type AuthMode = wire.Session["mode"];
+export type Party = wire.Party;
+export type HelmPilot = wire.HelmPilot;
+export type HelmStateName = wire.HelmState;
+export type Helm = wire.Helm;
+export type Session = wire.Session;
+export type Pilot = wire.Pilot;
+export type CameraInfo = wire.CameraInfo;
+export type RecordingStatus = wire.RecordingStatus;
+export type CameraStatus = wire.CameraStatus;
+export type VehicleSettings = wire.VehicleSettings;
+
+export const CONTROL_MODES: readonly ControlMode[] = wire.CONTROL_MODE_VALUES;
+export const RUN_MODES: readonly RunMode[] = wire.RUN_MODE_VALUES;
 
 export interface VehicleInfo {
   readonly id: string;
@@ -23,7 +57,7 @@ export interface FleetDetail {
   /** the pilot's name; null: nobody */
   readonly pilot: string | null;
   /** the board link (null before the first telemetry) */
-  readonly link: { readonly up: boolean; readonly reason: string | null } | null;
+  readonly link: wire.LinkSummary | null;
   /** m, positive down */
   readonly depth: number | null;
   /** rad */
@@ -32,66 +66,8 @@ export interface FleetDetail {
   readonly recording: boolean;
 }
 
-/** Sensor readings as the board reports them (after wild-point rejection). */
-export interface Measurement {
-  /** m, positive down */
-  readonly depth: number;
-  /** rad, [0, 2π) */
-  readonly heading: number;
-  /** rad */
-  readonly roll: number;
-  /** rad */
-  readonly pitch: number;
-  /** V */
-  readonly voltage: number;
-  /** A */
-  readonly current: number;
-}
-
-/**
- * Simulated 6-DOF state (Fossen notation, NED: z is depth): position x, y, z (m), Euler angles
- * phi, theta, psi (rad), body velocities u, v, w (m/s) and p, q, r (rad/s).
- */
-export interface SimState {
-  readonly x: number;
-  readonly y: number;
-  readonly z: number;
-  readonly phi: number;
-  readonly theta: number;
-  readonly psi: number;
-  readonly u: number;
-  readonly v: number;
-  readonly w: number;
-  readonly p: number;
-  readonly q: number;
-  readonly r: number;
-}
-
-/** Motion command, each axis in [-1, 1]. */
-export interface MotionCommand {
-  readonly surge: number;
-  readonly heave: number;
-  readonly yaw: number;
-}
-
-/** Thruster outputs in [-1, 1] (positive: forward for port/starboard, down for vertical). */
-export interface ThrusterOutputs {
-  readonly port: number;
-  readonly vertical: number;
-  readonly starboard: number;
-}
-
-/** Outputs and the PWM pulse widths sent to the ESCs (1000..2000 µs, 1500 neutral). */
-export interface Thrusters extends ThrusterOutputs {
-  readonly port_us: number;
-  readonly vertical_us: number;
-  readonly starboard_us: number;
-}
-
-export type ControlMode = "motion" | "manual" | "dp";
-export type RunMode = "normal" | "simulator";
-export const CONTROL_MODES: readonly ControlMode[] = ["motion", "manual", "dp"];
-export const RUN_MODES: readonly RunMode[] = ["normal", "simulator"];
+/** Sensor readings (`wire.Measurement`), NaN for a value not known (initialising). */
+export type Measurement = { readonly [K in keyof wire.Measurement]: number };
 
 /** Autopilot setpoints: depth (m) and heading (rad), null when that autopilot is off. */
 export interface AutopilotSetpoints {
@@ -99,10 +75,7 @@ export interface AutopilotSetpoints {
   readonly heading: number | null;
 }
 
-/**
- * The control settings (`control` in telemetry, the snapshot, grants and the `ok` replies of
- * the settings commands). Fields a server does not send yet are null.
- */
+/** The control settings (`wire.ControlSettings`); fields a server does not send read null. */
 export interface ControlSettings {
   readonly mode: string;
   /** [0, 1] */
@@ -134,17 +107,7 @@ export interface AutopilotStatus {
   readonly heading: AutopilotLoop | null;
 }
 
-/**
- * Whether a measurement can be trusted: `initialising` (no valid reading since the server
- * started, the board link came up or the board reset — the server sends no number for it),
- * `valid`, or `stale` (no plausible reading for 2 s: the last value is kept).
- */
-export type MeasurementState = "initialising" | "valid" | "stale";
-
-/** The state of each measurement (`measurement_state` in telemetry). */
-export type MeasurementStates = Readonly<Record<(typeof MEASUREMENT_KEYS)[number], MeasurementState>>;
-
-/** The navigation filter's estimate (NaN for a field the server does not send). */
+/** The navigation filter's depth and heading estimate (NaN for a value not known). */
 export interface Estimate {
   /** m */
   readonly depth: number;
@@ -166,37 +129,32 @@ export interface LinkStatus {
   readonly mavlink?: MavlinkStatus;
 }
 
-/** A mavlink vehicle's state in telemetry `link.mavlink` (docs/API.md, docs/MAVLINK.md). */
-export interface MavlinkStatus {
-  readonly armed: boolean;
-  /** ArduSub's flight mode (`MANUAL`, `ALT_HOLD`, …); null before its first heartbeat */
-  readonly mode: string | null;
-  readonly system_status: string | null;
-}
+/** A mavlink vehicle's armed state and modes (`wire.MavlinkStatus`, docs/MAVLINK.md). */
+export type MavlinkStatus = Pick<wire.MavlinkStatus, "armed" | "mode" | "system_status">;
 
-/** The board link's liveness fields in telemetry `link` (docs/API.md). */
+/** The board link's liveness fields (`wire.LinkStatus`), from a board on a serial link. */
 export interface BoardLinkDetails {
-  /** last ping → pong round trip (ms) */
   readonly rtt_ms: number | null;
-  /** how long ago the last pong arrived (ms), at the server */
   readonly pong_age_ms: number | null;
-  /** whether the board's own deadman is armed (its uptime past 180 s); null: not known */
   readonly board_deadman_armed: boolean | null;
   readonly firmware: string;
   readonly detected_firmware: string | null;
   readonly firmware_mismatch: boolean;
   readonly commands_sent: number | null;
   readonly commands_confirmed: number | null;
+  /** whether the board confirmed (echoed) every setting sent to it; null: not reported */
+  readonly board_settings: "confirmed" | "pending" | "failed" | null;
+  /** the settings it has not confirmed: mtrmod1, mtrmod2 (motor modifiers), lights, laser, tilt */
+  readonly board_settings_pending: readonly string[];
+  /** why a setting failed (past the bound of writes), else null */
+  readonly board_settings_reason: string | null;
+  /** thrust other than neutral is held (sent as neutral) until the motor modifiers are confirmed */
+  readonly thrust_held: boolean;
 }
 
 export interface WildPoints {
   readonly total: number;
   readonly by_field: Readonly<Record<string, number>>;
-}
-
-/** Where the vehicle's camera can be watched (from the snapshot). */
-export interface CameraInfo {
-  readonly url: string;
 }
 
 /**
@@ -205,9 +163,15 @@ export interface CameraInfo {
  * addresses are left alone (the token is never sent elsewhere).
  */
 export function cameraWithToken(camera: CameraInfo | null, token: string | null): CameraInfo | null {
-  if (camera === null || token === null || !camera.url.startsWith("/") || camera.url.startsWith("//")) return camera;
-  const separator = camera.url.includes("?") ? "&" : "?";
-  return { url: `${camera.url}${separator}token=${encodeURIComponent(token)}` };
+  if (camera === null || token === null) return camera;
+  return { ...camera, video: withToken(camera.video, token), url: camera.url === null ? null : withToken(camera.url, token) };
+}
+
+/** `url` with `token` added, when it is our own server's (a path); another server's as it is. */
+function withToken(url: string, token: string): string {
+  if (!url.startsWith("/") || url.startsWith("//")) return url;
+  const separator = url.includes("?") ? "&" : "?";
+  return `${url}${separator}token=${encodeURIComponent(token)}`;
 }
 
 export interface Telemetry {
@@ -239,68 +203,20 @@ export interface Telemetry {
   readonly raw: Readonly<Record<string, unknown>>;
 }
 
-export interface Pilot {
-  readonly name: string;
-}
-
-export type Role = "pilot" | "observer" | "main_station";
-export type AuthMode = "local" | "secure";
-
-/** One connection of one user, as the helm names it. */
-export interface Party {
-  /** connection id (the snapshot's `session.id` for this client) */
-  readonly id: string;
-  readonly name: string;
-  readonly role: Role;
-}
-
-/** The pilot, with when it got the helm (ms since the Unix epoch). */
-export interface HelmPilot extends Party {
-  readonly since: number | null;
-}
-
-export type HelmStateName = "free" | "piloted" | "requested" | "takeover";
-
-/** The `helm` event and the snapshot's `helm` (docs/API.md). */
-export interface Helm {
-  readonly state: HelmStateName;
-  /** stamp for `thrust`; changes on every grant and every deadman stop */
-  readonly epoch: number;
-  readonly pilot: HelmPilot | null;
-  readonly request: { readonly from: Party; readonly remaining_ms: number } | null;
-  readonly takeover: { readonly by: Party; readonly countdown_ms: number } | null;
-  readonly deadman_ms: number;
-  readonly heartbeat_ms: number;
-  readonly request_timeout_ms: number;
-  readonly takeover_ms: number;
-}
-
 /** What the new pilot picks up (pick-up procedure). */
 export interface ControlState extends ControlSettings {
   readonly command: MotionCommand | null;
 }
 
 /** `control_granted` and the `granted` reply of `request_control` / `take_control`. */
-export interface Grant {
-  readonly epoch: number;
-  readonly pilot: HelmPilot;
+export interface Grant extends Omit<wire.Grant, "control"> {
   readonly control: ControlState;
-  readonly deadman_ms: number;
-  readonly heartbeat_ms: number;
-}
-
-/** Who this connection is (snapshot `session`). */
-export interface Session {
-  readonly id: string;
-  readonly name: string;
-  readonly role: Role;
-  readonly mode: AuthMode;
 }
 
 export type ControlReply =
   | { readonly status: "granted"; readonly grant: Grant }
-  | { readonly status: "pending"; readonly timeout_ms: number }
-  | { readonly status: "takeover"; readonly countdown_ms: number };
+  | wire.Pending
+  | wire.Takeover;
 
 export interface FleetReply {
   readonly vehicles: readonly VehicleInfo[];
@@ -318,19 +234,6 @@ export interface VehicleSnapshot {
   readonly camera: CameraInfo | null;
   /** the vehicle's view settings (absent from an older server) */
   readonly settings?: VehicleSettings;
-}
-
-/** A vehicle's settings every page applies (`settings` in the snapshot, `vehicle_settings`). */
-export interface VehicleSettings {
-  /** the camera image rotation, degrees clockwise: 0, 90, 180 or 270 */
-  readonly camera_rotation: number;
-}
-
-/** `vehicle_settings` (and the snapshot's `settings`), or null. */
-export function decodeVehicleSettings(value: unknown): VehicleSettings | null {
-  if (!isRecord(value)) return null;
-  const r = value["camera_rotation"];
-  return r === 0 || r === 90 || r === 180 || r === 270 ? { camera_rotation: r } : null;
 }
 
 /** Reply to a `thrust` or `stop` push (outputs only; the pulse widths come with telemetry). */
@@ -353,454 +256,251 @@ export interface PresenceEntry {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Decoders
+// Decoders: the generated ones, or the views above built from them.
 
 type Json = Record<string, unknown>;
 
-export function isRecord(value: unknown): value is Json {
-  return typeof value === "object" && value !== null && !Array.isArray(value);
+export const decodeMotionCommand = wire.decodeMotionCommand;
+export const decodeThrusters = wire.decodeThrusters;
+export const decodeThrusterOutputs = wire.decodeThrusterOutputs;
+export const decodeMeasurementStates = wire.decodeMeasurementStates;
+export const decodeRecordingStatus = wire.decodeRecordingStatus;
+export const decodeCameraStatus = wire.decodeCameraStatus;
+export const decodeVehicleSettings = wire.decodeVehicleSettings;
+export const decodeParty = wire.decodeParty;
+export const decodeSession = wire.decodeSession;
+
+/** A value not known (null) as NaN, for views that draw numbers. */
+function orNaN(value: number | null): number {
+  return value ?? Number.NaN;
 }
 
-function isFiniteNumber(value: unknown): value is number {
-  return typeof value === "number" && Number.isFinite(value);
+function controlSettings(c: wire.ControlSettings): ControlSettings {
+  const { mode, gain, lights, laser, tilt, run_mode, autopilot, dp_holds } = c;
+  return {
+    mode,
+    gain,
+    lights,
+    laser,
+    tilt,
+    run_mode,
+    autopilot: autopilot && { depth: autopilot.depth, heading: autopilot.heading },
+    ...(dp_holds ? { dp_holds } : {}),
+  };
 }
 
-/** Picks the named finite-number fields from `value`; `null` if any is missing or not a number. */
-function numbers<K extends string>(
-  value: unknown,
-  keys: readonly K[],
-): { readonly [P in K]: number } | null {
-  if (!isRecord(value)) return null;
-  const out: Partial<Record<K, number>> = {};
-  for (const key of keys) {
-    const v = value[key];
-    if (!isFiniteNumber(v)) return null;
-    out[key] = v;
-  }
-  return out as { [P in K]: number };
+function controlState(c: wire.ControlState): ControlState {
+  return { ...controlSettings(c), command: motionOnly(c.command) };
 }
 
-const MEASUREMENT_KEYS = ["depth", "heading", "roll", "pitch", "voltage", "current"] as const;
-const SIM_KEYS = ["x", "y", "z", "phi", "theta", "psi", "u", "v", "w", "p", "q", "r"] as const;
-const COMMAND_KEYS = ["surge", "heave", "yaw"] as const;
-const OUTPUT_KEYS = ["port", "vertical", "starboard"] as const;
-const THRUSTER_KEYS = [
-  "port",
-  "vertical",
-  "starboard",
-  "port_us",
-  "vertical_us",
-  "starboard_us",
-] as const;
-
-export function decodeMotionCommand(value: unknown): MotionCommand | null {
-  return numbers(value, COMMAND_KEYS);
+function motionOnly(command: wire.PilotCommand | null): MotionCommand | null {
+  return command !== null && "surge" in command ? command : null;
 }
 
-export function decodeThrusters(value: unknown): Thrusters | null {
-  return numbers(value, THRUSTER_KEYS);
+function autopilotLoop(loop: wire.AutopilotLoop | null): AutopilotLoop | null {
+  if (loop === null) return null;
+  const { setpoint, output, waiting, reference } = loop;
+  return { setpoint, output, waiting, ...(reference !== null ? { reference } : {}) };
 }
 
-export function decodeThrusterOutputs(value: unknown): ThrusterOutputs | null {
-  return numbers(value, OUTPUT_KEYS);
+function autopilotStatus(s: wire.AutopilotStatus): AutopilotStatus {
+  return { depth: autopilotLoop(s.depth), heading: autopilotLoop(s.heading) };
 }
 
-/** Like `numbers`, but a missing or null field reads NaN ("not known"); null if not a record. */
-function lenientNumbers<K extends string>(
-  value: unknown,
-  keys: readonly K[],
-): { readonly [P in K]: number } | null {
-  if (!isRecord(value)) return null;
-  const out: Partial<Record<K, number>> = {};
-  for (const key of keys) {
-    const v = value[key];
-    out[key] = isFiniteNumber(v) ? v : Number.NaN;
-  }
-  return out as { [P in K]: number };
+function linkStatus(l: wire.LinkStatus): LinkStatus {
+  const board: BoardLinkDetails | null =
+    l.firmware === null
+      ? null
+      : {
+          rtt_ms: l.rtt_ms,
+          pong_age_ms: l.pong_age_ms,
+          board_deadman_armed: l.board_deadman_armed,
+          firmware: l.firmware,
+          detected_firmware: l.detected_firmware,
+          firmware_mismatch: l.firmware_mismatch === true,
+          commands_sent: l.commands_sent,
+          commands_confirmed: l.commands_confirmed,
+          board_settings: l.board_settings,
+          board_settings_pending: l.board_settings_pending ?? [],
+          board_settings_reason: l.board_settings_reason,
+          thrust_held: l.thrust_held === true,
+        };
+  const mavlink = l.mavlink && mavlinkStatus(l.mavlink);
+  return { up: l.up, reason: l.reason, ...(board ? { board } : {}), ...(mavlink ? { mavlink } : {}) };
 }
 
-const ESTIMATE_KEYS = ["depth", "depth_rate", "heading", "yaw_rate"] as const;
-
-function numberOrNull(value: unknown): number | null {
-  return isFiniteNumber(value) ? value : null;
+function mavlinkStatus(m: wire.MavlinkStatus): MavlinkStatus {
+  return { armed: m.armed, mode: m.mode, system_status: m.system_status };
 }
 
-/** Control settings; null unless it has at least a string `mode`. */
+/** Control settings (telemetry's `control`, or a control state); null unless it has a mode. */
 export function decodeControlSettings(value: unknown): ControlSettings | null {
-  if (!isRecord(value) || typeof value["mode"] !== "string") return null;
-  const ap = value["autopilot"];
-  const autopilot = isRecord(ap)
-    ? { depth: numberOrNull(ap["depth"]), heading: numberOrNull(ap["heading"]) }
-    : null;
-  const runMode = value["run_mode"];
-  const dpHolds: unknown = value["dp_holds"];
-  return {
-    mode: value["mode"],
-    gain: numberOrNull(value["gain"]),
-    lights: numberOrNull(value["lights"]),
-    laser: numberOrNull(value["laser"]),
-    tilt: numberOrNull(value["tilt"]),
-    run_mode: typeof runMode === "string" ? runMode : null,
-    autopilot,
-    ...(Array.isArray(dpHolds) ? { dp_holds: dpHolds.filter((x): x is string => typeof x === "string") } : {}),
-  };
-}
-
-function decodeLoop(value: unknown): AutopilotLoop | null {
-  const loop = numbers(value, ["setpoint", "output"] as const);
-  if (!loop || !isRecord(value)) return null;
-  const waiting = value["waiting"];
-  const reference = value["reference"];
-  return {
-    setpoint: loop.setpoint,
-    output: loop.output,
-    waiting: typeof waiting === "string" ? waiting : null,
-    ...(typeof reference === "number" && Number.isFinite(reference) ? { reference } : {}),
-  };
+  const c = wire.decodeControlSettings(value);
+  return c && controlSettings(c);
 }
 
 export function decodeAutopilotStatus(value: unknown): AutopilotStatus | null {
-  if (!isRecord(value)) return null;
-  return { depth: decodeLoop(value["depth"]), heading: decodeLoop(value["heading"]) };
+  const s = wire.decodeAutopilotStatus(value);
+  return s && autopilotStatus(s);
 }
 
 export function decodeLinkStatus(value: unknown): LinkStatus | null {
-  if (!isRecord(value) || typeof value["up"] !== "boolean") return null;
-  const reason = value["reason"];
-  const board = decodeBoardLinkDetails(value);
-  const mavlink = decodeMavlinkStatus(value["mavlink"]);
-  return {
-    up: value["up"],
-    reason: typeof reason === "string" ? reason : null,
-    ...(board ? { board } : {}),
-    ...(mavlink ? { mavlink } : {}),
-  };
+  const l = wire.decodeLinkStatus(value);
+  return l && linkStatus(l);
 }
 
 export function decodeMavlinkStatus(value: unknown): MavlinkStatus | null {
-  if (!isRecord(value) || typeof value["armed"] !== "boolean") return null;
-  const mode = value["mode"];
-  const status = value["system_status"];
-  return {
-    armed: value["armed"],
-    mode: typeof mode === "string" ? mode : null,
-    system_status: typeof status === "string" ? status : null,
-  };
-}
-
-function decodeBoardLinkDetails(value: Record<string, unknown>): BoardLinkDetails | null {
-  const firmware = value["firmware"];
-  if (typeof firmware !== "string") return null;
-  const num = (v: unknown): number | null => (typeof v === "number" && Number.isFinite(v) ? v : null);
-  const armed = value["board_deadman_armed"];
-  const detected = value["detected_firmware"];
-  return {
-    rtt_ms: num(value["rtt_ms"]),
-    pong_age_ms: num(value["pong_age_ms"]),
-    board_deadman_armed: typeof armed === "boolean" ? armed : null,
-    firmware,
-    detected_firmware: typeof detected === "string" ? detected : null,
-    firmware_mismatch: value["firmware_mismatch"] === true,
-    commands_sent: num(value["commands_sent"]),
-    commands_confirmed: num(value["commands_confirmed"]),
-  };
-}
-
-export interface RecordingStatus {
-  readonly on: boolean;
-  /** why recording stopped (null: it is on, or off by configuration) */
-  readonly error: string | null;
-}
-
-export interface CameraStatus {
-  readonly running: boolean;
-  readonly fps: number;
-  readonly error: string | null;
-}
-
-export function decodeRecordingStatus(value: unknown): RecordingStatus | null {
-  if (!isRecord(value) || typeof value["on"] !== "boolean") return null;
-  const error = value["error"];
-  return { on: value["on"], error: typeof error === "string" ? error : null };
-}
-
-export function decodeCameraStatus(value: unknown): CameraStatus | null {
-  if (!isRecord(value) || typeof value["running"] !== "boolean" || !isFiniteNumber(value["fps"])) return null;
-  const error = value["error"];
-  return { running: value["running"], fps: value["fps"], error: typeof error === "string" ? error : null };
-}
-
-const MEASUREMENT_STATES: readonly string[] = ["initialising", "valid", "stale"];
-
-function isMeasurementState(value: unknown): value is MeasurementState {
-  return typeof value === "string" && MEASUREMENT_STATES.includes(value);
-}
-
-/** Each measurement's state; null unless every measurement has a known one. */
-export function decodeMeasurementStates(value: unknown): MeasurementStates | null {
-  if (!isRecord(value)) return null;
-  const out: Partial<Record<(typeof MEASUREMENT_KEYS)[number], MeasurementState>> = {};
-  for (const key of MEASUREMENT_KEYS) {
-    const state = value[key];
-    if (!isMeasurementState(state)) return null;
-    out[key] = state;
-  }
-  return out as MeasurementStates;
+  const m = wire.decodeMavlinkStatus(value);
+  return m && mavlinkStatus(m);
 }
 
 export function decodeWildPoints(value: unknown): WildPoints | null {
-  if (!isRecord(value) || !isFiniteNumber(value["total"])) return null;
-  const byField: Record<string, number> = {};
-  const raw = value["by_field"];
-  if (isRecord(raw)) for (const [k, v] of Object.entries(raw)) if (isFiniteNumber(v)) byField[k] = v;
-  return { total: value["total"], by_field: byField };
+  const w = wire.decodeWildPoints(value);
+  return w && { total: w.total, by_field: w.by_field ?? {} };
 }
 
-/**
- * Telemetry. Required: `t`, `sent_at`, a `measurement` object (fields the board did not give
- * read NaN), `sim` (object or null), `thrusters`. The command is a motion command or names
- * thrusters (manual mode). The fields later servers add (`control`, `autopilot`, `estimate`,
- * `link`, `wild_points`, `measurement_state`) are null when absent or malformed.
- */
+/** Telemetry (`wire.Telemetry`, see there what it needs), in the view above. */
 export function decodeTelemetry(value: unknown): Telemetry | null {
-  if (!isRecord(value)) return null;
-  const { t, sent_at } = value;
-  if (!isFiniteNumber(t) || !isFiniteNumber(sent_at)) return null;
-  const measurement = lenientNumbers(value["measurement"], MEASUREMENT_KEYS);
-  const rawSim = value["sim"];
-  const sim = rawSim === null ? null : numbers(rawSim, SIM_KEYS);
-  const command = decodeMotionCommand(value["command"]);
-  const manual = command ? null : decodeThrusterOutputs(value["command"]);
-  const thrusters = decodeThrusters(value["thrusters"]);
-  if (!measurement || !thrusters || (!command && !manual)) return null;
-  if (sim === null && rawSim !== null) return null;
-  const estimate = lenientNumbers(value["estimate"], ESTIMATE_KEYS);
+  const t = wire.decodeTelemetry(value);
+  if (t === null || !isRecord(value)) return null;
+  const m = t.measurement;
+  const e = t.estimate;
+  const command = motionOnly(t.command);
   return {
-    t,
-    sent_at,
-    measurement,
-    measurement_state: decodeMeasurementStates(value["measurement_state"]),
-    sim,
+    t: t.t,
+    sent_at: t.sent_at,
+    measurement: {
+      depth: orNaN(m.depth),
+      heading: orNaN(m.heading),
+      roll: orNaN(m.roll),
+      pitch: orNaN(m.pitch),
+      voltage: orNaN(m.voltage),
+      current: orNaN(m.current),
+    },
+    measurement_state: t.measurement_state,
+    sim: t.sim,
     command,
-    manual,
-    thrusters,
-    control: decodeControlSettings(value["control"]),
-    autopilot: decodeAutopilotStatus(value["autopilot"]),
-    estimate,
-    link: decodeLinkStatus(value["link"]),
-    wild_points: decodeWildPoints(value["wild_points"]),
-    recording: decodeRecordingStatus(value["recording"]),
-    camera_status: decodeCameraStatus(value["camera"]),
+    manual: command === null && "port" in t.command ? t.command : null,
+    thrusters: t.thrusters,
+    control: t.control && controlSettings(t.control),
+    autopilot: t.autopilot && autopilotStatus(t.autopilot),
+    estimate: e && {
+      depth: orNaN(e.depth),
+      depth_rate: orNaN(e.depth_rate),
+      heading: orNaN(e.heading),
+      yaw_rate: orNaN(e.yaw_rate),
+    },
+    link: t.link && linkStatus(t.link),
+    wild_points: t.wild_points && { total: t.wild_points.total, by_field: t.wild_points.by_field ?? {} },
+    recording: t.recording,
+    camera_status: t.camera,
     raw: value,
   };
 }
 
 /** The camera: `camera: {url}` (or a bare URL) in the snapshot, else `vehicle.camera_url`. */
 export function decodeCamera(snapshot: Record<string, unknown>): CameraInfo | null {
-  const camera = snapshot["camera"];
-  const vehicle = snapshot["vehicle"];
-  const candidates = [
-    isRecord(camera) ? camera["url"] : camera,
-    isRecord(vehicle) ? vehicle["camera_url"] : undefined,
-    isRecord(vehicle) ? vehicle["video_url"] : undefined,
-  ];
-  for (const url of candidates) {
-    if (typeof url === "string" && /^(https?:\/\/|\/)/.test(url)) return { url };
-  }
-  return null;
+  const camera = wire.decodeCameraInfo(snapshot["camera"]);
+  if (camera === null || !safeUrl(camera.video) || (camera.url !== null && !safeUrl(camera.url))) return null;
+  return camera;
 }
 
+/** A URL a page may load: http(s) or a path on this server (never `javascript:` and the like). */
+function safeUrl(url: string): boolean {
+  return /^(https?:\/\/|\/)/.test(url);
+}
+
+/** A vehicle of the fleet's directory, or of a snapshot (`wire.FleetVehicle`). */
 export function decodeVehicleInfo(value: unknown): VehicleInfo | null {
-  if (!isRecord(value)) return null;
-  const { id, board, node, status } = value;
-  if (typeof id !== "string" || typeof board !== "string") return null;
+  const v = wire.decodeFleetVehicle(value);
+  if (v === null || !isRecord(value)) return null;
   const detail = decodeFleetDetail(value);
   return {
-    id,
-    board,
-    ...(typeof node === "string" ? { node } : {}),
-    ...(typeof status === "string" ? { status } : {}),
+    id: v.id,
+    board: v.board,
+    ...(v.node !== null ? { node: v.node } : {}),
+    ...(v.status !== null ? { status: v.status } : {}),
     ...(detail ? { detail } : {}),
   };
 }
 
-function finiteOrNull(value: unknown): number | null {
-  return typeof value === "number" && Number.isFinite(value) ? value : null;
-}
-
-function stringOrNull(value: unknown): string | null {
-  return typeof value === "string" ? value : null;
-}
+const FLEET_DETAIL_KEYS = ["helm", "pilot", "link", "depth", "heading", "recording"];
 
 /**
  * The directory's fields of a fleet entry (`helm`, `pilot`, `link`, `depth`, `heading`,
  * `recording`), or null when it has none of them (a snapshot's vehicle, an older server).
- * A malformed field reads as unknown (null).
  */
 export function decodeFleetDetail(value: Json): FleetDetail | null {
-  const keys = ["helm", "pilot", "link", "depth", "heading", "recording"];
-  if (!keys.some((k) => k in value)) return null;
-  const link = value["link"];
-  return {
-    helm: stringOrNull(value["helm"]),
-    pilot: stringOrNull(value["pilot"]),
-    link: isRecord(link) && typeof link["up"] === "boolean" ? { up: link["up"], reason: stringOrNull(link["reason"]) } : null,
-    depth: finiteOrNull(value["depth"]),
-    heading: finiteOrNull(value["heading"]),
-    recording: value["recording"] === true,
-  };
+  if (!FLEET_DETAIL_KEYS.some((k) => k in value)) return null;
+  const v = wire.decodeFleetVehicle(value);
+  return v && { helm: v.helm, pilot: v.pilot, link: v.link, depth: v.depth, heading: v.heading, recording: v.recording === true };
 }
 
 /** `null` and a missing pilot both mean "nobody"; anything else malformed is `undefined`. */
 export function decodePilot(value: unknown): Pilot | null | undefined {
   if (value === null || value === undefined) return null;
-  if (isRecord(value) && typeof value["name"] === "string") return { name: value["name"] };
-  return undefined;
+  return wire.decodePilot(value) ?? undefined;
 }
 
 export function decodeFleetReply(value: unknown): FleetReply | null {
   if (!isRecord(value) || !Array.isArray(value["vehicles"])) return null;
-  const vehicles: VehicleInfo[] = [];
-  for (const v of value["vehicles"]) {
-    const info = decodeVehicleInfo(v);
-    if (!info) return null;
-    vehicles.push(info);
-  }
-  return { vehicles };
+  const vehicles = value["vehicles"].map(decodeVehicleInfo);
+  return vehicles.every((v): v is VehicleInfo => v !== null) ? { vehicles } : null;
+}
+
+/** Absent or null: null; else what `decode` makes of it (undefined: it does not decode). */
+function absentOr<T>(value: unknown, decode: (value: unknown) => T | null): T | null | undefined {
+  return value === undefined || value === null ? null : (decode(value) ?? undefined);
 }
 
 export function decodeVehicleSnapshot(value: unknown): VehicleSnapshot | null {
   if (!isRecord(value)) return null;
   const vehicle = decodeVehicleInfo(value["vehicle"]);
-  const raw = value["telemetry"];
-  const telemetry = raw === null || raw === undefined ? null : decodeTelemetry(raw);
+  const telemetry = absentOr(value["telemetry"], decodeTelemetry);
   const pilot = decodePilot(value["pilot"]);
-  if (!vehicle || pilot === undefined) return null;
-  if (telemetry === null && raw !== null && raw !== undefined) return null;
-  const rawHelm = value["helm"];
-  const helm = rawHelm === undefined ? null : decodeHelm(rawHelm);
-  if (helm === null && rawHelm !== undefined) return null;
-  const rawSession = value["session"];
-  const session = rawSession === undefined ? null : decodeSession(rawSession);
-  if (session === null && rawSession !== undefined) return null;
+  const helm = absentOr(value["helm"], decodeHelm);
+  const session = absentOr(value["session"], decodeSession);
+  if (!vehicle || telemetry === undefined || pilot === undefined || helm === undefined || session === undefined) return null;
   const control = decodeControlSettings(value["control"]);
   const settings = decodeVehicleSettings(value["settings"]);
   return { vehicle, telemetry, pilot, helm, session, control, camera: decodeCamera(value), ...(settings ? { settings } : {}) };
 }
 
-const ROLES: readonly string[] = ["pilot", "observer", "main_station"];
-const HELM_STATES: readonly string[] = ["free", "piloted", "requested", "takeover"];
-
-function isRole(value: unknown): value is Role {
-  return typeof value === "string" && ROLES.includes(value);
-}
-
-export function decodeParty(value: unknown): Party | null {
-  if (!isRecord(value)) return null;
-  const { id, name, role } = value;
-  if (typeof id !== "string" || typeof name !== "string" || !isRole(role)) return null;
-  return { id, name, role };
-}
-
-function decodeHelmPilot(value: unknown): HelmPilot | null {
-  const party = decodeParty(value);
-  if (!party || !isRecord(value)) return null;
-  const since = value["since"];
-  return { ...party, since: isFiniteNumber(since) ? since : null };
-}
-
+/** The helm; a helm piloted by nobody (but free) is malformed. */
 export function decodeHelm(value: unknown): Helm | null {
-  if (!isRecord(value)) return null;
-  const state = value["state"];
-  if (typeof state !== "string" || !HELM_STATES.includes(state)) return null;
-  const times = numbers(value, [
-    "epoch",
-    "deadman_ms",
-    "heartbeat_ms",
-    "request_timeout_ms",
-    "takeover_ms",
-  ] as const);
-  if (!times) return null;
-
-  const rawPilot = value["pilot"];
-  const pilot = rawPilot === null ? null : decodeHelmPilot(rawPilot);
-  if (pilot === null && (rawPilot !== null || state !== "free")) return null;
-
-  let request: Helm["request"] = null;
-  const rawRequest = value["request"];
-  if (rawRequest !== null && rawRequest !== undefined) {
-    const from = isRecord(rawRequest) ? decodeParty(rawRequest["from"]) : null;
-    const remaining = isRecord(rawRequest) ? rawRequest["remaining_ms"] : undefined;
-    if (!from || !isFiniteNumber(remaining)) return null;
-    request = { from, remaining_ms: remaining };
-  }
-
-  let takeover: Helm["takeover"] = null;
-  const rawTakeover = value["takeover"];
-  if (rawTakeover !== null && rawTakeover !== undefined) {
-    const by = isRecord(rawTakeover) ? decodeParty(rawTakeover["by"]) : null;
-    const countdown = isRecord(rawTakeover) ? rawTakeover["countdown_ms"] : undefined;
-    if (!by || !isFiniteNumber(countdown)) return null;
-    takeover = { by, countdown_ms: countdown };
-  }
-
-  return { state: state as HelmStateName, ...times, pilot, request, takeover };
+  const helm = wire.decodeHelm(value);
+  return helm && (helm.pilot !== null || helm.state === "free") ? helm : null;
 }
 
 export function decodeGrant(value: unknown): Grant | null {
-  if (!isRecord(value)) return null;
-  const times = numbers(value, ["epoch", "deadman_ms", "heartbeat_ms"] as const);
-  const pilot = decodeHelmPilot(value["pilot"]);
-  const control = value["control"];
-  const settings = decodeControlSettings(control);
-  if (!times || !pilot || !settings || !isRecord(control)) return null;
-  const command = decodeMotionCommand(control["command"]);
-  return { ...times, pilot, control: { ...settings, command } };
-}
-
-export function decodeSession(value: unknown): Session | null {
-  if (!isRecord(value)) return null;
-  const { id, name, role, mode } = value;
-  if (typeof id !== "string" || typeof name !== "string" || !isRole(role)) return null;
-  if (mode !== "local" && mode !== "secure") return null;
-  return { id, name, role, mode };
+  const g = wire.decodeGrant(value);
+  return g && { ...g, control: controlState(g.control) };
 }
 
 export function decodeControlReply(value: unknown): ControlReply | null {
-  if (!isRecord(value)) return null;
-  switch (value["status"]) {
-    case "granted": {
-      const grant = decodeGrant(value["grant"]);
-      return grant ? { status: "granted", grant } : null;
-    }
-    case "pending": {
-      const t = value["timeout_ms"];
-      return isFiniteNumber(t) ? { status: "pending", timeout_ms: t } : null;
-    }
-    case "takeover": {
-      const t = value["countdown_ms"];
-      return isFiniteNumber(t) ? { status: "takeover", countdown_ms: t } : null;
-    }
-    default:
-      return null;
-  }
+  const reply = wire.decodeControlReply(value);
+  if (reply?.status !== "granted") return reply;
+  const grant = decodeGrant(reply.grant);
+  return grant && { status: "granted", grant };
 }
 
+/** `thrust` and `stop` replies; the pulse widths, when the server sends them, are dropped. */
 export function decodeThrustReply(value: unknown): ThrustReply | null {
   if (!isRecord(value)) return null;
-  const command = decodeMotionCommand(value["command"]) ?? decodeThrusterOutputs(value["command"]);
-  const thrusters = decodeThrusterOutputs(value["thrusters"]);
+  const command = wire.decodePilotCommand(value["command"]);
+  const thrusters = wire.decodeThrusterOutputs(value["thrusters"]);
   return command && thrusters ? { command, thrusters } : null;
 }
 
 /** The `ok` reply of the settings commands: `{control: C}`. */
 export function decodeControlUpdate(value: unknown): ControlSettings | null {
-  return isRecord(value) ? decodeControlSettings(value["control"]) : null;
+  const update = wire.decodeControlUpdate(value);
+  return update && controlSettings(update.control);
 }
 
 /** Reply to `clock`: `{now}`, the server's wall clock in ms since the epoch. */
 export function decodeClock(value: unknown): number | null {
-  return isRecord(value) && isFiniteNumber(value["now"]) ? value["now"] : null;
+  return wire.decodeClockReply(value)?.now ?? null;
 }
 
 /** Readable reason from an error reply `{reason}`; falls back to the JSON of the reply. */

@@ -27,14 +27,13 @@ import {
   decodeFleetReply,
   decodeGrant,
   decodeHelm,
-  decodeParty,
   decodeTelemetry,
   decodeThrustReply,
   decodeVehicleSnapshot,
   errorReason,
-  isRecord,
   presenceEntry,
 } from "./protocol";
+import * as wire from "./wire.gen";
 import type {
   ControlMode,
   ControlReply,
@@ -56,6 +55,9 @@ import type {
 } from "./protocol";
 
 export type ConnectionStatus = "connecting" | "connected" | "disconnected";
+
+/** The commands of topic `vehicle:<id>` (the wire schema's): the only events a page pushes. */
+export type Command = keyof wire.VehicleCommands;
 
 export type CommandErrorKind = "error" | "timeout" | "not_joined" | "bad_reply";
 
@@ -153,13 +155,13 @@ export class NeptunusClient {
       if (reply) handlers.vehicles?.(reply.vehicles);
       else handlers.protocolError?.("vehicles", payload);
     });
-    for (const [event, reachable] of [
-      ["unreachable", false],
-      ["reachable", true],
+    for (const [event, decode, reachable] of [
+      ["unreachable", wire.decodeUnreachable, false],
+      ["reachable", wire.decodeReachable, true],
     ] as const) {
       channel.on(event, (payload: unknown) => {
-        const id = isRecord(payload) ? payload["id"] : undefined;
-        if (typeof id === "string") handlers.reachability?.(id, reachable);
+        const decoded = decode(payload);
+        if (decoded) handlers.reachability?.(decoded.id, reachable);
         else handlers.protocolError?.(event, payload);
       });
     }
@@ -302,8 +304,8 @@ export class VehicleChannel {
       else handlers.protocolError?.("helm", payload);
     });
     this.channel.on("control_request", (payload: unknown) => {
-      const from = isRecord(payload) ? decodeParty(payload["from"]) : null;
-      if (from) handlers.controlRequest?.(from);
+      const request = wire.decodeControlRequest(payload);
+      if (request) handlers.controlRequest?.(request.from);
       else handlers.protocolError?.("control_request", payload);
     });
     this.channel.on("control_granted", (payload: unknown) => {
@@ -326,21 +328,20 @@ export class VehicleChannel {
       else handlers.protocolError?.("vehicle_settings", payload);
     });
     this.channel.on("vehicle_answer", (payload: unknown) => {
-      if (isRecord(payload) && typeof payload["command"] === "string" && typeof payload["ok"] === "boolean") {
-        const reason = payload["reason"];
-        handlers.vehicleAnswer?.({ command: payload["command"], ok: payload["ok"], reason: typeof reason === "string" ? reason : null });
-      } else handlers.protocolError?.("vehicle_answer", payload);
+      const answer = wire.decodeVehicleAnswer(payload);
+      if (answer) handlers.vehicleAnswer?.(answer);
+      else handlers.protocolError?.("vehicle_answer", payload);
     });
-    this.channel.on("unreachable", (payload: unknown) => {
-      const node = isRecord(payload) ? payload["node"] : undefined;
-      if (typeof node === "string") handlers.reachability?.(false, node);
-      else handlers.protocolError?.("unreachable", payload);
-    });
-    this.channel.on("reachable", (payload: unknown) => {
-      const node = isRecord(payload) ? payload["node"] : undefined;
-      if (typeof node === "string") handlers.reachability?.(true, node);
-      else handlers.protocolError?.("reachable", payload);
-    });
+    for (const [event, decode, reachable] of [
+      ["unreachable", wire.decodeUnreachable, false],
+      ["reachable", wire.decodeReachable, true],
+    ] as const) {
+      this.channel.on(event, (payload: unknown) => {
+        const decoded = decode(payload);
+        if (decoded) handlers.reachability?.(reachable, decoded.node);
+        else handlers.protocolError?.(event, payload);
+      });
+    }
     this.channel.on("link", (payload: unknown) => {
       const link = decodeLinkStatus(payload);
       if (link) handlers.link?.(link);
@@ -533,8 +534,7 @@ export class VehicleChannel {
    * accepted, `pending` when its answer follows as `vehicleAnswer`; rejects with its reason.
    */
   arm(arm: boolean, timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<ArmReply> {
-    const decode = (r: unknown): ArmReply | null =>
-      isRecord(r) && (r["status"] === "ok" || r["status"] === "pending") ? r["status"] : null;
+    const decode = (r: unknown): ArmReply | null => wire.decodeVehicleRequest(r)?.status ?? null;
     return this.command(arm ? "arm" : "disarm", {}, decode, timeoutMs);
   }
 
@@ -558,16 +558,16 @@ export class VehicleChannel {
    * A request on the vehicle's topic whose reply `decode` reads (null: unexpected reply):
    * the autopilot tuning events `get_tuning`, `step_response`, `set_tuning`.
    */
-  request<T>(event: string, payload: object, decode: (response: unknown) => T | null, timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<T> {
+  request<T>(event: Command, payload: object, decode: (response: unknown) => T | null, timeoutMs = DEFAULT_COMMAND_TIMEOUT_MS): Promise<T> {
     return this.command(event, payload, decode, timeoutMs);
   }
 
-  private setting(event: string, payload: object): Promise<ControlSettings> {
+  private setting(event: Command, payload: object): Promise<ControlSettings> {
     return this.command(event, payload, decodeControlUpdate, DEFAULT_COMMAND_TIMEOUT_MS);
   }
 
   private command<T>(
-    event: string,
+    event: Command,
     payload: object,
     decode: (response: unknown) => T | null,
     timeoutMs: number,

@@ -79,9 +79,29 @@ export function downFor(ms: number): string {
 /** The warning shown while the board's own deadman is not armed (its first 180 s). */
 export const BOARD_DEADMAN_NOT_ARMED = "board deadman not armed: only the server's deadman protects";
 
+/** The warning shown while thrust is held because the board has not confirmed its motor modifiers. */
+export const THRUST_HELD = "board settings not confirmed: thrust held at neutral";
+
+const SETTING_NAMES: Readonly<Record<string, string>> = {
+  mtrmod1: "motor modifiers",
+  mtrmod2: "motor modifiers",
+  lights: "lights",
+  laser: "laser",
+  tilt: "tilt",
+};
+
+/** "board settings: confirmed", "board settings: pending (motor modifiers, lights)", … */
+export function boardSettingsText(d: BoardLinkDetails): string | null {
+  if (d.board_settings === null) return null;
+  if (d.board_settings === "confirmed") return "board settings: confirmed";
+  const names = [...new Set(d.board_settings_pending.map((p) => SETTING_NAMES[p] ?? p))];
+  return `board settings: ${d.board_settings}${names.length > 0 ? ` (${names.join(", ")})` : ""}`;
+}
+
 /**
  * The board link's liveness for the Link box: a summary line (pong age, round trip, commands
- * the board confirmed) and warnings (board deadman not armed, firmware mismatch).
+ * the board confirmed, whether it confirmed its settings) and warnings (thrust held, a setting
+ * that failed, board deadman not armed, firmware mismatch).
  */
 export function boardLinkText(d: BoardLinkDetails): { summary: string; warnings: string[] } {
   const parts: string[] = [];
@@ -90,7 +110,11 @@ export function boardLinkText(d: BoardLinkDetails): { summary: string; warnings:
   if (d.commands_sent !== null && d.commands_confirmed !== null) {
     parts.push(`${d.commands_confirmed}/${d.commands_sent} confirmed`);
   }
+  const settings = boardSettingsText(d);
+  if (settings !== null) parts.push(settings);
   const warnings: string[] = [];
+  if (d.thrust_held) warnings.push(THRUST_HELD);
+  if (d.board_settings === "failed" && d.board_settings_reason !== null) warnings.push(d.board_settings_reason);
   if (d.board_deadman_armed === false) warnings.push(BOARD_DEADMAN_NOT_ARMED);
   if (d.firmware_mismatch && d.detected_firmware !== null) {
     warnings.push(`board talks ${d.detected_firmware}, configured ${d.firmware}`);

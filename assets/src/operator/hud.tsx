@@ -122,6 +122,11 @@ export function Camera(props: {
           <strong>No camera</strong>
           <span>This vehicle publishes no video stream.</span>
         </div>
+      ) : camera.url === null ? (
+        <div class="no-camera" data-testid="no-camera">
+          <strong>No picture</strong>
+          <span>This page cannot show the camera's {camera.codec === "h264" ? "H.264" : camera.codec} stream.</span>
+        </div>
       ) : cameraElement(camera.url) === "video" ? (
         <video class="feed" src={camera.url} style={style} autoplay muted playsInline />
       ) : (

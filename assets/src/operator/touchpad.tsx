@@ -15,7 +15,7 @@ interface PadProps {
 }
 
 function handlers(controller: OperatorController, control: TouchControl): Record<string, (e: PointerEvent) => void> {
-  const release = (e: PointerEvent): void => controller.touchUp(e.pointerId);
+  const release = (e: PointerEvent): void => controller.input.touchUp(e.pointerId);
   return {
     onPointerDown: (e: PointerEvent) => {
       e.preventDefault();
@@ -26,9 +26,9 @@ function handlers(controller: OperatorController, control: TouchControl): Record
         // capture is best effort (synthetic events in some browsers)
       }
       const r = el.getBoundingClientRect();
-      controller.touchDown(e.pointerId, control, e.clientX, e.clientY, r.left + r.width / 2, r.top + r.height / 2, r.width / 2);
+      controller.input.touchDown(e.pointerId, control, e.clientX, e.clientY, r.left + r.width / 2, r.top + r.height / 2, r.width / 2);
     },
-    onPointerMove: (e: PointerEvent) => controller.touchMove(e.pointerId, e.clientX, e.clientY),
+    onPointerMove: (e: PointerEvent) => controller.input.touchMove(e.pointerId, e.clientX, e.clientY),
     onPointerUp: release,
     onPointerCancel: release,
     onLostPointerCapture: release,

@@ -9,7 +9,8 @@ import { useEffect, useRef, useState } from "preact/hooks";
 import uPlot from "uplot";
 import { LIVE_WINDOW_S, liveRange, panRange, zoomRange } from "./ranges";
 import type { SeriesRecorder } from "./recorder";
-import { GROUP_ORDER, breakWraps, displayValue, isWrappedAngle, seriesGroup, seriesLabel } from "./series";
+import { axisLabels, legendValue, plotData } from "./plot_data";
+import { GROUP_ORDER, seriesGroup, seriesLabel } from "./series";
 
 const COLORS = ["#4fc3f7", "#ffb74d", "#66bb6a", "#ef5350", "#ba68c8", "#fff176", "#4db6ac", "#f06292", "#90a4ae", "#aed581"];
 const HEIGHT = 200;
@@ -24,16 +25,6 @@ export interface PlotProps {
   readonly onRemove: () => void;
 }
 
-function plotData(recorder: SeriesRecorder, series: readonly string[]): uPlot.AlignedData {
-  return [
-    recorder.times(),
-    ...series.map((k) => {
-      const values = recorder.values(k, (v) => displayValue(k, v));
-      return isWrappedAngle(k) ? breakWraps(values) : values;
-    }),
-  ];
-}
-
 export function Plot(props: PlotProps): preact.JSX.Element {
   const host = useRef<HTMLDivElement>(null);
   const plot = useRef<uPlot | null>(null);
@@ -46,15 +37,22 @@ export function Plot(props: PlotProps): preact.JSX.Element {
     const el = host.current;
     if (!el) return undefined;
     const axis: uPlot.Axis = { stroke: "#8fa9b8", grid: { stroke: "#24445a", width: 1 }, ticks: { stroke: "#24445a", width: 1 } };
+    // angles that wrap are drawn as one line; the legend (and the axis, when they all agree) read them within their turn
+    const yAxis: uPlot.Axis = { ...axis, size: 60, values: (_u, splits) => axisLabels(props.series, splits).map((v) => uPlot.fmtNum(v)) };
     const opts: uPlot.Options = {
       width: Math.max(200, el.clientWidth),
       height: HEIGHT,
       scales: { x: { time: true } },
       series: [
         { label: "time" },
-        ...props.series.map((k, i) => ({ label: seriesLabel(k), stroke: COLORS[i % COLORS.length] ?? "#fff", width: 1.5 })),
+        ...props.series.map((k, i) => ({
+          label: seriesLabel(k),
+          stroke: COLORS[i % COLORS.length] ?? "#fff",
+          width: 1.5,
+          value: (_u: uPlot, v: number | null, _s: number, idx: number | null) => (idx === null ? "--" : v === null ? "" : uPlot.fmtNum(legendValue(k, v))),
+        })),
       ],
-      axes: [axis, { ...axis, size: 60 }],
+      axes: [axis, yAxis],
       cursor: { drag: { x: true, y: false, setScale: true } },
       legend: { live: true },
       hooks: {

@@ -3,7 +3,14 @@
  * column per series (Float64Array each, NaN where a sample lacked the series). Recording starts
  * when the page connects; when the buffer is full the oldest sample is dropped. Series that
  * appear later (a field added to telemetry) get a column filled with NaN for earlier samples.
+ *
+ * An angle that wraps (a heading near north jumps between 0 and one turn) also gets its
+ * continuous line, for the plots: each sample moved by whole turns to within half a turn of
+ * the one before (`unwrapNext`), as it arrives, so what is drawn never moves when the oldest
+ * samples go. The CSV keeps the values as received.
  */
+
+import { unwrapNext } from "./series";
 
 export const DEFAULT_CAPACITY = 12_000; // 10 min at 20 Hz
 
@@ -11,16 +18,21 @@ export class SeriesRecorder {
   readonly capacity: number;
   private readonly time: Float64Array;
   private readonly columns = new Map<string, Float64Array>();
+  /** the continuous line of each wrapping series, and its newest value */
+  private readonly lines = new Map<string, { readonly column: Float64Array; readonly period: number; last: number | null }>();
+  private readonly periodOf: (key: string) => number | null;
   private readonly order: string[] = [];
   private start = 0;
   private length = 0;
   private revision = 0;
   private droppedCount = 0;
 
-  constructor(capacity = DEFAULT_CAPACITY) {
+  /** `periodOf(key)`: one turn of a series that wraps (in its unit), else null (default: none wraps). */
+  constructor(capacity = DEFAULT_CAPACITY, periodOf: (key: string) => number | null = () => null) {
     if (!Number.isInteger(capacity) || capacity < 1) throw new RangeError(`capacity must be a positive integer, got ${capacity}`);
     this.capacity = capacity;
     this.time = new Float64Array(capacity);
+    this.periodOf = periodOf;
   }
 
   /** Samples held now (≤ capacity). */
@@ -54,6 +66,8 @@ export class SeriesRecorder {
       if (!this.columns.has(key)) {
         this.columns.set(key, new Float64Array(this.capacity).fill(Number.NaN));
         this.order.push(key);
+        const period = this.periodOf(key);
+        if (period !== null) this.lines.set(key, { column: new Float64Array(this.capacity).fill(Number.NaN), period, last: null });
       }
     }
     let slot: number;
@@ -70,6 +84,15 @@ export class SeriesRecorder {
       const v = values.get(key);
       column[slot] = v === undefined ? Number.NaN : v;
     }
+    for (const [key, line] of this.lines) {
+      const v = values.get(key);
+      if (v === undefined) {
+        line.column[slot] = Number.NaN;
+      } else {
+        line.last = unwrapNext(line.last, v, line.period);
+        line.column[slot] = line.last;
+      }
+    }
     this.revision += 1;
     return true;
   }
@@ -80,6 +103,10 @@ export class SeriesRecorder {
     this.length = 0;
     this.droppedCount = 0;
     for (const column of this.columns.values()) column.fill(Number.NaN);
+    for (const line of this.lines.values()) {
+      line.column.fill(Number.NaN);
+      line.last = null;
+    }
     this.revision += 1;
   }
 
@@ -92,7 +119,15 @@ export class SeriesRecorder {
 
   /** A series' values, oldest first; null where a sample had none (or for an unknown series). */
   values(key: string, map: (v: number) => number = (v) => v): (number | null)[] {
-    const column = this.columns.get(key);
+    return this.read(this.columns.get(key), map);
+  }
+
+  /** What a plot draws of a series: its continuous line if it wraps, else its values. */
+  line(key: string, map: (v: number) => number = (v) => v): (number | null)[] {
+    return this.read(this.lines.get(key)?.column ?? this.columns.get(key), map);
+  }
+
+  private read(column: Float64Array | undefined, map: (v: number) => number): (number | null)[] {
     const out = new Array<number | null>(this.length);
     for (let i = 0; i < this.length; i++) {
       const v = column ? column[(this.start + i) % this.capacity] : Number.NaN;

@@ -102,10 +102,13 @@ export function displayValue(path: string, value: number): number {
 }
 
 const WRAPPED_LEAVES = new Set(["heading", "psi", "phi"]);
+/** One turn, in the stored unit (rad). */
+const TURN = 2 * Math.PI;
 
 /**
  * Angles kept wrapped to one turn (heading in [0, 360), psi and phi in [-180, 180)): a vehicle
- * turning through north jumps by a whole turn between two samples.
+ * turning through north jumps by a whole turn between two samples, and a steady heading near
+ * north jitters between both ends.
  */
 export function isWrappedAngle(path: string): boolean {
   if (!isAngle(path)) return false;
@@ -114,20 +117,44 @@ export function isWrappedAngle(path: string): boolean {
   return WRAPPED_LEAVES.has(leaf) || (parts[0] === "autopilot" && parts[1] === "heading");
 }
 
+/** One turn in the stored unit (rad) for a wrapped angle, else null: what `unwrapNext` takes. */
+export function wrapPeriod(path: string): number | null {
+  return isWrappedAngle(path) ? TURN : null;
+}
+
 /**
- * Plotted values (degrees) of a wrapped angle with a gap (null) where two consecutive samples
- * differ by more than half a turn: the line breaks at north instead of crossing the whole
- * plot. The sample after the jump is dropped from the line (it is still in the CSV download).
+ * `value` moved by whole turns (`period`) to lie within half a turn of `previous`: the next
+ * sample of a wrapped angle on one continuous line. The first sample (no previous) stays.
  */
-export function breakWraps(values: readonly (number | null)[]): (number | null)[] {
-  const out: (number | null)[] = new Array<number | null>(values.length);
+export function unwrapNext(previous: number | null, value: number, period: number): number {
+  if (previous === null) return value;
+  return value - period * Math.round((value - previous) / period);
+}
+
+/** A wrapped angle's samples as one continuous line (gaps stay gaps and do not break it). */
+export function unwrap(values: readonly (number | null)[], period: number): (number | null)[] {
   let previous: number | null = null;
-  for (let i = 0; i < values.length; i++) {
-    const v = values[i] ?? null;
-    out[i] = v !== null && previous !== null && Math.abs(v - previous) > 180 ? null : v;
-    if (v !== null) previous = v;
-  }
-  return out;
+  return values.map((v) => {
+    if (v === null) return null;
+    previous = unwrapNext(previous, v, period);
+    return previous;
+  });
+}
+
+/**
+ * Where a wrapped angle's turn starts as it reads (degrees): 0 for a heading, read in
+ * [0, 360); -180 for psi and phi, read in [-180, 180). Null for a series that does not wrap.
+ */
+export function turnStart(path: string): number | null {
+  if (!isWrappedAngle(path)) return null;
+  const leaf = path.split(".").pop() ?? "";
+  return leaf === "psi" || leaf === "phi" ? -180 : 0;
+}
+
+/** `degrees` moved by whole turns into [start, start + 360). */
+export function intoTurn(degrees: number, start: number): number {
+  const wrapped = ((((degrees - start) % 360) + 360) % 360) + start;
+  return wrapped === 0 ? 0 : wrapped; // no negative zero
 }
 
 /** "measurement.depth [m]" */

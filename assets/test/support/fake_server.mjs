@@ -33,6 +33,19 @@ export function startFakeServer(port = 4199) {
     const us = (v) => Math.round(1500 + 500 * v);
     return { port, vertical, starboard, port_us: us(port), vertical_us: us(vertical), starboard_us: us(starboard) };
   };
+  // the control state C (docs/API.md, Control); lights, laser, tilt and the autopilots never change here
+  const controlState = () => ({
+    mode: "motion",
+    gain,
+    lights: 0,
+    laser: 0,
+    tilt: 0,
+    run_mode: "normal",
+    dp_holds: null,
+    autopilot: { depth: null, heading: null, position: null },
+    command: { ...cmd },
+    thrusters: thrusters(),
+  });
   const telemetry = () => {
     const heading = ((s.psi % (2 * Math.PI)) + 2 * Math.PI) % (2 * Math.PI);
     return {
@@ -92,7 +105,7 @@ export function startFakeServer(port = 4199) {
   const grantFor = () => ({
     epoch,
     pilot: { ...party(pilot.conn), since: pilot.since },
-    control: { mode: "motion", gain, command: { ...cmd } },
+    control: controlState(),
     deadman_ms: 500,
     heartbeat_ms: 100,
   });
@@ -142,7 +155,7 @@ export function startFakeServer(port = 4199) {
         telemetry: telemetry(),
         pilot: pilot ? { name: pilot.name } : null,
         helm: helm(),
-        control: { mode: "motion", command: { ...cmd }, thrusters: thrusters(), gain },
+        control: controlState(),
         session: { id: conn.id, name: conn.name, role: "pilot", mode: "local" },
       });
       const state = {};
@@ -217,13 +230,12 @@ export function startFakeServer(port = 4199) {
         if (typeof v !== "number" || v < 0 || v > 1) return error(`value must be a number in [0, 1], got ${JSON.stringify(v)}`);
         gain = v;
         broadcast(`log:${VEHICLE.id}`, "log", { category: "gain", level: "info", message: `gain ${v}`, at: Date.now() });
-        return ok({ control: { mode: "motion", gain } });
+        return ok({ control: controlState() });
       }
       default:
         return error(`unknown event: ${event}`);
     }
-    const { port, vertical, starboard } = thrusters(); // like the server: outputs only
-    return ok({ command: { ...cmd }, thrusters: { port, vertical, starboard } });
+    return ok({ command: { ...cmd }, thrusters: thrusters(), control: controlState() });
   }
 
   function leave(conn, topic) {

@@ -20,6 +20,8 @@ import { Store } from "../../src/lib/store";
 import {
   BOARD_DEADMAN_NOT_ARMED,
   boardLinkText,
+  boardSettingsText,
+  THRUST_HELD,
   cameraElement,
   downFor,
   formatDeg,
@@ -318,5 +320,31 @@ describe("the board link's liveness (telemetry link fields)", () => {
     expect(BOARD_DEADMAN_NOT_ARMED).toBe("board deadman not armed: only the server's deadman protects");
     const armed = boardLinkText({ ...board, board_deadman_armed: true, firmware_mismatch: false, pong_age_ms: null, rtt_ms: null });
     expect(armed).toEqual({ summary: "no pong yet · 118/120 confirmed", warnings: [] });
+  });
+
+  it("says whether the board confirmed its settings, what is pending, and warns while thrust is held or a setting failed", () => {
+    const settled = { ...wire, board_deadman_armed: true, firmware_mismatch: false };
+    const confirmed = decodeLinkStatus({ ...settled, board_settings: "confirmed", board_settings_pending: [], board_settings_reason: null, thrust_held: false })?.board;
+    if (!confirmed) throw new Error("no board details");
+    expect(boardLinkText(confirmed)).toEqual({ summary: "pong 0.3 s ago · board RTT 12 ms · 118/120 confirmed · board settings: confirmed", warnings: [] });
+
+    const held = decodeLinkStatus({ ...settled, board_settings: "pending", board_settings_pending: ["mtrmod1", "mtrmod2", "lights"], thrust_held: true })?.board;
+    if (!held) throw new Error("no board details");
+    expect(boardSettingsText(held)).toBe("board settings: pending (motor modifiers, lights)");
+    expect(boardLinkText(held).warnings).toEqual([THRUST_HELD]);
+    expect(THRUST_HELD).toBe("board settings not confirmed: thrust held at neutral");
+
+    const why = "the board has not confirmed mtrmod2(100,100,100); (no echo after 8 writes in 2.0 s: …)";
+    const failed = decodeLinkStatus({ ...settled, board_settings: "failed", board_settings_pending: ["mtrmod2"], board_settings_reason: why, thrust_held: true })?.board;
+    if (!failed) throw new Error("no board details");
+    expect(boardSettingsText(failed)).toBe("board settings: failed (motor modifiers)");
+    expect(boardLinkText(failed).warnings).toEqual([THRUST_HELD, why]);
+
+    // a link that does not report them (older server, MAVLink) shows nothing about them
+    const none = decodeLinkStatus({ ...settled, board_settings: 7, board_settings_pending: "x" })?.board;
+    if (!none) throw new Error("no board details");
+    expect(boardSettingsText(none)).toBeNull();
+    expect(none.board_settings_pending).toEqual([]);
+    expect(none.thrust_held).toBe(false);
   });
 });

@@ -153,13 +153,16 @@ describe("control settings replies and the camera", () => {
     expect(decodeControlSettings({ mode: 1 })).toBeNull();
   });
 
-  it("finds the camera URL in the snapshot, or none", () => {
+  it("finds the camera in the snapshot, or none", () => {
     const vehicle = { id: "v", board: "simulated" };
-    expect(decodeCamera({ vehicle, camera: { url: "http://cam:8080/?action=stream" } })).toEqual({ url: "http://cam:8080/?action=stream" });
-    expect(decodeCamera({ vehicle, camera: "/video/v.mp4" })).toEqual({ url: "/video/v.mp4" });
-    expect(decodeCamera({ vehicle: { ...vehicle, camera_url: "https://x/y.mjpg" } })).toEqual({ url: "https://x/y.mjpg" });
+    const mjpeg = { codec: "mjpeg", video: "/video/v/websocket", url: "http://cam:8080/?action=stream" };
+    expect(decodeCamera({ vehicle, camera: mjpeg })).toEqual(mjpeg);
+    const h264 = { codec: "h264", video: "/video/v/websocket", url: null };
+    expect(decodeCamera({ vehicle, camera: h264 })).toEqual(h264);
     expect(decodeCamera({ vehicle, camera: null })).toBeNull();
-    expect(decodeCamera({ vehicle, camera: { url: "javascript:alert(1)" } })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: { ...mjpeg, url: "javascript:alert(1)" } })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: { ...h264, video: "javascript:alert(1)" } })).toBeNull();
+    expect(decodeCamera({ vehicle, camera: "/video/v.mp4" })).toBeNull();
     expect(decodeCamera({ vehicle })).toBeNull();
   });
 });
@@ -338,14 +341,24 @@ describe("barGeometry", () => {
   });
 });
 
-describe("camera address for an <img>", () => {
+describe("camera addresses", () => {
+  const mjpeg = (url: string) => ({ codec: "mjpeg" as const, video: "/video/rov/websocket", url });
   it("adds the token to our own server's stream only", () => {
-    expect(cameraWithToken({ url: "/camera/rov.mjpg" }, "v1.a+b")).toEqual({ url: "/camera/rov.mjpg?token=v1.a%2Bb" });
-    expect(cameraWithToken({ url: "/camera/rov.mjpg?x=1" }, "t")).toEqual({ url: "/camera/rov.mjpg?x=1&token=t" });
-    expect(cameraWithToken({ url: "/camera/rov.mjpg" }, null)).toEqual({ url: "/camera/rov.mjpg" });
-    expect(cameraWithToken({ url: "http://cam.example/video.mjpg" }, "t")).toEqual({ url: "http://cam.example/video.mjpg" });
-    expect(cameraWithToken({ url: "//cam.example/video.mjpg" }, "t")).toEqual({ url: "//cam.example/video.mjpg" });
+    expect(cameraWithToken(mjpeg("/camera/rov.mjpg"), "v1.a+b")).toEqual({
+      codec: "mjpeg",
+      video: "/video/rov/websocket?token=v1.a%2Bb",
+      url: "/camera/rov.mjpg?token=v1.a%2Bb",
+    });
+    expect(cameraWithToken(mjpeg("/camera/rov.mjpg?x=1"), "t")?.url).toBe("/camera/rov.mjpg?x=1&token=t");
+    expect(cameraWithToken(mjpeg("/camera/rov.mjpg"), null)).toEqual(mjpeg("/camera/rov.mjpg"));
+    expect(cameraWithToken(mjpeg("http://cam.example/video.mjpg"), "t")?.url).toBe("http://cam.example/video.mjpg");
+    expect(cameraWithToken(mjpeg("//cam.example/video.mjpg"), "t")?.url).toBe("//cam.example/video.mjpg");
     expect(cameraWithToken(null, "t")).toBeNull();
+  });
+
+  it("an H.264 camera has no <img> stream: only its video socket gets the token", () => {
+    const h264 = { codec: "h264" as const, video: "/video/rov/websocket", url: null };
+    expect(cameraWithToken(h264, "t")).toEqual({ codec: "h264", video: "/video/rov/websocket?token=t", url: null });
   });
 });
 
@@ -355,7 +368,11 @@ describe("recording and camera state in telemetry", () => {
     expect(decodeRecordingStatus({ on: false, error: "disk full" })).toEqual({ on: false, error: "disk full" });
     expect(decodeRecordingStatus({ on: "yes" })).toBeNull();
     expect(decodeRecordingStatus(undefined)).toBeNull();
-    expect(decodeCameraStatus({ running: true, fps: 15, error: null })).toEqual({ running: true, fps: 15, error: null });
+    const status = { running: true, fps: 15, error: null, state: "running", restarts: 0, codec: "h264", width: 640, height: 360 };
+    expect(decodeCameraStatus(status)).toEqual(status);
+    expect(decodeCameraStatus({ running: true, fps: 15, error: null })).toEqual({
+      running: true, fps: 15, error: null, state: null, restarts: null, codec: null, width: null, height: null,
+    });
     expect(decodeCameraStatus({ running: false, fps: 0, error: "ffmpeg is not installed" })?.error).toBe("ffmpeg is not installed");
     expect(decodeCameraStatus({ running: true })).toBeNull();
   });

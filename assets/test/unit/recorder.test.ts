@@ -110,3 +110,46 @@ describe("plot time ranges", () => {
     expect(panRange(10, 20, -0.5)).toEqual({ min: 5, max: 15 });
   });
 });
+
+describe("SeriesRecorder: angles that wrap", () => {
+  const TURN = 2 * Math.PI;
+  const deg = (d: number): number => (d * Math.PI) / 180;
+  const periodOf = (key: string): number | null => (key === "heading" ? TURN : null);
+
+  it("keeps the values as received, and draws the continuous line", () => {
+    const r = new SeriesRecorder(10, periodOf);
+    [359, 1, 358, 2].forEach((d, i) => r.add(i, m({ heading: deg(d), depth: 1 })));
+    expect(r.values("heading").map((v) => Math.round(((v ?? 0) * 180) / Math.PI))).toEqual([359, 1, 358, 2]);
+    expect(r.line("heading").map((v) => Math.round(((v ?? 0) * 180) / Math.PI))).toEqual([359, 361, 358, 362]);
+    expect(r.line("depth")).toEqual(r.values("depth"));
+    expect(r.toCsv(["heading"]).split("\n")[2]).toBe(`1.000,${deg(1)}`);
+  });
+
+  it("what is drawn does not move when the oldest samples go", () => {
+    const r = new SeriesRecorder(3, periodOf);
+    [350, 10, 20].forEach((d, i) => r.add(i, m({ heading: deg(d) })));
+    const before = r.line("heading").slice(1);
+    r.add(3, m({ heading: deg(30) }));
+    expect(r.line("heading").slice(0, 2)).toEqual(before);
+    expect((r.line("heading")[2] ?? 0) * (180 / Math.PI)).toBeCloseTo(390);
+  });
+
+  it("a sample without the angle is a gap; the line goes on after it", () => {
+    const r = new SeriesRecorder(5, periodOf);
+    r.add(0, m({ heading: deg(359) }));
+    r.add(1, m({ depth: 1 }));
+    r.add(2, m({ heading: deg(1) }));
+    const line = r.line("heading");
+    expect(line[1]).toBeNull();
+    expect((line[2] ?? 0) * (180 / Math.PI)).toBeCloseTo(361);
+  });
+
+  it("clear starts a new line where the next sample is", () => {
+    const r = new SeriesRecorder(5, periodOf);
+    r.add(0, m({ heading: deg(350) }));
+    r.add(1, m({ heading: deg(10) }));
+    r.clear();
+    r.add(2, m({ heading: deg(10) }));
+    expect((r.line("heading")[0] ?? 0) * (180 / Math.PI)).toBeCloseTo(10);
+  });
+});

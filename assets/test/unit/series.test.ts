@@ -1,8 +1,12 @@
 import { describe, expect, it } from "vitest";
 import {
-  breakWraps,
   displayValue,
+  intoTurn,
   isWrappedAngle,
+  turnStart,
+  unwrap,
+  unwrapNext,
+  wrapPeriod,
   flattenNumeric,
   isAngle,
   seriesGroup,
@@ -91,26 +95,59 @@ describe("series metadata", () => {
   });
 });
 
-describe("wrapped angles break at north instead of crossing the plot", () => {
+describe("wrapped angles are plotted as one continuous line", () => {
   it("knows which series wrap", () => {
-    for (const p of ["measurement.heading", "estimate.heading", "sim.psi", "sim.phi", "autopilot.heading.setpoint"])
+    for (const p of ["measurement.heading", "estimate.heading", "sim.psi", "sim.phi", "autopilot.heading.setpoint"]) {
       expect(isWrappedAngle(p)).toBe(true);
-    for (const p of ["measurement.roll", "sim.theta", "sim.r", "estimate.yaw_rate", "command.yaw", "measurement.depth"])
+      expect(wrapPeriod(p)).toBeCloseTo(2 * Math.PI);
+    }
+    for (const p of ["measurement.roll", "sim.theta", "sim.r", "estimate.yaw_rate", "command.yaw", "measurement.depth"]) {
       expect(isWrappedAngle(p)).toBe(false);
+      expect(wrapPeriod(p)).toBeNull();
+    }
   });
 
-  it("puts a gap where consecutive samples jump by more than half a turn", () => {
-    expect(breakWraps([350, 355, 359, 2, 6, 10])).toEqual([350, 355, 359, null, 6, 10]);
-    expect(breakWraps([10, 3, 358, 351])).toEqual([10, 3, null, 351]);
-    expect(breakWraps([-175, -179, 179, 175])).toEqual([-175, -179, null, 175]);
+  it("a steady heading near north, jittering across it, is a line (no square wave between 0° and 360°)", () => {
+    const near = [359.8, 0.1, 359.9, 0.2, 359.7, 0.0, 359.95];
+    const line = unwrap(near, 360);
+    expect(line[0]).toBe(359.8);
+    const finite = line.filter((v): v is number => v !== null);
+    expect(Math.max(...finite) - Math.min(...finite)).toBeCloseTo(0.5);
+    // each point is its sample, moved by whole turns
+    line.forEach((v, i) => expect(intoTurn(v ?? Number.NaN, 0)).toBeCloseTo(near[i] ?? Number.NaN));
   });
 
-  it("keeps smooth turns, steps up to half a turn, and existing gaps", () => {
-    expect(breakWraps([0, 90, 180, 270])).toEqual([0, 90, 180, 270]);
-    expect(breakWraps([0, 180, 0])).toEqual([0, 180, 0]);
-    // a jump measured across a missing sample still breaks
-    expect(breakWraps([358, null, 3, 8])).toEqual([358, null, null, 8]);
-    expect(breakWraps([null, 5, 6])).toEqual([null, 5, 6]);
-    expect(breakWraps([])).toEqual([]);
+  it("a turn through north keeps going instead of jumping back by a turn", () => {
+    expect(unwrap([350, 355, 359, 2, 6, 10], 360)).toEqual([350, 355, 359, 362, 366, 370]);
+    expect(unwrap([10, 3, 358, 351], 360)).toEqual([10, 3, -2, -9]);
+    expect(unwrap([-175, -179, 179, 175], 360)).toEqual([-175, -179, -181, -185]);
+    // several turns, in radians
+    const turns = Array.from({ length: 40 }, (_, i) => ((i * 0.5) % (2 * Math.PI)));
+    const line = unwrap(turns, 2 * Math.PI);
+    line.forEach((v, i) => expect(v).toBeCloseTo(i * 0.5));
+  });
+
+  it("gaps stay gaps and do not break the line; steps up to half a turn are kept", () => {
+    expect(unwrap([358, null, 3, 8], 360)).toEqual([358, null, 363, 368]);
+    expect(unwrap([null, 5, 6], 360)).toEqual([null, 5, 6]);
+    expect(unwrap([0, 90, 180, 270], 360)).toEqual([0, 90, 180, 270]);
+    expect(unwrap([], 360)).toEqual([]);
+    expect(unwrapNext(null, 7, 360)).toBe(7);
+    expect(unwrapNext(720, 1, 360)).toBe(721);
+  });
+
+  it("reads a plotted angle back within its turn: a heading in [0, 360), psi and phi in [-180, 180)", () => {
+    expect(turnStart("measurement.heading")).toBe(0);
+    expect(turnStart("autopilot.heading.setpoint")).toBe(0);
+    expect(turnStart("sim.psi")).toBe(-180);
+    expect(turnStart("sim.phi")).toBe(-180);
+    expect(turnStart("measurement.depth")).toBeNull();
+    expect(intoTurn(361, 0)).toBe(1);
+    expect(intoTurn(-2, 0)).toBe(358);
+    expect(intoTurn(720, 0)).toBe(0);
+    expect(Object.is(intoTurn(-360, 0), 0)).toBe(true);
+    expect(intoTurn(181, -180)).toBe(-179);
+    expect(intoTurn(-181, -180)).toBe(179);
+    expect(intoTurn(180, -180)).toBe(-180);
   });
 });

@@ -1,50 +1,18 @@
 // The typed client against the in-process stand-in server (test/support/fake_server.mjs), over
 // real WebSockets with the `ws` package as the phoenix client's transport.
-import { afterAll, afterEach, beforeAll, describe, expect, it } from "vitest";
-import WebSocket from "ws";
+import { describe, expect, it } from "vitest";
 import { startFakeServer } from "../support/fake_server.mjs";
-import type { FakeServer } from "../support/fake_server.mjs";
 import type { Grant, Helm, PresenceEntry, Telemetry } from "../../src/lib/protocol";
 import { CommandError, NeptunusClient } from "../../src/lib/vehicle_client";
 import type { ConnectionStatus } from "../../src/lib/vehicle_client";
+import { eventually, useStandIn } from "./stand_in";
 
-let server: FakeServer;
-const clients: NeptunusClient[] = [];
-
-beforeAll(async () => {
-  server = await startFakeServer(0);
-});
-
-afterEach(async () => {
-  await Promise.all(clients.splice(0).map((c) => c.disconnect()));
-});
-
-afterAll(async () => {
-  await server.close();
-});
+const standIn = useStandIn();
 
 function client(name: string): NeptunusClient {
-  const c = new NeptunusClient({
-    endpoint: `${server.url.replace(/^http/, "ws")}/socket`,
-    name,
-    transport: WebSocket,
-  });
-  clients.push(c);
+  const c = standIn.client({ name });
   c.connect();
   return c;
-}
-
-function eventually<T>(get: () => T | undefined, ms = 2000): Promise<T> {
-  return new Promise((resolve, reject) => {
-    const deadline = Date.now() + ms;
-    const poll = (): void => {
-      const v = get();
-      if (v !== undefined) resolve(v);
-      else if (Date.now() > deadline) reject(new Error("timed out"));
-      else setTimeout(poll, 10);
-    };
-    poll();
-  });
 }
 
 describe("NeptunusClient", () => {
@@ -159,11 +127,7 @@ describe("NeptunusClient", () => {
 
   it("reports disconnected when the server goes away", async () => {
     const own = await startFakeServer(0);
-    const c = new NeptunusClient({
-      endpoint: `${own.url.replace(/^http/, "ws")}/socket`,
-      transport: WebSocket,
-    });
-    clients.push(c);
+    const c = standIn.client({}, own.url);
     c.connect();
     const vehicle = c.vehicle("neptunus-1");
     await vehicle.join();
@@ -204,9 +168,9 @@ describe("a vehicle on another node of the fleet", () => {
       protocolError: (what) => errors.push(what),
     });
     await watcher.join();
-    server.broadcast("vehicle:neptunus-1", "unreachable", { id: "neptunus-1", node: "rov1@10.0.0.2", reason: "node_unreachable" });
-    server.broadcast("vehicle:neptunus-1", "reachable", { id: "neptunus-1", node: "rov1@10.0.0.2" });
-    server.broadcast("vehicle:neptunus-1", "unreachable", { id: "neptunus-1" });
+    standIn.broadcast("vehicle:neptunus-1", "unreachable", { id: "neptunus-1", node: "rov1@10.0.0.2", reason: "node_unreachable" });
+    standIn.broadcast("vehicle:neptunus-1", "reachable", { id: "neptunus-1", node: "rov1@10.0.0.2" });
+    standIn.broadcast("vehicle:neptunus-1", "unreachable", { id: "neptunus-1" });
     expect(await eventually(() => (errors.length > 0 ? errors : undefined))).toEqual(["unreachable"]);
     expect(seen).toEqual([
       [false, "rov1@10.0.0.2"],
@@ -226,11 +190,11 @@ describe("the fleet's directory, live", () => {
       protocolError: (what) => errors.push(what),
     });
     const rov = { id: "rov1", board: "uart", node: "rov1@10.0.0.2", status: "up", helm: "free", pilot: "ada", link: { up: true, reason: null }, depth: 2.5, heading: 1, recording: true };
-    server.broadcast("fleet", "vehicles", { vehicles: [rov] });
-    server.broadcast("fleet", "unreachable", { id: "rov1", node: "rov1@10.0.0.2", reason: "node_unreachable" });
-    server.broadcast("fleet", "reachable", { id: "rov1", node: "rov1@10.0.0.2" });
-    server.broadcast("fleet", "vehicles", { vehicles: "none" });
-    server.broadcast("fleet", "reachable", { node: "rov1@10.0.0.2" });
+    standIn.broadcast("fleet", "vehicles", { vehicles: [rov] });
+    standIn.broadcast("fleet", "unreachable", { id: "rov1", node: "rov1@10.0.0.2", reason: "node_unreachable" });
+    standIn.broadcast("fleet", "reachable", { id: "rov1", node: "rov1@10.0.0.2" });
+    standIn.broadcast("fleet", "vehicles", { vehicles: "none" });
+    standIn.broadcast("fleet", "reachable", { node: "rov1@10.0.0.2" });
     expect(await eventually(() => (errors.length > 1 ? errors : undefined))).toEqual(["vehicles", "reachable"]);
     expect(lists).toEqual([
       [{ id: "rov1", board: "uart", node: "rov1@10.0.0.2", status: "up", detail: { helm: "free", pilot: "ada", link: { up: true, reason: null }, depth: 2.5, heading: 1, recording: true } }],

@@ -121,6 +121,33 @@ defmodule Neptunus.Camera.MJPEG do
     end
   end
 
+  @doc """
+  The size of a JPEG image, `{width, height}`, from its start-of-frame segment (nil when
+  it has none before its scan).
+
+      iex> Neptunus.Camera.MJPEG.size(<<0xFF, 0xD8, 0xFF, 0xC0, 0, 11, 8, 360::16, 640::16, 1, 1, 0x11, 0>>)
+      {640, 360}
+  """
+  @spec size(binary()) :: {pos_integer(), pos_integer()} | nil
+  def size(<<0xFF, 0xD8, rest::binary>>), do: sof(rest)
+  def size(_jpeg), do: nil
+
+  # the start-of-frame markers C0..CF but DHT (C4), JPG (C8) and DAC (CC)
+  defp sof(<<0xFF, m, _len::16, _precision, h::16, w::16, _::binary>>)
+       when m in 0xC0..0xCF and m not in [0xC4, 0xC8, 0xCC] and w > 0 and h > 0,
+       do: {w, h}
+
+  defp sof(<<0xFF, 0xFF, rest::binary>>), do: sof(<<0xFF, rest::binary>>)
+
+  defp sof(<<0xFF, m, len::16, rest::binary>>) when m != 0xDA and len >= 2 do
+    case rest do
+      <<_::binary-size(len - 2), rest::binary>> -> sof(rest)
+      _ -> nil
+    end
+  end
+
+  defp sof(_rest), do: nil
+
   @doc "The boundary of our `multipart/x-mixed-replace` stream."
   @spec boundary() :: String.t()
   def boundary, do: "neptunusframe"

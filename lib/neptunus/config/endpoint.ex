@@ -5,7 +5,7 @@ defmodule Neptunus.Config.Endpoint do
   address, default `127.0.0.1`) and `NEPTUNUS_MAX_CONNECTIONS` (client connections at once,
   1..1048576; unset: derived from the file descriptor limit).
 
-  `web_settings!/1` builds the web layer's settings (`NeptunusWeb.Settings`) from the
+  `web_settings!/1` builds the web layer's settings (`NeptunusWeb.Endpoint.Settings`) from the
   application's configuration, once, at boot; the defaults of the web layer's tuning keys
   are written here and nowhere else.
   """
@@ -77,7 +77,7 @@ defmodule Neptunus.Config.Endpoint do
       iex> Neptunus.Config.Endpoint.web_settings!(endpoint: %{port: 4000, bind: {127, 0, 0, 1}}, socket_backlog: 0)
       ** (ArgumentError) config :neptunus, socket_backlog: 0 is not valid: expected a positive integer
   """
-  @spec web_settings!(keyword()) :: NeptunusWeb.Settings.t()
+  @spec web_settings!(keyword()) :: NeptunusWeb.Endpoint.Settings.t()
   def web_settings!(app_env) do
     endpoint =
       case Keyword.get(app_env, :endpoint) do
@@ -92,7 +92,7 @@ defmodule Neptunus.Config.Endpoint do
 
     tune = fn key -> tuning!(key, Keyword.get(app_env, key, @web_defaults[key])) end
 
-    %NeptunusWeb.Settings{
+    %NeptunusWeb.Endpoint.Settings{
       port: endpoint.port,
       bind: endpoint.bind,
       tls: Map.get(endpoint, :tls),
@@ -104,7 +104,8 @@ defmodule Neptunus.Config.Endpoint do
       backlog: tune.(:socket_backlog),
       unsent_bytes: tune.(:socket_unsent_bytes),
       auth: Map.merge(Neptunus.Config.Auth.local(), Map.new(Keyword.get(app_env, :auth, %{}))),
-      recording_dir: recording_dir(Keyword.get(app_env, :recording))
+      recording_dir: recording_dir(Keyword.get(app_env, :recording)),
+      firmware_record: Keyword.get(app_env, :firmware_record)
     }
   end
 

@@ -40,10 +40,12 @@ defmodule Neptunus.Config.Vehicles do
   run mode simulator on a real board) and the model of its navigation filter. Example:
   `NEPTUNUS_MODELS=a=thesis-4dof`.
 
-  Camera (see `Neptunus.Camera.Source`): `v4l2:DEVICE[@WxH][@FPS]` (a webcam through ffmpeg,
-  its own MJPEG), `testsrc[@WxH][@FPS]` (ffmpeg's test pattern) or `exec:PROGRAM [ARGS]` (any
-  program writing MJPEG to its output). Example:
-  `NEPTUNUS_CAMERAS=rov=v4l2:/dev/video0@1280x720@30`.
+  Camera (see `Neptunus.Camera.Source`): `v4l2:DEVICE[@h264|@mjpeg][@WxH][@FPS]` (a webcam
+  through ffmpeg, its own H.264 or MJPEG passed on), `rtsp://…` (an IP camera's H.264),
+  `sim[@h264|@mjpeg][@WxH][@FPS][@bottom=M]` (the simulator's view), `testsrc[…]` (ffmpeg's
+  test pattern), `exec:PROGRAM [ARGS]` / `exec@h264:PROGRAM [ARGS]` (any program writing MJPEG
+  or H.264 to its output), or `none`. Simulated and SITL vehicles have the `sim` camera
+  unless configured otherwise. Example: `NEPTUNUS_CAMERAS=rov=v4l2:/dev/video0@1280x720@30`.
   """
 
   alias Neptunus.Config
@@ -53,7 +55,8 @@ defmodule Neptunus.Config.Vehicles do
           %{
             required(:id) => String.t(),
             required(:board) => :simulated,
-            optional(:sim) => keyword()
+            optional(:sim) => keyword(),
+            optional(:camera) => Neptunus.Camera.Source.t()
           }
           | %{
               required(:id) => String.t(),
@@ -102,6 +105,7 @@ defmodule Neptunus.Config.Vehicles do
   Vehicles from `NEPTUNUS_VEHICLES` (and their wiring from `NEPTUNUS_WIRING`).
 
       iex> Neptunus.Config.Vehicles.vehicles!(%{"NEPTUNUS_VEHICLES" => "a=simulated, b=simulated"})
+      ...> |> Enum.map(&Map.take(&1, [:id, :board]))
       [%{id: "a", board: :simulated}, %{id: "b", board: :simulated}]
 
       iex> [rov] = Neptunus.Config.Vehicles.vehicles!(%{"NEPTUNUS_VEHICLES" => "rov=uart:/dev/ttyO1@57600"})
@@ -211,21 +215,40 @@ defmodule Neptunus.Config.Vehicles do
     put_configured(vehicles, configured, :sim)
   end
 
-  # A vehicle's camera source (Neptunus.Camera.Source).
+  # A vehicle's camera source (Neptunus.Camera.Source): the configured one, `none`, or by
+  # default the simulated camera for simulated and SITL vehicles.
   defp cameras!(vehicles, spec) do
     configured =
       pairs!("NEPTUNUS_CAMERAS", spec, vehicles, "id=source pairs, e.g. rov=v4l2:/dev/video0")
       |> Map.new(fn {%{id: id}, pair, text} ->
-        case Neptunus.Camera.Source.parse(text) do
-          {:ok, source} ->
-            {id, source}
+        case text do
+          "none" ->
+            {id, nil}
 
-          {:error, reason} ->
-            Config.bad!("NEPTUNUS_CAMERAS", spec, "#{reason} in #{inspect(pair)}")
+          _ ->
+            case Neptunus.Camera.Source.parse(text) do
+              {:ok, source} ->
+                {id, source}
+
+              {:error, reason} ->
+                Config.bad!("NEPTUNUS_CAMERAS", spec, "#{reason} in #{inspect(pair)}")
+            end
         end
       end)
 
-    put_configured(vehicles, configured, :camera)
+    {:ok, sim} = Neptunus.Camera.Source.parse("sim")
+
+    defaults =
+      for %{id: id, board: board} <- vehicles,
+          board in [:simulated, :sitl],
+          into: %{},
+          do: {id, sim}
+
+    put_configured(
+      vehicles,
+      defaults |> Map.merge(configured) |> Map.reject(&is_nil(elem(&1, 1))),
+      :camera
+    )
   end
 
   # Our own MAVLink system and component ids per mavlink vehicle: `id=SYSTEM/COMPONENT`,

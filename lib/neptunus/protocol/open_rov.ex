@@ -524,6 +524,47 @@ defmodule Neptunus.Protocol.OpenROV do
   end
 
   @doc """
+  Parses a command echo (`name(arg,arg)`, the value of a `cmd` field) into its name and its
+  arguments as the board printed them: the firmware splits a command at spaces, commas and
+  parentheses and echoes the pieces joined by commas, so `call/1` of what we sent gives
+  the same pair (see `call/1`). A piece of an argument after a stray `(` or a missing `)`
+  makes it no echo.
+
+      iex> Neptunus.Protocol.OpenROV.parse_call("mtrmod1(100,100,100)")
+      {:ok, "mtrmod1", ["100", "100", "100"]}
+      iex> Neptunus.Protocol.OpenROV.parse_call("stop()")
+      {:ok, "stop", []}
+      iex> Neptunus.Protocol.OpenROV.parse_call("ligt(1")
+      :error
+  """
+  @spec parse_call(binary()) :: {:ok, String.t(), [String.t()]} | :error
+  def parse_call(value) when is_binary(value) do
+    case Regex.run(~r/\A([A-Za-z][A-Za-z0-9_]*)\(([^()]*)\)\z/, value) do
+      [_, name, ""] -> {:ok, name, []}
+      [_, name, args] -> {:ok, name, String.split(args, ",")}
+      nil -> :error
+    end
+  end
+
+  @doc """
+  What the board echoes for a command we write (as `parse_call/1` reads it): the name and
+  the argument pieces, split as the firmware splits (spaces, commas, parentheses, `;`).
+
+      iex> Neptunus.Protocol.OpenROV.call("mtrmod2(100,200,100);")
+      {"mtrmod2", ["100", "200", "100"]}
+      iex> Neptunus.Protocol.OpenROV.call("ligt( 80);")
+      {"ligt", ["80"]}
+  """
+  @spec call(binary()) :: {String.t(), [String.t()]}
+  def call(command) when is_binary(command) do
+    case String.split(command, [" ", ",", "(", ")", ";"], trim: true)
+         |> Enum.reject(&(&1 == "")) do
+      [name | args] -> {name, args}
+      [] -> {"", []}
+    end
+  end
+
+  @doc """
   Parses the value of a 30.x `crc` field: `pass`, or `fail,COMPUTED/RECEIVED` (hex).
 
       iex> Neptunus.Protocol.OpenROV.parse_crc("pass")

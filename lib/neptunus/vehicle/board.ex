@@ -117,6 +117,10 @@ defmodule Neptunus.Vehicle.Board do
       :firmware_mismatch,
       :commands_sent,
       :commands_confirmed,
+      :board_settings,
+      :board_settings_pending,
+      :board_settings_reason,
+      :thrust_held,
       :mavlink
     ]
   end

@@ -327,13 +327,7 @@ defmodule Neptunus.Vehicle.Control do
 
   # an autopilot entry for the developer page's logger (and the recording), and the node's log
   defp autopilot_log(state, level, text) do
-    PubSub.broadcast(Telemetry.log_topic(state.id), "log", %{
-      category: "autopilot",
-      level: level,
-      message: text,
-      at: Neptunus.Clock.wall_ms()
-    })
-
+    Telemetry.log(state.id, "autopilot", level, text)
     Logger.info("vehicle #{state.id}: #{text}")
   end
 

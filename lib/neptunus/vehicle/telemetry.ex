@@ -4,31 +4,12 @@ defmodule Neptunus.Vehicle.Telemetry do
 
   It keeps the last board sample and the last control output, and publishes the combined
   payload at `telemetry_hz` (default 20 Hz) on absolute deadlines of the monotonic clock
-  (re-arming a relative timer would drift). The payload is documented in `docs/API.md`:
-
-      %{t: s, sent_at: epoch ms,
-        measurement: %{depth, heading, roll, pitch, voltage, current},
-        measurement_state: %{depth, heading, roll, pitch, voltage, current},
-        estimate: %{depth, depth_rate, heading, yaw_rate, roll, roll_rate, pitch, pitch_rate},
-        wild_points: %{total, by_field, by_reason, reacquired},
-        sim: %{x, y, z, phi, theta, psi, u, v, w, p, q, r} | nil,
-        command: %{surge, heave, yaw} | %{port, vertical, starboard},
-        thrusters: %{port, vertical, starboard, port_us, vertical_us, starboard_us},
-        control: %{mode, gain, lights, laser, tilt, run_mode, autopilot: %{depth, heading, position}},
-        autopilot: %{depth: %{setpoint, reference, reference_rate, output, overridden,
-                              waiting} | nil, heading: … | nil,
-                     position: %{x, y, heading, phase, distance, output} | nil},
-        link: %{up, reason, rtt_ms, pong_age_ms, board_uptime_ms, board_deadman_armed,
-                firmware, detected_firmware, firmware_mismatch,
-                commands_sent, commands_confirmed},   # all but up, reason only from a board link
-        recording: %{on, error},            # from the vehicle's recorder
-        camera: %{running, fps, error}}     # only for a vehicle with a camera
-
-  SI units (m, m/s, rad, rad/s, V, A); heading in [0, 2π). `measurement_state` says for each
-  measurement `"initialising"` (no valid reading since start, link up or board reset: its
-  `measurement` value is nil, and so is its estimate), `"valid"` or `"stale"` (no plausible
-  reading for 2 s: the last value is kept); see `Neptunus.Estimator`. `t` is the vehicle's clock,
-  `sent_at` the wall clock at broadcast (for latency measurements only).
+  (re-arming a relative timer would drift). The payload — `t`, `sent_at`, the sample's
+  `measurement`, `measurement_state`, `estimate`, `wild_points` and `sim` (from navigation), the
+  control state's `command`, `thrusters`, `control` and `autopilot`, the board's `link`, and the
+  parts' reports (`recording`, `camera`) — is defined, field by field, by the wire schema
+  (`NeptunusWeb.WireSchema`, type `telemetry`; docs/API.md): a field added here is added there,
+  or the conformance test fails.
 
   The broadcast is paced while someone pilots (`Neptunus.PubSub.broadcast_paced/5`): the
   recorder and the pilot's connection get it at once; with many observers, their
@@ -128,6 +109,23 @@ defmodule Neptunus.Vehicle.Telemetry do
   """
   @spec log_topic(String.t()) :: String.t()
   def log_topic(id), do: "log:" <> id
+
+  @doc """
+  Publishes an entry for vehicle `id`'s developer logger (and its recording) on `log_topic/1`:
+  `category` (`"link"`, `"autopilot"`, …), `level` (`"info"`, `"warning"`, `"error"`), the
+  message, stamped with the wall clock.
+  """
+  @spec log(String.t(), String.t(), String.t(), String.t()) :: :ok
+  def log(id, category, level, message) do
+    PubSub.broadcast(log_topic(id), "log", %{
+      category: category,
+      level: level,
+      message: message,
+      at: Neptunus.Clock.wall_ms()
+    })
+
+    :ok
+  end
 
   @doc """
   Reports a board sample (called by `Neptunus.Vehicle.Navigation`, with the filtered

@@ -6,27 +6,23 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   command out) and relays the answers. Payloads and error reasons: `docs/API.md`.
 
   Join reply (state snapshot): `%{vehicle, telemetry, helm, pilot, control, camera, settings,
-  session}` (`camera`: `%{url}` of the MJPEG stream, or nil; `settings`: the vehicle's view
+  session}` (`camera`: `%{codec, video, url}`, the video WebSocket's path and the MJPEG
+  stream's, see `Neptunus.Vehicle.Camera.info/1`, or nil; `settings`: the vehicle's view
   settings, `Neptunus.Vehicle.ViewSettings`),
   followed by `presence_state`. Joining never depends on control: observers join like
   pilots, and being refused control is an event, never a closed channel.
 
-  Client events: `clock` (anyone: the server's wall clock in ms, `%{now}`), `thrust`,
-  `stop`, `heartbeat`, `request_control`, `answer_request`,
-  `take_control`, `release_control`, `sim_reset`, `sim_set`, and the control commands
-  `set_control_mode`, `set_gain`, `set_lights`, `set_laser`, `set_tilt`, `autopilot`,
-  `set_run_mode` (`Neptunus.Vehicle.Control.command/3`), the autopilot tuning `set_tuning`,
-  `step_response` (the user who pilots, from any connection, or the main station) and
-  `get_tuning` (anyone), `set_camera_rotation` (the user who pilots or the main
-  station; broadcast as `vehicle_settings`), `arm` and `disarm` (a mavlink vehicle,
-  `Neptunus.Vehicle.Board.arm/3`; on a mavlink vehicle `autopilot` sets its flight mode,
-  `Neptunus.Vehicle.Board.MAVLink.autopilot/3`). Server events: `telemetry`, `helm`, `stopped`,
-  `presence_diff` (broadcast), and to one connection only `control_request`,
-  `control_granted`, `control_lost`, `request_denied`, `vehicle_answer` (the late answer to an
-  `arm`/`disarm`/`autopilot` whose reply was `%{status: "pending"}`). A vehicle on another node
-  of the fleet is joined the same way (its snapshot is made there, its helm, control and settings
-  called there); this node says `unreachable` and `reachable` when that node is cut off and back
-  (`Neptunus.Fleet.Directory`).
+  The client events (commands) and server events, their payloads and replies, and who may
+  send each: the wire schema, `NeptunusWeb.WireSchema` (docs/API.md); a command added here is
+  added there. Commands go through the vehicle's `Neptunus.Vehicle.Helm` (pilot only) to
+  `Neptunus.Vehicle.Control.command/3` (the settings), `Neptunus.Sim.Live` (the simulator) or
+  the board (`arm`, `disarm` and, on a mavlink vehicle, `autopilot`:
+  `Neptunus.Vehicle.Board.MAVLink.autopilot/3`, whose late answer comes as `vehicle_answer`);
+  the tuning and the camera rotation are for the user who pilots or the main station.
+
+  A vehicle on another node of the fleet is joined the same way (its snapshot is made there,
+  its helm, control and settings called there); this node says `unreachable` and `reachable`
+  when that node is cut off and back (`Neptunus.Fleet.Directory`).
 
   Presence: keyed by user name, one meta per connection:
   `%{name, role, since, pilot, conn, node, online_at}`; `pilot` is updated on every grant and
@@ -191,6 +187,29 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     |> reply(socket)
   end
 
+  # A snapshot of the camera (Neptunus.Camera.Snapshots): anyone watching. The picture is
+  # decoded and saved by a process of its own (on the vehicle's node), never in this
+  # connection (a pilot's commands would wait): the reply says `pending`, the event
+  # `snapshot` follows to this connection.
+  def handle_in("snapshot", _payload, socket) do
+    id = id(socket)
+
+    spawn(fn ->
+      result =
+        try do
+          Neptunus.Camera.Snapshots.take(id, NeptunusWeb.API.Snapshots.dir())
+        rescue
+          exception -> {:error, :failed, Exception.message(exception)}
+        catch
+          kind, reason -> {:error, :failed, "snapshot failed: #{inspect({kind, reason})}"}
+        end
+
+      Channel.send_self(socket, {:snapshot, result})
+    end)
+
+    {:reply, {:ok, %{status: "pending"}}, socket}
+  end
+
   def handle_in(event, _payload, socket) do
     {:reply, {:error, %{reason: "unknown event: #{event}"}}, socket}
   end
@@ -216,6 +235,12 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   end
 
   def handle_info({:helm, event, payload}, socket), do: {:push, event, payload, socket}
+
+  def handle_info({:snapshot, {:ok, snapshot}}, socket),
+    do: {:push, "snapshot", %{ok: true, snapshot: snapshot}, socket}
+
+  def handle_info({:snapshot, {:error, _status, reason}}, socket),
+    do: {:push, "snapshot", %{ok: false, reason: reason}, socket}
 
   # the vehicle's answer to an arm/disarm/autopilot whose reply said `pending`
   def handle_info({:vehicle_answer, _ref, event, result}, socket) do
@@ -277,9 +302,9 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
   end
 
   defp camera(id) do
-    case Neptunus.Vehicle.Camera.url(id) do
+    case Neptunus.Vehicle.Camera.info(id) do
       nil -> nil
-      url -> %{url: url}
+      %{codec: codec} = info -> %{info | codec: Atom.to_string(codec)}
     end
   end
 

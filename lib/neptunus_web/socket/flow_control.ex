@@ -2,8 +2,11 @@ defmodule NeptunusWeb.Socket.FlowControl do
   @moduledoc """
   A connection's flow control (pure): at which process priority it runs, and which frames
   it may drop for a client that reads too slowly. `NeptunusWeb.Socket` keeps one per
-  connection, feeds it the clock and its mailbox length, and carries the answers out
-  (`Process.flag(:priority, …)`, sending or dropping a frame, a log line).
+  connection, feeds it the clock and its mailbox length, and carries the answers out:
+  sending or dropping a frame, and the effects (`t:effect/0`) of a frame received
+  (`frame_received/3`), a grant or loss of control (`control_changed/3`) and a dropped
+  frame (`telemetry_dropped/3`): a new process priority, the pilot's telemetry first, a log
+  line.
 
   ## Priority
 
@@ -84,6 +87,15 @@ defmodule NeptunusWeb.Socket.FlowControl do
 
   @typedoc "When to log dropped telemetry: the count, and ms since the last report (nil: first)."
   @type report :: {:report, pos_integer(), non_neg_integer() | nil}
+
+  @typedoc """
+  What the connection carries out, in order: set its process priority; have the PubSub serve
+  it first on a topic (`Neptunus.PubSub.prioritize/2`) or not; log a line.
+  """
+  @type effect ::
+          {:priority, :low | :normal | :high}
+          | {:prioritize, String.t(), boolean()}
+          | {:log, :info | :warning, String.t()}
 
   @doc """
   Flow control for a new connection (not piloting): `pilot_frames_per_s` (the frame budget)
@@ -194,5 +206,94 @@ defmodule NeptunusWeb.Socket.FlowControl do
       true ->
         {%{flow | dropped: dropped + 1}, nil}
     end
+  end
+
+  # What the connection carries out (see the moduledoc); `who` names its user in the log.
+
+  @doc """
+  A frame from the client of `who` (a user name), received at `now_ms`, counted (`frame/2`):
+  the priority when it changed, and a warning for the frame that exceeds the pilot's budget.
+
+      iex> alias NeptunusWeb.Socket.FlowControl
+      iex> flow = FlowControl.new(pilot_frames_per_s: 1, backlog: 8)
+      iex> flow = FlowControl.piloting(flow, "vehicle:a", true)
+      iex> {flow, []} = FlowControl.frame_received(flow, 0, "ada")
+      iex> {_flow, [{:log, :warning, line}, {:priority, :normal}]} =
+      ...>   FlowControl.frame_received(flow, 1, "ada")
+      iex> line
+      "pilot \\"ada\\" sends more than 1 frames/s: its connection runs at :normal " <>
+        "for the rest of this second"
+  """
+  @spec frame_received(t(), integer(), String.t()) :: {t(), [effect()]}
+  def frame_received(%__MODULE__{} = flow, now_ms, who) do
+    {next, verdict} = frame(flow, now_ms)
+
+    warning =
+      if verdict == :over_budget,
+        do: [
+          {:log, :warning,
+           "pilot #{inspect(who)} sends more than #{next.frame_limit} frames/s: its " <>
+             "connection runs at :normal for the rest of this second"}
+        ],
+        else: []
+
+    {next, warning ++ priority_change(flow, next)}
+  end
+
+  @doc """
+  The helm granted (`true`) or took back (`false`) control of `topic`'s vehicle
+  (`piloting/3`): the pilot's connection gets its telemetry first, and its priority when it
+  changed.
+
+      iex> alias NeptunusWeb.Socket.FlowControl
+      iex> flow = FlowControl.new(pilot_frames_per_s: 200, backlog: 8)
+      iex> {flow, effects} = FlowControl.control_changed(flow, "vehicle:a", true)
+      iex> effects
+      [{:prioritize, "vehicle:a", true}, {:priority, :high}]
+      iex> {_flow, effects} = FlowControl.control_changed(flow, "vehicle:a", false)
+      iex> effects
+      [{:prioritize, "vehicle:a", false}, {:priority, :low}]
+  """
+  @spec control_changed(t(), String.t(), boolean()) :: {t(), [effect()]}
+  def control_changed(%__MODULE__{} = flow, topic, granted?) do
+    next = piloting(flow, topic, granted?)
+    {next, [{:prioritize, topic, granted?} | priority_change(flow, next)]}
+  end
+
+  @doc """
+  A telemetry frame for the client of `who` dropped at `now_ms` (`dropped/2`): the log line
+  when the drops are to be reported.
+
+      iex> alias NeptunusWeb.Socket.FlowControl
+      iex> flow = FlowControl.new(pilot_frames_per_s: 200, backlog: 8)
+      iex> {flow, [{:log, :info, first}]} = FlowControl.telemetry_dropped(flow, 0, "ada")
+      iex> first
+      "\\"ada\\" reads slower than its telemetry arrives: dropped 1 stale telemetry frame(s)"
+      iex> {flow, []} = FlowControl.telemetry_dropped(flow, 1_000, "ada")
+      iex> {_flow, [{:log, :info, later}]} = FlowControl.telemetry_dropped(flow, 61_000, "ada")
+      iex> later
+      "\\"ada\\" reads slower than its telemetry arrives: " <>
+        "dropped 2 stale telemetry frame(s) in the last 61 s"
+  """
+  @spec telemetry_dropped(t(), integer(), String.t()) :: {t(), [effect()]}
+  def telemetry_dropped(%__MODULE__{} = flow, now_ms, who) do
+    case dropped(flow, now_ms) do
+      {flow, {:report, count, since_ms}} ->
+        {flow,
+         [
+           {:log, :info,
+            "#{inspect(who)} reads slower than its telemetry arrives: dropped #{count} stale " <>
+              "telemetry frame(s)" <>
+              if(since_ms == nil, do: "", else: " in the last #{div(since_ms, 1000)} s")}
+         ]}
+
+      {flow, nil} ->
+        {flow, []}
+    end
+  end
+
+  defp priority_change(before, next) do
+    priority = priority(next)
+    if priority == priority(before), do: [], else: [{:priority, priority}]
   end
 end

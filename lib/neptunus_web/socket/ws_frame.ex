@@ -1,7 +1,7 @@
 defmodule NeptunusWeb.Socket.WsFrame do
   @moduledoc """
-  WebSocket text frames from the server (RFC 6455 §5.2), as iodata: the frame header, then
-  the payload binary itself.
+  WebSocket text and binary frames from the server (RFC 6455 §5.2), as iodata: the frame
+  header, then the payload binary itself.
 
   `NeptunusWeb.Socket` sends broadcast frames this way. A broadcast is encoded once
   (`Neptunus.PubSub`) and its binary shared by every connection that receives it; yaws'
@@ -10,7 +10,8 @@ defmodule NeptunusWeb.Socket.WsFrame do
   collection — most of an observer's memory. Written as `[header, payload]`, the socket
   sends the shared binary and the connection holds only the few header bytes.
 
-  Server frames are never masked; the payload is sent whole (FIN set, opcode 1: text).
+  Server frames are never masked; the payload is sent whole (FIN set, opcode 1: text, or 2:
+  binary — the video socket's frames, `NeptunusWeb.VideoSocket`).
 
       iex> NeptunusWeb.Socket.WsFrame.text("hi")
       [<<0x81, 2>>, "hi"]
@@ -20,6 +21,7 @@ defmodule NeptunusWeb.Socket.WsFrame do
   """
 
   @fin_text 0x81
+  @fin_binary 0x82
   # payload length limits of the 7-bit and 16-bit length forms
   @max_short 125
   @max_medium 0xFFFF
@@ -30,20 +32,32 @@ defmodule NeptunusWeb.Socket.WsFrame do
   def text(payload) when is_binary(payload), do: [header(byte_size(payload)), payload]
 
   @doc """
-  The header of a final, unmasked text frame whose payload is `size` bytes: 2 bytes up to
-  #{@max_short}, 4 up to #{@max_medium}, 10 beyond. Raises `ArgumentError` for a size
-  no frame can carry.
+  A final, unmasked binary frame carrying `payload`.
+
+      iex> NeptunusWeb.Socket.WsFrame.binary(<<1, 2>>)
+      [<<0x82, 2>>, <<1, 2>>]
   """
-  @spec header(non_neg_integer()) :: binary()
-  def header(size) when is_integer(size) and size >= 0 and size <= @max_short,
-    do: <<@fin_text, size>>
+  @spec binary(binary()) :: iodata()
+  def binary(payload) when is_binary(payload),
+    do: [header(byte_size(payload), @fin_binary), payload]
 
-  def header(size) when is_integer(size) and size > @max_short and size <= @max_medium,
-    do: <<@fin_text, 126, size::16>>
+  @doc """
+  The header of a final, unmasked text frame (or, with `first_byte` 0x82, binary frame)
+  whose payload is `size` bytes: 2 bytes up to #{@max_short}, 4 up to #{@max_medium}, 10
+  beyond. Raises `ArgumentError` for a size no frame can carry.
+  """
+  @spec header(non_neg_integer(), byte()) :: binary()
+  def header(size, first_byte \\ @fin_text)
 
-  def header(size) when is_integer(size) and size > @max_medium and size <= @max_long,
-    do: <<@fin_text, 127, size::64>>
+  def header(size, first) when is_integer(size) and size >= 0 and size <= @max_short,
+    do: <<first, size>>
 
-  def header(size),
+  def header(size, first) when is_integer(size) and size > @max_short and size <= @max_medium,
+    do: <<first, 126, size::16>>
+
+  def header(size, first) when is_integer(size) and size > @max_medium and size <= @max_long,
+    do: <<first, 127, size::64>>
+
+  def header(size, _first),
     do: raise(ArgumentError, "a frame payload is 0..#{@max_long} bytes, got #{inspect(size)}")
 end

@@ -383,12 +383,46 @@ defmodule Neptunus.Protocol.OpenROVTest do
       )
     end
 
+    test "property: the echo of any command we write reads back as the command's call" do
+      us = :proper_types.integer(1000, 2000)
+      byte = :proper_types.integer(0, 255)
+
+      check(
+        {us, us, us, :proper_types.bool(), byte, byte, byte},
+        fn {a, b, c, s, n, m, k} ->
+          Enum.all?(
+            [
+              OpenROV.go({a, b, c}, s),
+              OpenROV.lights(n),
+              OpenROV.laser(m),
+              OpenROV.tilt(a),
+              OpenROV.mtrmod1({n * 3, m, k}),
+              OpenROV.mtrmod2({k, n, m})
+            ],
+            fn command ->
+              # what the firmware prints: the pieces it split the command into, joined by
+              # commas (the 30.x frame may add a space after '(': it is split away)
+              {name, args} = OpenROV.call(command)
+              echo = name <> "(" <> Enum.join(args, ",") <> ")"
+              framed = OpenROV.frame(command, :openrov_30)
+              <<_crc, text::binary>> = framed
+
+              OpenROV.parse_call(echo) == {:ok, name, args} and
+                OpenROV.call(text) == {name, args}
+            end
+          )
+        end,
+        500
+      )
+    end
+
     test "property: pong, echo and crc parsers never crash on random values" do
       check(
         :proper_types.binary(),
         fn bytes ->
           (OpenROV.parse_pong(bytes) == :error or match?({:ok, %{}}, OpenROV.parse_pong(bytes))) and
             (match?({:ok, _}, OpenROV.parse_echo(bytes)) or OpenROV.parse_echo(bytes) == :error) and
+            (match?({:ok, _, _}, OpenROV.parse_call(bytes)) or OpenROV.parse_call(bytes) == :error) and
             (match?({:ok, _}, OpenROV.parse_crc(bytes)) or OpenROV.parse_crc(bytes) == :error) and
             is_boolean(OpenROV.text_line?(bytes))
         end,

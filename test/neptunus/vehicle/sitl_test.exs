@@ -372,4 +372,99 @@ defmodule Neptunus.Vehicle.SITLTest do
       end
     end
   end
+
+  # Issue 25: a USB Arduino resets when its line is opened and sits in its bootloader for a
+  # moment, losing what it is sent; the settings the link wrote at the open (the motor
+  # modifiers) were lost with it, the firmware kept its reverse ×2, and a straight surge
+  # turned the vehicle. The link must get them confirmed, and hold thrust until it has.
+  describe "a board that resets as the line opens" do
+    @straight_us 10
+
+    # the ESC offsets from neutral of the port and starboard motors
+    defp offsets({p, _v, s}), do: {abs(p - 1500), abs(s - 1500)}
+    defp moving?({p, _v, s}), do: p != 1500 or s != 1500
+
+    for profile <- [:openrov_25, :openrov_30], window <- [200, 500, 1_000] do
+      test "#{profile}, bootloader #{window} ms: forward surge drives straight within 1.5 s of the open" do
+        window = unquote(window)
+
+        id = start_sitl(%{firmware: unquote(profile), reset_on_open: true, bootloader_ms: window})
+
+        # the pilot drives forward at once, while the board is still in its bootloader, and
+        # again once it has started (a stick moved, an autopilot's next output)
+        {:ok, _} = Control.thrust(id, motion(0.8, 0, 0))
+
+        wait_until(
+          fn ->
+            fw = SITL.Device.state(id).firmware
+            SITL.Firmware.millis(fw, Neptunus.Clock.monotonic_ms()) > fw.setup_ms
+          end,
+          "the board's start",
+          5_000
+        )
+
+        {:ok, _} = Control.thrust(id, motion(0.8, 0, 0))
+
+        wait_until(
+          fn -> moving?(SITL.Device.state(id).firmware.esc_us) end,
+          "the motors",
+          5_000
+        )
+
+        device = SITL.Device.state(id)
+        # the board rebooted once, when the link opened the line
+        assert device.resets == 1 and device.opens == 1
+        assert device.firmware.boot_lost > 0
+
+        # every pulse the motors got since: straight (230 µs each way: go(1300,1500,1700)
+        # with the modifiers at 100/100), never the firmware's default reverse ×2
+        moved = for {m, esc} <- Enum.reverse(device.firmware.esc_log), moving?(esc), do: {m, esc}
+        assert [{first_ms, first} | _] = moved
+
+        for {_m, esc} <- moved do
+          {port, starboard} = offsets(esc)
+          assert abs(port - starboard) <= @straight_us, "unbalanced ESC pulses #{inspect(esc)}"
+        end
+
+        assert offsets(first) == {230, 230}
+        # on the board's clock (its bootloader, then its millis): since the line opened
+        since_open_ms = window + first_ms
+        assert since_open_ms <= 1_500, "straight thrust #{since_open_ms} ms after the open"
+
+        assert %{board_settings: "confirmed", thrust_held: false, board_resets: resets} =
+                 Board.link_status(id)
+
+        assert resets >= 1
+        # and the vehicle goes straight
+        psi = truth(id).psi
+        Process.sleep(1_000)
+        assert abs(truth(id).psi - psi) < 0.05
+      end
+    end
+
+    test "a board reset mid-dive (bootloader 0.5 s): it stops until the settings are confirmed, then drives straight on" do
+      id = start_sitl(%{firmware: :openrov_30, reset_on_open: true, bootloader_ms: 500})
+      {:ok, _} = Control.thrust(id, motion(0.8, 0, 0))
+      wait_until(fn -> moving?(SITL.Device.state(id).firmware.esc_us) end, "the motors", 5_000)
+
+      :ok = SITL.Device.reset(id)
+      assert SITL.Device.state(id).firmware.esc_us == {1500, 1500, 1500}
+
+      wait_until(
+        fn -> moving?(SITL.Device.state(id).firmware.esc_us) end,
+        "the motors after the reset",
+        5_000
+      )
+
+      fw = SITL.Device.state(id).firmware
+
+      for {_m, esc} <- fw.esc_log,
+          moving?(esc),
+          do: assert(offsets(esc) == {230, 230}, inspect(esc))
+
+      assert fw.positive_mod == {1, 1, 1} and fw.negative_mod == {1, 1, 1}
+      assert %{board_resets: resets, thrust_held: false} = Board.link_status(id)
+      assert resets >= 2
+    end
+  end
 end

@@ -126,4 +126,55 @@ defmodule NeptunusWeb.Socket.FlowControlTest do
       assert_raise FunctionClauseError, fn -> FlowControl.deliver?(new(), "telemetry", -1) end
     end
   end
+
+  describe "effects for the connection to carry out" do
+    test "frames: nothing within budget, the warning and :normal over it, :high again after" do
+      flow = pilot(2)
+      {flow, []} = FlowControl.frame_received(flow, 0, "ada")
+      {flow, []} = FlowControl.frame_received(flow, 10, "ada")
+
+      {flow, [{:log, :warning, line}, {:priority, :normal}]} =
+        FlowControl.frame_received(flow, 20, "ada")
+
+      assert line =~ ~s(pilot "ada" sends more than 2 frames/s)
+      # later frames of the same second: already said, already :normal
+      {flow, []} = FlowControl.frame_received(flow, 30, "ada")
+      assert {_flow, [{:priority, :high}]} = FlowControl.frame_received(flow, 1_000, "ada")
+    end
+
+    test "frames of an observer change nothing" do
+      flow = new(1)
+      assert FlowControl.frame_received(flow, 0, "olga") == {flow, []}
+      assert FlowControl.frame_received(flow, 1, "olga") == {flow, []}
+    end
+
+    test "control: telemetry first on each granted topic, the priority only when it changes" do
+      {flow, [{:prioritize, "vehicle:a", true}, {:priority, :high}]} =
+        FlowControl.control_changed(new(), "vehicle:a", true)
+
+      {flow, [{:prioritize, "vehicle:b", true}]} =
+        FlowControl.control_changed(flow, "vehicle:b", true)
+
+      {flow, [{:prioritize, "vehicle:a", false}]} =
+        FlowControl.control_changed(flow, "vehicle:a", false)
+
+      assert {_flow, [{:prioritize, "vehicle:b", false}, {:priority, :low}]} =
+               FlowControl.control_changed(flow, "vehicle:b", false)
+    end
+
+    test "drops: a line at the first, then at most once a minute with the count" do
+      {flow, [{:log, :info, first}]} = FlowControl.telemetry_dropped(new(), 0, "olga")
+      assert first =~ "dropped 1 stale telemetry frame(s)"
+      refute first =~ "in the last"
+
+      flow =
+        Enum.reduce(1..5, flow, fn t, flow ->
+          assert {flow, []} = FlowControl.telemetry_dropped(flow, t * 1_000, "olga")
+          flow
+        end)
+
+      assert {_flow, [{:log, :info, line}]} = FlowControl.telemetry_dropped(flow, 60_000, "olga")
+      assert line =~ "dropped 6 stale telemetry frame(s) in the last 60 s"
+    end
+  end
 end

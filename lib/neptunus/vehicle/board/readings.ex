@@ -31,9 +31,11 @@ defmodule Neptunus.Vehicle.Board.Readings do
 
   Lines the firmware prints besides fields — the depth driver's plain text
   (`OpenROV.text_line?/1`) — are counted as `text`, `log` fields as `debug`; neither is
-  malformed. The board's replies the link needs (`pong`, the `cmd:`/`icmd:` echoes, 30.x
-  `crc:` and `rawcmd:` lines, the board's millis from `time`) are collected as events,
-  oldest first, for `take_events/1` (see `Neptunus.Protocol.BoardLink`).
+  malformed. The board's replies the link needs (`pong`, the `cmd:`/`icmd:` echoes — a
+  `cmd:` echo with the command's name and arguments as printed —, 30.x `crc:` and `rawcmd:`
+  lines, the board's millis from `time`, and `boot:1;`, which the firmware prints when its
+  setup is done) are collected as events, oldest first, for `take_events/1` (see
+  `Neptunus.Protocol.BoardLink`).
 
   Counters: `lines`, `samples`, `overlong` (lines over the length cap), `text`, `debug`,
   `placeholder`, `malformed`, and the wild points by reason `out_of_range`, `not_a_number`,
@@ -71,11 +73,12 @@ defmodule Neptunus.Vehicle.Board.Readings do
   @type event ::
           :rawcmd
           | {:crc, :pass | {:fail, byte(), byte()}}
-          | {:echo, String.t(), boolean()}
+          | {:echo, String.t(), [String.t()] | nil, boolean()}
           | {:echo_prefixed, String.t()}
           | {:icmd, String.t()}
           | {:pong, OpenROV.pong()}
           | {:board_time, non_neg_integer()}
+          | :boot
 
   @typedoc """
   * `lines` — the framer (partial line in progress)
@@ -243,15 +246,20 @@ defmodule Neptunus.Vehicle.Board.Readings do
       &with({:ok, pong} <- OpenROV.parse_pong(&1), do: {:ok, {:pong, pong}})
     )
     |> event(fields, :board_time, fn s -> {:ok, {:board_time, round(s * 1000)}} end)
+    |> event(fields, "boot", fn _ -> {:ok, :boot} end)
     |> Enum.take(@max_events)
   end
 
   # An echo; a 2.5 board given a CRC-prefixed command echoes it with the CRC byte before the
   # name (and does not recognise it).
   defp echo(value, crc?) do
-    case OpenROV.parse_echo(value) do
-      {:ok, name} ->
-        {:ok, {:echo, name, crc?}}
+    with :error <- OpenROV.parse_call(value),
+         {:ok, name} <- OpenROV.parse_echo(value) do
+      # cut short: counted, but it confirms no setting
+      {:ok, {:echo, name, nil, crc?}}
+    else
+      {:ok, name, args} ->
+        {:ok, {:echo, name, args, crc?}}
 
       :error ->
         with false <- crc?,

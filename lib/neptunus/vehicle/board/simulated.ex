@@ -19,7 +19,8 @@ defmodule Neptunus.Vehicle.Board.Simulated do
   deadline it was scheduled for, in µs — and how long the tick's work took (`stats/1`).
 
   Lights, laser and camera tilt (`Board.lights/2`, `laser/2`, `tilt/2`) are recorded and
-  reported in every sample as `board: %{lights, laser, tilt}`.
+  reported in every sample as `board: %{lights, laser, tilt}`. Each tick also publishes the
+  true pose and these devices for the simulated camera (`Neptunus.Camera.Pose`).
 
   `Neptunus.Vehicle.Control` also starts one beside a real board for run mode simulator:
   options `name:` (instead of `Board.via(id)`) and `source: :simulator` (its samples go
@@ -28,6 +29,7 @@ defmodule Neptunus.Vehicle.Board.Simulated do
   use GenServer
 
   alias Neptunus.{Periodic, Sim}
+  alias Neptunus.Camera.Pose
   alias Neptunus.Vehicle.Board
 
   @behaviour Board
@@ -193,8 +195,11 @@ defmodule Neptunus.Vehicle.Board.Simulated do
     {:noreply, record(state, now_native, deadline_native)}
   end
 
-  defp report(state, sim),
-    do: Board.sample(state.id, Map.put(Sim.sample(sim), :board, state.devices), state.source)
+  defp report(state, sim) do
+    Board.sample(state.id, Map.put(Sim.sample(sim), :board, state.devices), state.source)
+    # for the simulated camera, if one renders this vehicle (nothing built when none does)
+    Pose.publish(state.id, sim.dyn, state.devices)
+  end
 
   defp record(%State{stats: nil} = state, _now_native, _deadline_native), do: state
 

@@ -21,7 +21,9 @@ defmodule Neptunus.Vehicle.Board.SITL do
 
   Options: those of `Board.UART` (`:wiring`, `:firmware`, `:ping_interval`, …) and of
   `SITL.Device` (`:wiring`, `:firmware`, `:sim_hz` as its `:hz`, `:deadman_ms`, `:arm_ms`,
-  `:loop_ms`, `:stall_ms`, `:setup_ms`, `:initial`, `:sim`), `:os_time_slice_ns` to both;
+  `:loop_ms`, `:stall_ms`, `:setup_ms`, `:bootloader_ms`, `:reset_on_open` — a board that
+  reboots into its bootloader whenever the line opens, as a USB Arduino —, `:initial`,
+  `:sim`), `:os_time_slice_ns` to both;
   `:link`. `:firmware` (`:openrov_25` or
   `:openrov_30`) goes to both: the board link frames its commands for it and the simulated
   board behaves like it.
@@ -34,7 +36,7 @@ defmodule Neptunus.Vehicle.Board.SITL do
   @behaviour Board
 
   @device_opts [:wiring, :deadman_ms, :os_time_slice_ns, :initial, :sim, :firmware] ++
-                 [:arm_ms, :loop_ms, :stall_ms, :setup_ms]
+                 [:arm_ms, :loop_ms, :stall_ms, :setup_ms, :bootloader_ms, :reset_on_open]
   @uart_opts [
     :wiring,
     :os_time_slice_ns,
@@ -43,7 +45,9 @@ defmodule Neptunus.Vehicle.Board.SITL do
     :keepalive_timeout,
     :reopen_min,
     :reopen_max,
-    :max_line
+    :max_line,
+    :confirm_retry,
+    :confirm_attempts
   ]
 
   @impl Board

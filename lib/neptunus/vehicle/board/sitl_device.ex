@@ -10,16 +10,26 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   (`Neptunus.Periodic`, at most #{20} catch-up steps per tick); at each step it gives the
   firmware the simulator's reading, runs the firmware's loop up to now, sends what it wrote and
   drives the simulator with the thrusters the firmware's ESC pulses give. Received bytes go to
-  the firmware as they arrive (its 64-byte receive buffer drops what overflows: `rx_dropped`).
+  the firmware at the time they were read from the pty (the port program stamps each read,
+  `NEPTUNUS_UART_RX_STAMPS`), and each step first takes what has arrived: a busy machine that
+  runs this process late does not pile up in the board's 64-byte receive buffer what a real
+  board would have read in between (it drops what overflows: `rx_dropped`). Each tick also
+  publishes the true pose and the firmware's lights, laser and tilt for the simulated camera
+  (`Neptunus.Camera.Pose`).
 
   `reset/1` reboots the board (as a USB Arduino that resets) without touching the simulated
-  vehicle: the firmware starts again from millis 0 and the physics keep going. If the port
-  program exits, this process stops and is restarted with a new pair at the same link path: to
-  the board link that is a hangup followed by a board that comes back.
+  vehicle: the firmware starts again from millis 0 and the physics keep going. With
+  `reset_on_open: true` it reboots the same way whenever the line is opened (the port program
+  reports every open of the pty's slave end), as a USB Arduino does when its DTR line drops;
+  with `:bootloader_ms` every reboot first runs a bootloader that loses what arrives (see
+  `Neptunus.Vehicle.Board.SITL.Firmware`). If the port program exits, this process stops and
+  is restarted with a new pair at the same link path: to the board link that is a hangup
+  followed by a board that comes back.
   """
   use GenServer
 
   alias Neptunus.{Periodic, Sim}
+  alias Neptunus.Camera.Pose
   alias Neptunus.Vehicle.Board.SITL.Firmware
 
   @max_catch_up 20
@@ -36,6 +46,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
             periodic: Neptunus.Periodic.t(),
             skipped_steps: non_neg_integer(),
             rx_dropped: non_neg_integer(),
+            reset_on_open: boolean(),
+            rx_stamp_ms: integer() | nil,
+            opens: non_neg_integer(),
             resets: non_neg_integer()
           }
     @enforce_keys [:id, :port, :pty, :sim, :firmware, :periodic]
@@ -48,11 +61,15 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
       :periodic,
       skipped_steps: 0,
       rx_dropped: 0,
+      reset_on_open: false,
+      rx_stamp_ms: nil,
+      opens: 0,
       resets: 0
     ]
   end
 
-  @firmware_opts [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms]
+  @firmware_opts [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms] ++
+                   [:bootloader_ms]
 
   @doc """
   Options: `:id` and `:link` (path for the pty's slave end) required; `:hz` (default
@@ -60,7 +77,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   `Neptunus.OS`); the firmware's
   (`Neptunus.Vehicle.Board.SITL.Firmware.new/2`): `:firmware` (`:openrov_25` default or
   `:openrov_30`), `:wiring` (`Neptunus.Wiring`, default the thesis'), `:deadman_ms` (2000),
-  `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20); `:initial` and
+  `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20), `:bootloader_ms`
+  (0); `:reset_on_open` (false: the board reboots whenever the line is opened); `:initial` and
   `:sim` (options of `Neptunus.Sim.new/1`, over the default `noise: true` — realistic sensors
   with wild points — and a fresh seed).
   """
@@ -72,7 +90,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
 
   @doc """
   The device's state: the simulation (truth), the firmware, the pty path, `rx_dropped` (bytes
-  the board's receive buffer lost), `resets` (board resets by `reset/1`).
+  the board's receive buffer lost), `opens` (times the line was opened), `resets` (board
+  resets by `reset/1` or, with `reset_on_open`, by an open).
   """
   @spec state(String.t()) :: State.t()
   def state(id), do: GenServer.call(Neptunus.Fleet.via(__MODULE__, id), :state)
@@ -102,7 +121,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
         {:packet, 2},
         :exit_status,
         :use_stdio,
-        {:env, Neptunus.OS.port_env(Keyword.get(opts, :os_time_slice_ns))},
+        {:env,
+         [{~c"NEPTUNUS_UART_RX_STAMPS", ~c"1"}] ++
+           Neptunus.OS.port_env(Keyword.get(opts, :os_time_slice_ns))},
         args: ["pty", link]
       ])
 
@@ -110,15 +131,21 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     # device, as a real board's device node exists before the server starts.
     receive do
       {^port, {:data, "o" <> pty}} ->
-        {:ok,
-         %State{
-           id: id,
-           port: port,
-           pty: pty,
-           sim: Sim.new(sim_opts(opts, hz)),
-           firmware: Firmware.reset(firmware, Neptunus.Clock.monotonic_ms()),
-           periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick))
-         }}
+        # the board was powered before anyone opened its line, as a real one is: its boot
+        # output waits in the pty, where the opener drops it (a new session's stale input)
+        {firmware, boot} = Firmware.started(firmware, Neptunus.Clock.monotonic_ms())
+
+        state = %State{
+          id: id,
+          port: port,
+          pty: pty,
+          sim: Sim.new(sim_opts(opts, hz)),
+          firmware: firmware,
+          periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick)),
+          reset_on_open: Keyword.get(opts, :reset_on_open, false) == true
+        }
+
+        {:ok, send_bytes(state, boot)}
 
       {^port, {:data, "e" <> why}} ->
         {:stop, {:pty, why}}
@@ -142,28 +169,27 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   @impl true
   def handle_call(:state, _from, state), do: {:reply, state, state}
 
-  def handle_call(:reset, _from, state) do
+  def handle_call(:reset, _from, state), do: {:reply, :ok, reboot(state)}
+
+  # what the old firmware wrote up to now goes out first, then the new one boots
+  defp reboot(state) do
     now = Neptunus.Clock.monotonic_ms()
-    # what the old firmware wrote up to now goes out first, then the new one boots
     {firmware, out} = Firmware.tick(state.firmware, now)
     state = send_bytes(state, out)
     firmware = Firmware.reset(firmware, now)
 
-    {:reply, :ok,
-     %{
-       state
-       | firmware: firmware,
-         sim: Sim.command(state.sim, firmware.thrusters),
-         resets: state.resets + 1
-     }}
+    %{
+      state
+      | firmware: firmware,
+        sim: Sim.command(state.sim, firmware.thrusters),
+        resets: state.resets + 1
+    }
   end
 
   @impl true
-  def handle_info({port, {:data, "r" <> bytes}}, %State{port: port} = state) do
-    now = Neptunus.Clock.monotonic_ms()
-    {firmware, reply} = Firmware.receive(state.firmware, bytes, now)
-    {:noreply, send_bytes(apply_firmware(state, firmware), reply)}
-  end
+  def handle_info({port, {:data, frame}}, %State{port: port} = state)
+      when binary_part(frame, 0, 1) in ["r", "t", "O"],
+      do: {:noreply, line_frame(frame, state)}
 
   def handle_info({port, {:data, _other}}, %State{port: port} = state), do: {:noreply, state}
 
@@ -172,6 +198,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   end
 
   def handle_info(:tick, state) do
+    # what the line brought before now is read before the loop runs past it
+    state = take_line_frames(state)
     now_native = Neptunus.Clock.monotonic_native()
     {due, periodic} = Periodic.advance(state.periodic, now_native)
     steps = min(due, @max_catch_up)
@@ -185,6 +213,12 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
 
     sim = state.sim |> Sim.command(firmware.thrusters) |> Sim.step(steps)
     Periodic.arm(periodic, :tick)
+    # for the simulated camera, if one renders this vehicle (nothing built when none does)
+    Pose.publish(state.id, sim.dyn, %{
+      lights: firmware.lights,
+      laser: firmware.laser,
+      tilt: (firmware.tilt - 1500) / 500 * :math.pi() / 4
+    })
 
     state = %{
       state
@@ -196,6 +230,49 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
     }
 
     {:noreply, send_bytes(state, out)}
+  end
+
+  # Bytes from the line at the time they were read (the stamp before them), an open of the
+  # line (a USB Arduino resets on it: DTR)
+  defp line_frame("t" <> ns, state) do
+    case Integer.parse(ns) do
+      {ns, ""} -> %{state | rx_stamp_ms: vm_ms(ns)}
+      _ -> state
+    end
+  end
+
+  defp line_frame("r" <> bytes, state) do
+    now = Neptunus.Clock.monotonic_ms()
+    at = min(state.rx_stamp_ms || now, now)
+    {firmware, reply} = Firmware.receive(state.firmware, bytes, at)
+    send_bytes(apply_firmware(%{state | rx_stamp_ms: nil}, firmware), reply)
+  end
+
+  defp line_frame("O", state) do
+    state = %{state | opens: state.opens + 1}
+    if state.reset_on_open, do: reboot(state), else: state
+  end
+
+  defp take_line_frames(%State{port: port} = state) do
+    receive do
+      {^port, {:data, frame}} when binary_part(frame, 0, 1) in ["r", "t", "O"] ->
+        take_line_frames(line_frame(frame, state))
+    after
+      0 -> state
+    end
+  end
+
+  # A CLOCK_MONOTONIC time (ns, the port program's stamp) on the node's clock (ms): the VM's
+  # monotonic time runs on the OS's monotonic clock, offset (and possibly slewed a little, so
+  # the offset is taken now); nil (the bytes count as read now) where that is not
+  # CLOCK_MONOTONIC
+  defp vm_ms(os_ns) do
+    source = :erlang.system_info(:os_monotonic_time_source)
+
+    if Keyword.get(source, :clock_id) == :CLOCK_MONOTONIC do
+      os_now_ns = System.convert_time_unit(Keyword.fetch!(source, :time), :native, :nanosecond)
+      Neptunus.Clock.monotonic_ms() - div(os_now_ns - os_ns, 1_000_000)
+    end
   end
 
   defp apply_firmware(state, firmware) do

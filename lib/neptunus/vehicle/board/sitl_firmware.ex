@@ -87,8 +87,21 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   newline, `tilt(us)` (1000..2000) moves the camera servo (taken at once here; the firmware
   moves it 1 µs a loop) and shows in `servo:`/`starg:`.
 
-  At boot the board prints its setup lines. `reset/2` reboots it: millis back to 0 and every
-  state lost (targets, modifiers, lights, laser, tilt, deadman, buffers).
+  **Boot.** At boot the board prints its setup lines (the depth sensor's, the IMU's) and, when
+  its setup is done (`setup_ms`), `boot:1;\r\n` — 2.5.x and 30.x alike (`OpenROV.ino`'s
+  `setup()` ends with it). `reset/2` reboots it: millis back to 0 and every state lost
+  (targets, modifiers, lights, laser, tilt, deadman, buffers).
+
+  **Bootloader** (`:bootloader_ms`, default 0). An Arduino that resets runs its bootloader
+  first (a USB Arduino resets whenever its port is opened: DTR), for a few hundred ms to a
+  second: what arrives meanwhile is lost (counted in `boot_lost`), nothing is written, the
+  motors get no pulses (neutral) and the firmware's millis start when it ends. So a board
+  link that writes its settings as it opens the line loses them all, unless it writes them
+  again.
+
+  `esc_log` records the ESC pulses the motors got (what `motors:` prints), newest first, the
+  last #{32} changes of this board life, with the millis of each: what a test needs to say that
+  thrust was never unbalanced.
   """
 
   import Bitwise, only: [&&&: 2]
@@ -138,6 +151,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
     loop_ms: 10,
     stall_ms: 20,
     outbox: [],
+    setup_ms: 20,
+    boot_lost: 0,
+    esc_log: [],
     rx: "",
     rx_dropped: 0,
     cmdbuf: "",
@@ -176,7 +192,10 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   * `deadman_ms`, `arm_ms`, `loop_ms`, `stall_ms` — see the moduledoc
   * `reading` — the simulator's latest measurement (`sense/2`), nil before the first
   * `at` — millis of the last loop iteration
-  * `outbox` — bytes written at boot, sent with the next `tick/2` or `receive/3`
+  * `outbox` — bytes written at boot, sent with the first `tick/2` or `receive/3` at or after
+    the end of the setup (`setup_ms`, millis)
+  * `boot_lost` — bytes that arrived during the bootloader (before millis 0), lost
+  * `esc_log` — `{millis, esc_us}` of the last changes of the ESC pulses, newest first
   * `rx` — the serial receive buffer (at most #{@rx_size} bytes); `rx_dropped` — bytes lost
     because it was full; `cmdbuf` — the command being read (at most #{@cmd_size} bytes)
   * `next_drain` — millis when the loop next empties `rx` (first at `setup_ms`); `drains`, `alps` — loops counted
@@ -205,6 +224,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
           loop_ms: pos_integer(),
           stall_ms: non_neg_integer(),
           outbox: iodata(),
+          setup_ms: non_neg_integer(),
+          boot_lost: non_neg_integer(),
+          esc_log: [{integer(), us3()}],
           rx: binary(),
           rx_dropped: non_neg_integer(),
           cmdbuf: binary(),
@@ -239,7 +261,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
         }
 
   @profiles [:openrov_25, :openrov_30]
-  @option_keys [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms]
+  @option_keys [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms] ++
+                 [:bootloader_ms]
+  @esc_log 32
   @reading_keys [:heading, :depth, :pitch, :roll, :voltage, :current]
   @device_timers [:control, :thruster_out, :imu, :depth, :board, :status, :deadman, :blink]
 
@@ -247,7 +271,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   The firmware booted at `now` (ms). Options: `:firmware` (`:openrov_25`, the default, or
   `:openrov_30`), `:wiring` (default the thesis'), `:deadman_ms` (2000), `:arm_ms`
   (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20: how long the devices' setup
-  takes after the main loop's timers started). A bad option raises `ArgumentError`.
+  takes after the main loop's timers started), `:bootloader_ms` (0: how long the bootloader
+  runs before the firmware starts, its millis 0 at `now + bootloader_ms`). A bad option raises
+  `ArgumentError`.
   """
   @spec new(integer(), keyword()) :: t()
   def new(now, opts \\ []) when is_integer(now) do
@@ -264,12 +290,14 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
 
     loop_ms = positive!(opts, :loop_ms, 10)
     setup_ms = non_negative!(opts, :setup_ms, 20)
+    bootloader_ms = non_negative!(opts, :bootloader_ms, 0)
 
     fw = %__MODULE__{
       profile: profile,
       wiring: wiring,
-      boot_at_ms: now,
+      boot_at_ms: now + bootloader_ms,
       options: opts,
+      setup_ms: setup_ms,
       deadman_ms: positive!(opts, :deadman_ms, 2_000),
       arm_ms: non_negative!(opts, :arm_ms, 180_000),
       loop_ms: loop_ms,
@@ -303,13 +331,29 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   end
 
   @doc """
-  The board reboots at `now` (a USB Arduino resets when its port opens): millis back to 0 and
-  every firmware state lost; the options (profile, wiring, timings) stay, and the dropped-byte
-  count carries on.
+  The board reboots at `now` (a USB Arduino resets when its port opens): its bootloader runs
+  (`:bootloader_ms`), then millis start from 0 and every firmware state is lost; the options
+  (profile, wiring, timings) stay, and the dropped-byte counts carry on.
   """
   @spec reset(t(), integer()) :: t()
   def reset(%__MODULE__{} = fw, now) do
-    %{new(now, fw.options) | rx_dropped: fw.rx_dropped, reading: fw.reading}
+    %{
+      new(now, fw.options)
+      | rx_dropped: fw.rx_dropped,
+        boot_lost: fw.boot_lost,
+        reading: fw.reading
+    }
+  end
+
+  @doc """
+  The board as it is at `now` when it was powered long enough before to have started: booted
+  (`reset/2`) its bootloader and setup before `now`, its boot output written (returned) and its
+  loop about to run.
+  """
+  @spec started(t(), integer()) :: {t(), binary()}
+  def started(%__MODULE__{} = fw, now) do
+    bootloader_ms = Keyword.get(fw.options, :bootloader_ms, 0)
+    fw |> reset(now - bootloader_ms - fw.setup_ms) |> tick(now)
   end
 
   @doc "The board's `millis()` at clock time `now`."
@@ -348,6 +392,14 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   @spec receive(t(), binary(), integer()) :: {t(), binary()}
   def receive(%__MODULE__{} = fw, bytes, now) when is_binary(bytes) do
     {fw, out} = tick(fw, now)
+
+    if millis(fw, now) < 0,
+      do: {%{fw | boot_lost: fw.boot_lost + byte_size(bytes)}, out},
+      else: buffer(fw, bytes, out)
+  end
+
+  # the serial receive buffer keeps what fits
+  defp buffer(fw, bytes, out) do
     room = @rx_size - byte_size(fw.rx)
     kept = binary_part(bytes, 0, min(room, byte_size(bytes)))
 
@@ -366,7 +418,10 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   """
   @spec tick(t(), integer()) :: {t(), binary()}
   def tick(%__MODULE__{} = fw, now) when is_integer(now) do
-    {fw, out} = run(%{fw | outbox: []}, millis(fw, now), [fw.outbox])
+    m = millis(fw, now)
+    # the setup's lines, boot:1 last, once the setup is done
+    {boot, fw} = if m >= fw.setup_ms, do: {fw.outbox, %{fw | outbox: []}}, else: {[], fw}
+    {fw, out} = run(fw, m, [boot])
     {fw, IO.iodata_to_binary(out)}
   end
 
@@ -477,7 +532,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
 
   @doc """
   The firmware's split of a command (`strtok` at spaces, commas, parentheses and `;`): the
-  name and the argument tokens as received. The SITL board's own parser (the server's
+  name and the argument tokens as received (`Neptunus.Protocol.OpenROV.call/1`, which the
+  board link uses to know the echo a command gets). The SITL board's own parser (the server's
   `Neptunus.Protocol.OpenROV.parse_command/1` knows only the commands the server sends).
 
       iex> Neptunus.Vehicle.Board.SITL.Firmware.tokens("mtrmod1(100, 100,150);")
@@ -486,12 +542,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
       {"", []}
   """
   @spec tokens(binary()) :: {binary(), [binary()]}
-  def tokens(text) when is_binary(text) do
-    case String.split(text, [" ", ",", "(", ")", ";"], trim: true) |> Enum.reject(&(&1 == "")) do
-      [name | args] -> {name, args}
-      [] -> {"", []}
-    end
-  end
+  def tokens(text) when is_binary(text), do: OpenROV.call(text)
 
   @doc """
   C's `atoi` into the AVR's 16-bit `int`: leading spaces, a sign, digits; anything else
@@ -684,6 +735,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
            fw
            | applied_us: fw.target_us,
              esc_us: esc,
+             esc_log: Enum.take([{m, esc} | fw.esc_log], @esc_log),
              bypass: false,
              thrusters: Wiring.from_us(fw.wiring, esc)
          }, ["motors:", join3(esc), ";\r\n"]}
@@ -942,7 +994,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
     [
       "Depth Sensor setup.\r\nDepth Sensor: initialized I2C\r\nDepth Sensor is reset\r\n",
       "Depth: Calibration constants are:\r\n",
-      "log:init on primary addresses;\r\n"
+      "log:init on primary addresses;\r\n",
+      "boot:1;\r\n"
     ]
   end
 
@@ -954,7 +1007,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
         ["Depth.C", Integer.to_string(i), ?:, Integer.to_string(c), ";\r\n"]
       end)
 
-    [constants, "log:init on primary addresses;\r\n"]
+    [constants, "log:init on primary addresses;\r\n", "boot:1;\r\n"]
   end
 
   defp join3({a, b, c}), do: Enum.map_join([a, b, c], ",", &Integer.to_string/1)

@@ -23,9 +23,18 @@ defmodule Neptunus.Vehicle.Board.UART do
       `%{configured, detected}`), never acted on (`Neptunus.Protocol.BoardLink`).
     * **The board's state on every (re)open, board reset and deadman recovery**: a neutral
       `go()` first, then the motor modifiers (`mtrmod1`/`mtrmod2` from the wiring, see
-      `Neptunus.Wiring`), lights, laser and tilt. A board reset (its uptime going backwards)
-      and every (re)open are also told to navigation (`Navigation.board_reset/2`): its
-      measurements start afresh.
+      `Neptunus.Wiring`), lights, laser and tilt. A board reset (its uptime going backwards,
+      or its start-up line `boot:1;`) and every (re)open are also told to navigation
+      (`Navigation.board_reset/2`): its measurements start afresh.
+    * **Settings confirmed, thrust held until they are** (`Neptunus.Protocol.BoardLink`
+      decides): every setting is written again until the board echoes it, with a bound
+      after which it is shown as failed with a reason (and still written, slower); a thrust
+      demand other than neutral is held — a neutral `go()` written instead — until the board
+      has confirmed the motor modifiers, then written. A hold is logged, broadcast as event
+      `board` `%{event: "thrust_held", reason}` and put in the developer logger; the link
+      status and telemetry show `board_settings` (`confirmed`, `pending`, `failed`), what is
+      pending, why one failed, and `thrust_held`. A timer runs only while a setting is not
+      confirmed.
     * **Commands.** `go` casts become `go(...)` with the vehicle's `Neptunus.Wiring` (order,
       reversed motors, flag). Commands while the link is down are dropped (counted), never
       queued: the next link starts neutral. Writes are paced (`Neptunus.Protocol.Pacer`: at
@@ -96,7 +105,8 @@ defmodule Neptunus.Vehicle.Board.UART do
             ping_interval_ms: pos_integer(),
             keepalive_timeout_ms: pos_integer(),
             ping_n: non_neg_integer(),
-            devices: %{optional(:lights | :laser | :tilt) => number()},
+            demand: Neptunus.Allocation.thrusters(),
+            confirm_timer: {reference(), integer()} | nil,
             counters: %{atom() => non_neg_integer()}
           }
     @enforce_keys [
@@ -129,6 +139,7 @@ defmodule Neptunus.Vehicle.Board.UART do
       :announced,
       :program_error,
       :heard_at_ms,
+      :confirm_timer,
       port_env: [],
       link: :down,
       reason: "not opened yet",
@@ -137,7 +148,7 @@ defmodule Neptunus.Vehicle.Board.UART do
       ping_interval_ms: 1_000,
       keepalive_timeout_ms: 2_000,
       ping_n: 0,
-      devices: %{},
+      demand: %{port: 0.0, vertical: 0.0, starboard: 0.0},
       counters: %{
         opens: 0,
         downs: 0,
@@ -161,6 +172,9 @@ defmodule Neptunus.Vehicle.Board.UART do
     * `:firmware` — `:openrov_25` (default) or `:openrov_30`
     * `:ping_interval` — ms between deadman pings, default 1000
     * `:keepalive_timeout` — ms since control was last heard after which pings stop, default 2000
+    * `:confirm_retry`, `:confirm_attempts` — a setting the board has not echoed is written
+      again every `confirm_retry` ms (250), and shown as failed after `confirm_attempts` (8)
+      writes (`Neptunus.Protocol.BoardLink`)
     * `:reopen_min`, `:reopen_max` — reopen backoff in ms, default 100 and 5000
     * `:max_line` — longest telemetry line kept, bytes, default 512
     * `:program` — path of the port program, default `priv/neptunus_uart`
@@ -183,7 +197,8 @@ defmodule Neptunus.Vehicle.Board.UART do
   The link's state: `%{up, reason, device, baud, since_ms, queued, counters}` and the fields
   of `Neptunus.Protocol.BoardLink.status/2` (`firmware detected_firmware firmware_mismatch
   rtt_ms pong_age_ms board_uptime_ms board_deadman_armed board_deadman_tripped commands_sent
-  commands_confirmed crc_failures board_resets deadman_recoveries`), where `since_ms` is how
+  commands_confirmed crc_failures board_resets deadman_recoveries board_settings
+  board_settings_pending board_settings_reason thrust_held`), where `since_ms` is how
   long the link has been in its current state, `queued` the commands waiting for the pacer
   and `counters` merges the link's counters (`opens downs commands dropped_commands
   dropped_bytes pings pings_withheld`) with the readings' (`lines samples overlong text debug
@@ -222,16 +237,23 @@ defmodule Neptunus.Vehicle.Board.UART do
     id = Keyword.fetch!(opts, :id)
     now = now_ms()
     profile = Keyword.get(opts, :firmware) || :openrov_25
+    wiring = Keyword.get(opts, :wiring) || Wiring.default()
+    [mtrmod1, mtrmod2] = Wiring.modifier_commands(wiring)
 
     state = %State{
       id: id,
       topic: Telemetry.topic(id),
       device: Keyword.fetch!(opts, :device),
       baud: Keyword.get(opts, :baud, @default_baud),
-      wiring: Keyword.get(opts, :wiring) || Wiring.default(),
+      wiring: wiring,
       profile: profile,
       pacer: Pacer.new(),
-      board_link: BoardLink.new(profile),
+      board_link:
+        BoardLink.new(profile,
+          settings: [mtrmod1: mtrmod1, mtrmod2: mtrmod2],
+          retry_ms: Keyword.get(opts, :confirm_retry, 250),
+          attempts: Keyword.get(opts, :confirm_attempts, 8)
+        ),
       program: Keyword.get(opts, :program, program()),
       port_env: Neptunus.OS.port_env(Keyword.get(opts, :os_time_slice_ns)),
       backoff:
@@ -251,13 +273,30 @@ defmodule Neptunus.Vehicle.Board.UART do
   def handle_continue(:open, state), do: {:noreply, open(state)}
 
   @impl true
+  # The control path: a held demand (the board has not confirmed its motor modifiers) goes
+  # out as neutral, and as itself once they are (BoardLink's :release).
   def handle_cast({:go, thrusters}, state) do
-    state = %{state | heard_at_ms: now_ms()}
+    us = Wiring.to_us(state.wiring, thrusters)
+
+    {board_link, verdict, actions} = BoardLink.demand(state.board_link, us == {1500, 1500, 1500})
+
+    state = %{state | heard_at_ms: now_ms(), demand: thrusters, board_link: board_link}
 
     case state.link do
       :up ->
         state = bump(state, :commands)
-        {:noreply, go(state, thrusters)}
+
+        state =
+          case verdict do
+            :send ->
+              go_us(state, us)
+
+            :hold ->
+              Navigation.command(state.id, Allocation.neutral())
+              go(state, Allocation.neutral())
+          end
+
+        {:noreply, perform(state, actions)}
 
       _ ->
         {:noreply, bump(state, :dropped_commands)}
@@ -267,17 +306,16 @@ defmodule Neptunus.Vehicle.Board.UART do
   def handle_cast(:keepalive, state), do: {:noreply, %{state | heard_at_ms: now_ms()}}
 
   # Lights, laser and tilt are sent at once, independent of thrust (thesis §13.1), and kept
-  # so a reopened link gets them back; while the link is down they are only kept.
+  # (BoardLink) so a reopened link gets them back; while the link is down they are only kept.
   def handle_cast({:device, device, value}, state) do
-    state = %{state | devices: Map.put(state.devices, device, value)}
+    {board_link, actions} =
+      BoardLink.set(state.board_link, device, device_command(device, value), now_ms())
+
+    state = %{state | board_link: board_link}
 
     case state.link do
-      :up ->
-        {:noreply,
-         state |> bump(:commands) |> command({:device, device}, device_command(device, value))}
-
-      _ ->
-        {:noreply, bump(state, :dropped_commands)}
+      :up -> {:noreply, state |> bump(:commands) |> perform(actions)}
+      _ -> {:noreply, bump(state, :dropped_commands)}
     end
   end
 
@@ -321,6 +359,12 @@ defmodule Neptunus.Vehicle.Board.UART do
   end
 
   def handle_info(:pace, state), do: {:noreply, drain(%{state | pace_timer: nil})}
+
+  def handle_info(:confirm, state) do
+    {board_link, actions} = BoardLink.tick(state.board_link, now_ms())
+    state = %{state | board_link: board_link, confirm_timer: nil}
+    {:noreply, state |> perform(actions) |> confirm_timer()}
+  end
 
   # The port is linked to us (we trap exits). When its program exits, the exit_status message
   # (above) comes first and does the work. A port closed before the program's exit status
@@ -379,20 +423,23 @@ defmodule Neptunus.Vehicle.Board.UART do
   end
 
   defp program_message(?o, _path, state) do
+    now = now_ms()
+    {board_link, actions} = BoardLink.opened(state.board_link, now)
+
     state =
       %{
         state
         | link: :up,
-          since_ms: now_ms(),
+          since_ms: now,
           readings: Readings.reset(state.readings),
           pacer: Pacer.clear(state.pacer),
-          board_link: BoardLink.opened(state.board_link)
+          board_link: board_link
       }
       |> bump(:opens)
       |> announce(true, "open")
 
     board_reset(state, "board link opened")
-    send_state(state)
+    perform(state, actions)
   end
 
   defp program_message(?r, bytes, state) do
@@ -436,6 +483,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     state = %{
       state
       | link: :down,
+        board_link: BoardLink.closed(state.board_link),
         pacer: Pacer.clear(state.pacer),
         backoff: backoff,
         since_ms: if(was_up, do: now, else: state.since_ms)
@@ -480,37 +528,54 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   # The board's state -------------------------------------------------------------------------
 
-  # Neutral first, then the motor modifiers, lights, laser and tilt.
-  defp send_state(state) do
-    [mtrmod1, mtrmod2] = Wiring.modifier_commands(state.wiring)
-
-    state
-    |> go(Allocation.neutral())
-    |> command(:mtrmod1, mtrmod1)
-    |> command(:mtrmod2, mtrmod2)
-    |> then(fn state ->
-      Enum.reduce(state.devices, state, fn {device, value}, state ->
-        command(state, {:device, device}, device_command(device, value))
-      end)
-    end)
-  end
-
   defp board_event(event, state, now) do
     {board_link, actions} = BoardLink.event(state.board_link, event, now)
-    Enum.reduce(actions, %{state | board_link: board_link}, &board_action/2)
+    perform(%{state | board_link: board_link}, actions)
   end
+
+  # Carries out what the board link's core decided, in order; while a setting is not
+  # confirmed, a timer asks it again.
+  defp perform(state, []), do: state
+
+  defp perform(state, actions),
+    do: actions |> Enum.reduce(state, &board_action/2) |> confirm_timer()
+
+  # one timer, for the earliest time the core has something to do (a stale one is harmless:
+  # the core does nothing before its time)
+  defp confirm_timer(state) do
+    case {BoardLink.next_tick_at(state.board_link), state.confirm_timer} do
+      {nil, _} ->
+        state
+
+      {at, {_ref, armed_at}} when armed_at <= at ->
+        state
+
+      {at, timer} ->
+        if timer, do: Process.cancel_timer(elem(timer, 0))
+        ref = Process.send_after(self(), :confirm, max(at - now_ms(), 0))
+        %{state | confirm_timer: {ref, at}}
+    end
+  end
+
+  # navigation's model follows what the motors get (Board.go/2 told it the demand)
+  defp board_action(:neutral, state) do
+    Navigation.command(state.id, Allocation.neutral())
+    go(state, Allocation.neutral())
+  end
+
+  defp board_action({:send, key, command}, state), do: command(state, key, command)
 
   defp board_action({:board_reset, reason}, state) do
     Logger.warning("vehicle #{state.id}: #{reason}: sending its state again")
     PubSub.broadcast(state.topic, "board", %{event: "reset", reason: reason})
     board_reset(state, reason)
-    send_state(%{state | readings: Readings.board_reset(state.readings)})
+    %{state | readings: Readings.board_reset(state.readings)}
   end
 
   defp board_action({:deadman_recovery, reason}, state) do
     Logger.warning("vehicle #{state.id}: #{reason}; it was cleared: sending its state again")
     PubSub.broadcast(state.topic, "board", %{event: "deadman_recovery", reason: reason})
-    send_state(state)
+    state
   end
 
   defp board_action({:firmware_mismatch, detected}, state) do
@@ -526,6 +591,43 @@ defmodule Neptunus.Vehicle.Board.UART do
     report_link(state)
     state
   end
+
+  defp board_action({:hold, reason}, state) do
+    Logger.warning("vehicle #{state.id}: #{reason}")
+    PubSub.broadcast(state.topic, "board", %{event: "thrust_held", reason: reason})
+    log_entry(state, "warning", reason)
+    report_link(state)
+    state
+  end
+
+  defp board_action(:release, state) do
+    log_entry(state, "info", "board settings confirmed: the held thrust goes to the board")
+    report_link(state)
+    Navigation.command(state.id, state.demand)
+    go(state, state.demand)
+  end
+
+  defp board_action({:settings, summary}, state) do
+    case summary.state do
+      :confirmed ->
+        Logger.info("vehicle #{state.id}: board settings confirmed")
+        log_entry(state, "info", "board settings confirmed")
+
+      :failed ->
+        message = "board settings not confirmed: #{summary.reason}"
+        Logger.error("vehicle #{state.id}: #{message}")
+        log_entry(state, "error", message)
+
+      :pending ->
+        :ok
+    end
+
+    report_link(state)
+    state
+  end
+
+  # an entry for the developer page's logger (category link) and the recording
+  defp log_entry(state, level, message), do: Telemetry.log(state.id, "link", level, message)
 
   # Navigation starts its measurements afresh: nothing read before is trusted.
   defp board_reset(state, reason), do: Navigation.board_reset(state.id, reason)
@@ -544,10 +646,10 @@ defmodule Neptunus.Vehicle.Board.UART do
   # I/O ------------------------------------------------------------------------------------
 
   # A neutral go() is sticky: never replaced by a later go() while it waits (Pacer).
-  defp go(state, thrusters) do
-    us = Wiring.to_us(state.wiring, thrusters)
-    command(state, :go, OpenROV.go(us, state.wiring.direct), sticky: us == {1500, 1500, 1500})
-  end
+  defp go(state, thrusters), do: go_us(state, Wiring.to_us(state.wiring, thrusters))
+
+  defp go_us(state, us),
+    do: command(state, :go, OpenROV.go(us, state.wiring.direct), sticky: us == {1500, 1500, 1500})
 
   # Queues a command (framed for the firmware) and writes what the pacer allows now.
   defp command(state, key, text, opts \\ [])

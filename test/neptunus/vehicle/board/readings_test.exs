@@ -93,7 +93,7 @@ defmodule Neptunus.Vehicle.Board.ReadingsFirmwareTest do
     assert events == [
              :rawcmd,
              {:crc, :pass},
-             {:echo, "ping", true},
+             {:echo, "ping", ["7"], true},
              {:pong, %{args: 1, millis: 183_422}},
              {:icmd, "stop"},
              {:crc, {:fail, 0xA1, 0x3B}},
@@ -113,6 +113,23 @@ defmodule Neptunus.Vehicle.Board.ReadingsFirmwareTest do
     # the unknown keys, dotted or glued, are parsed and left out
     assert r.counters.malformed == 0
     refute Enum.any?(Map.keys(r.board), &is_binary/1)
+  end
+
+  test "the firmware's start-up line and an echo with its arguments are events; a cut echo counts, confirms nothing" do
+    bytes =
+      "log:init on primary addresses;\r\nboot:1;\r\n" <>
+        "cmd:mtrmod1(100,100,100);\r\ncmd:stop();\r\ncmd:ligt(1\r\n"
+
+    {r, [], events} = feed(bytes)
+
+    assert events == [
+             :boot,
+             {:echo, "mtrmod1", ["100", "100", "100"], false},
+             {:echo, "stop", [], false},
+             {:echo, "ligt", nil, false}
+           ]
+
+    assert r.counters.malformed == 0
   end
 
   test "a 2.5 board's echo of a CRC-prefixed command: the CRC byte before the name" do

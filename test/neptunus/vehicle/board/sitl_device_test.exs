@@ -64,6 +64,41 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
     assert String.to_integer(millis) < 2_000
   end
 
+  test "reset_on_open: every open of the line reboots the board into its bootloader, which loses what arrives" do
+    {id, port} = start_device(reset_on_open: true, bootloader_ms: 1_000)
+    # our open of the line rebooted it; what we write at once is lost (the open is told to
+    # the board before the bytes that follow it)
+    write(port, "ligt(77);")
+
+    wait_until(
+      fn -> Device.state(id).firmware.boot_lost >= 9 end,
+      "lost in the bootloader",
+      3_000
+    )
+
+    assert Device.state(id).resets == 1
+    out = recv_until(port, &(&1 =~ "boot:1;\r\n"), 3_000)
+    assert out =~ "log:init on primary addresses;\r\nboot:1;\r\n"
+    write(port, "ligt(78);")
+    wait_until(fn -> Device.state(id).firmware.lights == 78 end, "after the boot", 2_000)
+    assert %{opens: 1, resets: 1} = Device.state(id)
+    assert Device.state(id).firmware.commands == 1
+
+    # another open (after a close: the line is opened exclusively): another reboot
+    Port.close(port)
+    second = open!(Device.state(id).pty)
+    wait_until(fn -> Device.state(id).resets == 2 end, "the second open", 2_000)
+    assert Device.state(id).firmware.lights == 0
+    Port.close(second)
+  end
+
+  test "without reset_on_open an open is counted, the board runs on" do
+    {id, port} = start_device()
+    write(port, "ligt(5);")
+    wait_until(fn -> Device.state(id).firmware.lights == 5 end, "lights", 2_000)
+    assert %{opens: 1, resets: 0} = Device.state(id)
+  end
+
   test "30.x: framed commands pass, plain ones fail their CRC" do
     {id, port} = start_device(firmware: :openrov_30)
     write(port, OpenROV.frame("ping(3);", :openrov_30))

@@ -104,6 +104,47 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
       assert fw.last_ping == 110
     end
 
+    for profile <- @profiles do
+      test "#{profile}: boot:1 ends the setup's lines, when the setup is done" do
+        fw = Firmware.new(0, firmware: unquote(profile), setup_ms: 20)
+        assert {fw, ""} = Firmware.tick(fw, 19)
+        {_fw, out} = Firmware.tick(fw, 20)
+        assert [_ | _] = setup = lines(out)
+        assert List.last(setup) == "boot:1;"
+        assert Enum.count(setup, &(&1 == "boot:1;")) == 1
+      end
+
+      test "#{profile}: the bootloader loses what arrives, writes nothing, then the firmware starts" do
+        profile = unquote(profile)
+        fw = Firmware.new(1_000, firmware: profile, bootloader_ms: 500, setup_ms: 20)
+        assert Firmware.millis(fw, 1_500) == 0
+        {fw, ""} = Firmware.receive(fw, wire("mtrmod1(100,100,100);", profile), 1_010)
+        {fw, ""} = Firmware.receive(fw, wire("go(1300,1500,1700,1);", profile), 1_499)
+        assert {fw, ""} = Firmware.tick(fw, 1_519)
+        assert fw.boot_lost > 0 and fw.rx == "" and fw.commands == 0
+        # its setup done, boot:1; then what arrives is read
+        {fw, out} = Firmware.tick(fw, 1_520)
+        assert out =~ ~r/boot:1;\r\n\z/
+        {fw, out} = send_cmd(fw, "ping(3);", 1_530, 1_545)
+        assert out =~ "pong:1,"
+        # the reset of a running board starts another bootloader
+        fw = Firmware.reset(fw, 5_000)
+        {fw, ""} = Firmware.receive(fw, wire("ligt(9);", profile), 5_100)
+        {fw, _} = Firmware.tick(fw, 5_600)
+        assert fw.lights == 0 and fw.commands == 0
+      end
+    end
+
+    test "the ESC pulses the motors got are logged, newest first" do
+      fw = boot(wiring: @plain)
+      {fw, _} = send_cmd(fw, "go(1600,1500,1500);", 1, 60)
+      {fw, _} = send_cmd(fw, "go(1400,1500,1500);", 61, 120)
+      # the firmware's default modifiers: forward ×1, reverse ×2
+      assert [{m2, {1270, 1500, 1500}}, {m1, {1640, 1500, 1500}}] = fw.esc_log
+      assert m2 > m1
+      assert Firmware.reset(fw, 200).esc_log == []
+    end
+
     test "bad options are refused" do
       assert_raise ArgumentError, ~r/firmware/, fn -> Firmware.new(0, firmware: :v1) end
       assert_raise ArgumentError, ~r/loop_ms/, fn -> Firmware.new(0, loop_ms: 0) end

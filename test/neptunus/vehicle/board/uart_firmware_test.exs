@@ -9,8 +9,9 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
 
   import Neptunus.Test.Pty
 
+  alias Neptunus.PubSub
   alias Neptunus.Protocol.OpenROV
-  alias Neptunus.Vehicle.Board
+  alias Neptunus.Vehicle.{Board, Telemetry}
   alias Neptunus.Vehicle.Board.UART
 
   # the test process stands in for the vehicle's navigation and telemetry
@@ -25,7 +26,10 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
       ping_interval: 100,
       keepalive_timeout: 60_000,
       reopen_min: 20,
-      reopen_max: 200
+      reopen_max: 200,
+      # the fake board echoes when the test says so: no retries meanwhile, however slow the
+      # machine (the tests of the retries say how often they want them)
+      confirm_retry: 60_000
     ]
 
     start_supervised!({UART, Keyword.merge(defaults, opts)})
@@ -50,6 +54,22 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
     end)
   end
 
+  # what the firmware answers to commands (30.x: crc:pass glued to the echo)
+  defp echo(board, commands, profile) do
+    prefix = if profile == :openrov_30, do: "crc:pass;", else: ""
+
+    write(
+      board,
+      Enum.map_join(commands, &(prefix <> "cmd:" <> String.trim_trailing(&1, ";") <> ";\r\n"))
+    )
+  end
+
+  @mods ["mtrmod1(100,100,100);", "mtrmod2(100,100,100);"]
+
+  defp confirmed!(ctx) do
+    wait_until(fn -> UART.link_status(ctx.id).board_settings == "confirmed" end, "confirmed")
+  end
+
   test "openrov-30: every command written carries a valid CRC byte", ctx do
     start_uart(ctx, firmware: :openrov_30)
     opening = recv_framed(ctx.board, 3)
@@ -59,6 +79,9 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
              {true, "mtrmod1(100,100,100);"},
              {true, "mtrmod2(100,100,100);"}
            ]
+
+    echo(ctx.board, @mods, :openrov_30)
+    confirmed!(ctx)
 
     Board.go(ctx.id, %{port: 0.5, vertical: 0.0, starboard: 0.5})
     UART.lights(ctx.id, 50)
@@ -168,5 +191,159 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
     texts = ctx.board |> recv_framed(4) |> Enum.map(&elem(&1, 1))
     assert "ligt(120);" in texts and "go(1500,1500,1500,1);" in texts
     assert %{deadman_recoveries: 1, board_deadman_tripped: false} = UART.link_status(ctx.id)
+  end
+
+  describe "settings confirmed, thrust held until the motor modifiers are" do
+    for profile <- [:openrov_25, :openrov_30] do
+      test "#{profile}: settings written again until echoed; thrust held at neutral meanwhile, then sent",
+           ctx do
+        profile = unquote(profile)
+        start_uart(ctx, firmware: profile, confirm_retry: 100)
+        recv_framed_or_plain(ctx.board, profile, 3)
+        UART.lights(ctx.id, 80)
+        recv_commands(ctx.board, profile, &("ligt(80);" in &1))
+
+        # the pilot's surge before the board confirmed anything: the board gets neutral
+        Board.go(ctx.id, %{port: 0.4, vertical: 0.0, starboard: 0.4})
+
+        assert gos(recv_commands(ctx.board, profile, &(gos(&1) != []))) == [
+                 "go(1500,1500,1500,1);"
+               ]
+
+        assert_receive {:pubsub, _, "board", %{event: "thrust_held", reason: reason}}, 2_000
+        assert reason =~ "board settings not confirmed (mtrmod1, mtrmod2)"
+        assert %{thrust_held: true, board_settings: "pending"} = UART.link_status(ctx.id)
+
+        # nothing echoed: each is written again (the pings are the deadman's)
+        wanted = @mods ++ ["ligt(80);"]
+        again = recv_commands(ctx.board, profile, &Enum.all?(wanted, fn c -> c in &1 end))
+        assert Enum.sort(Enum.uniq(again)) == Enum.sort(wanted)
+
+        # the board echoes one modifier: still held; the other: the held demand goes out
+        echo(ctx.board, ["mtrmod1(100,100,100);", "ligt(80);"], profile)
+
+        wait_until(
+          fn -> UART.link_status(ctx.id).board_settings_pending == ["mtrmod2"] end,
+          "one left"
+        )
+
+        assert UART.link_status(ctx.id).thrust_held
+        echo(ctx.board, ["mtrmod2(100,100,100);"], profile)
+
+        assert "go(1300,1500,1700,1);" in recv_until_command(ctx.board, profile, "go(1300")
+
+        assert %{board_settings: "confirmed", board_settings_pending: [], thrust_held: false} =
+                 UART.link_status(ctx.id)
+
+        # the page's telemetry and the developer logger were told
+        assert_receive {:"$gen_cast",
+                        {:link, %{board_settings: "confirmed", thrust_held: false}}},
+                       2_000
+      end
+    end
+
+    test "the firmware's start-up line (boot:1) is a board reset: state again, thrust held until confirmed",
+         ctx do
+      start_uart(ctx, firmware: :openrov_25)
+      recv_framed_or_plain(ctx.board, :openrov_25, 3)
+      UART.tilt(ctx.id, 0.0)
+      recv_framed_or_plain(ctx.board, :openrov_25, 1)
+      echo(ctx.board, @mods ++ ["tilt(1500);"], :openrov_25)
+      confirmed!(ctx)
+      Board.go(ctx.id, %{port: 0.0, vertical: 0.5, starboard: 0.0})
+
+      assert gos(recv_commands(ctx.board, :openrov_25, &(gos(&1) != []))) == [
+               "go(1500,1750,1500,1);"
+             ]
+
+      # the board restarts (a USB Arduino when the line opens): its setup lines, then boot:1
+      write(ctx.board, "Depth Sensor setup.\r\nlog:init on primary addresses;\r\nboot:1;\r\n")
+      assert_receive {:pubsub, _, "board", %{event: "reset", reason: reason}}, 2_000
+      assert reason =~ "boot:1"
+      assert_receive {:"$gen_cast", {:board_reset, ^reason}}, 2_000
+
+      # (the pings are the deadman's)
+      assert recv_commands(ctx.board, :openrov_25, &(length(&1) >= 4)) ==
+               ["go(1500,1500,1500,1);" | @mods] ++ ["tilt(1500);"]
+
+      assert %{board_resets: 1, thrust_held: true} = UART.link_status(ctx.id)
+      echo(ctx.board, @mods, :openrov_25)
+      assert "go(1500,1750,1500,1);" in recv_until_command(ctx.board, :openrov_25, "go(1500,1750")
+    end
+
+    test "a setting never echoed: failed after the bound, with a reason, still written slower; thrust held",
+         ctx do
+      PubSub.subscribe(Telemetry.log_topic(ctx.id))
+      start_uart(ctx, firmware: :openrov_25, confirm_retry: 30, confirm_attempts: 3)
+      # (a demand from before the link opened would not count: a new link starts neutral)
+      assert_receive {:pubsub, _, "link", %{up: true}}, 2_000
+      Board.go(ctx.id, %{port: 0.4, vertical: 0.0, starboard: 0.4})
+
+      assert_receive {:pubsub, _, "log", %{category: "link", level: "warning", message: held}},
+                     2_000
+
+      assert held =~ "thrust held at neutral"
+
+      status =
+        wait_until(
+          fn -> (s = UART.link_status(ctx.id)).board_settings == "failed" && s end,
+          "failed"
+        )
+
+      assert status.board_settings_reason =~ "has not confirmed mtrmod1(100,100,100);"
+      assert status.thrust_held
+      assert_receive {:pubsub, _, "log", %{level: "error", message: message}}, 2_000
+      assert message =~ "board settings not confirmed: the board has not confirmed"
+
+      assert_receive {:"$gen_cast",
+                      {:link,
+                       %{board_settings: "failed", board_settings_reason: "the board" <> _}}},
+                     2_000
+
+      # still written (every second), and confirmed when the board answers at last
+      drain(ctx.board, 0)
+      recv_commands(ctx.board, :openrov_25, &(@mods -- &1 == []))
+      echo(ctx.board, @mods, :openrov_25)
+      confirmed!(ctx)
+      refute UART.link_status(ctx.id).thrust_held
+    end
+  end
+
+  # The next `count` commands the board reads, as text (30.x: unframed, CRC checked).
+  defp recv_framed_or_plain(board, :openrov_30, count) do
+    board |> recv_framed(count) |> Enum.map(fn {true, text} -> text end)
+  end
+
+  defp recv_framed_or_plain(board, :openrov_25, count) do
+    bytes = recv_until(board, &(length(:binary.split(&1, ";", [:global])) > count), 3_000)
+    bytes |> :binary.split(";", [:global]) |> Enum.drop(-1) |> Enum.map(&(&1 <> ";"))
+  end
+
+  # the commands the board reads but pings, until `done?` of them (3 s at most)
+  defp recv_commands(board, profile, done?) do
+    commands = fn bytes ->
+      case profile do
+        :openrov_25 ->
+          bytes |> :binary.split(";", [:global]) |> Enum.drop(-1) |> Enum.map(&(&1 <> ";"))
+
+        :openrov_30 ->
+          bytes |> split_framed() |> Enum.map(&elem(&1, 1))
+      end
+      |> Enum.reject(&String.starts_with?(&1, "ping("))
+    end
+
+    board |> recv_until(&done?.(commands.(&1)), 3_000) |> commands.()
+  end
+
+  defp gos(commands), do: Enum.filter(commands, &String.starts_with?(&1, "go("))
+
+  # commands until one starting with `prefix`
+  defp recv_until_command(board, profile, prefix) do
+    bytes = recv_until(board, &String.contains?(&1, prefix), 3_000)
+
+    case profile do
+      :openrov_25 -> bytes |> :binary.split(";", [:global]) |> Enum.map(&(&1 <> ";"))
+      :openrov_30 -> bytes |> split_framed() |> Enum.map(&elem(&1, 1))
+    end
   end
 end

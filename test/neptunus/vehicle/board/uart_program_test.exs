@@ -6,6 +6,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
 
   import Neptunus.Test.Pty
 
+  alias Neptunus.Test.Patience
   alias Neptunus.Vehicle.Board.UART
 
   defp spawn_program(args, env \\ []) do
@@ -37,7 +38,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     receive do
       {^port, {:exit_status, status}} -> status
     after
-      5_000 -> flunk("the program did not exit")
+      Patience.ms() -> flunk("the program did not exit")
     end
   end
 
@@ -45,7 +46,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     receive do
       {^port, {:data, "e" <> text}} -> text
     after
-      5_000 -> flunk("no error message")
+      Patience.ms() -> flunk("no error message")
     end
   end
 
@@ -147,13 +148,16 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     Port.command(master, ["w", "from master\n"])
     assert recv_until(slave, &(&1 == "from master\n")) == "from master\n"
     write(slave, "ping(1);")
-    assert_receive {^master, {:data, "rping(1);"}}
+    # every open of the slave end is told ('O': the SITL board resets on it), before the bytes
+    assert next_frame(master) == "O"
+    assert next_frame(master) == "rping(1);"
 
     # the board side closes and reopens its end: no hangup on the master side
     Port.close(slave)
     slave = open!(link)
     write(slave, "again")
-    assert_receive {^master, {:data, "ragain"}}
+    assert next_frame(master) == "O"
+    assert next_frame(master) == "ragain"
 
     # the master side goes: the slave hangs up, the link is removed
     Port.close(master)
@@ -187,6 +191,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     master = spawn_program(["pty", link], [{~c"NEPTUNUS_UART_RX_STAMPS", ~c"1"}])
     assert_receive {^master, {:data, "o" <> _}}
     slave = open!(link)
+    assert_receive {^master, {:data, "O"}}
 
     before = os_monotonic_ns()
     write(slave, "hdgd:90;")
@@ -200,7 +205,15 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     plain = spawn_program(["pty", plain_link])
     assert_receive {^plain, {:data, "o" <> _}}
     write(open!(plain_link), "x")
-    assert_receive {^plain, {:data, frame}}
-    assert frame == "rx"
+    assert next_frame(plain) == "O"
+    assert next_frame(plain) == "rx"
+  end
+
+  defp next_frame(port) do
+    receive do
+      {^port, {:data, frame}} -> frame
+    after
+      Patience.ms() -> flunk("no frame from the program")
+    end
   end
 end

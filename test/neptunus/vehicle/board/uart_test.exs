@@ -33,10 +33,22 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
       ping_interval: 50,
       keepalive_timeout: 300,
       reopen_min: 20,
-      reopen_max: 200
+      reopen_max: 200,
+      # the fake board echoes when the test says so: no retries meanwhile, however slow the
+      # machine (the tests of the retries say how often they want them)
+      confirm_retry: 60_000
     ]
 
     start_supervised!({UART, Keyword.merge(defaults, opts)})
+  end
+
+  # The opening as a 2.5 board answers it: the motor modifiers echoed; returns once the link
+  # has them confirmed (a go() before that would be held at neutral).
+  defp opened!(ctx, board, opening \\ @opening) do
+    bytes = recv_until(board, &String.starts_with?(&1, opening))
+    write(board, "cmd:mtrmod1(100,100,100);\r\ncmd:mtrmod2(100,100,100);\r\n")
+    wait_until(fn -> UART.link_status(ctx.id).board_settings == "confirmed" end, "settings")
+    bytes
   end
 
   defp link_event(up) do
@@ -70,7 +82,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     # the board link is on the control path: it runs before the web fan-out
     assert Process.info(uart, :priority) == {:priority, :high}
     assert link_event(true) == "open"
-    assert recv_until(ctx.board, &String.starts_with?(&1, @opening)) =~ @neutral
+    assert opened!(ctx, ctx.board) =~ @neutral
 
     Board.go(ctx.id, %{port: 0.5, vertical: -0.2, starboard: 1.0})
     # default wiring: port reversed
@@ -92,14 +104,14 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
     start_uart(ctx, wiring: wiring)
     opening = "go(1500,1500,1500,0);" <> @modifiers
-    assert recv_until(ctx.board, &(&1 == opening)) == opening
+    assert String.starts_with?(opened!(ctx, ctx.board, opening), opening)
     Board.go(ctx.id, %{port: 1.0, vertical: 1.0, starboard: 0.0})
     assert next_go(ctx.board) == "go(1500,1000,2000,0);"
   end
 
   test "deadman pings only while control is heard from", ctx do
     start_uart(ctx, keepalive_timeout: 200)
-    recv_until(ctx.board, &String.starts_with?(&1, @opening))
+    opened!(ctx, ctx.board)
 
     # control not heard yet: ping ticks pass without a ping (a lights command, written after
     # a withheld tick, shows that none went out before it)
@@ -139,7 +151,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
   test "telemetry lines become samples in SI units, sim: nil", ctx do
     start_uart(ctx)
-    recv_until(ctx.board, &String.starts_with?(&1, @opening))
+    opened!(ctx, ctx.board)
     write(ctx.board, @nav <> @status <> @nav)
 
     assert_receive {:"$gen_cast", {:sample, s1}}
@@ -157,7 +169,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
   test "garbage, wild points and overlong lines are counted, never crash, never reach samples",
        ctx do
     pid = start_uart(ctx, max_line: 128)
-    recv_until(ctx.board, &String.starts_with?(&1, @opening))
+    opened!(ctx, ctx.board)
     write(ctx.board, @nav <> @status)
     assert_receive {:"$gen_cast", {:sample, _}}
 
@@ -183,7 +195,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
   test "hangup → link down → reopen with backoff → neutral again", ctx do
     start_uart(ctx)
     link_event(true)
-    recv_until(ctx.board, &String.starts_with?(&1, @opening))
+    opened!(ctx, ctx.board)
     Board.go(ctx.id, %{port: 1.0, vertical: 1.0, starboard: 1.0})
     recv_until(ctx.board, &String.ends_with?(&1, "1);"))
 
@@ -209,7 +221,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     File.rename!(pair.b, ctx.pair.b)
 
     wait_until(fn -> UART.link_status(ctx.id).up end, "the link back up")
-    assert recv_until(board, &String.starts_with?(&1, @opening)) =~ @neutral
+    assert opened!(ctx, board) =~ @neutral
     assert %{up: true, counters: %{opens: opens}} = UART.link_status(ctx.id)
     assert opens >= 2
   end
@@ -218,7 +230,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
        ctx do
     start_uart(ctx)
     link_event(true)
-    recv_until(ctx.board, &String.starts_with?(&1, @opening))
+    opened!(ctx, ctx.board)
 
     UART.lights(ctx.id, 200)
     assert recv_until(ctx.board, &String.ends_with?(&1, ";")) == "ligt(200);"
@@ -248,14 +260,14 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
   test "the port program dying is a link down too ({:exit_status, n}), then it reopens", ctx do
     start_uart(ctx)
     link_event(true)
-    recv_until(ctx.board, &String.starts_with?(&1, @opening))
+    opened!(ctx, ctx.board)
 
     {:os_pid, os_pid} = Port.info(:sys.get_state(Board.via(ctx.id)).port, :os_pid)
     System.cmd("kill", ["-KILL", Integer.to_string(os_pid)])
 
     assert link_event(false) == "port program exited with status 137"
     assert link_event(true) == "open"
-    assert recv_until(ctx.board, &String.starts_with?(&1, @opening)) =~ @neutral
+    assert opened!(ctx, ctx.board) =~ @neutral
   end
 
   test "its port closed without an exit status (a write that found the program gone) is a link down too, then it reopens",
@@ -305,7 +317,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
   test "an orderly shutdown writes neutral before the port closes", ctx do
     start_uart(ctx)
-    recv_until(ctx.board, &String.starts_with?(&1, @opening))
+    opened!(ctx, ctx.board)
     Board.go(ctx.id, %{port: 1.0, vertical: 0.0, starboard: 1.0})
     assert next_go(ctx.board) == "go(1000,1500,2000,1);"
     stop_supervised!(UART)
