@@ -80,9 +80,9 @@ defmodule Bench.OpenReset do
 
     surge = %{"mode" => "motion", "surge" => 0.8, "heave" => 0, "yaw" => 0}
     {:ok, _} = Control.thrust(id, surge)
-    wait(fn -> started?(SITL.Device.state(id).firmware) end)
+    wait(id, "the board's start", fn -> started?(SITL.Device.state(id).firmware) end)
     {:ok, _} = Control.thrust(id, surge)
-    wait(fn -> moving?(SITL.Device.state(id).firmware.esc_us) end)
+    wait(id, "the motors to move", fn -> moving?(SITL.Device.state(id).firmware.esc_us) end)
 
     fw = SITL.Device.state(id).firmware
     moved = for {m, esc} <- Enum.reverse(fw.esc_log), moving?(esc), do: {m, offsets(esc)}
@@ -101,17 +101,22 @@ defmodule Bench.OpenReset do
   defp moving?({p, _v, s}), do: p != 1500 or s != 1500
   defp offsets({p, _v, s}), do: {abs(p - 1500), abs(s - 1500)}
 
-  defp wait(fun, left \\ 10_000) do
+  defp wait(id, what, fun, left \\ 10_000) do
     cond do
       fun.() ->
         :ok
 
       left <= 0 ->
-        raise "timed out"
+        fw = SITL.Device.state(id).firmware
+
+        raise "#{id}: waited 10 s for #{what}; the link: " <>
+                inspect(Neptunus.Vehicle.Board.link_status(id)) <>
+                "; the board: " <>
+                inspect(Map.take(fw, [:target_us, :applied_us, :esc_us, :armed, :tripped]))
 
       true ->
         Process.sleep(5)
-        wait(fun, left - 5)
+        wait(id, what, fun, left - 5)
     end
   end
 end
