@@ -124,6 +124,22 @@ defmodule Neptunus.Vehicle.CameraTest do
     assert_receive {:pubsub, _, "camera", %{state: "starting", restarts: 1}}
   end
 
+  test "a port that ends with only its exit signal (a write that found the program gone) is an exit too" do
+    # what the VM gets when an acknowledgement written as the program ends fails (epipe): the
+    # port program's 'x' with the code, then the port's exit signal, no exit status
+    marker = "#{System.unique_integer([:positive])}"
+    on_exit(fn -> System.cmd("pkill", ["-f", "^sleep 4#{marker}$"]) end)
+    id = start!(sh("echo 'no signal' >&2; exec sleep 4#{marker}"), stall_ms: 600_000)
+    camera = GenServer.whereis(Neptunus.Fleet.via(Camera, id))
+    assert wait_until(fn -> :sys.get_state(camera).errors == ["no signal"] end)
+    port = :sys.get_state(camera).port
+
+    send(camera, {port, {:data, <<?x, 7>>}})
+    send(camera, {:EXIT, port, :epipe})
+
+    assert camera_event("restarting").reason == "the camera program exited (status 7): no signal"
+  end
+
   test "a missing program: failed, said so, never a crash" do
     id = start!(%{kind: :exec, codec: :mjpeg, program: "/nonexistent/camera", args: []})
 
