@@ -31,7 +31,6 @@ defmodule NeptunusWeb.Test.WSClient do
   use GenServer
 
   @guid "258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
-  @close_timeout 5_000
 
   @opcodes %{continuation: 0, text: 1, binary: 2, close: 8, ping: 9, pong: 10}
 
@@ -153,8 +152,8 @@ defmodule NeptunusWeb.Test.WSClient do
   @doc """
   Starts the closing handshake: sends a close frame with `code` and
   `reason`. The owner then gets the server's `{:close, code, reason}` and
-  `:closed`; TCP is dropped after #{@close_timeout} ms if the server does not
-  answer.
+  `:closed`; TCP is dropped after `Neptunus.Test.Patience.ms/0` if the server
+  does not answer.
   """
   @spec close(pid(), non_neg_integer(), String.t()) :: :ok | {:error, term()}
   def close(pid, code \\ 1000, reason \\ ""), do: safe_call(pid, {:close, code, reason})
@@ -253,7 +252,7 @@ defmodule NeptunusWeb.Test.WSClient do
 
   def handle_call({:close, code, reason}, _from, state) do
     reply = :gen_tcp.send(state.socket, frame(8, <<code::16, reason::binary>>, []))
-    timer = Process.send_after(self(), :close_timeout, @close_timeout)
+    timer = Process.send_after(self(), :close_timeout, Neptunus.Test.Patience.ms())
     {:reply, reply, %{state | close_sent?: true, close_timer: timer}}
   end
 
