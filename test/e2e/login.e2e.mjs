@@ -40,7 +40,7 @@ before(async () => {
     assert.equal(typeof LOGINS[name], "string", `NEPTUNUS_E2E_LOGINS has no password for ${name}`);
   }
   assert.ok(existsSync(CHROMIUM), `no Chromium at ${CHROMIUM}`);
-  const session = await fetch(`${BASE}/api/session`, { signal: AbortSignal.timeout(2000) }).then((r) => r.json());
+  const session = await fetch(`${BASE}/api/session`, { signal: AbortSignal.timeout(WAIT_MS) }).then((r) => r.json());
   assert.equal(session.mode, "secure", `the server must run in secure mode for this test: ${JSON.stringify(session)}`);
   mkdirSync(ARTIFACTS, { recursive: true });
   browser = await require("playwright-core").chromium.launch({ executablePath: CHROMIUM, args: CHROMIUM_ARGS, timeout: 30000 });

@@ -367,7 +367,7 @@ defmodule NeptunusWeb.FleetClusterTest do
     if parts >= n do
       true
     else
-      {:ok, more} = :gen_tcp.recv(socket, 0, 5_000)
+      {:ok, more} = :gen_tcp.recv(socket, 0, Neptunus.Test.Patience.ms())
       read_parts(socket, acc <> more, n)
     end
   end
@@ -376,7 +376,7 @@ defmodule NeptunusWeb.FleetClusterTest do
     if String.contains?(acc, text) do
       true
     else
-      {:ok, more} = :gen_tcp.recv(socket, 0, 5_000)
+      {:ok, more} = :gen_tcp.recv(socket, 0, Neptunus.Test.Patience.ms())
       read_until(socket, acc <> more, text)
     end
   end

@@ -74,7 +74,7 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
 
     served = connect!()
     :ok = :gen_tcp.send(served, "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
-    assert {:ok, "HTTP/1.1 200" <> _} = :gen_tcp.recv(served, 0, 5_000)
+    assert {:ok, "HTTP/1.1 200" <> _} = :gen_tcp.recv(served, 0, Neptunus.Test.Patience.ms())
 
     # a header line well within yaws' per-read timeout, again and again, until closed
     timeout = NeptunusWeb.Endpoint.header_timeout_ms()
@@ -145,10 +145,10 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
         spawn_link(fn ->
           {:ok, socket} = accept(transport, listener)
           send(test, :accepted)
-          {:ok, "ask"} = transport.recv(socket, 3, 5_000)
+          {:ok, "ask"} = transport.recv(socket, 3, Neptunus.Test.Patience.ms())
           :ok = transport.send(socket, "answer")
           send(test, :answered)
-          transport.recv(socket, 0, 5_000)
+          transport.recv(socket, 0, Neptunus.Test.Patience.ms())
         end)
 
       {:ok, client} =
@@ -170,11 +170,11 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
   defp sockname(:gen_tcp, listener), do: :inet.sockname(listener)
   defp sockname(:ssl, listener), do: :ssl.sockname(listener)
 
-  defp accept(:gen_tcp, listener), do: :gen_tcp.accept(listener, 5_000)
+  defp accept(:gen_tcp, listener), do: :gen_tcp.accept(listener, Neptunus.Test.Patience.ms())
 
   defp accept(:ssl, listener) do
-    {:ok, socket} = :ssl.transport_accept(listener, 5_000)
-    :ssl.handshake(socket, 5_000)
+    {:ok, socket} = :ssl.transport_accept(listener, Neptunus.Test.Patience.ms())
+    :ssl.handshake(socket, Neptunus.Test.Patience.ms())
   end
 
   defp connect! do
@@ -191,7 +191,7 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
       {:ok, acc}
     else
       _ ->
-        case :gen_tcp.recv(socket, 0, 5_000) do
+        case :gen_tcp.recv(socket, 0, Neptunus.Test.Patience.ms()) do
           {:ok, more} -> recv_answer(socket, acc <> more)
           error -> error
         end

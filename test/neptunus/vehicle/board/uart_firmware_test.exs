@@ -210,7 +210,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
                  "go(1500,1500,1500,1);"
                ]
 
-        assert_receive {:pubsub, _, "board", %{event: "thrust_held", reason: reason}}, 2_000
+        assert_receive {:pubsub, _, "board", %{event: "thrust_held", reason: reason}}
         assert reason =~ "board settings not confirmed (mtrmod1, mtrmod2)"
         assert %{thrust_held: true, board_settings: "pending"} = UART.link_status(ctx.id)
 
@@ -236,9 +236,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
                  UART.link_status(ctx.id)
 
         # the page's telemetry and the developer logger were told
-        assert_receive {:"$gen_cast",
-                        {:link, %{board_settings: "confirmed", thrust_held: false}}},
-                       2_000
+        assert_receive {:"$gen_cast", {:link, %{board_settings: "confirmed", thrust_held: false}}}
       end
     end
 
@@ -258,9 +256,9 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
 
       # the board restarts (a USB Arduino when the line opens): its setup lines, then boot:1
       write(ctx.board, "Depth Sensor setup.\r\nlog:init on primary addresses;\r\nboot:1;\r\n")
-      assert_receive {:pubsub, _, "board", %{event: "reset", reason: reason}}, 2_000
+      assert_receive {:pubsub, _, "board", %{event: "reset", reason: reason}}
       assert reason =~ "boot:1"
-      assert_receive {:"$gen_cast", {:board_reset, ^reason}}, 2_000
+      assert_receive {:"$gen_cast", {:board_reset, ^reason}}
 
       # (the pings are the deadman's)
       assert recv_commands(ctx.board, :openrov_25, &(length(&1) >= 4)) ==
@@ -276,11 +274,10 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
       PubSub.subscribe(Telemetry.log_topic(ctx.id))
       start_uart(ctx, firmware: :openrov_25, confirm_retry: 30, confirm_attempts: 3)
       # (a demand from before the link opened would not count: a new link starts neutral)
-      assert_receive {:pubsub, _, "link", %{up: true}}, 2_000
+      assert_receive {:pubsub, _, "link", %{up: true}}
       Board.go(ctx.id, %{port: 0.4, vertical: 0.0, starboard: 0.4})
 
-      assert_receive {:pubsub, _, "log", %{category: "link", level: "warning", message: held}},
-                     2_000
+      assert_receive {:pubsub, _, "log", %{category: "link", level: "warning", message: held}}
 
       assert held =~ "thrust held at neutral"
 
@@ -292,13 +289,12 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
 
       assert status.board_settings_reason =~ "has not confirmed mtrmod1(100,100,100);"
       assert status.thrust_held
-      assert_receive {:pubsub, _, "log", %{level: "error", message: message}}, 2_000
+      assert_receive {:pubsub, _, "log", %{level: "error", message: message}}
       assert message =~ "board settings not confirmed: the board has not confirmed"
 
       assert_receive {:"$gen_cast",
                       {:link,
-                       %{board_settings: "failed", board_settings_reason: "the board" <> _}}},
-                     2_000
+                       %{board_settings: "failed", board_settings_reason: "the board" <> _}}}
 
       # still written (every second), and confirmed when the board answers at last
       drain(ctx.board, 0)
@@ -315,7 +311,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
   end
 
   defp recv_framed_or_plain(board, :openrov_25, count) do
-    bytes = recv_until(board, &(length(:binary.split(&1, ";", [:global])) > count), 3_000)
+    bytes = recv_until(board, &(length(:binary.split(&1, ";", [:global])) > count))
     bytes |> :binary.split(";", [:global]) |> Enum.drop(-1) |> Enum.map(&(&1 <> ";"))
   end
 
@@ -332,14 +328,14 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
       |> Enum.reject(&String.starts_with?(&1, "ping("))
     end
 
-    board |> recv_until(&done?.(commands.(&1)), 3_000) |> commands.()
+    board |> recv_until(&done?.(commands.(&1))) |> commands.()
   end
 
   defp gos(commands), do: Enum.filter(commands, &String.starts_with?(&1, "go("))
 
   # commands until one starting with `prefix`
   defp recv_until_command(board, profile, prefix) do
-    bytes = recv_until(board, &String.contains?(&1, prefix), 3_000)
+    bytes = recv_until(board, &String.contains?(&1, prefix))
 
     case profile do
       :openrov_25 -> bytes |> :binary.split(";", [:global]) |> Enum.map(&(&1 <> ";"))
