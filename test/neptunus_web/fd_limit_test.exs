@@ -40,7 +40,7 @@ defmodule NeptunusWeb.FdLimitTest do
     case IO.read(:stdio, :line) do
       "report\n" ->
         # what the connection log counted so far, logged now
-        NeptunusWeb.ConnectionLog.flush()
+        NeptunusWeb.Endpoint.ConnectionLog.flush()
         same = Process.whereis(NeptunusWeb.Endpoint) == endpoint and
           Process.whereis(:yaws_server) == yaws and listeners.() == listening
         IO.puts("REPORT same_endpoint=#{same}")
@@ -305,11 +305,19 @@ defmodule NeptunusWeb.FdLimitTest do
         await_line(node, prefix, timeout)
 
       {^node, {:exit_status, status}} ->
-        flunk("the node exited (#{status}) before printing #{prefix}")
+        flunk(
+          "the node exited (#{status}) before printing #{prefix}; its last lines:\n#{last_lines()}"
+        )
     after
-      timeout -> flunk("the node printed no #{prefix} within #{timeout} ms")
+      timeout ->
+        flunk(
+          "the node printed no #{prefix} within #{timeout} ms; its last lines:\n#{last_lines()}"
+        )
     end
   end
+
+  defp last_lines,
+    do: Process.get(:node_output, []) |> Enum.take(40) |> Enum.reverse() |> Enum.join("\n")
 
   # The connections the node's log says it closed beyond the connection limit, in every
   # line of its output so far and still to come, once they reach `wanted` (or what they came
