@@ -13,14 +13,6 @@ defmodule NeptunusWeb.Test.WSClientTest do
 
   defp messages, do: elem(Process.info(self(), :messages), 1)
 
-  defp eventually(fun, tries \\ div(Patience.ms(), 10)) do
-    cond do
-      fun.() -> true
-      tries == 0 -> false
-      true -> Process.sleep(10) && eventually(fun, tries - 1)
-    end
-  end
-
   defp start_server(mode) do
     test = self()
     {:ok, listen} = :gen_tcp.listen(0, [:binary, active: false, packet: :raw])
@@ -336,7 +328,10 @@ defmodule NeptunusWeb.Test.WSClientTest do
 
       :ok = WSClient.push(ws, nil, "1", "t", "e", %{})
       # its echo is in before the wait that must fail on it starts (however slow the machine)
-      assert eventually(fn -> Enum.any?(messages(), &match?({:ws, ^ws, {:text, _}}, &1)) end)
+      Neptunus.Test.Pty.wait_until(
+        fn -> Enum.any?(messages(), &match?({:ws, ^ws, {:text, _}}, &1)) end,
+        "the echo"
+      )
 
       assert_raise ExUnit.AssertionError, ~r/1 frame\(s\) did not match/, fn ->
         WSClient.recv_until(ws, fn _ -> false end, 100)
