@@ -110,6 +110,9 @@ async function main() {
     while ((i = rx.indexOf(';')) >= 0) {
       const cmd = rx.slice(0, i + 1);
       rx = rx.slice(i + 1);
+      // echoed as the firmware does: the board link confirms the motor modifiers by it and
+      // holds thrust at neutral until they are (docs/OPENROV.md, Settings)
+      if (/^[a-z0-9]+\([-0-9,]*\);$/.test(cmd)) board.write(`cmd:${cmd}\r\n`);
       if (cmd.startsWith('go(')) {
         goLines++;
         if (waiter && cmd === waiter.expect) { const w = waiter; waiter = null; w.resolve({ now, readNs }); }

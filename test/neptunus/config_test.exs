@@ -151,6 +151,33 @@ defmodule Neptunus.ConfigTest do
     end
   end
 
+  describe "vehicles!/1 SITL bootloader (NEPTUNUS_SITL_BOOTLOADER)" do
+    test "a sitl vehicle reboots into a bootloader of that many ms whenever its line opens" do
+      env = %{"NEPTUNUS_VEHICLES" => "a=sitl,b=sitl", "NEPTUNUS_SITL_BOOTLOADER" => " a=500 "}
+      assert [a, b] = Config.Vehicles.vehicles!(env)
+      assert %{reset_on_open: true, bootloader_ms: 500} = a
+      refute Map.has_key?(b, :reset_on_open) or Map.has_key?(b, :bootloader_ms)
+    end
+
+    for {vehicles, bootloader, message} <- [
+          {"a=simulated", "a=500", ~r/NEPTUNUS_SITL_BOOTLOADER=.*sitl vehicles/},
+          {"a=sitl", "a=0", ~r/NEPTUNUS_SITL_BOOTLOADER=.*in 1..10000 in "a=0"/},
+          {"a=sitl", "a=half", ~r/NEPTUNUS_SITL_BOOTLOADER=.*in 1..10000/},
+          {"a=sitl", "a=20000", ~r/NEPTUNUS_SITL_BOOTLOADER=.*in 1..10000/},
+          {"a=sitl", "b=500", ~r/NEPTUNUS_SITL_BOOTLOADER=.*no vehicle "b"/},
+          {"a=sitl", "500", ~r/NEPTUNUS_SITL_BOOTLOADER=.*id=MS pairs/}
+        ] do
+      test "refuses #{inspect(bootloader)} for #{inspect(vehicles)}" do
+        assert_raise ArgumentError, unquote(Macro.escape(message)), fn ->
+          Config.Vehicles.vehicles!(%{
+            "NEPTUNUS_VEHICLES" => unquote(vehicles),
+            "NEPTUNUS_SITL_BOOTLOADER" => unquote(bootloader)
+          })
+        end
+      end
+    end
+  end
+
   describe "vehicles!/1 models (NEPTUNUS_MODELS)" do
     test "names each vehicle's parameter set for its simulator and navigation filter" do
       env = %{

@@ -22,6 +22,11 @@ defmodule Neptunus.Config.Vehicles do
   pilot (disconnect, deadman, release) a mavlink vehicle is disarmed unless a new pilot takes
   the helm.
 
+  SITL bootloader (`sitl` vehicles): `NEPTUNUS_SITL_BOOTLOADER=id=MS` pairs (1..10000): the
+  simulated board reboots whenever its line is opened, as a USB Arduino does, and its
+  bootloader loses what arrives for MS milliseconds (see docs/OPENROV.md, Settings). Without
+  it the simulated board is already running when the line opens.
+
   Wiring (`sitl` and `uart` vehicles, see `Neptunus.Wiring`): the motors in `go()` order
   separated by `/`, `-` before a reversed one, optionally `:FORWARD:REVERSE` motor modifiers
   after a motor (percent, multiples of 100, default 100 and 100; sent as `mtrmod1`/`mtrmod2`),
@@ -63,6 +68,8 @@ defmodule Neptunus.Config.Vehicles do
               required(:board) => :sitl,
               required(:wiring) => Neptunus.Wiring.t(),
               required(:firmware) => Neptunus.Protocol.OpenROV.profile(),
+              optional(:reset_on_open) => boolean(),
+              optional(:bootloader_ms) => pos_integer(),
               optional(:sim) => keyword(),
               optional(:camera) => Neptunus.Camera.Source.t()
             }
@@ -142,6 +149,7 @@ defmodule Neptunus.Config.Vehicles do
         |> cameras!(Map.get(env, "NEPTUNUS_CAMERAS", ""))
         |> mavlink_ids!(Map.get(env, "NEPTUNUS_MAVLINK_IDS", ""))
         |> mavlink_disarm_delay!(Map.get(env, "NEPTUNUS_MAVLINK_DISARM_DELAY", ""))
+        |> sitl_bootloader!(Map.get(env, "NEPTUNUS_SITL_BOOTLOADER", ""))
 
       [dup | _] ->
         Config.bad!("NEPTUNUS_VEHICLES", spec, "unique vehicle ids (#{inspect(dup)} repeats)")
@@ -297,6 +305,31 @@ defmodule Neptunus.Config.Vehicles do
       end)
 
     put_configured(vehicles, configured, :disarm_delay)
+  end
+
+  # A SITL board that reboots into its bootloader whenever its line is opened, as a USB
+  # Arduino does, losing what arrives for `id=MS` milliseconds (Board.SITL's `reset_on_open`
+  # and `bootloader_ms`); without it the simulated board is up before the line opens.
+  defp sitl_bootloader!(vehicles, spec) do
+    var = "NEPTUNUS_SITL_BOOTLOADER"
+
+    configured =
+      pairs!(var, spec, vehicles, "id=MS pairs, e.g. rov=500")
+      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
+        if board != :sitl, do: Config.bad!(var, spec, "sitl vehicles (#{id} is #{board})")
+
+        case Integer.parse(text) do
+          {ms, ""} when ms in 1..10_000 -> {id, ms}
+          _ -> Config.bad!(var, spec, "a bootloader time in ms in 1..10000 in #{inspect(pair)}")
+        end
+      end)
+
+    Enum.map(vehicles, fn %{id: id} = vehicle ->
+      case Map.fetch(configured, id) do
+        {:ok, ms} -> Map.merge(vehicle, %{reset_on_open: true, bootloader_ms: ms})
+        :error -> vehicle
+      end
+    end)
   end
 
   # each vehicle with a configured value (by id) gets it under `key`
