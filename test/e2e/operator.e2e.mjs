@@ -415,15 +415,20 @@ test("gamepad: table 7.2 through a stubbed navigator.getGamepads; the keyboard i
 const setButton = (page, index, pressed) =>
   page.evaluate(([i, p]) => (window.__pad.buttons[i] = { value: p ? 1 : 0, pressed: p, touched: p }), [index, pressed]);
 
-/** Presses `index` for `ms` (a few animation frames at least), then lets go. */
+/**
+ * Presses `index` for `ms`, then lets go. The page reads the pad on animation frames: the press
+ * lasts two of them at least, and so does the release (a busy machine may give the page none
+ * within `ms`).
+ */
 async function pressButton(page, index, ms = 120) {
   await setButton(page, index, true);
   try {
     await page.waitForTimeout(ms);
+    await afterFrames(page);
   } finally {
     await setButton(page, index, false);
   }
-  await page.waitForTimeout(60);
+  await afterFrames(page);
 }
 
 const storedMapping = (page) =>
