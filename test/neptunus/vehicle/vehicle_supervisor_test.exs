@@ -25,9 +25,27 @@ defmodule Neptunus.Vehicle.SupervisorTest do
 
     recorder = Fleet.whereis(Recorder, id)
     control = Fleet.whereis(Control, id)
-    # a recorder busy for 4 s (a disk that hangs a sync): it cannot stop before then
-    spawn(fn -> :sys.replace_state(recorder, fn s -> Process.sleep(4_000) && s end, 10_000) end)
-    Process.sleep(50)
+    # a recorder busy (a disk that hangs a sync) until the test lets it go: it cannot stop
+    # before then
+    test = self()
+    busy = make_ref()
+
+    spawn(fn ->
+      :sys.replace_state(
+        recorder,
+        fn s ->
+          send(test, {busy, :busy})
+
+          receive do
+            {^busy, :go} -> s
+          end
+        end,
+        :infinity
+      )
+    end)
+
+    assert_receive {^busy, :busy}
+    on_exit(fn -> send(recorder, {busy, :go}) end)
 
     Process.exit(Fleet.whereis(Telemetry, id), :kill)
 
@@ -37,6 +55,7 @@ defmodule Neptunus.Vehicle.SupervisorTest do
     assert Fleet.whereis(Control, id) != control
     assert Enum.all?(Map.values(Board.Simulated.state(id).sim.thrusters), &(&1 == 0))
     assert Fleet.whereis(Recorder, id) == recorder
+    send(recorder, {busy, :go})
   end
 
   test "a request while the helm restarts is refused with a reason, not an exit" do
