@@ -9,6 +9,7 @@
  * or the default set; every change of the plots is saved, "reset to defaults" deletes it.
  */
 
+import { firstVehicle } from "../lib/first_vehicle";
 import { LogBook, entryFromRecordedEvent, entryFromServerLog, linkEntry, recorded, stopEntry, telemetryChanges, telemetryFacts } from "../logger/model";
 import type { NewEntry, TelemetryFacts } from "../logger/model";
 import { SeriesRecorder } from "../plots/recorder";
@@ -190,6 +191,7 @@ export class DevController {
       snapshot: (snapshot) => {
         this.lastHelm = snapshot.helm;
         if (snapshot.telemetry) this.onTelemetry(snapshot.telemetry);
+        void this.tuning.joined();
       },
       telemetry: (t) => this.onTelemetry(t),
       helm: (h) => this.onHelm(h),
@@ -241,7 +243,8 @@ export class DevController {
     for (;;) {
       try {
         const fleet = await client.fleet();
-        const first = fleet.vehicles[0];
+        // the first that can be reached (as the operator page opens)
+        const first = firstVehicle(fleet.vehicles);
         if (first) return first.id;
         this.store.update({ message: "The server has no vehicles." });
       } catch (err) {
