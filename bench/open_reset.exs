@@ -1,9 +1,9 @@
 # A board that resets as its line opens, then sits in its bootloader (0.2, 0.5, 1.0 s), on both
-# firmware lines: the pilot commands a forward surge (0.4 on each side thruster) at once and
-# again once the board has started. For each run: the port and starboard ESC offsets from
-# neutral of the first pulses the motors got, whether any pulses were unbalanced (> 10 µs), and
-# how long after the open the motors first moved, on the board's own clock (its bootloader,
-# then its millis). Prints figures, never asserts. Run through bench/open_reset.
+# firmware lines: the pilot commands a forward surge (0.4 on each side thruster) at once and,
+# once the board has started, again every 100 ms as a page does. For each run: the port and
+# starboard ESC offsets from neutral of the first pulses the motors got, whether any pulses
+# were unbalanced (> 10 µs), and how long after the open the motors first moved, on the
+# board's own clock (its bootloader, then its millis). Prints figures, never asserts. Run through bench/open_reset.
 
 defmodule Bench.OpenReset do
   alias Neptunus.{Fleet, PubSub, Wiring}
@@ -80,9 +80,10 @@ defmodule Bench.OpenReset do
 
     surge = %{"mode" => "motion", "surge" => 0.8, "heave" => 0, "yaw" => 0}
     {:ok, _} = Control.thrust(id, surge)
-    wait(fn -> started?(SITL.Device.state(id).firmware) end)
-    {:ok, _} = Control.thrust(id, surge)
-    wait(fn -> moving?(SITL.Device.state(id).firmware.esc_us) end)
+    wait(id, "the board's start", fn -> started?(SITL.Device.state(id).firmware) end)
+    # then as a pilot's page does: the stick again every 100 ms (a command the board lost on
+    # its line is sent again)
+    drive(id, surge, fn -> moving?(SITL.Device.state(id).firmware.esc_us) end)
 
     fw = SITL.Device.state(id).firmware
     moved = for {m, esc} <- Enum.reverse(fw.esc_log), moving?(esc), do: {m, offsets(esc)}
@@ -101,17 +102,32 @@ defmodule Bench.OpenReset do
   defp moving?({p, _v, s}), do: p != 1500 or s != 1500
   defp offsets({p, _v, s}), do: {abs(p - 1500), abs(s - 1500)}
 
-  defp wait(fun, left \\ 10_000) do
+  defp drive(id, surge, moved?, left \\ 100) do
+    {:ok, _} = Control.thrust(id, surge)
+
+    cond do
+      Enum.any?(1..20, fn _ -> moved?.() or (Process.sleep(5) && false) end) -> :ok
+      left == 0 -> wait(id, "the motors to move", moved?, 0)
+      true -> drive(id, surge, moved?, left - 1)
+    end
+  end
+
+  defp wait(id, what, fun, left \\ 10_000) do
     cond do
       fun.() ->
         :ok
 
       left <= 0 ->
-        raise "timed out"
+        fw = SITL.Device.state(id).firmware
+
+        raise "#{id}: waited 10 s for #{what}; the link: " <>
+                inspect(Neptunus.Vehicle.Board.link_status(id)) <>
+                "; the board: " <>
+                inspect(Map.take(fw, [:target_us, :applied_us, :esc_us, :armed, :tripped]))
 
       true ->
         Process.sleep(5)
-        wait(fun, left - 5)
+        wait(id, what, fun, left - 5)
     end
   end
 end

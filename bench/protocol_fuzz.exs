@@ -210,7 +210,6 @@ out.("rejects: malformed", c.malformed)
 out.("wild points: out_of_range", c.out_of_range)
 out.("wild points: not_a_number", c.not_a_number)
 out.("wild points: key_as_value", c.key_as_value)
-out.("unknown keys kept (bounded)", map_size(readings.raw))
 
 if c.lines != expected_lines or c.overlong != Map.get(stats.kinds, :overlong, 0) do
   IO.puts("INVARIANT VIOLATED: framing lost or invented lines")

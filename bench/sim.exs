@@ -4,6 +4,7 @@
 #
 # Run through bench/sim (MIX_ENV=prod mix run --no-start bench/sim.exs). Prints figures, never
 # asserts. Starts only what vehicles need (PubSub and the fleet), not the web endpoint.
+# BENCH_SMOKE=1: a smoke run (bench/smoke): 1 000 headless steps once, a short warm-up.
 
 Code.require_file("support/proc.exs", __DIR__)
 
@@ -26,14 +27,17 @@ defmodule Bench.Sim do
         "OTP #{System.otp_release()}, #{:erlang.system_info(:emu_flavor)}\n"
     )
 
-    headless()
-    live(vehicles, seconds)
+    headless(smoke?())
+    live(vehicles, seconds, smoke?())
   end
+
+  defp smoke?, do: System.get_env("BENCH_SMOKE") == "1"
 
   # --- headless ---
 
-  defp headless do
-    IO.puts("## Headless, one vehicle, dt = 0.01 s (best of 3 runs of 100 000 steps)")
+  defp headless(smoke?) do
+    {n, runs} = if smoke?, do: {1_000, 1}, else: {100_000, 3}
+    IO.puts("## Headless, one vehicle, dt = 0.01 s (best of #{runs} runs of #{n} steps)")
     IO.puts("   loop: elixir = Neptunus.Dynamics on the BEAM; C = Neptunus.Dynamics.Native")
 
     IO.puts(
@@ -64,10 +68,9 @@ defmodule Bench.Sim do
     for {label, opts} <- cases, {loop, native} <- [{"elixir", false}, {"C", true}] do
       label = "#{label} [#{loop}]"
       sim = (opts ++ [native: native]) |> Sim.new() |> Sim.command(cmd) |> Sim.step(1_000)
-      n = 100_000
 
       us =
-        for _ <- 1..3 do
+        for _ <- 1..runs do
           {us, _} = :timer.tc(fn -> Sim.step(sim, n) end)
           us
         end
@@ -102,13 +105,17 @@ defmodule Bench.Sim do
 
   # --- live ---
 
-  defp live(vehicles, seconds) do
+  defp live(vehicles, seconds, smoke?) do
     IO.puts(
       "## Live: #{vehicles} simulated vehicles (neptunus, noisy sensors) at 100 Hz, telemetry 20 Hz, #{seconds} s"
     )
 
+    # PubSub as the application starts it (its broadcasts encoded for the wire)
     {:ok, _} =
-      Supervisor.start_link([Neptunus.PubSub, {Neptunus.Fleet, []}], strategy: :one_for_one)
+      Supervisor.start_link(
+        [{Neptunus.PubSub, encoder: NeptunusWeb.Channels.Wire}, {Neptunus.Fleet, []}],
+        strategy: :one_for_one
+      )
 
     ids = for i <- 1..vehicles, do: "bench-#{i}"
 
@@ -120,8 +127,9 @@ defmodule Bench.Sim do
         )
       end)
 
-    IO.puts("  started in #{fmt(us / 1000, 0)} ms; warming up 2 s")
-    Process.sleep(2_000)
+    warm_up_ms = if smoke?, do: 200, else: 2_000
+    IO.puts("  started in #{fmt(us / 1000, 0)} ms; warming up #{warm_up_ms} ms")
+    Process.sleep(warm_up_ms)
     Enum.each(ids, &Board.Simulated.stats(&1, reset: true))
     t0 = Enum.map(ids, &Sim.time(Board.Simulated.state(&1).sim))
 

@@ -25,6 +25,10 @@
  *                   's' TEXT    "rendered=N skipped=N render_us=N cpu_us=N" (sim): pictures
  *                               rendered, deadlines skipped, the mean CPU time of a picture's
  *                               rendering and this program's CPU time in all
+ *                   'x' CODE    PROGRAM ended; this program exits with CODE (uint8) next.
+ *                               Said first, since the VM may never see the exit status: a
+ *                               message it writes as this program ends (an 'a') fails with
+ *                               EPIPE and closes the port without one.
  *
  * Flow control: at most CREDIT bytes of 'd' messages are unacknowledged ('a'); beyond that the
  * program's output is not read until the VM catches up, so a program that floods its output
@@ -252,9 +256,10 @@ static void finish(void)
         waitpid(child, &status, 0);
         child = -1;
     }
-    if (WIFEXITED(status))
-        exit(WEXITSTATUS(status));
-    exit(WIFSIGNALED(status) ? 128 + WTERMSIG(status) : 1);
+    uint8_t code = WIFEXITED(status) ? (uint8_t)WEXITSTATUS(status)
+                                     : (uint8_t)(WIFSIGNALED(status) ? 128 + WTERMSIG(status) : 1);
+    send_msg('x', &code, 1);
+    exit(code);
 }
 
 /* ---------------------------------------------------------------- the simulated view */

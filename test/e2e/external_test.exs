@@ -5,7 +5,8 @@ defmodule Neptunus.E2E.ExternalTest do
   use ExUnit.Case, async: false
 
   @moduletag :external
-  @moduletag timeout: 180_000
+  # a bound for a hung suite only (each Node test bounds its own waits)
+  @moduletag timeout: 900_000
 
   @root Path.expand("../..", __DIR__)
 

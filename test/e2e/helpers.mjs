@@ -16,8 +16,11 @@ const require = createRequire(join(root, "assets", "package.json"));
 export const BASE = (process.env.NEPTUNUS_URL || "http://127.0.0.1:4000").replace(/\/+$/, "");
 export const CHROMIUM = process.env.CHROMIUM_PATH || "/usr/bin/chromium";
 export const ARTIFACTS = join(here, "artifacts");
-export const WAIT_MS = 5000;
-export const TEST_MS = 60000;
+// How long a test waits for what must happen (an element, a state, a reply) before it calls
+// it a failure: generous, since the machine may be busy; every wait ends as soon as the thing
+// happens. Nothing here measures speed.
+export const WAIT_MS = 15000;
+export const TEST_MS = 120000;
 export const DESKTOP = { width: 1920, height: 1080 };
 export const TABLET = { width: 1024, height: 768 };
 
@@ -46,6 +49,33 @@ export async function reportCspViolations(context) {
   });
 }
 
+/**
+ * Keeps every text `#message` shows on the pages of `context`, in order (`window.__messages`):
+ * a later message replaces the one shown (on a busy machine a deadman stop of the next pilot
+ * may come within the same second), so a check that a message was shown reads this.
+ */
+export async function recordMessages(context) {
+  await context.addInitScript(() => {
+    const seen = [];
+    window.__messages = seen;
+    const look = () => {
+      const text = document.querySelector("#message")?.textContent ?? "";
+      if (text !== "" && seen[seen.length - 1] !== text) seen.push(text);
+    };
+    new MutationObserver(look).observe(document, { childList: true, subtree: true, characterData: true });
+  });
+}
+
+/** How many messages `page` has shown so far: `messageShown` after them waits for a newer one. */
+export const messageCount = (page) => page.evaluate(() => window.__messages.length);
+
+/** Waits until `page` has shown, after its first `since` messages, one containing `text`. */
+export async function messageShown(page, text, since = 0) {
+  await page.waitForFunction(([t, n]) => window.__messages.slice(n).some((m) => m.includes(t)), [text, since], {
+    timeout: WAIT_MS,
+  });
+}
+
 /** The page response carries the anti-framing headers (see NeptunusWeb.Endpoint.Guard). */
 export function assertPageHeaders(response, where) {
   assert.ok(response, `${where}: no response`);
@@ -56,7 +86,7 @@ export function assertPageHeaders(response, where) {
 
 async function get(path) {
   try {
-    return await fetch(`${BASE}${path}`, { signal: AbortSignal.timeout(2000) });
+    return await fetch(`${BASE}${path}`, { signal: AbortSignal.timeout(WAIT_MS) });
   } catch (err) {
     throw new Error(
       `Neptunus server not reachable at ${BASE} (${err.cause?.message ?? err.message}). ` +
@@ -92,6 +122,7 @@ export async function open(browser, { width, height, name, touch = false, path =
   const context = await browser.newContext({ viewport: { width, height }, hasTouch: touch, isMobile: false });
   context.setDefaultTimeout(wait);
   await reportCspViolations(context);
+  await recordMessages(context);
   const page = await context.newPage();
   if (init) await page.addInitScript(init);
   page.on("pageerror", (err) => pageProblems.push(`[${name}] uncaught: ${err.message}`));
@@ -194,13 +225,29 @@ export const stubPad = () => {
 const setButton = (page, index, pressed) =>
   page.evaluate(([i, p]) => (window.__pad.buttons[i] = { value: p ? 1 : 0, pressed: p, touched: p }), [index, pressed]);
 
-/** Presses `index` for `ms` (a few animation frames at least), then lets go. */
+/** Resolves after `n` animation frames of the page (its gamepad poller runs on them). */
+export const afterFrames = (page, n = 2) =>
+  page.evaluate(
+    (count) =>
+      new Promise((resolve) => {
+        const step = (left) => (left === 0 ? resolve(undefined) : requestAnimationFrame(() => step(left - 1)));
+        step(count);
+      }),
+    n,
+  );
+
+/**
+ * Presses `index` for `ms`, then lets go. The page reads the pad on animation frames: the press
+ * lasts two of them at least, and so does the release (a busy machine may give the page none
+ * within `ms`).
+ */
 export async function pressButton(page, index, ms = 120) {
   await setButton(page, index, true);
   try {
     await page.waitForTimeout(ms);
+    await afterFrames(page);
   } finally {
     await setButton(page, index, false);
   }
-  await page.waitForTimeout(60);
+  await afterFrames(page);
 }

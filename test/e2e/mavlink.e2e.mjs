@@ -8,7 +8,7 @@
 
 import assert from "node:assert/strict";
 import { after, before, test } from "node:test";
-import { DESKTOP, TEST_MS, WAIT_MS, assertNoPageProblems, helmState, launch, num, open, screenshot, takeHelm, thrusterValues, until } from "./helpers.mjs";
+import { DESKTOP, TEST_MS, WAIT_MS, assertNoPageProblems, helmState, launch, messageCount, messageShown, num, open, screenshot, takeHelm, thrusterValues, until } from "./helpers.mjs";
 
 const VEHICLE = process.env.E2E_MAVLINK_VEHICLE;
 let browser;
@@ -39,9 +39,10 @@ test("a mavlink vehicle: link, mode, arm, drive, stop, disarm from the operator 
     assert.equal(await page.locator("#arm").isVisible(), false);
     await takeHelm(page);
     assert.equal((await helmState(page)).me, "pilot");
+    const beforeArm = await messageCount(page);
     await page.locator("#arm:enabled").click();
     await until(() => armed(page), (a) => a === "true", WAIT_MS, "the vehicle armed");
-    await page.locator("#message", { hasText: "Vehicle armed" }).waitFor();
+    await messageShown(page, "Vehicle armed", beforeArm);
 
     // keyboard: W drives forward; the page shows the command and thrusters
     await page.locator("#input-keyboard").click();
@@ -67,9 +68,10 @@ test("a mavlink vehicle: link, mode, arm, drive, stop, disarm from the operator 
 
     // stop, then disarm
     await page.locator("#stop").click();
+    const beforeDisarm = await messageCount(page);
     await page.locator("#disarm:enabled").click();
     await until(() => armed(page), (a) => a === "false", WAIT_MS, "the vehicle disarmed");
-    await page.locator("#message", { hasText: "Vehicle disarmed" }).waitFor();
+    await messageShown(page, "Vehicle disarmed", beforeDisarm);
     assertNoPageProblems();
   } finally {
     await context.close();

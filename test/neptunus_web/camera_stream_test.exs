@@ -69,7 +69,7 @@ defmodule NeptunusWeb.CameraStreamTest do
   end
 
   defp more(socket, {data, raw}) do
-    {:ok, bytes} = :gen_tcp.recv(socket, 0, 5_000)
+    {:ok, bytes} = :gen_tcp.recv(socket, 0, Neptunus.Test.Patience.ms())
     {new, raw} = dechunk(raw <> bytes)
     next_part(socket, {data <> new, raw})
   end
@@ -128,7 +128,7 @@ defmodule NeptunusWeb.CameraStreamTest do
     end
 
     timeout = NeptunusWeb.Endpoint.send_timeout_ms()
-    assert_receive {:DOWN, ^ref, :process, ^viewer, _}, timeout + 5_000
+    assert_receive {:DOWN, ^ref, :process, ^viewer, _}, timeout + Neptunus.Test.Patience.ms()
     assert System.monotonic_time(:millisecond) - started >= timeout
     :gen_tcp.close(socket)
   end
@@ -153,8 +153,7 @@ defmodule NeptunusWeb.CameraStreamTest do
     Neptunus.PubSub.subscribe("vehicle:" <> id)
 
     assert_receive {:pubsub, _, "telemetry", %{camera: %{running: true, fps: fps, error: nil}}}
-                   when fps > 0,
-                   3_000
+                   when fps > 0
   end
 
   test "wrong addresses are 404 with a reason" do

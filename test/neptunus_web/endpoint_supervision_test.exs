@@ -4,6 +4,7 @@ defmodule NeptunusWeb.EndpointSupervisionTest do
   # it runs alone (async: false).
   use ExUnit.Case, async: false
 
+  alias Neptunus.Test.Starvation
   alias NeptunusWeb.Test.{Wire, WSClient}
 
   @moduletag :capture_log
@@ -45,9 +46,12 @@ defmodule NeptunusWeb.EndpointSupervisionTest do
     end
   end
 
-  # The issue's bound (R2): the service is back within 1 s of a crash.
+  # The issue's bound (R2): the service is back within 1 s of a crash — plus the time a busy
+  # machine kept the node from a core meanwhile (Neptunus.Test.Starvation, as in the chaos
+  # test: a wall-clock promise alone fails on a loaded machine with no fault in the code).
   test "a crash of one of yaws' processes: a client is granted control again within 1 s",
        %{topic: topic} do
+    starvation = Starvation.start_link()
     pilot = Wire.client!(topic, %{name: "pilot"})
     assert {"ok", _} = Wire.push_and_reply(pilot.ws, pilot.jr, topic, "request_control", %{})
     Wire.event!(pilot.ws, "control_granted")
@@ -58,7 +62,7 @@ defmodule NeptunusWeb.EndpointSupervisionTest do
     pid = Process.whereis(:yaws_ws_sup)
     t0 = System.monotonic_time(:millisecond)
     Process.exit(pid, :kill)
-    assert_receive {:ws, _, :closed}, 2_000
+    assert_receive {:ws, _, :closed}
 
     granted_at =
       Enum.find_value(1..100, fn _ ->
@@ -74,7 +78,10 @@ defmodule NeptunusWeb.EndpointSupervisionTest do
         end
       end)
 
-    assert granted_at - t0 <= 1_000, "granted #{granted_at - t0} ms after the crash"
+    starved = Starvation.waited(starvation, t0, granted_at)
+
+    assert granted_at - t0 <= 1_000 + (starved || 0),
+           "granted #{granted_at - t0} ms after the crash, the node kept from a core #{starved} ms"
   end
 
   # yaws' listening process is linked to its server process: killed at once, the server
@@ -89,13 +96,20 @@ defmodule NeptunusWeb.EndpointSupervisionTest do
       Supervisor.restart_child(NeptunusWeb.Endpoint, NeptunusWeb.Endpoint.Server)
     end)
 
+    starvation = Starvation.start_link()
+
     log =
       ExUnit.CaptureLog.capture_log([level: :error], fn ->
         t0 = System.monotonic_time(:millisecond)
         :ok = Supervisor.terminate_child(NeptunusWeb.Endpoint, NeptunusWeb.Endpoint.Server)
         stop_ms = System.monotonic_time(:millisecond) - t0
-        assert stop_ms < 1_000, "the web server took #{stop_ms} ms to stop"
-        assert_receive {:ws, _, :closed}, 2_000
+        # within 1 s, plus the time a busy machine kept the node from a core meanwhile
+        starved = Starvation.waited(starvation, t0, t0 + stop_ms)
+
+        assert stop_ms < 1_000 + (starved || 0),
+               "the web server took #{stop_ms} ms to stop, the node kept from a core #{starved} ms"
+
+        assert_receive {:ws, _, :closed}
         # what yaws' processes log as they end has reached the logger
         Process.sleep(200)
       end)

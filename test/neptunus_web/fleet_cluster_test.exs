@@ -117,7 +117,7 @@ defmodule NeptunusWeb.FleetClusterTest do
     {:ok, %{"pilot" => %{"name" => "Ada"}}} = WSClient.join(observer, topic)
 
     [_, _, _, "presence_state", state] =
-      WSClient.recv_until(observer, &match?([_, _, _, "presence_state", _], &1), 2_000)
+      WSClient.recv_until(observer, &match?([_, _, _, "presence_state", _], &1))
 
     assert %{"Ada" => %{"metas" => [%{"node" => ada_node, "pilot" => true}]}, "Grace" => _} =
              state
@@ -230,7 +230,7 @@ defmodule NeptunusWeb.FleetClusterTest do
 
     # a clean shutdown: its vehicles stop, then the node goes
     Cluster.call(peer, :init, :stop, [])
-    assert %{"id" => ^id} = event!(ws, "unreachable", fn _ -> true end, 10_000)
+    assert %{"id" => ^id} = event!(ws, "unreachable", fn _ -> true end)
     Cluster.wait!(fn -> peer.node not in Node.list() end, "V down")
     assert %{status: "unreachable"} = Enum.find(Fleet.directory(), &(&1.id == id))
 
@@ -238,7 +238,7 @@ defmodule NeptunusWeb.FleetClusterTest do
     again = Cluster.start_node!(String.to_atom(name), peer.port, [%{id: id, board: :simulated}])
     on_exit(fn -> Cluster.stop_node(again) end)
 
-    assert %{"id" => ^id} = event!(ws, "reachable", fn _ -> true end, 5_000)
+    assert %{"id" => ^id} = event!(ws, "reachable", fn _ -> true end)
     assert %{"t" => _} = event!(ws, "telemetry")
     assert %{status: "up", helm: "free"} = Enum.find(Fleet.directory(), &(&1.id == id))
   end
@@ -367,7 +367,7 @@ defmodule NeptunusWeb.FleetClusterTest do
     if parts >= n do
       true
     else
-      {:ok, more} = :gen_tcp.recv(socket, 0, 5_000)
+      {:ok, more} = :gen_tcp.recv(socket, 0, Neptunus.Test.Patience.ms())
       read_parts(socket, acc <> more, n)
     end
   end
@@ -376,7 +376,7 @@ defmodule NeptunusWeb.FleetClusterTest do
     if String.contains?(acc, text) do
       true
     else
-      {:ok, more} = :gen_tcp.recv(socket, 0, 5_000)
+      {:ok, more} = :gen_tcp.recv(socket, 0, Neptunus.Test.Patience.ms())
       read_until(socket, acc <> more, text)
     end
   end
@@ -443,7 +443,7 @@ defmodule NeptunusWeb.FleetClusterTest do
     Cluster.wait!(fn -> Fleet.locate(id) == {:error, :unreachable} end, "#{id} unreachable")
     # the peer accepts us again; nobody but the connector connects
     :ok = Cluster.call(peer, :net_kernel, :allow, [[node()]])
-    Cluster.wait!(fn -> peer.node in Node.list() end, "the connector reconnects", 10_000)
+    Cluster.wait!(fn -> peer.node in Node.list() end, "the connector reconnects")
     Cluster.await_located!(id, peer.node)
     assert Process.alive?(connector)
   end

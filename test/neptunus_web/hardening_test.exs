@@ -44,7 +44,7 @@ defmodule NeptunusWeb.HardeningTest do
   defp read_body(_socket, body, length) when byte_size(body) >= length, do: body
 
   defp read_body(socket, body, length) do
-    {:ok, data} = :gen_tcp.recv(socket, 0, 5_000)
+    {:ok, data} = :gen_tcp.recv(socket, 0, Neptunus.Test.Patience.ms())
     read_body(socket, body <> data, length)
   end
 

@@ -122,8 +122,7 @@ defmodule NeptunusWeb.HelmWireTest do
       bob = local(ctx, "Bob")
       assert {"ok", %{"status" => "pending"}} = push(bob, "request_control")
 
-      assert %{"reason" => "request_timeout"} =
-               event!(bob.ws, "request_denied", fn _ -> true end, 3_000)
+      assert %{"reason" => "request_timeout"} = event!(bob.ws, "request_denied", fn _ -> true end)
 
       assert %{"state" => "piloted", "pilot" => %{"name" => "Ada"}} =
                event!(ada.ws, "helm", &(&1["request"] == nil))
@@ -350,7 +349,7 @@ defmodule NeptunusWeb.HelmWireTest do
       # the pilot still flies during the countdown
       assert {"ok", _} = push(ada, "thrust", thrust(0.5, epoch))
 
-      assert %{"epoch" => new_epoch} = event!(main.ws, "control_granted", fn _ -> true end, 3_000)
+      assert %{"epoch" => new_epoch} = event!(main.ws, "control_granted", fn _ -> true end)
 
       assert new_epoch == epoch + 1
       assert %{"reason" => "main_station_takeover"} = event!(ada.ws, "control_lost")

@@ -43,20 +43,18 @@ defmodule NeptunusWeb.MAVLinkE2ETest do
     refute output =~ ~r/fail [1-9]/
 
     # what the vehicle received, in order: armed, a forward MANUAL_CONTROL while armed, disarmed
-    FakeArduSub.expect!(fake, &(&1["event"] == "armed" and &1["armed"] == true), 1_000)
+    FakeArduSub.expect!(fake, &(&1["event"] == "armed" and &1["armed"] == true))
 
     FakeArduSub.expect!(
       fake,
-      &(&1["event"] == "manual_control" and &1["x"] > 0 and &1["armed"] == true),
-      1_000
+      &(&1["event"] == "manual_control" and &1["x"] > 0 and &1["armed"] == true)
     )
 
     FakeArduSub.expect!(
       fake,
-      &(&1["event"] == "manual_control" and &1["y"] > 0 and &1["armed"] == true),
-      1_000
+      &(&1["event"] == "manual_control" and &1["y"] > 0 and &1["armed"] == true)
     )
 
-    FakeArduSub.expect!(fake, &(&1["event"] == "armed" and &1["armed"] == false), 1_000)
+    FakeArduSub.expect!(fake, &(&1["event"] == "armed" and &1["armed"] == false))
   end
 end

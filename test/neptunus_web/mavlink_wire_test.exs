@@ -5,7 +5,7 @@ defmodule NeptunusWeb.MAVLinkWireTest do
 
   import NeptunusWeb.Test.Wire
 
-  alias Neptunus.Test.FakeArduSub
+  alias Neptunus.Test.{FakeArduSub, Patience, Pty}
 
   @moduletag :external
   @moduletag :capture_log
@@ -16,13 +16,18 @@ defmodule NeptunusWeb.MAVLinkWireTest do
     fake = FakeArduSub.start!(:udp)
     id = "mav-#{System.unique_integer([:positive])}"
 
+    # The pilots here are the test's connections, which send no heartbeat between their
+    # steps: the helm's deadman (tested in the helm's and the channel's tests) is set beyond
+    # a test's length, so a busy machine cannot trip it between two steps and disarm the
+    # vehicle (a deadman trip is a pilot loss).
     vehicle = %{
       id: id,
       board: :mavlink,
       link: {:udpout, "127.0.0.1", fake.udp},
       system: 255,
       component: 190,
-      disarm_delay: 0.5
+      disarm_delay: 0.5,
+      helm: [deadman_ms: 600_000]
     }
 
     {:ok, _} = Neptunus.Fleet.start_vehicle(vehicle)
@@ -203,18 +208,25 @@ defmodule NeptunusWeb.MAVLinkWireTest do
     ada = pilot(topic)
     arm!(ada, fake)
     NeptunusWeb.Test.WSClient.close(ada.ws)
-    assert %{"why" => "gcs"} = FakeArduSub.expect!(fake, &(&1["event"] == "armed"), 5_000)
+    assert %{"why" => "gcs"} = FakeArduSub.expect!(fake, &(&1["event"] == "armed"))
   end
 
-  test "a handover keeps the vehicle armed", %{fake: fake, topic: topic} do
+  test "a handover keeps the vehicle armed", %{fake: fake, topic: topic, id: id} do
     ada = pilot(topic)
     arm!(ada, fake)
     bob = client(topic, "Bob")
     {"ok", %{"status" => "pending"}} = push(bob, "request_control")
     event!(ada.ws, "control_request")
     {"ok", _} = push(ada, "answer_request", %{"accept" => true})
-    event!(bob.ws, "control_granted")
-    Process.sleep(1_000)
+    %{"epoch" => epoch} = event!(bob.ws, "control_granted")
+
+    # Bob drives: once his command reaches the vehicle, the board has had the handover's
+    # stop and the helm's new pilot (both broadcast before Bob's command ran), and no disarm
+    # is due
+    thrust = %{"mode" => "motion", "surge" => 0.8, "heave" => 0.0, "yaw" => 0.0}
+    assert {"ok", _} = push(bob, "thrust", Map.put(thrust, "epoch", epoch))
+    assert %{"armed" => true} = manual_control!(fake, &(&1["x"] > 0))
+    refute Neptunus.Vehicle.Board.link_status(id).mavlink.disarm_pending
     refute_armed_change(fake)
   end
 
@@ -227,7 +239,7 @@ defmodule NeptunusWeb.MAVLinkWireTest do
     manual_control!(fake, &(&1["x"] == 0 and &1["z"] == 500))
 
     assert %{"why" => "pilot_input_failsafe"} =
-             FakeArduSub.expect!(fake, &(&1["event"] == "armed"), 6_000)
+             FakeArduSub.expect!(fake, &(&1["event"] == "armed"), 3_000 + Patience.ms())
   end
 
   test "lights and camera tilt through the vehicle's own commands", %{fake: fake, topic: topic} do
@@ -272,13 +284,8 @@ defmodule NeptunusWeb.MAVLinkWireTest do
              push(ada, "autopilot", %{"depth" => 3})
   end
 
-  defp link_up!(id, left \\ 500) do
-    cond do
-      Neptunus.Vehicle.Board.link_status(id).up -> :ok
-      left == 0 -> flunk("the mavlink link did not come up")
-      true -> Process.sleep(10) && link_up!(id, left - 1)
-    end
-  end
+  defp link_up!(id),
+    do: Pty.wait_until(fn -> Neptunus.Vehicle.Board.link_status(id).up end, "the mavlink link up")
 
   defp refute_armed_change(%{port: port}) do
     receive do

@@ -41,7 +41,7 @@ defmodule NeptunusWeb.PresenceTest do
       members = for i <- 1..50, do: {spawn_member(), "user#{i}"}
       for {pid, name} <- members, do: {:ok, _} = Presence.track(pid, topic, name, %{})
 
-      assert_receive {:pubsub, ^topic, "presence_diff", %{joins: joins, leaves: %{}}}, 1000
+      assert_receive {:pubsub, ^topic, "presence_diff", %{joins: joins, leaves: %{}}}
       assert map_size(joins) == 50
       refute_receive {:pubsub, ^topic, "presence_diff", _}, 200
       assert map_size(Presence.list(topic)) == 50
@@ -51,12 +51,11 @@ defmodule NeptunusWeb.PresenceTest do
       pid = spawn_member()
       {:ok, %{phx_ref: ref}} = Presence.track(pid, topic, "ada", %{role: "observer"})
       assert %{"ada" => %{metas: [%{phx_ref: ^ref, role: "observer"}]}} = Presence.list(topic)
-      assert_receive {:pubsub, ^topic, "presence_diff", %{joins: %{"ada" => _}}}, 1000
+      assert_receive {:pubsub, ^topic, "presence_diff", %{joins: %{"ada" => _}}}
       Process.exit(pid, :kill)
 
       assert_receive {:pubsub, ^topic, "presence_diff",
-                      %{leaves: %{"ada" => %{metas: [%{phx_ref: ^ref}]}}}},
-                     1000
+                      %{leaves: %{"ada" => %{metas: [%{phx_ref: ^ref}]}}}}
 
       assert Presence.list(topic) == %{}
     end
@@ -71,8 +70,7 @@ defmodule NeptunusWeb.PresenceTest do
       :ok = Presence.untrack(a, topic)
       # one transient meta (a) joined and left in the same batch: only b's join is announced
       assert_receive {:pubsub, ^topic, "presence_diff",
-                      %{joins: %{"ada" => %{metas: [_]}}, leaves: leaves}},
-                     1000
+                      %{joins: %{"ada" => %{metas: [_]}}, leaves: leaves}}
 
       assert leaves == %{}
     end

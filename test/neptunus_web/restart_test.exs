@@ -40,7 +40,7 @@ defmodule NeptunusWeb.RestartTest do
     end
   end
 
-  defp eventually(fun, timeout \\ 3_000) do
+  defp eventually(fun, timeout \\ Neptunus.Test.Patience.ms()) do
     deadline = System.monotonic_time(:millisecond) + timeout
     do_eventually(fun, deadline)
   end
@@ -58,7 +58,7 @@ defmodule NeptunusWeb.RestartTest do
   end
 
   defp closed!(ws) do
-    assert_receive {:ws, ^ws, {:close, code, reason}}, 2_000
+    assert_receive {:ws, ^ws, {:close, code, reason}}
     {code, reason}
   end
 
@@ -197,7 +197,7 @@ defmodule NeptunusWeb.RestartTest do
         kill!(Presence)
         # cyd leaves while nobody keeps the presences: no one could tell the others
         WSClient.close(clients["cyd"].ws)
-        assert_receive {:ws, _, :closed}, 2_000
+        assert_receive {:ws, _, :closed}
       end)
 
       for name <- ~w(ada bob) do
@@ -248,8 +248,7 @@ defmodule NeptunusWeb.RestartTest do
       [_, _, _, event, payload] =
         WSClient.recv_until(
           ws,
-          &match?([_, _, _, e, _] when e in ~w(presence_state presence_diff), &1),
-          3_000
+          &match?([_, _, _, e, _] when e in ~w(presence_state presence_diff), &1)
         )
 
       state =

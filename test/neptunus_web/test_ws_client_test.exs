@@ -1,6 +1,7 @@
 defmodule NeptunusWeb.Test.WSClientTest do
   use ExUnit.Case, async: true
 
+  alias Neptunus.Test.Patience
   alias NeptunusWeb.Test.WSClient
 
   @guid "258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
@@ -9,6 +10,8 @@ defmodule NeptunusWeb.Test.WSClientTest do
   # It reports every client frame to the test as
   # {:server, {:frame, fin, opcode, masked, payload}} and, in :echo mode,
   # echoes text/binary, answers close, and obeys a few text commands.
+
+  defp messages, do: elem(Process.info(self(), :messages), 1)
 
   defp start_server(mode) do
     test = self()
@@ -19,7 +22,7 @@ defmodule NeptunusWeb.Test.WSClientTest do
   end
 
   defp serve(listen, mode, test) do
-    {:ok, sock} = :gen_tcp.accept(listen, 5_000)
+    {:ok, sock} = :gen_tcp.accept(listen, Patience.ms())
     request = read_request(sock, "")
     send(test, {:server, {:request, request}})
     [_, key] = Regex.run(~r/sec-websocket-key:\s*(\S+)/i, request)
@@ -50,7 +53,7 @@ defmodule NeptunusWeb.Test.WSClientTest do
     if String.ends_with?(acc, "\r\n\r\n") do
       acc
     else
-      {:ok, data} = :gen_tcp.recv(sock, 0, 5_000)
+      {:ok, data} = :gen_tcp.recv(sock, 0, Patience.ms())
       read_request(sock, acc <> data)
     end
   end
@@ -203,7 +206,7 @@ defmodule NeptunusWeb.Test.WSClientTest do
       for size <- [125, 126, 300, 65_535, 70_000] do
         text = String.duplicate("x", size - 1) <> "!"
         :ok = WSClient.send_text(ws, text)
-        assert_receive {:ws, ^ws, {:text, ^text}}, 2_000
+        assert_receive {:ws, ^ws, {:text, ^text}}
       end
     end
 
@@ -313,7 +316,7 @@ defmodule NeptunusWeb.Test.WSClientTest do
     test "recv_until returns the first matching frame" do
       ws = connect_echo()
       for i <- 1..3, do: :ok = WSClient.push(ws, nil, "#{i}", "t", "e", %{})
-      assert [nil, "3", "t", "e", %{}] = WSClient.recv_until(ws, &match?([_, "3" | _], &1), 1_000)
+      assert [nil, "3", "t", "e", %{}] = WSClient.recv_until(ws, &match?([_, "3" | _], &1))
     end
 
     test "timeouts and non-frames fail clearly" do
@@ -324,6 +327,11 @@ defmodule NeptunusWeb.Test.WSClientTest do
       end
 
       :ok = WSClient.push(ws, nil, "1", "t", "e", %{})
+      # its echo is in before the wait that must fail on it starts (however slow the machine)
+      Neptunus.Test.Pty.wait_until(
+        fn -> Enum.any?(messages(), &match?({:ws, ^ws, {:text, _}}, &1)) end,
+        "the echo"
+      )
 
       assert_raise ExUnit.AssertionError, ~r/1 frame\(s\) did not match/, fn ->
         WSClient.recv_until(ws, fn _ -> false end, 100)

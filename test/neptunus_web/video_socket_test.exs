@@ -107,13 +107,12 @@ defmodule NeptunusWeb.VideoSocketTest do
         match?({:message_queue_len, n} when n >= 12, Process.info(viewer, :message_queue_len))
       end,
       "frames queued for the slow viewer",
-      30_000
+      15_000 + Neptunus.Test.Patience.ms()
     )
 
     WSClient.resume(slow)
 
-    {{:text, skipped}, seen} =
-      Video.until(slow, &match?({:text, %{"event" => "skipped"}}, &1), 15_000)
+    {{:text, skipped}, seen} = Video.until(slow, &match?({:text, %{"event" => "skipped"}}, &1))
 
     assert %{"frames" => n, "reason" => "slow_viewer"} = skipped
     assert n > 0

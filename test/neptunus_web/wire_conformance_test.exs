@@ -26,7 +26,7 @@ defmodule NeptunusWeb.WireConformanceTest do
     reply
   end
 
-  defp telemetry!(c, pred), do: await!(c, "telemetry", pred, 5_000)
+  defp telemetry!(c, pred), do: await!(c, "telemetry", pred)
 
   test "a simulated vehicle flown through every command: snapshot, replies, events, telemetry" do
     id = start_vehicle!("wire", %{position: [{:sim_dvl, []}, {:sim_usbl, []}]})
@@ -261,6 +261,6 @@ defmodule NeptunusWeb.WireConformanceTest do
     assert %{"status" => "pending"} = ok!(ada, "snapshot")
 
     assert %{"ok" => true, "snapshot" => %{"vehicle" => ^id}} =
-             await!(ada, "snapshot", &match?(%{"ok" => _}, &1), 10_000)
+             await!(ada, "snapshot", &match?(%{"ok" => _}, &1))
   end
 end

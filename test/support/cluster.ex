@@ -137,15 +137,18 @@ defmodule Neptunus.Test.Cluster do
     :ok
   end
 
-  @doc "Waits until this node's directory places vehicle `id` on `node` (5 s at most)."
+  @doc "Waits until this node's directory places vehicle `id` on `node` (`Neptunus.Test.Patience`)."
   @spec await_located!(String.t(), node()) :: :ok
   def await_located!(id, node) do
     wait!(fn -> match?({:ok, ^node, _}, Neptunus.Fleet.locate(id)) end, "#{id} on #{node}")
   end
 
-  @doc "Waits until `fun` returns true, polling every 20 ms (`timeout` ms at most)."
+  @doc """
+  Waits until `fun` returns true, polling every 20 ms (`timeout` ms at most,
+  `Neptunus.Test.Patience`).
+  """
   @spec wait!((() -> boolean()), String.t(), pos_integer()) :: :ok
-  def wait!(fun, what, timeout \\ 5_000) do
+  def wait!(fun, what, timeout \\ Neptunus.Test.Patience.ms()) do
     deadline = System.monotonic_time(:millisecond) + timeout
     do_wait(fun, what, deadline)
   end

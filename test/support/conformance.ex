@@ -12,6 +12,7 @@ defmodule NeptunusWeb.Test.Conformance do
   """
   import ExUnit.Assertions
 
+  alias Neptunus.Test.Patience
   alias NeptunusWeb.Test.{Wire, WSClient}
   alias NeptunusWeb.WireSchema
   alias NeptunusWeb.WireSchema.Check
@@ -39,14 +40,14 @@ defmodule NeptunusWeb.Test.Conformance do
     :ok = WSClient.push(c.ws, c.jr, ref, c.topic, event, payload)
 
     [_, _, _, _, %{"status" => status, "response" => response}] =
-      take!(c, &match?([_, ^ref, _, "phx_reply", _], &1), 3_000)
+      take!(c, &match?([_, ^ref, _, "phx_reply", _], &1), Patience.ms())
 
     {status, response}
   end
 
   @doc "Waits for `event` whose payload satisfies `pred` (checked, as every frame); returns the payload."
   @spec await!(client(), String.t(), (map() -> as_boolean(term())), timeout()) :: map()
-  def await!(c, event, pred \\ fn _ -> true end, timeout \\ 3_000) do
+  def await!(c, event, pred \\ fn _ -> true end, timeout \\ Patience.ms()) do
     [_, _, _, ^event, payload] =
       take!(c, &(match?([_, _, _, ^event, _], &1) and pred.(Enum.at(&1, 4))), timeout)
 

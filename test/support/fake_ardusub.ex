@@ -56,10 +56,10 @@ defmodule Neptunus.Test.FakeArduSub do
 
   @doc """
   The next report for which `pred` is true (reports before it are dropped), or a test
-  failure after `timeout` ms.
+  failure after `timeout` ms (`Neptunus.Test.Patience`).
   """
   @spec expect!(%{port: port()}, (map() -> boolean()), timeout()) :: map()
-  def expect!(fake, pred, timeout \\ 5_000) do
+  def expect!(fake, pred, timeout \\ Neptunus.Test.Patience.ms()) do
     case expect(fake, pred, timeout) do
       {:ok, report} -> report
       :timeout -> flunk("the fake ArduSub did not report what was expected in time")

@@ -13,6 +13,7 @@ defmodule Neptunus.Test.Pty do
   """
   import ExUnit.Assertions
 
+  alias Neptunus.Test.Patience
   alias Neptunus.Vehicle.Board.UART
 
   @type pair :: %{dir: String.t(), a: String.t(), b: String.t(), port: port(), os_pid: integer()}
@@ -93,7 +94,7 @@ defmodule Neptunus.Test.Pty do
       {^port, {:data, "o" <> _}} -> port
       {^port, {:data, "e" <> why}} -> flunk("cannot open #{device}: #{why}")
     after
-      5_000 -> flunk("#{device} did not open")
+      Patience.ms() -> flunk("#{device} did not open")
     end
   end
 
@@ -103,10 +104,10 @@ defmodule Neptunus.Test.Pty do
 
   @doc """
   Reads from the line until `done?.(bytes_so_far)` is true; returns all bytes read. Fails the
-  test after `timeout` ms.
+  test after `timeout` ms (`Neptunus.Test.Patience`).
   """
   @spec recv_until(port(), (binary() -> boolean()), timeout()) :: binary()
-  def recv_until(port, done?, timeout \\ 2_000) do
+  def recv_until(port, done?, timeout \\ Patience.ms()) do
     deadline = System.monotonic_time(:millisecond) + timeout
     do_recv(port, done?, "", deadline)
   end
@@ -135,9 +136,12 @@ defmodule Neptunus.Test.Pty do
     end
   end
 
-  @doc "Polls `fun` every 10 ms until it returns truthy (fails after `timeout` ms)."
+  @doc """
+  Polls `fun` every 10 ms until it returns truthy (fails after `timeout` ms,
+  `Neptunus.Test.Patience`).
+  """
   @spec wait_until((() -> term()), String.t(), timeout()) :: term()
-  def wait_until(fun, what, timeout \\ 5_000) do
+  def wait_until(fun, what, timeout \\ Patience.ms()) do
     deadline = System.monotonic_time(:millisecond) + timeout
     do_wait(fun, what, deadline)
   end

@@ -7,6 +7,7 @@ defmodule NeptunusWeb.Test.Video do
   import ExUnit.Assertions
 
   alias Neptunus.Camera.Frame
+  alias Neptunus.Test.Patience
   alias NeptunusWeb.Test.{Wire, WSClient}
 
   @doc "Connects to vehicle `id`'s video; `opts` as `WSClient.connect/3` (`:query`: a map)."
@@ -26,7 +27,7 @@ defmodule NeptunusWeb.Test.Video do
   or nothing comes within `timeout` ms.
   """
   @spec next(pid(), timeout()) :: {:text, map()} | {:frame, map()}
-  def next(ws, timeout \\ 5_000) do
+  def next(ws, timeout \\ Patience.ms()) do
     receive do
       {:ws, ^ws, {:text, json}} ->
         {:ok, message} = Neptunus.JSON.decode(json)
@@ -48,7 +49,7 @@ defmodule NeptunusWeb.Test.Video do
 
   @doc "Reads messages until `fun` returns a truthy value for one; returns `{it, skipped}`."
   @spec until(pid(), (term() -> term()), timeout()) :: {term(), [term()]}
-  def until(ws, fun, timeout \\ 10_000) do
+  def until(ws, fun, timeout \\ Patience.ms()) do
     deadline = System.monotonic_time(:millisecond) + timeout
     until(ws, fun, deadline, [])
   end
@@ -63,7 +64,7 @@ defmodule NeptunusWeb.Test.Video do
 
   @doc "The next `n` frames (text messages between them are returned apart)."
   @spec frames(pid(), pos_integer(), timeout()) :: {[map()], [map()]}
-  def frames(ws, n, timeout \\ 10_000) do
+  def frames(ws, n, timeout \\ Patience.ms()) do
     Enum.reduce(1..n, {[], []}, fn _, {frames, texts} ->
       {{:frame, frame}, others} = until(ws, &match?({:frame, _}, &1), timeout)
       {[frame | frames], texts ++ for({:text, t} <- others, do: t)}

@@ -53,7 +53,7 @@ defmodule NeptunusWeb.Test.Wire do
         {head, rest}
 
       [_] ->
-        {:ok, data} = :gen_tcp.recv(socket, 0, 5_000)
+        {:ok, data} = :gen_tcp.recv(socket, 0, Neptunus.Test.Patience.ms())
         read_head(socket, acc <> data)
     end
   end
@@ -87,14 +87,14 @@ defmodule NeptunusWeb.Test.Wire do
     WSClient.push(ws, join_ref, ref, topic, event, payload)
 
     [^join_ref, ^ref, ^topic, "phx_reply", %{"status" => status, "response" => response}] =
-      WSClient.recv_until(ws, &match?([_, ^ref, _, "phx_reply", _], &1), 2_000)
+      WSClient.recv_until(ws, &match?([_, ^ref, _, "phx_reply", _], &1))
 
     {status, response}
   end
 
   @doc "Waits for `event` whose payload satisfies `pred`; returns the payload."
   @spec event!(pid(), String.t(), (map() -> as_boolean(term())), timeout()) :: map()
-  def event!(ws, event, pred \\ fn _ -> true end, timeout \\ 2_000) do
+  def event!(ws, event, pred \\ fn _ -> true end, timeout \\ Neptunus.Test.Patience.ms()) do
     [_, _, _, ^event, payload] =
       WSClient.recv_until(
         ws,
@@ -112,7 +112,7 @@ defmodule NeptunusWeb.Test.Wire do
   """
   @spec collect!(pid(), [String.t() | {String.t(), (map() -> as_boolean(term()))}], timeout()) ::
           %{String.t() => map()}
-  def collect!(ws, events, timeout \\ 2_000) do
+  def collect!(ws, events, timeout \\ Neptunus.Test.Patience.ms()) do
     deadline = System.monotonic_time(:millisecond) + timeout
 
     wanted =

@@ -31,7 +31,6 @@ defmodule NeptunusWeb.Test.WSClient do
   use GenServer
 
   @guid "258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
-  @close_timeout 5_000
 
   @opcodes %{continuation: 0, text: 1, binary: 2, close: 8, ping: 9, pong: 10}
 
@@ -75,7 +74,7 @@ defmodule NeptunusWeb.Test.WSClient do
     * `:headers` — extra request headers, a list of `{name, value}` (a `Host` here
       replaces the default `host:port`)
     * `:owner` — process that receives the reports, default `self()`
-    * `:timeout` — for connect and handshake, ms, default 5000
+    * `:timeout` — for connect and handshake, ms, default `Neptunus.Test.Patience.ms/0`
     * `:paused` — `true`: read nothing after the handshake until `resume/1` (a client that
       stops reading, for slow-client tests); default `false`
     * `:recbuf` — the socket's receive buffer in bytes (small: a paused client's buffers
@@ -91,7 +90,7 @@ defmodule NeptunusWeb.Test.WSClient do
   def connect(port, path_and_query, opts \\ []) do
     host = Keyword.get(opts, :host, "127.0.0.1")
     owner = Keyword.get(opts, :owner, self())
-    timeout = Keyword.get(opts, :timeout, 5_000)
+    timeout = Keyword.get(opts, :timeout, Neptunus.Test.Patience.ms())
     deadline = System.monotonic_time(:millisecond) + timeout
 
     tcp_opts =
@@ -153,8 +152,8 @@ defmodule NeptunusWeb.Test.WSClient do
   @doc """
   Starts the closing handshake: sends a close frame with `code` and
   `reason`. The owner then gets the server's `{:close, code, reason}` and
-  `:closed`; TCP is dropped after #{@close_timeout} ms if the server does not
-  answer.
+  `:closed`; TCP is dropped after `Neptunus.Test.Patience.ms/0` if the server
+  does not answer.
   """
   @spec close(pid(), non_neg_integer(), String.t()) :: :ok | {:error, term()}
   def close(pid, code \\ 1000, reason \\ ""), do: safe_call(pid, {:close, code, reason})
@@ -174,7 +173,7 @@ defmodule NeptunusWeb.Test.WSClient do
   `nil`). Raises on timeout, on close and on a text that is not such a list.
   """
   @spec recv_frame(pid(), timeout()) :: frame()
-  def recv_frame(pid, timeout \\ 1_000) do
+  def recv_frame(pid, timeout \\ Neptunus.Test.Patience.ms()) do
     receive do
       {:ws, ^pid, {:text, text}} ->
         decode_frame!(text)
@@ -197,14 +196,14 @@ defmodule NeptunusWeb.Test.WSClient do
   frames before it are discarded. `timeout` bounds the whole wait.
   """
   @spec recv_until(pid(), (frame() -> as_boolean(term())), timeout()) :: frame()
-  def recv_until(pid, fun, timeout \\ 1_000) do
+  def recv_until(pid, fun, timeout \\ Neptunus.Test.Patience.ms()) do
     deadline = System.monotonic_time(:millisecond) + timeout
     do_recv_until(pid, fun, deadline, timeout, [])
   end
 
   @doc """
   Joins `topic`: pushes `phx_join` with `params` (ref = `join_ref`) and waits
-  up to 5 s for the matching `phx_reply`. Without `join_ref` a unique one is
+  for the matching `phx_reply` (`Neptunus.Test.Patience`). Without `join_ref` a unique one is
   generated; pass your own when you need it for later pushes.
   """
   @spec join(pid(), String.t(), map(), String.t() | nil) :: {:ok, map()} | {:error, map()}
@@ -216,7 +215,7 @@ defmodule NeptunusWeb.Test.WSClient do
       recv_until(
         pid,
         &match?([^join_ref, ^join_ref, ^topic, "phx_reply", %{"status" => _}], &1),
-        5_000
+        Neptunus.Test.Patience.ms()
       )
 
     case status do
@@ -253,7 +252,7 @@ defmodule NeptunusWeb.Test.WSClient do
 
   def handle_call({:close, code, reason}, _from, state) do
     reply = :gen_tcp.send(state.socket, frame(8, <<code::16, reason::binary>>, []))
-    timer = Process.send_after(self(), :close_timeout, @close_timeout)
+    timer = Process.send_after(self(), :close_timeout, Neptunus.Test.Patience.ms())
     {:reply, reply, %{state | close_sent?: true, close_timer: timer}}
   end
 

@@ -190,6 +190,7 @@ export class DevController {
       snapshot: (snapshot) => {
         this.lastHelm = snapshot.helm;
         if (snapshot.telemetry) this.onTelemetry(snapshot.telemetry);
+        void this.tuning.joined();
       },
       telemetry: (t) => this.onTelemetry(t),
       helm: (h) => this.onHelm(h),

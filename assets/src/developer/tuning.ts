@@ -30,22 +30,29 @@ const RUN_TIMEOUT_MS = 15_000;
 
 export class TuningController {
   readonly store = new Store<TuningState>({ info: null, form: null, axis: "depth", preview: null, busy: null, message: "", error: false });
-  private vehicle: Pick<VehicleChannel, "request"> | null = null;
-  /** the panel was opened before the page had its vehicle: the gains are read once it has */
+  private vehicle: VehicleChannel | null = null;
+  /** the gains were asked for before the vehicle's channel joined: read them when it does */
   private wanted = false;
 
-  /** The vehicle channel to talk on (once joined). */
-  attach(vehicle: Pick<VehicleChannel, "request">): void {
+  /** The vehicle channel to talk on. */
+  attach(vehicle: VehicleChannel): void {
     this.vehicle = vehicle;
-    if (this.wanted) void this.load();
   }
 
-  /** Reads the gains in force (the panel opened); before the page has its vehicle, once it has. */
+  /** The vehicle's channel joined (again): reads the gains if they were asked for meanwhile. */
+  joined(): Promise<void> {
+    return this.wanted ? this.load() : Promise.resolve();
+  }
+
+  /** Reads the gains in force: now, or once the vehicle's channel has joined (`joined`). */
   async load(): Promise<void> {
     const v = this.vehicle;
-    this.wanted = v === null;
-    if (v === null) return;
     this.store.update({ busy: "loading" });
+    if (v === null || !v.joined) {
+      this.wanted = true;
+      return;
+    }
+    this.wanted = false;
     try {
       const info = await v.request("get_tuning", {}, decodeTuningInfo);
       this.store.update({ info, form: formOf(info.gains), busy: null, message: `gains in force (simulator model ${info.model})`, error: false });

@@ -6,6 +6,7 @@
  */
 
 import { reasonOf } from "./errors";
+import { firstVehicle } from "./first_vehicle";
 import type { FleetReply } from "./protocol";
 
 export const VEHICLE_ID = /^[A-Za-z0-9_.-]{1,64}$/;
@@ -25,7 +26,7 @@ export async function chooseVehicle(
   for (;;) {
     try {
       const fleet = await client.fleet();
-      const first = fleet.vehicles.find((v) => v.status !== "unreachable") ?? fleet.vehicles[0];
+      const first = firstVehicle(fleet.vehicles);
       if (first !== undefined) {
         say("");
         return first.id;

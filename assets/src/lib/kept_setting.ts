@@ -8,11 +8,15 @@
  *   wins (it is being saved).
  * - `save(value)`: the value is used at once and saved; only the newest save says "saved".
  * - `reset(value)`: back to the page's default, the stored one deleted.
+ * - Saves and resets are sent one request at a time, the newest last (`NewestWriter`): two on
+ *   their way at once could be served out of order, the older landing last and the user's
+ *   last change lost.
  * - Without a login the server keeps nothing (401): the value still applies on this page and
  *   the status says it is not kept.
  */
 
 import { reasonOf } from "./errors";
+import { NewestWriter } from "./newest_writer";
 import { notKept } from "./settings";
 import type { SettingsClient } from "./settings";
 
@@ -52,6 +56,7 @@ export interface KeptSettingHost<T> {
 
 export class KeptSetting<T> {
   private readonly host: KeptSettingHost<T>;
+  private readonly writer = new NewestWriter();
 
   constructor(host: KeptSettingHost<T>) {
     this.host = host;
@@ -77,7 +82,9 @@ export class KeptSetting<T> {
 
   save(value: T): void {
     this.host.set({ value, status: { state: "saving", text: "Saving…" } });
-    this.host.client.put(this.host.key, this.host.encode(value)).then(
+    const { client, key } = this.host;
+    const encoded = this.host.encode(value);
+    this.writer.write(() => client.put(key, encoded)).then(
       () => {
         // a later change may have been saved meanwhile: only the newest says "saved"
         if (this.host.get().value === value) this.host.set({ status: { state: "saved", text: "Saved on the server." } });
@@ -89,8 +96,11 @@ export class KeptSetting<T> {
   /** Back to `value`, the page's default (the stored one is deleted on the server). */
   reset(value: T): void {
     this.host.set({ value, status: { state: "saving", text: "Resetting…" } });
-    this.host.client.delete(this.host.key).then(
-      () => this.host.set({ status: { state: "default", text: this.host.texts.default } }),
+    const { client, key } = this.host;
+    this.writer.write(() => client.delete(key)).then(
+      () => {
+        if (this.host.get().value === value) this.host.set({ status: { state: "default", text: this.host.texts.default } });
+      },
       (err: unknown) => this.failed(err),
     );
   }

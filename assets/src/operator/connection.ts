@@ -8,6 +8,7 @@
  * A join the server refuses (unknown vehicle, bad reply) is not retried.
  */
 
+import { firstVehicle } from "../lib/first_vehicle";
 import { reasonOf } from "../lib/errors";
 import type { AuthMode } from "../lib/protocol";
 import { CommandError } from "../lib/vehicle_client";
@@ -46,11 +47,7 @@ export interface Identity {
   readonly token: string | null;
 }
 
-/** The vehicle to open when the address names none: the first that can be reached, else the first. */
-export function firstVehicle<V extends { readonly id: string; readonly status?: string | undefined }>(vehicles: readonly V[]): V | undefined {
-  // a vehicle whose node of the fleet is cut off cannot be joined
-  return vehicles.find((v) => v.status !== "unreachable") ?? vehicles[0];
-}
+export { firstVehicle };
 
 /** `?name=`, else none: the server then names us `guest-XXXX`. */
 export function displayName(params: URLSearchParams): string | undefined {

@@ -19,8 +19,10 @@ const TOPIC = `vehicle:${VEHICLE}`;
 const NAME = "node-test";
 const OTHER_NAME = "node-test-observer";
 
-const REPLY_MS = 3000;
-const TEST_MS = 15000;
+// Bounds of waits for what must come (a reply, an event, telemetry): generous, since the
+// machine may be busy; every wait ends as soon as it comes. Nothing here measures speed.
+const REPLY_MS = 15000;
+const TEST_MS = 60000;
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
@@ -83,6 +85,18 @@ function errText(err) {
   if (err && typeof err === "object" && "message" in err && err.message) return err.message;
   if (err && typeof err === "object" && "type" in err) return String(err.type);
   return String(err);
+}
+
+/**
+ * Heartbeats on `side`'s channel every `ms`, as the operator page does while it pilots (the
+ * helm stops a pilot silent for its deadman, 500 ms): the tests' pilots must not be stopped
+ * by a busy machine's pause between two of their steps. Refused while `side` does not pilot.
+ */
+function keepAlive(side, ms) {
+  clearInterval(side.heartbeat);
+  side.heartbeat = setInterval(() => {
+    if (side.channel?.state === "joined") side.channel.push("heartbeat", {}, REPLY_MS);
+  }, ms);
 }
 
 async function closeSocket(socket) {
@@ -213,7 +227,7 @@ let snapshot;
 
 before(async () => {
   try {
-    const res = await fetch(`${BASE}/api/health`, { signal: AbortSignal.timeout(2000) });
+    const res = await fetch(`${BASE}/api/health`, { signal: AbortSignal.timeout(REPLY_MS) });
     assert.equal(res.status, 200, `GET ${BASE}/api/health answered ${res.status}`);
   } catch (err) {
     throw new Error(
@@ -227,6 +241,8 @@ before(async () => {
 });
 
 after(async () => {
+  clearInterval(pilot?.heartbeat);
+  clearInterval(observer?.heartbeat);
   // Leave the vehicle stopped, whatever happened above.
   for (const side of [pilot, observer]) {
     if (side?.channel?.state === "joined") {
@@ -293,9 +309,9 @@ test("presence_state lists this client", { timeout: TEST_MS }, async () => {
 test("telemetry arrives with the documented shape", { timeout: TEST_MS }, async () => {
   const first = await pilot.events.seenOrNext("telemetry", () => true, REPLY_MS, "telemetry");
   assertTelemetry(first);
-  // 20 Hz nominal: ask loosely for 5 samples within 2 s, with vehicle time moving forward
+  // 20 Hz nominal: 5 samples, with vehicle time moving forward
   const start = pilot.events.seen.telemetry.length;
-  await pilot.events.next("telemetry", () => pilot.events.seen.telemetry.length >= start + 5, 2000, "5 telemetry samples");
+  await pilot.events.next("telemetry", () => pilot.events.seen.telemetry.length >= start + 5, REPLY_MS, "5 telemetry samples");
   const recent = pilot.events.seen.telemetry.slice(start);
   recent.forEach((t, i) => assertTelemetry(t, `telemetry[${i}]`));
   for (let i = 1; i < recent.length; i++) {
@@ -325,6 +341,7 @@ test("request_control on a free helm grants at once; thrust with the grant's epo
   assert.equal(grant.control.mode, "motion");
   assertNumbers(grant.control.command, ["surge", "heave", "yaw"], "grant.control.command");
   pilot.epoch = grant.epoch;
+  keepAlive(pilot, grant.heartbeat_ms);
   await events.seenOrNext("control_granted", (g) => g.epoch === grant.epoch, REPLY_MS, "control_granted");
   await events.seenOrNext("helm", (h) => h.state === "piloted" && h.pilot?.name === NAME, REPLY_MS, "helm naming us");
 
@@ -348,7 +365,7 @@ test("request_control on a free helm grants at once; thrust with the grant's epo
   const moved = await events.next(
     "telemetry",
     (t) => t.sim.u > before.sim.u + 0.01 || t.sim.x > before.sim.x + 0.01,
-    2500,
+    REPLY_MS,
     `sim.u or sim.x to increase from u=${before.sim.u}, x=${before.sim.x}`,
   );
   assertTelemetry(moved);
@@ -366,6 +383,7 @@ test("another client is refused with not_in_control and changes nothing", { time
   const join = await reply(channel.join(REPLY_MS), `observer join ${TOPIC}`);
   assert.equal(join.status, "ok");
   observer.session = join.response.session;
+  keepAlive(observer, join.response.helm.heartbeat_ms);
   assert.equal(join.response.helm.pilot?.name, NAME, `the snapshot's helm should name the pilot: ${JSON.stringify(join.response.helm)}`);
 
   // the pilot sees the observer arrive
@@ -405,7 +423,7 @@ test("control passes by request and acknowledge, neutral on transfer", { timeout
   assert.ok(grant.epoch > pilot.epoch, "a transfer starts a new epoch");
   await pilot.events.seenOrNext("control_lost", (l) => l.reason === "control_transferred", REPLY_MS, "control_lost");
   await observer.events.seenOrNext("stopped", (s) => s.reason === "control_transferred", REPLY_MS, "stopped on transfer");
-  await observer.events.next("telemetry", (t) => commandAtZero(t), 2000, "neutral after the transfer");
+  await observer.events.next("telemetry", (t) => commandAtZero(t), REPLY_MS, "neutral after the transfer");
 
   const old = await reply(pilot.channel.push("thrust", motion(1, pilot.epoch), REPLY_MS), "old pilot's thrust");
   assert.equal(old.response.reason, "not_in_control");
@@ -441,7 +459,7 @@ test("stop puts every thruster at zero", { timeout: TEST_MS }, async () => {
   const t = await events.next(
     "telemetry",
     (x) => thrustersAtZero(x) && commandAtZero(x),
-    2000,
+    REPLY_MS,
     "telemetry with thrusters and command at zero",
   );
   for (const k of ["port_us", "vertical_us", "starboard_us"]) {
@@ -477,13 +495,14 @@ test("closing the pilot's socket stops the vehicle and frees the helm", { timeou
   freed.catch(() => undefined);
   const stopped = observer.events.next("stopped", (s) => s.reason === "pilot_disconnected", REPLY_MS, "stopped pilot_disconnected");
   stopped.catch(() => undefined);
+  clearInterval(pilot.heartbeat);
   await closeSocket(pilot.socket);
   await freed;
   await stopped;
   await observer.events.next(
     "telemetry",
     (t) => thrustersAtZero(t) && commandAtZero(t),
-    2000,
+    REPLY_MS,
     "thrusters at zero after the pilot left",
   );
   // and the observer may take over now: granted at once

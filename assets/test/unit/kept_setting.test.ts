@@ -123,6 +123,43 @@ describe("KeptSetting.save and reset", () => {
     expect(h.status().state).toBe("saved");
   });
 
+  it("saves and resets go one at a time, the newest last: an older one never lands after it", async () => {
+    const h = harness();
+    h.kept.save(5);
+    h.kept.save(6);
+    h.kept.reset(1);
+    h.kept.save(7);
+    // one request on its way; of those asked for meanwhile only the newest is sent, after it
+    expect(h.calls.map((c) => [c.method, c.value])).toEqual([["put", { n: 5 }]]);
+    h.calls[0]?.resolve();
+    await h.settled();
+    expect(h.calls.map((c) => [c.method, c.value])).toEqual([
+      ["put", { n: 5 }],
+      ["put", { n: 7 }],
+    ]);
+    expect(h.status().state).toBe("saving");
+    h.calls[1]?.resolve();
+    await h.settled();
+    expect(h.calls).toHaveLength(2);
+    expect([h.value(), h.status().state]).toEqual([7, "saved"]);
+  });
+
+  it("a reset superseded by a save does not say default", async () => {
+    const h = harness(9);
+    h.kept.save(5);
+    h.kept.reset(1);
+    h.calls[0]?.resolve();
+    await h.settled();
+    expect(h.calls[1]).toMatchObject({ method: "delete" });
+    h.kept.save(8);
+    h.calls[1]?.resolve();
+    await h.settled();
+    expect(h.status().state).toBe("saving");
+    h.calls[2]?.resolve();
+    await h.settled();
+    expect([h.value(), h.status().state]).toEqual([8, "saved"]);
+  });
+
   it("a save without a login still applies on the page", async () => {
     const h = harness();
     h.kept.save(5);

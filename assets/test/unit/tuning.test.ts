@@ -53,12 +53,44 @@ describe("autopilot tuning on the developer page", () => {
     expect(figures(r)).toBe("overshoot 0.6 cm, within ±5 cm after 1.9 s");
     expect(figures({ ...r, axis: "heading", overshoot: Math.PI / 180, band: (2 * Math.PI) / 180, settle: null })).toBe("overshoot 1.0°, never within ±2° in 3 s");
   });
+
+  // the part of a VehicleChannel the tuning panel uses: joined or not, and requests (answered
+  // with the tuning above)
+  class StubChannel {
+    joined = false;
+    readonly asked: string[] = [];
+    request<T>(event: string, _payload: object, decode: (response: unknown) => T | null): Promise<T> {
+      this.asked.push(event);
+      const decoded = decode(info);
+      return decoded === null ? Promise.reject(new Error("bad reply")) : Promise.resolve(decoded);
+    }
+  }
+
+  it("opened before the vehicle's channel joins, reads the gains once it has", async () => {
+    const tuning = new TuningController();
+    const channel = new StubChannel();
+    tuning.attach(channel as unknown as VehicleChannel);
+
+    await tuning.load();
+    expect(channel.asked).toEqual([]);
+    expect(tuning.store.get()).toMatchObject({ busy: "loading", form: null });
+
+    channel.joined = true;
+    await tuning.joined();
+    expect(channel.asked).toEqual(["get_tuning"]);
+    expect(tuning.store.get()).toMatchObject({ busy: null, form: formOf(gains), error: false });
+
+    // a later rejoin does not read them again unasked
+    await tuning.joined();
+    expect(channel.asked).toEqual(["get_tuning"]);
+  });
 });
 
 describe("the tuning panel opened before the page has its vehicle", () => {
-  it("reads the gains once the vehicle is attached", async () => {
+  it("reads the gains once the vehicle is attached and its channel has joined", async () => {
     const asked: string[] = [];
-    const vehicle: Pick<VehicleChannel, "request"> = {
+    const vehicle = {
+      joined: false,
       request: <T>(event: string, _payload: unknown, decode: (v: unknown) => T | null): Promise<T> => {
         asked.push(event);
         const value = decode(info);
@@ -68,8 +100,10 @@ describe("the tuning panel opened before the page has its vehicle", () => {
     const c = new TuningController();
     await c.load();
     expect(c.store.get().form).toBeNull();
-    c.attach(vehicle);
-    await new Promise((r) => setTimeout(r, 0));
+    c.attach(vehicle as unknown as VehicleChannel);
+    expect(asked).toEqual([]);
+    vehicle.joined = true;
+    await c.joined();
     expect(asked).toEqual(["get_tuning"]);
     expect(c.store.get().form).toEqual(formOf(gains));
   });

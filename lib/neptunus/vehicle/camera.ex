@@ -62,6 +62,7 @@ defmodule Neptunus.Vehicle.Camera do
             source: Neptunus.Camera.Source.t() | nil,
             phase: :none | :idle | :probing | :starting | :running | :restarting | :failed,
             port: port() | nil,
+            exit_code: non_neg_integer() | nil,
             stream: Neptunus.Camera.Stream.t() | nil,
             info: Neptunus.Camera.Stream.info() | nil,
             generation: non_neg_integer(),
@@ -89,6 +90,7 @@ defmodule Neptunus.Vehicle.Camera do
       :id,
       :source,
       :port,
+      :exit_code,
       :stream,
       :info,
       :frame,
@@ -270,30 +272,20 @@ defmodule Neptunus.Vehicle.Camera do
     {:noreply, %{state | errors: Enum.take([line | state.errors], limit)}}
   end
 
+  # the program ended: its exit code, said before the port program exits
+  def handle_info({port, {:data, <<?x, code>>}}, %State{port: port} = state),
+    do: {:noreply, %{state | exit_code: code}}
+
   def handle_info({port, {:data, _other}}, %State{port: port} = state), do: {:noreply, state}
 
-  def handle_info({port, {:exit_status, _}}, %State{port: port, phase: :probing} = state) do
-    state = %{state | port: nil}
+  def handle_info({port, {:exit_status, code}}, %State{port: port} = state),
+    do: {:noreply, ended(state, code)}
 
-    case V4L2.decide(Enum.reverse(state.errors), state.source) do
-      {:ok, codec} ->
-        Logger.info("vehicle #{state.id} camera: #{state.source.device} sends #{codec}")
-        {:noreply, state |> launch(%{state.source | codec: codec}) |> report()}
-
-      {:error, reason} ->
-        {:noreply, state |> stopped(:failed, reason) |> report()}
-    end
-  end
-
-  def handle_info({port, {:exit_status, code}}, %State{port: port} = state) do
-    reason =
-      case state.errors do
-        [last | _] -> "the camera program exited (status #{code}): #{last}"
-        [] -> "the camera program exited (status #{code})"
-      end
-
-    {:noreply, %{state | port: nil} |> stopped(:restarting, reason) |> report()}
-  end
+  # The port closed before the program's exit status reached the VM: a message written to it
+  # as it ended (an acknowledgement, a pose) failed (epipe) and closed the port, which then
+  # sends only this exit signal. The program is gone all the same; its code came first ('x').
+  def handle_info({:EXIT, port, _reason}, %State{port: port} = state),
+    do: {:noreply, ended(state, state.exit_code)}
 
   def handle_info(:restart, %State{port: nil, phase: phase} = state)
       when phase in [:restarting, :failed] do
@@ -319,7 +311,8 @@ defmodule Neptunus.Vehicle.Camera do
 
   def handle_info({:pubsub, _topic, "pose", _pose}, state), do: {:noreply, state}
 
-  # the port is linked to us; its exit_status message does the work
+  # the port is linked to us; its exit_status message (or, for the current port, its exit
+  # signal: above) does the work
   def handle_info({:EXIT, port, _reason}, state) when is_port(port), do: {:noreply, state}
   def handle_info({:EXIT, _pid, reason}, state), do: {:stop, reason, state}
 
@@ -428,10 +421,38 @@ defmodule Neptunus.Vehicle.Camera do
         args: args
       ])
 
-    %{state | port: port, errors: []}
+    %{state | port: port, errors: [], exit_code: nil}
   end
 
-  # a message to the port program (nothing if it has just exited: its exit status follows)
+  # The program ended with `code` (nil: not known). A probe's end decides the codec; a
+  # camera's is a fault: it starts again.
+  defp ended(%State{phase: :probing} = state, _code) do
+    state = %{state | port: nil}
+
+    case V4L2.decide(Enum.reverse(state.errors), state.source) do
+      {:ok, codec} ->
+        Logger.info("vehicle #{state.id} camera: #{state.source.device} sends #{codec}")
+        state |> launch(%{state.source | codec: codec}) |> report()
+
+      {:error, reason} ->
+        state |> stopped(:failed, reason) |> report()
+    end
+  end
+
+  defp ended(state, code) do
+    exited =
+      if code, do: "the camera program exited (status #{code})", else: "the camera program ended"
+
+    reason =
+      case state.errors do
+        [last | _] -> "#{exited}: #{last}"
+        [] -> exited
+      end
+
+    %{state | port: nil} |> stopped(:restarting, reason) |> report()
+  end
+
+  # a message to the port program (nothing if it has just exited: its end follows)
   defp tell(port, message) do
     Port.command(port, message)
   rescue

@@ -18,12 +18,12 @@ defmodule Neptunus.Camera.PoseTest do
 
   test "the built-in simulator: its true pose at every step, with lights, laser and tilt" do
     id = start(%{id: "pose-#{System.unique_integer([:positive])}", board: :simulated})
-    assert_receive {:pubsub, _, "pose", %{z: z, psi: _, u: _, lights: 0.0}}, 5_000
+    assert_receive {:pubsub, _, "pose", %{z: z, psi: _, u: _, lights: 0.0}}
     assert_in_delta z, 1.0, 0.2
 
     Board.lights(id, 255)
     Board.tilt(id, 0.3)
-    assert_receive {:pubsub, _, "pose", %{lights: 1.0, tilt: 0.3}}, 5_000
+    assert_receive {:pubsub, _, "pose", %{lights: 1.0, tilt: 0.3}}
   end
 
   @tag :uart
@@ -39,11 +39,11 @@ defmodule Neptunus.Camera.PoseTest do
         sim: [noise: false]
       })
 
-    assert_receive {:pubsub, _, "pose", %{z: _, lights: 0.0, tilt: tilt}}, 10_000
+    assert_receive {:pubsub, _, "pose", %{z: _, lights: 0.0, tilt: tilt}}
     assert_in_delta tilt, 0.0, 1.0e-9
     # commands reach the board once its link is up
-    assert_receive {:pubsub, _, "link", %{up: true}}, 10_000
+    assert_receive {:pubsub, _, "link", %{up: true}}
     Board.lights(id, 255)
-    assert_receive {:pubsub, _, "pose", %{lights: 1.0}}, 10_000
+    assert_receive {:pubsub, _, "pose", %{lights: 1.0}}
   end
 end

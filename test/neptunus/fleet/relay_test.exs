@@ -43,7 +43,7 @@ defmodule Neptunus.Fleet.RelayTest do
   end
 
   defp await(fun) do
-    Enum.reduce_while(1..250, false, fn _, _ ->
+    Enum.reduce_while(1..div(Neptunus.Test.Patience.ms(), 20), false, fn _, _ ->
       if fun.(), do: {:halt, true}, else: Process.sleep(20) && {:cont, false}
     end)
   end

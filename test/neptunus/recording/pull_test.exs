@@ -130,7 +130,7 @@ defmodule Neptunus.Recording.PullTest do
     server = Node.spawn(node(), Pull, :serve, [puller, {Export, :stream, [plan]}])
     ref = Process.monitor(server)
     Process.exit(puller, :kill)
-    assert_receive {:DOWN, ^ref, :process, ^server, :normal}, 5_000
+    assert_receive {:DOWN, ^ref, :process, ^server, :normal}
   end
 
   test "pull: a server that fails ends the pull with the reason", %{tmp_dir: tmp} do

@@ -125,13 +125,13 @@ defmodule Neptunus.Vehicle.ControlTest do
     # vertical thruster down towards 2.1 m, harder as the reference moves there
     assert_receive {:board, ^id, {:go, %{vertical: v0}}}
     assert v0 == 0.0
-    assert_receive {:board, ^id, {:go, %{vertical: v1}}}, 500
-    assert_receive {:board, ^id, {:go, %{vertical: v2}}}, 500
+    assert_receive {:board, ^id, {:go, %{vertical: v1}}}
+    assert_receive {:board, ^id, {:go, %{vertical: v2}}}
     assert v2 > v1 and v1 > 0
 
     Board.Test.sample(id, %{t: 1.0, measurement: measurement(), sim: nil})
     estimate(id, depth: 2.0)
-    assert_receive {:pubsub, _, "telemetry", %{control: c, autopilot: ap}}, 500
+    assert_receive {:pubsub, _, "telemetry", %{control: c, autopilot: ap}}
     assert %{mode: "motion", autopilot: %{depth: 2.1}} = c
     assert %{depth: %{setpoint: 2.1, output: out, overridden: false}, heading: nil} = ap
     assert out > 0
@@ -147,9 +147,9 @@ defmodule Neptunus.Vehicle.ControlTest do
   test "estimates stop coming: outputs go neutral, setpoints stay", %{id: id} do
     estimate(id, depth: 2.0)
     {:ok, _} = command(id, "autopilot", %{"depth" => 3.0})
-    assert_receive {:board, ^id, {:go, %{vertical: v}}} when v > 0, 500
+    assert_receive {:board, ^id, {:go, %{vertical: v}}} when v > 0
     # stale after 1 s (this test's setting)
-    assert_receive {:board, ^id, {:go, @neutral}}, 3_000
+    assert_receive {:board, ^id, {:go, @neutral}}
     assert Control.status(id).autopilot.depth == 3.0
   end
 
@@ -307,7 +307,7 @@ defmodule Neptunus.Vehicle.ControlTest do
       assert t < 99.0
 
       # the real board is still kept alive
-      assert_receive {:board, ^id, :keepalive}, 1_500
+      assert_receive {:board, ^id, :keepalive}
 
       assert {:ok, %{control: %{run_mode: "normal"}}} =
                command(id, "set_run_mode", %{"mode" => "normal"})
@@ -334,7 +334,7 @@ defmodule Neptunus.Vehicle.ControlTest do
       {:ok, _} = command(id, "set_run_mode", %{"mode" => "simulator"})
       control = Fleet.whereis(Control, id)
       Process.exit(Control.simulator(id), :kill)
-      assert_receive {:board, ^id, {:go, @neutral}}, 1_000
+      assert_receive {:board, ^id, {:go, @neutral}}
       wait_for(fn -> Fleet.whereis(Control, id) not in [nil, control] end)
       assert %{run_mode: "normal"} = Control.status(id)
       assert Control.sample_source(id) == :board
@@ -354,7 +354,7 @@ defmodule Neptunus.Vehicle.ControlTest do
   defp measurement,
     do: %{depth: 1.0, heading: 0.5, roll: 0.0, pitch: 0.0, voltage: 12.0, current: 1.0}
 
-  defp wait_for(fun, n \\ 50) do
+  defp wait_for(fun, n \\ div(Neptunus.Test.Patience.ms(), 20)) do
     cond do
       fun.() -> :ok
       n == 0 -> flunk("timed out")

@@ -49,7 +49,7 @@ defmodule Neptunus.Vehicle.HelmEpochTest do
 
     helm = GenServer.whereis(Fleet.via(Helm, id))
     Process.exit(helm, :kill)
-    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}, 5_000
+    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}
     refute GenServer.whereis(Fleet.via(Helm, id)) in [nil, helm]
 
     # the same client takes the helm again; its buffered pre-crash thrust must not run
@@ -66,7 +66,7 @@ defmodule Neptunus.Vehicle.HelmEpochTest do
 
     stop_supervised!(:vehicle)
     start_supervised!(vehicle(id), id: :vehicle)
-    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}, 5_000
+    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}
 
     new = pilot!(id, ada)
     assert {:error, "stale_command"} = thrust(id, ada, old)

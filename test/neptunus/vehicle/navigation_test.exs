@@ -243,7 +243,7 @@ defmodule Neptunus.Vehicle.NavigationTest do
 
       Process.exit(Fleet.whereis(Navigation, id), :kill)
       # control restarts, and drives the thrusters neutral; the board stays
-      assert_receive {:board, ^id, {:go, ^neutral}}, 1_000
+      assert_receive {:board, ^id, {:go, ^neutral}}
       refute_received {:board, ^id, {:started, _}}
       assert Fleet.whereis(Board, id) == board
       assert Fleet.whereis(Control, id) != control

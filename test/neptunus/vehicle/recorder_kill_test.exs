@@ -78,7 +78,7 @@ defmodule Neptunus.Vehicle.RecorderKillTest do
     )
 
     {_, 0} = System.cmd("kill", ["-9", os_pid])
-    assert_receive {^port, {:exit_status, status}}, 10_000
+    assert_receive {^port, {:exit_status, status}}
     assert status != 0
 
     witnessed = read_witness(witness)

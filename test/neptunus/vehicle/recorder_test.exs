@@ -200,9 +200,9 @@ defmodule Neptunus.Vehicle.RecorderTest do
     )
 
     PubSub.subscribe(Telemetry.topic(id))
-    assert_receive {:pubsub, _, "telemetry", _}, 2_000
+    assert_receive {:pubsub, _, "telemetry", _}
     # and says so in its telemetry (a tick may come between its subscription and its report)
-    assert_receive {:pubsub, _, "telemetry", %{recording: %{on: true, error: nil}}}, 2_000
+    assert_receive {:pubsub, _, "telemetry", %{recording: %{on: true, error: nil}}}
     recorded = entries(id)
     assert Enum.count(recorded, &match?({_, "telemetry", %{t: _}}, &1)) >= 2
 
@@ -221,7 +221,7 @@ defmodule Neptunus.Vehicle.RecorderTest do
       id: :off
     )
 
-    assert_receive {:pubsub, _, "telemetry", %{recording: %{on: false, error: nil}}}, 2_000
+    assert_receive {:pubsub, _, "telemetry", %{recording: %{on: false, error: nil}}}
 
     blocked = "rec-#{System.unique_integer([:positive])}"
     file = Path.join(dir, "not-a-dir")
@@ -234,8 +234,7 @@ defmodule Neptunus.Vehicle.RecorderTest do
     )
 
     assert_receive {:pubsub, "vehicle:" <> ^blocked, "telemetry",
-                    %{recording: %{on: false, error: "cannot record to" <> _}}},
-                   2_000
+                    %{recording: %{on: false, error: "cannot record to" <> _}}}
   end
 
   test "retention: deletes the vehicle's dives older than keep_ms, each one said", %{

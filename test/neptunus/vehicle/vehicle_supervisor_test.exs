@@ -16,7 +16,7 @@ defmodule Neptunus.Vehicle.SupervisorTest do
     {:ok, _} = Fleet.start_vehicle(%{id: id, board: :simulated, recording: [dir: dir]})
     on_exit(fn -> Fleet.stop_vehicle(id) end)
     # the helm's own stop as it starts
-    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}, 2_000
+    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}
 
     assert {:ok, _} =
              Control.thrust(id, %{"mode" => "motion", "surge" => 1, "heave" => 0, "yaw" => 0})
@@ -25,18 +25,37 @@ defmodule Neptunus.Vehicle.SupervisorTest do
 
     recorder = Fleet.whereis(Recorder, id)
     control = Fleet.whereis(Control, id)
-    # a recorder busy for 4 s (a disk that hangs a sync): it cannot stop before then
-    spawn(fn -> :sys.replace_state(recorder, fn s -> Process.sleep(4_000) && s end, 10_000) end)
-    Process.sleep(50)
+    # a recorder busy (a disk that hangs a sync) until the test lets it go: it cannot stop
+    # before then
+    test = self()
+    busy = make_ref()
+
+    spawn(fn ->
+      :sys.replace_state(
+        recorder,
+        fn s ->
+          send(test, {busy, :busy})
+
+          receive do
+            {^busy, :go} -> s
+          end
+        end,
+        :infinity
+      )
+    end)
+
+    assert_receive {^busy, :busy}
+    on_exit(fn -> send(recorder, {busy, :go}) end)
 
     Process.exit(Fleet.whereis(Telemetry, id), :kill)
 
     # the new Control says it stopped, and the board is neutral, while the recorder is still
     # busy
-    assert_receive {:pubsub, _, "stopped", _}, 2_000
+    assert_receive {:pubsub, _, "stopped", _}
     assert Fleet.whereis(Control, id) != control
     assert Enum.all?(Map.values(Board.Simulated.state(id).sim.thrusters), &(&1 == 0))
     assert Fleet.whereis(Recorder, id) == recorder
+    send(recorder, {busy, :go})
   end
 
   test "a request while the helm restarts is refused with a reason, not an exit" do

@@ -84,14 +84,14 @@ defmodule Neptunus.VehicleTest do
       id: :paced
     )
 
-    assert_receive {:frame, :pilot, frame}, 1_000
+    assert_receive {:frame, :pilot, frame}
     names = for _ <- 1..7, do: assert_receive({:frame, name, ^frame}, 1_000) && name
     assert Enum.sort(names) == Enum.to_list(1..7)
     assert [:null, :null, ^topic, "telemetry", %{"t" => _}] = :jiffy.decode(frame, [:return_maps])
   end
 
   test "telemetry arrives at the configured rate with the documented shape", %{id: id} do
-    assert_receive {:pubsub, _, "telemetry", first}, 500
+    assert_receive {:pubsub, _, "telemetry", first}
     assert %{t: t, sent_at: sent_at, measurement: m, sim: sim, command: c, thrusters: thr} = first
     assert is_float(t) and is_float(sent_at)
     assert Map.keys(m) |> Enum.sort() == ~w(current depth heading pitch roll voltage)a
@@ -104,8 +104,8 @@ defmodule Neptunus.VehicleTest do
     # the built-in simulator has no link to lose
     assert first.link == %{up: true, reason: "no link"}
 
-    # 20 Hz: ten more in about half a second (figures are for bench/, this only checks it runs)
-    for _ <- 1..10, do: assert_receive({:pubsub, _, "telemetry", _}, 200)
+    # 20 Hz: ten more (their pace is for bench/, this only checks it runs)
+    for _ <- 1..10, do: assert_receive({:pubsub, _, "telemetry", _})
     assert Telemetry.latest(id).t >= t
   end
 
@@ -250,7 +250,7 @@ defmodule Neptunus.VehicleTest do
       ada = party("ada")
       pilot!(ctx.id, ada)
       {:ok, %{status: "pending"}} = Helm.request_control(ctx.id, party("bob"))
-      assert_receive {:notify, "bob", "request_denied", %{reason: "request_timeout"}}, 2_000
+      assert_receive {:notify, "bob", "request_denied", %{reason: "request_timeout"}}
       assert_receive {:pubsub, _, "helm", %{state: "piloted", request: nil}}
     end
 
@@ -270,7 +270,7 @@ defmodule Neptunus.VehicleTest do
       # the pilot flies until the transfer
       assert {:ok, _} = Helm.thrust(ctx.id, ada, Map.put(motion(0.5, 0, 0), "epoch", epoch))
 
-      assert_receive {:notify, "main", "control_granted", %{epoch: new_epoch}}, 2_000
+      assert_receive {:notify, "main", "control_granted", %{epoch: new_epoch}}
       assert new_epoch == epoch + 1
       assert_receive {:pubsub, _, "stopped", %{reason: "main_station_takeover"}}
       assert_receive {:notify, "ada", "control_lost", %{reason: "main_station_takeover"}}
@@ -391,11 +391,15 @@ defmodule Neptunus.VehicleTest do
     ada = party("ada")
     epoch = pilot!(ctx.id, ada)
     {:ok, _} = Helm.thrust(ctx.id, ada, Map.put(motion(1, 1, 0), "epoch", epoch))
-    Process.sleep(600)
-    now = Board.Simulated.state(ctx.id).sim.dyn
-    assert now.u > 0.2
-    assert now.x > start.x
-    assert now.z > start.z
-    assert now.w > 0.0
+
+    # as the simulation advances (it keeps pace with the clock, and skips what a stalled
+    # machine could not step): forward and down
+    Neptunus.Test.Pty.wait_until(
+      fn ->
+        now = Board.Simulated.state(ctx.id).sim.dyn
+        now.u > 0.2 and now.x > start.x and now.z > start.z and now.w > 0.0
+      end,
+      "the vehicle moving forward and down"
+    )
   end
 end

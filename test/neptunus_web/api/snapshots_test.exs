@@ -32,7 +32,7 @@ defmodule NeptunusWeb.API.SnapshotsTest do
   end
 
   defp await_keyframe do
-    assert_receive {:pubsub, _, "frame", %{frame: %Frame{} = frame}}, 10_000
+    assert_receive {:pubsub, _, "frame", %{frame: %Frame{} = frame}}
     if frame.keyframe, do: frame, else: await_keyframe()
   end
 
@@ -66,8 +66,7 @@ defmodule NeptunusWeb.API.SnapshotsTest do
     PubSub.subscribe("vehicle:" <> id)
 
     assert_receive {:pubsub, _, "telemetry", %{estimate: %{depth: d, heading: h}}}
-                   when is_number(d) and is_number(h),
-                   10_000
+                   when is_number(d) and is_number(h)
 
     {201, _, body} = request(:post, "/api/vehicles/#{id}/snapshot")
     assert %{"snapshot" => snap} = json(body)
@@ -123,7 +122,7 @@ defmodule NeptunusWeb.API.SnapshotsTest do
     assert {"ok", %{"status" => "pending"}} = Wire.push_and_reply(ws, jr, topic, "snapshot", %{})
 
     assert %{"ok" => true, "snapshot" => %{"vehicle" => ^id, "name" => name}} =
-             Wire.event!(ws, "snapshot", fn _ -> true end, 10_000)
+             Wire.event!(ws, "snapshot", fn _ -> true end)
 
     {200, _, body} = request(:get, "/api/snapshots")
     assert Enum.any?(json(body)["snapshots"], &(&1["name"] == name))

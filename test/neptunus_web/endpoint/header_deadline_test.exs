@@ -74,7 +74,7 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
 
     served = connect!()
     :ok = :gen_tcp.send(served, "GET /api/health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
-    assert {:ok, "HTTP/1.1 200" <> _} = :gen_tcp.recv(served, 0, 5_000)
+    assert {:ok, "HTTP/1.1 200" <> _} = :gen_tcp.recv(served, 0, Neptunus.Test.Patience.ms())
 
     # a header line well within yaws' per-read timeout, again and again, until closed
     timeout = NeptunusWeb.Endpoint.header_timeout_ms()
@@ -113,13 +113,18 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
   test "empty lines instead of a request line do not hold a connection" do
     # yaws skips an empty line with a fresh read timeout: only the deadline ends this
     timeout = NeptunusWeb.Endpoint.header_timeout_ms()
+    starvation = Neptunus.Test.Starvation.start_link()
     socket = connect!()
     started = System.monotonic_time(:millisecond)
     lines = drip(socket, div(timeout, 5), fn _ -> "\r\n" end)
     lasted = System.monotonic_time(:millisecond) - started
 
     assert lines < 40, "#{lines} empty lines sent and the connection was never closed"
-    assert lasted < 2 * timeout, "closed after #{lasted} ms"
+    # within two timeouts, plus the time a busy machine kept the node from a core meanwhile
+    starved = Neptunus.Test.Starvation.waited(starvation, started, started + lasted)
+
+    assert lasted < 2 * timeout + (starved || 0),
+           "closed after #{lasted} ms, the node kept from a core #{starved} ms"
   end
 
   @tag :tmp_dir
@@ -140,21 +145,21 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
         spawn_link(fn ->
           {:ok, socket} = accept(transport, listener)
           send(test, :accepted)
-          {:ok, "ask"} = transport.recv(socket, 3, 5_000)
+          {:ok, "ask"} = transport.recv(socket, 3, Neptunus.Test.Patience.ms())
           :ok = transport.send(socket, "answer")
           send(test, :answered)
-          transport.recv(socket, 0, 5_000)
+          transport.recv(socket, 0, Neptunus.Test.Patience.ms())
         end)
 
       {:ok, client} =
         transport.connect(~c"127.0.0.1", port, [:binary, active: false] ++ connect_opts)
 
-      assert_receive :accepted, 5_000
+      assert_receive :accepted
       before = HeaderDeadline.sent_bytes(acceptor)
       assert is_integer(before), "#{transport}: no socket found"
 
       :ok = transport.send(client, "ask")
-      assert_receive :answered, 5_000
+      assert_receive :answered
       assert HeaderDeadline.sent_bytes(acceptor) > before, "#{transport}: the answer not counted"
 
       transport.close(client)
@@ -165,11 +170,11 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
   defp sockname(:gen_tcp, listener), do: :inet.sockname(listener)
   defp sockname(:ssl, listener), do: :ssl.sockname(listener)
 
-  defp accept(:gen_tcp, listener), do: :gen_tcp.accept(listener, 5_000)
+  defp accept(:gen_tcp, listener), do: :gen_tcp.accept(listener, Neptunus.Test.Patience.ms())
 
   defp accept(:ssl, listener) do
-    {:ok, socket} = :ssl.transport_accept(listener, 5_000)
-    :ssl.handshake(socket, 5_000)
+    {:ok, socket} = :ssl.transport_accept(listener, Neptunus.Test.Patience.ms())
+    :ssl.handshake(socket, Neptunus.Test.Patience.ms())
   end
 
   defp connect! do
@@ -186,7 +191,7 @@ defmodule NeptunusWeb.Endpoint.HeaderDeadlineTest do
       {:ok, acc}
     else
       _ ->
-        case :gen_tcp.recv(socket, 0, 5_000) do
+        case :gen_tcp.recv(socket, 0, Neptunus.Test.Patience.ms()) do
           {:ok, more} -> recv_answer(socket, acc <> more)
           error -> error
         end

@@ -47,7 +47,7 @@ defmodule NeptunusWeb.Socket.MemoryTest do
   end
 
   defp telemetry!(ws, topic, k),
-    do: WSClient.recv_until(ws, &match?([_, _, ^topic, "telemetry", %{"k" => ^k}], &1), 5_000)
+    do: WSClient.recv_until(ws, &match?([_, _, ^topic, "telemetry", %{"k" => ^k}], &1))
 
   test "a broadcast frame goes out as the shared binary: the connection holds no copy of it",
        %{topic: topic} do
@@ -120,7 +120,7 @@ defmodule NeptunusWeb.Socket.MemoryTest do
     # is scheduled out in hibernation only when the idle check hibernates it
     :erlang.trace(pid, true, [:running])
     send(pid, :check_idle)
-    assert_receive {:trace, ^pid, :out, {:erlang, :hibernate, 3}}, 2_000
+    assert_receive {:trace, ^pid, :out, {:erlang, :hibernate, 3}}
     :erlang.trace(pid, false, [:running])
 
     # and it streams on

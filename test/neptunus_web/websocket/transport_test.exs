@@ -9,7 +9,7 @@ defmodule NeptunusWeb.WebSocket.TransportTest do
     {:ok, listen} = :gen_tcp.listen(0, [:binary, active: false, ip: {127, 0, 0, 1}])
     {:ok, port} = :inet.port(listen)
     {:ok, client} = :gen_tcp.connect({127, 0, 0, 1}, port, [:binary, active: false])
-    {:ok, server} = :gen_tcp.accept(listen, 5_000)
+    {:ok, server} = :gen_tcp.accept(listen, Neptunus.Test.Patience.ms())
     :gen_tcp.close(listen)
     on_exit(fn -> :gen_tcp.close(client) end)
     {:ok, server: server, client: client}
@@ -18,7 +18,9 @@ defmodule NeptunusWeb.WebSocket.TransportTest do
   test "write/2 sends iodata as it is", %{server: server, client: client} do
     shared = "a payload shared by many"
     assert Transport.write(server, [<<0x81, byte_size(shared)>>, shared]) == :ok
-    assert {:ok, <<0x81, 24, ^shared::binary>>} = :gen_tcp.recv(client, 26, 5_000)
+
+    assert {:ok, <<0x81, 24, ^shared::binary>>} =
+             :gen_tcp.recv(client, 26, Neptunus.Test.Patience.ms())
   end
 
   test "limit_unsent/2 sets TCP_NOTSENT_LOWAT on Linux; nil leaves the kernel's own", %{

@@ -293,6 +293,12 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   def handle_info({port, {:exit_status, n}}, %State{socket: port} = state) when is_port(port),
     do: {:noreply, closed(state, "the serial port program exited (#{n}): #{state.transport}")}
 
+  # The serial port is linked to us (we trap exits): its program's exit comes as exit_status
+  # (above) first. A port closed before that status reached the VM (a write to a program that
+  # had just ended: `epipe`) sends only this exit: closed all the same, and reopened.
+  def handle_info({:EXIT, port, reason}, %State{socket: port} = state) when is_port(port),
+    do: {:noreply, closed(state, "the serial port program is gone (#{inspect(reason)})")}
+
   def handle_info({:EXIT, _port, _reason}, state), do: {:noreply, state}
 
   def handle_info(:reopen, %State{socket: nil} = state), do: {:noreply, open(state)}

@@ -156,6 +156,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
     esc_log: [],
     rx: "",
     rx_dropped: 0,
+    rx_bytes: 0,
     cmdbuf: "",
     next_drain: 10,
     drains: 0,
@@ -197,7 +198,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   * `boot_lost` — bytes that arrived during the bootloader (before millis 0), lost
   * `esc_log` — `{millis, esc_us}` of the last changes of the ESC pulses, newest first
   * `rx` — the serial receive buffer (at most #{@rx_size} bytes); `rx_dropped` — bytes lost
-    because it was full; `cmdbuf` — the command being read (at most #{@cmd_size} bytes)
+    because it was full; `rx_bytes` — every byte that reached the board's serial port (kept,
+    dropped, or lost in the bootloader); `cmdbuf` — the command being read (at most #{@cmd_size} bytes)
   * `next_drain` — millis when the loop next empties `rx` (first at `setup_ms`); `drains`, `alps` — loops counted
     this second and in the last
   * `timers` — millis each firmware timer last fired
@@ -229,6 +231,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
           esc_log: [{integer(), us3()}],
           rx: binary(),
           rx_dropped: non_neg_integer(),
+          rx_bytes: non_neg_integer(),
           cmdbuf: binary(),
           next_drain: integer(),
           drains: non_neg_integer(),
@@ -333,13 +336,14 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   @doc """
   The board reboots at `now` (a USB Arduino resets when its port opens): its bootloader runs
   (`:bootloader_ms`), then millis start from 0 and every firmware state is lost; the options
-  (profile, wiring, timings) stay, and the dropped-byte counts carry on.
+  (profile, wiring, timings) stay, and the byte counts (received, dropped, lost) carry on.
   """
   @spec reset(t(), integer()) :: t()
   def reset(%__MODULE__{} = fw, now) do
     %{
       new(now, fw.options)
       | rx_dropped: fw.rx_dropped,
+        rx_bytes: fw.rx_bytes,
         boot_lost: fw.boot_lost,
         reading: fw.reading
     }
@@ -392,6 +396,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   @spec receive(t(), binary(), integer()) :: {t(), binary()}
   def receive(%__MODULE__{} = fw, bytes, now) when is_binary(bytes) do
     {fw, out} = tick(fw, now)
+    fw = %{fw | rx_bytes: fw.rx_bytes + byte_size(bytes)}
 
     if millis(fw, now) < 0,
       do: {%{fw | boot_lost: fw.boot_lost + byte_size(bytes)}, out},

@@ -8,7 +8,8 @@ defmodule Neptunus.Vehicle.Board.UART do
 
     * **Link.** Opens the device at the configured baud (raw 8N1). The link is *up* once the
       program reports the device open; it is *down* when opening fails, the device hangs up
-      or is unplugged, or the program exits for any reason (`{port, {:exit_status, n}}`).
+      or is unplugged, or the program exits for any reason (`{port, {:exit_status, n}}`, or the
+      port's exit alone when a write found the program gone).
       A link that was up for at least 100 ms is reopened at once (the board keeps the
       last `go()` until a link writes neutral: every open does first); after that, or when
       it flapped faster, it reopens after a backoff (`Neptunus.Vehicle.Board.Backoff`:
@@ -374,7 +375,16 @@ defmodule Neptunus.Vehicle.Board.UART do
     {:noreply, state |> perform(actions) |> confirm_timer()}
   end
 
-  # The port is linked to us (we trap exits); its exit_status message does the work.
+  # The port is linked to us (we trap exits). When its program exits, the exit_status message
+  # (above) comes first and does the work. A port closed before the program's exit status
+  # reached the VM (a write to a program that had just ended: `epipe`) sends only this exit:
+  # the link is down all the same (else it would stay "up" on a dead port, every command
+  # dropped, never reopened).
+  def handle_info({:EXIT, port, reason}, %State{port: port} = state) do
+    reason = state.program_error || "port program gone (#{inspect(reason)})"
+    {:noreply, down(%{state | port: nil}, reason)}
+  end
+
   def handle_info({:EXIT, port, _reason}, state) when is_port(port), do: {:noreply, state}
   def handle_info({:EXIT, _pid, reason}, state), do: {:stop, reason, state}
 

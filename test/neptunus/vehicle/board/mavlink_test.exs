@@ -4,6 +4,7 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
 
   alias Neptunus.Protocol.MAVLink, as: Codec
   alias Neptunus.PubSub
+  alias Neptunus.Test.Patience
   alias Neptunus.Vehicle.{Board, Telemetry}
 
   @vehicle %{system: 1, component: 1}
@@ -40,7 +41,7 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
   end
 
   # the next message `name` from the board (other messages skipped), with its source
-  defp next(name, timeout \\ 2_000),
+  defp next(name, timeout \\ Patience.ms()),
     do: next_or_nil(name, timeout) || flunk("no #{name} from the board in time")
 
   defp next_or_nil(name, timeout),
@@ -115,12 +116,12 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
     assert %{command: 400, param1: 1.0, target_system: 1} = cmd.fields
     vehicle_says(ctx, from, frame(:statustext, %{severity: 2, text: "Arm: Leak detected"}, 1))
     vehicle_says(ctx, from, frame(:command_ack, %{command: 400, result: 4}, 2))
-    assert_receive {:armed, {:error, "Arm: Leak detected"}}, 2_000
+    assert_receive {:armed, {:error, "Arm: Leak detected"}}
 
     assert :ok = Board.MAVLink.arm(ctx.id, true, &send(me, {:armed, &1}))
     next(:command_long)
     vehicle_says(ctx, from, frame(:command_ack, %{command: 400, result: 0}, 3))
-    assert_receive {:armed, :ok}, 2_000
+    assert_receive {:armed, :ok}
   end
 
   test "arming is refused at once while the link is down", ctx do
@@ -167,8 +168,7 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
     vehicle_says(ctx, from, frame(:statustext, %{severity: 4, text: "Leak!"}, 1))
 
     assert_receive {:pubsub, _, "log",
-                    %{category: "vehicle", level: "warning", message: "Leak!", severity: 4}},
-                   2_000
+                    %{category: "vehicle", level: "warning", message: "Leak!", severity: 4}}
   end
 
   test "frames lost are counted from the vehicle's sequence numbers", ctx do
@@ -197,23 +197,27 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
     start_board(ctx, link: {:udp, {127, 0, 0, 1}, free})
     # the board opens its socket after it has started: like a vehicle, the test says its
     # heartbeat again (every 250 ms here) until the board answers
+    deadline = System.monotonic_time(:millisecond) + Patience.ms()
+
     assert {%{fields: %{type: 6}}, _} =
-             Enum.find_value(1..8, fn _ ->
+             Stream.repeatedly(fn ->
                vehicle_says(ctx, {{127, 0, 0, 1}, free}, heartbeat())
                next_or_nil(:heartbeat, 250)
-             end) || flunk("no heartbeat from the board in time")
+             end)
+             |> Stream.take_while(fn _ -> System.monotonic_time(:millisecond) < deadline end)
+             |> Enum.find(& &1) || flunk("no heartbeat from the board in time")
   end
 
   test "tcp: connects, and reconnects after the vehicle closes", ctx do
     {:ok, listen} = :gen_tcp.listen(0, [:binary, active: true, ip: {127, 0, 0, 1}])
     {:ok, port} = :inet.port(listen)
     start_board(ctx, link: {:tcp, "127.0.0.1", port}, reconnect_ms: 50)
-    {:ok, conn} = :gen_tcp.accept(listen, 2_000)
-    assert_receive {:tcp, ^conn, data}, 2_000
+    {:ok, conn} = :gen_tcp.accept(listen, Patience.ms())
+    assert_receive {:tcp, ^conn, data}
     {_, [first | _], _} = Codec.decode(Codec.new(), data)
     assert first.name == :heartbeat
     :gen_tcp.close(conn)
-    {:ok, conn2} = :gen_tcp.accept(listen, 2_000)
+    {:ok, conn2} = :gen_tcp.accept(listen, Patience.ms())
     :ok = :gen_tcp.send(conn2, heartbeat())
     wait_until(fn -> Board.MAVLink.link_status(ctx.id).up end)
   end
@@ -222,17 +226,11 @@ defmodule Neptunus.Vehicle.Board.MAVLinkTest do
     receive do
       {:"$gen_cast", {:link, link}} -> if pred.(link), do: link, else: link_report!(pred)
     after
-      3_000 -> flunk("no such link report")
+      Patience.ms() -> flunk("no such link report")
     end
   end
 
-  defp wait_until(fun, left \\ 200) do
-    cond do
-      fun.() -> :ok
-      left == 0 -> flunk("condition not met")
-      true -> Process.sleep(10) && wait_until(fun, left - 1)
-    end
-  end
+  defp wait_until(fun), do: Neptunus.Test.Pty.wait_until(fun, "the condition")
 end
 
 defmodule Neptunus.Vehicle.Board.MAVLinkSerialTest do
@@ -241,11 +239,11 @@ defmodule Neptunus.Vehicle.Board.MAVLinkSerialTest do
   use ExUnit.Case, async: true
 
   alias Neptunus.Protocol.MAVLink, as: Codec
-  alias Neptunus.Test.Pty
+  alias Neptunus.Test.{Patience, Pty}
   alias Neptunus.Vehicle.Board
 
   defp next(port, name),
-    do: next(port, name, Codec.new(), System.monotonic_time(:millisecond) + 3_000)
+    do: next(port, name, Codec.new(), System.monotonic_time(:millisecond) + Patience.ms())
 
   defp next(port, name, decoder, deadline) do
     receive do
@@ -283,6 +281,23 @@ defmodule Neptunus.Vehicle.Board.MAVLinkSerialTest do
     assert %{fields: %{x: 0, z: 500, target: 1}} = next(vehicle, :manual_control)
     Pty.wait_until(fn -> Board.MAVLink.link_status(id).up end, "the link up")
     assert Board.MAVLink.link_status(id).transport == "serial open"
+  end
+
+  test "serial: its port closed without an exit status (a write that found the program gone) is reopened" do
+    pair = Pty.socat_pair!()
+    _vehicle = Pty.open!(pair.a)
+    id = "mav-serial-#{System.unique_integer([:positive])}"
+    start_supervised!({Board.MAVLink, id: id, link: {:serial, pair.b, 115_200}, reconnect_ms: 50})
+    Pty.wait_until(fn -> Board.MAVLink.link_status(id).transport == "serial open" end, "open")
+
+    # the port ends with only its exit signal, as when a write fails (epipe) before the
+    # program's exit status reached the VM
+    Port.close(:sys.get_state(Board.via(id)).socket)
+
+    Pty.wait_until(
+      fn -> Board.MAVLink.link_status(id).counters.opens >= 2 end,
+      "a second open"
+    )
   end
 
   test "serial: a device that cannot be opened is retried, and said why" do

@@ -2,6 +2,8 @@ defmodule Neptunus.Vehicle.Board.SimulatedTest do
   # The live simulated board under the test's supervisor (vehicle processes included).
   use ExUnit.Case, async: true
 
+  import Neptunus.Test.Pty, only: [wait_until: 2]
+
   alias Neptunus.{PubSub, Sim}
   alias Neptunus.Vehicle.{Board, Control, Telemetry}
 
@@ -31,8 +33,7 @@ defmodule Neptunus.Vehicle.Board.SimulatedTest do
                       measurement: m,
                       sim: truth,
                       measurement_state: %{depth: "valid", heading: "valid"}
-                    }},
-                   3_000
+                    }}
 
     assert Map.keys(truth) |> Enum.sort() == ~w(p phi psi q r theta u v w x y z)a
     assert is_float(m.depth) and is_float(m.heading)
@@ -46,8 +47,7 @@ defmodule Neptunus.Vehicle.Board.SimulatedTest do
     assert Sim.status(state.sim).seed == 3
 
     assert_receive {:pubsub, _, "telemetry",
-                    %{measurement: m, sim: truth, measurement_state: %{depth: "valid"}}},
-                   3_000
+                    %{measurement: m, sim: truth, measurement_state: %{depth: "valid"}}}
 
     assert m.depth == truth.z
     assert_in_delta truth.z, 4.0, 0.01
@@ -55,16 +55,17 @@ defmodule Neptunus.Vehicle.Board.SimulatedTest do
 
   test "pause freezes simulated time, resume continues; reset starts again" do
     id = start!(%{sim: [noise: false]})
-    Process.sleep(100)
+    wait_until(fn -> Sim.time(Board.Simulated.state(id).sim) > 0 end, "simulated time")
 
     assert {:ok, %{paused: true, t: t0}} = Board.Simulated.command(id, {:set, %{paused: true}})
-    Process.sleep(100)
+    # ticks keep coming while paused, each reporting the last sample again: telemetry at t0,
+    # three times (at least two of them after the pause), and the simulation has not stepped
+    for _ <- 1..3, do: assert_receive({:pubsub, _, "telemetry", %{t: ^t0}})
     assert Board.Simulated.state(id).sim.steps * 0.01 == t0
     assert Telemetry.latest(id).t == t0
 
     assert {:ok, %{paused: false}} = Board.Simulated.command(id, {:set, %{paused: false}})
-    Process.sleep(100)
-    assert Sim.time(Board.Simulated.state(id).sim) > t0
+    wait_until(fn -> Sim.time(Board.Simulated.state(id).sim) > t0 end, "time going on")
 
     assert {:ok, %{t: +0.0, paused: false}} = Board.Simulated.command(id, :reset)
   end
@@ -91,7 +92,7 @@ defmodule Neptunus.Vehicle.Board.SimulatedTest do
   test "with stats: true it records each tick's lateness against its deadline" do
     id = start!(%{stats: true})
     assert Board.Simulated.stats(start!()) == nil
-    Process.sleep(300)
+    wait_until(fn -> length(Board.Simulated.stats(id).lateness) >= 20 end, "20 ticks")
     %{lateness: lateness, work: work} = Board.Simulated.stats(id, reset: true)
     assert length(lateness) >= 20 and length(lateness) == length(work)
     assert Enum.all?(work, &(&1 >= 0))

@@ -6,7 +6,7 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
   @moduletag :uart
   @moduletag :capture_log
 
-  import Neptunus.Test.Pty, only: [open!: 1, write: 2, recv_until: 3, drain: 2, wait_until: 3]
+  import Neptunus.Test.Pty, only: [open!: 1, write: 2, recv_until: 2, drain: 2, wait_until: 2]
 
   alias Neptunus.Protocol.OpenROV
   alias Neptunus.Vehicle.Board.SITL.Device
@@ -28,9 +28,9 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
   test "lines end in CRLF, the echo and the glued pong come back, depth is a placeholder at first" do
     {id, port} = start_device()
     write(port, "ping(5);")
-    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/), 2_000)
+    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/))
     assert out =~ "cmd:ping(5);\r\npong:1,"
-    out = recv_until(port, &(&1 =~ ~r/deap:[1-9]/), 3_000)
+    out = recv_until(port, &(&1 =~ ~r/deap:[1-9]/))
     assert out =~ ~r/\r\n;time:\d+\.00;\r\n/
     refute out =~ ~r/[^\r]\n/
     assert Device.state(id).firmware.depth > 1.9
@@ -40,9 +40,10 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
     {id, port} = start_device()
     write(port, "ligt(77);")
     write(port, "mtrmod1(100,100,100);")
-    wait_until(fn -> Device.state(id).firmware.lights == 77 end, "lights", 2_000)
-    wait_until(fn -> Device.state(id).firmware.depth > 1.9 end, "the first depth reading", 3_000)
+    wait_until(fn -> Device.state(id).firmware.lights == 77 end, "lights")
+    wait_until(fn -> Device.state(id).firmware.depth > 1.9 end, "the first depth reading")
     before = truth(id)
+    reset_at = Neptunus.Clock.monotonic_ms()
 
     :ok = Device.reset(id)
     state = Device.state(id)
@@ -55,13 +56,14 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
     assert_in_delta state.sim.dyn.z, before.z, 0.05
     assert state.sim.steps > 0
 
-    out = recv_until(port, &(&1 =~ "Depth Sensor setup.\r\n" and &1 =~ "hdgd:"), 2_000)
+    out = recv_until(port, &(&1 =~ "Depth Sensor setup.\r\n" and &1 =~ "hdgd:"))
     assert out =~ ";deap:0.00;"
     _ = drain(port, 20)
     write(port, "ping(1);")
-    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/), 2_000)
+    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/))
     [millis] = millis_of_pong(out)
-    assert String.to_integer(millis) < 2_000
+    # counted from the reset (the board had run over a second before it: its first depth)
+    assert String.to_integer(millis) <= Neptunus.Clock.monotonic_ms() - reset_at
   end
 
   test "reset_on_open: every open of the line reboots the board into its bootloader, which loses what arrives" do
@@ -70,24 +72,20 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
     # the board before the bytes that follow it)
     write(port, "ligt(77);")
 
-    wait_until(
-      fn -> Device.state(id).firmware.boot_lost >= 9 end,
-      "lost in the bootloader",
-      3_000
-    )
+    wait_until(fn -> Device.state(id).firmware.boot_lost >= 9 end, "lost in the bootloader")
 
     assert Device.state(id).resets == 1
-    out = recv_until(port, &(&1 =~ "boot:1;\r\n"), 3_000)
+    out = recv_until(port, &(&1 =~ "boot:1;\r\n"))
     assert out =~ "log:init on primary addresses;\r\nboot:1;\r\n"
     write(port, "ligt(78);")
-    wait_until(fn -> Device.state(id).firmware.lights == 78 end, "after the boot", 2_000)
+    wait_until(fn -> Device.state(id).firmware.lights == 78 end, "after the boot")
     assert %{opens: 1, resets: 1} = Device.state(id)
     assert Device.state(id).firmware.commands == 1
 
     # another open (after a close: the line is opened exclusively): another reboot
     Port.close(port)
     second = open!(Device.state(id).pty)
-    wait_until(fn -> Device.state(id).resets == 2 end, "the second open", 2_000)
+    wait_until(fn -> Device.state(id).resets == 2 end, "the second open")
     assert Device.state(id).firmware.lights == 0
     Port.close(second)
   end
@@ -95,57 +93,84 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
   test "without reset_on_open an open is counted, the board runs on" do
     {id, port} = start_device()
     write(port, "ligt(5);")
-    wait_until(fn -> Device.state(id).firmware.lights == 5 end, "lights", 2_000)
+    wait_until(fn -> Device.state(id).firmware.lights == 5 end, "lights")
     assert %{opens: 1, resets: 0} = Device.state(id)
   end
 
   test "30.x: framed commands pass, plain ones fail their CRC" do
     {id, port} = start_device(firmware: :openrov_30)
     write(port, OpenROV.frame("ping(3);", :openrov_30))
-    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/), 2_000)
+    out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/))
     assert out =~ ~r/rawcmd:[0-9A-F,]+;\r\ncrc:pass;cmd:ping\(3\);\r\npong:1,\d+;/
     write(port, "ping(4);")
-    out = recv_until(port, &(&1 =~ "crc:fail,"), 2_000)
+    out = recv_until(port, &(&1 =~ "crc:fail,"))
     assert out =~ ~r/crc:fail,[0-9A-F]+\/70;/
     assert Device.state(id).firmware.bad_commands == 1
   end
 
   test "a 100-byte burst overflows the 64-byte receive buffer; paced writes lose nothing" do
     {id, port} = start_device()
-    _ = recv_until(port, &(&1 =~ "hdgd:"), 2_000)
-    write(port, String.duplicate("tilt(1500);", 9) <> "ping(1);")
-    wait_until(fn -> Device.state(id).rx_dropped > 0 end, "dropped bytes", 2_000)
-    # the whole burst is in once a command sent after it has been carried out (the ';' first
-    # ends what is left of the burst's cut command, as it would on the board)
-    Process.sleep(50)
+    _ = recv_until(port, &(&1 =~ "hdgd:"))
+    burst = String.duplicate("tilt(1500);", 9) <> "ping(1);"
+    write(port, burst)
+    # the whole burst has reached the board, however the pty cut it up
+    # the whole burst has reached the board, however the pty cut it up, and the board has
+    # read its receive buffer since (else the next command would be dropped too)
+    wait_until(
+      fn ->
+        fw = Device.state(id).firmware
+        fw.rx_bytes >= byte_size(burst) and fw.rx == ""
+      end,
+      "the burst at the board, read"
+    )
+
+    assert Device.state(id).rx_dropped > 0
+    # the ';' first ends what is left of the burst's cut command, as it would on the board
     write(port, ";ligt(99);")
 
     wait_until(
       fn -> Device.state(id).firmware.lights == 99 end,
-      "the command after the burst",
-      2_000
+      "the command after the burst"
     )
 
     dropped = Device.state(id).rx_dropped
     assert dropped >= 107 - 64
 
-    # as the board link paces them: one command at a time, well under 60 bytes per 30 ms
+    # as the board link paces them: one command at a time (each once the board has carried
+    # out the one before: a stalled machine's pty would hand over several at once)
     for n <- 1..20 do
       write(port, "ligt(#{n});")
-      Process.sleep(15)
+      wait_until(fn -> Device.state(id).firmware.lights == n end, "ligt(#{n})")
     end
 
-    wait_until(fn -> Device.state(id).firmware.lights == 20 end, "the last command", 2_000)
+    wait_until(fn -> Device.state(id).firmware.lights == 20 end, "the last command")
     assert Device.state(id).rx_dropped == dropped
   end
 
   describe "straight surge with the thesis wiring (port reversed)" do
+    # the heading's change over 1.5 s of the simulation's time (it keeps pace with the clock,
+    # and skips what a stalled machine could not step: its own time is what counts)
     defp heading_change(commands) do
       {id, port} = start_device()
-      _ = recv_until(port, &(&1 =~ "hdgd:"), 2_000)
-      for c <- commands, do: write(port, c) && Process.sleep(5)
-      psi0 = truth(id).psi
-      Process.sleep(1_500)
+      _ = recv_until(port, &(&1 =~ "hdgd:"))
+      # one at a time, each once the board has taken the one before (together they would
+      # overflow its receive buffer)
+      for c <- commands do
+        taken = Device.state(id).firmware.commands
+        write(port, c)
+        wait_until(fn -> Device.state(id).firmware.commands > taken end, c)
+      end
+
+      # measured from the moment the board has taken the last command
+      wait_until(fn -> Device.state(id).firmware.target_us == {1300, 1500, 1700} end, "go()")
+      %{sim: sim} = Device.state(id)
+      {psi0, t0} = {sim.dyn.psi, Neptunus.Sim.time(sim)}
+
+      wait_until(
+        fn -> Neptunus.Sim.time(Device.state(id).sim) >= t0 + 1.5 end,
+        "1.5 s of simulated time"
+      )
+
       abs(truth(id).psi - psi0)
     end
 

@@ -38,7 +38,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
   # 30.x commands: one CRC byte, then the text up to ';'. Returns the commands read so far
   # (each {crc_ok?, text}) once `count` have arrived.
   defp recv_framed(board, count) do
-    bytes = recv_until(board, &(length(split_framed(&1)) >= count), 3_000)
+    bytes = recv_until(board, &(length(split_framed(&1)) >= count))
     split_framed(bytes)
   end
 
@@ -101,8 +101,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
     write(ctx.board, "rawcmd:67,6F,28,;\r\ncrc:fail,5A/67;")
     write(ctx.board, "hdgd:1.00;\r\n")
 
-    assert_receive {:pubsub, _, "firmware", %{configured: "openrov-2.5", detected: "openrov-30"}},
-                   2_000
+    assert_receive {:pubsub, _, "firmware", %{configured: "openrov-2.5", detected: "openrov-30"}}
 
     assert %{firmware: "openrov-2.5", detected_firmware: "openrov-30", firmware_mismatch: true} =
              UART.link_status(ctx.id)
@@ -118,8 +117,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
     [{true, _} | _] = recv_framed(ctx.board, 3)
     write(ctx.board, <<"cmd:", 0x9C, "go(1500,1500,1500,1);\r\n">>)
 
-    assert_receive {:pubsub, _, "firmware", %{configured: "openrov-30", detected: "openrov-2.5"}},
-                   2_000
+    assert_receive {:pubsub, _, "firmware", %{configured: "openrov-30", detected: "openrov-2.5"}}
 
     assert %{firmware_mismatch: true, commands_confirmed: 0} = UART.link_status(ctx.id)
   end
@@ -142,7 +140,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
     assert status.commands_sent >= 4
     assert status.detected_firmware == "openrov-2.5" and status.firmware_mismatch == false
     # the page gets the liveness fields with the link state
-    assert_receive {:"$gen_cast", {:link, %{up: true, rtt_ms: rtt}}} when is_integer(rtt), 2_000
+    assert_receive {:"$gen_cast", {:link, %{up: true, rtt_ms: rtt}}} when is_integer(rtt)
   end
 
   test "the board's uptime going backwards: its whole state is sent again", ctx do
@@ -159,7 +157,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
     # the board reset: millis from 250 s back to 0.4 s
     write(ctx.board, "vout:12.00;iout:0.40;time:400;pres:0.00;temp:0.00;\r\n")
 
-    assert_receive {:pubsub, _, "board", %{event: "reset", reason: reason}}, 2_000
+    assert_receive {:pubsub, _, "board", %{event: "reset", reason: reason}}
     assert reason =~ "250.0 s to 0.4 s"
 
     texts = ctx.board |> recv_framed(6) |> Enum.map(fn {true, text} -> text end)
@@ -188,7 +186,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
 
     wait_until(fn -> UART.link_status(ctx.id).board_deadman_tripped end, "trip seen")
     write(ctx.board, "pong:1,200000;\r\n")
-    assert_receive {:pubsub, _, "board", %{event: "deadman_recovery"}}, 2_000
+    assert_receive {:pubsub, _, "board", %{event: "deadman_recovery"}}
 
     texts = ctx.board |> recv_framed(4) |> Enum.map(&elem(&1, 1))
     assert "ligt(120);" in texts and "go(1500,1500,1500,1);" in texts
@@ -212,7 +210,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
                  "go(1500,1500,1500,1);"
                ]
 
-        assert_receive {:pubsub, _, "board", %{event: "thrust_held", reason: reason}}, 2_000
+        assert_receive {:pubsub, _, "board", %{event: "thrust_held", reason: reason}}
         assert reason =~ "board settings not confirmed (mtrmod1, mtrmod2)"
         assert %{thrust_held: true, board_settings: "pending"} = UART.link_status(ctx.id)
 
@@ -238,9 +236,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
                  UART.link_status(ctx.id)
 
         # the page's telemetry and the developer logger were told
-        assert_receive {:"$gen_cast",
-                        {:link, %{board_settings: "confirmed", thrust_held: false}}},
-                       2_000
+        assert_receive {:"$gen_cast", {:link, %{board_settings: "confirmed", thrust_held: false}}}
       end
     end
 
@@ -260,9 +256,9 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
 
       # the board restarts (a USB Arduino when the line opens): its setup lines, then boot:1
       write(ctx.board, "Depth Sensor setup.\r\nlog:init on primary addresses;\r\nboot:1;\r\n")
-      assert_receive {:pubsub, _, "board", %{event: "reset", reason: reason}}, 2_000
+      assert_receive {:pubsub, _, "board", %{event: "reset", reason: reason}}
       assert reason =~ "boot:1"
-      assert_receive {:"$gen_cast", {:board_reset, ^reason}}, 2_000
+      assert_receive {:"$gen_cast", {:board_reset, ^reason}}
 
       # (the pings are the deadman's)
       assert recv_commands(ctx.board, :openrov_25, &(length(&1) >= 4)) ==
@@ -278,11 +274,10 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
       PubSub.subscribe(Telemetry.log_topic(ctx.id))
       start_uart(ctx, firmware: :openrov_25, confirm_retry: 30, confirm_attempts: 3)
       # (a demand from before the link opened would not count: a new link starts neutral)
-      assert_receive {:pubsub, _, "link", %{up: true}}, 2_000
+      assert_receive {:pubsub, _, "link", %{up: true}}
       Board.go(ctx.id, %{port: 0.4, vertical: 0.0, starboard: 0.4})
 
-      assert_receive {:pubsub, _, "log", %{category: "link", level: "warning", message: held}},
-                     2_000
+      assert_receive {:pubsub, _, "log", %{category: "link", level: "warning", message: held}}
 
       assert held =~ "thrust held at neutral"
 
@@ -294,13 +289,12 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
 
       assert status.board_settings_reason =~ "has not confirmed mtrmod1(100,100,100);"
       assert status.thrust_held
-      assert_receive {:pubsub, _, "log", %{level: "error", message: message}}, 2_000
+      assert_receive {:pubsub, _, "log", %{level: "error", message: message}}
       assert message =~ "board settings not confirmed: the board has not confirmed"
 
       assert_receive {:"$gen_cast",
                       {:link,
-                       %{board_settings: "failed", board_settings_reason: "the board" <> _}}},
-                     2_000
+                       %{board_settings: "failed", board_settings_reason: "the board" <> _}}}
 
       # still written (every second), and confirmed when the board answers at last
       drain(ctx.board, 0)
@@ -317,7 +311,7 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
   end
 
   defp recv_framed_or_plain(board, :openrov_25, count) do
-    bytes = recv_until(board, &(length(:binary.split(&1, ";", [:global])) > count), 3_000)
+    bytes = recv_until(board, &(length(:binary.split(&1, ";", [:global])) > count))
     bytes |> :binary.split(";", [:global]) |> Enum.drop(-1) |> Enum.map(&(&1 <> ";"))
   end
 
@@ -334,14 +328,14 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
       |> Enum.reject(&String.starts_with?(&1, "ping("))
     end
 
-    board |> recv_until(&done?.(commands.(&1)), 3_000) |> commands.()
+    board |> recv_until(&done?.(commands.(&1))) |> commands.()
   end
 
   defp gos(commands), do: Enum.filter(commands, &String.starts_with?(&1, "go("))
 
   # commands until one starting with `prefix`
   defp recv_until_command(board, profile, prefix) do
-    bytes = recv_until(board, &String.contains?(&1, prefix), 3_000)
+    bytes = recv_until(board, &String.contains?(&1, prefix))
 
     case profile do
       :openrov_25 -> bytes |> :binary.split(";", [:global]) |> Enum.map(&(&1 <> ";"))

@@ -6,6 +6,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
 
   import Neptunus.Test.Pty
 
+  alias Neptunus.Test.Patience
   alias Neptunus.Vehicle.Board.UART
 
   defp spawn_program(args, env \\ []) do
@@ -37,7 +38,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     receive do
       {^port, {:exit_status, status}} -> status
     after
-      5_000 -> flunk("the program did not exit")
+      Patience.ms() -> flunk("the program did not exit")
     end
   end
 
@@ -45,7 +46,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     receive do
       {^port, {:data, "e" <> text}} -> text
     after
-      5_000 -> flunk("no error message")
+      Patience.ms() -> flunk("no error message")
     end
   end
 
@@ -78,7 +79,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     write(a, "hello")
     recv_until(b, &(&1 == "hello"))
     Port.command(a, "s")
-    assert_receive {^a, {:data, "s" <> stats}}, 2_000
+    assert_receive {^a, {:data, "s" <> stats}}
     assert stats =~ ~r/^rx=0 tx=5 dropped=0 queued=0$/
   end
 
@@ -140,7 +141,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     link = pty_link()
 
     master = spawn_program(["pty", link])
-    assert_receive {^master, {:data, "o/dev/pts/" <> _}}, 5_000
+    assert_receive {^master, {:data, "o/dev/pts/" <> _}}
     assert {:ok, "/dev/pts/" <> _} = File.read_link(link)
 
     slave = open!(link)
@@ -170,9 +171,9 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     kernel_reports_slices? = Enum.any?(vm, fn {_tid, ns} -> ns > 0 end)
 
     sliced = spawn_program(["pty", pty_link()], [{~c"NEPTUNUS_SLICE_NS", ~c"250000"}])
-    assert_receive {^sliced, {:data, "o" <> _}}, 5_000
+    assert_receive {^sliced, {:data, "o" <> _}}
     plain = spawn_program(["pty", pty_link()], [{~c"NEPTUNUS_SLICE_NS", ~c"fast"}])
-    assert_receive {^plain, {:data, "o" <> _}}, 5_000
+    assert_receive {^plain, {:data, "o" <> _}}
 
     {:ok, [{_, sliced_ns}]} = Neptunus.OS.thread_slices(os_pid(sliced))
     {:ok, [{_, plain_ns}]} = Neptunus.OS.thread_slices(os_pid(plain))
@@ -188,21 +189,21 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
   test "NEPTUNUS_UART_RX_STAMPS=1: each read comes after a frame with its CLOCK_MONOTONIC time" do
     link = pty_link()
     master = spawn_program(["pty", link], [{~c"NEPTUNUS_UART_RX_STAMPS", ~c"1"}])
-    assert_receive {^master, {:data, "o" <> _}}, 5_000
+    assert_receive {^master, {:data, "o" <> _}}
     slave = open!(link)
-    assert_receive {^master, {:data, "O"}}, 2_000
+    assert_receive {^master, {:data, "O"}}
 
     before = os_monotonic_ns()
     write(slave, "hdgd:90;")
-    assert_receive {^master, {:data, "t" <> stamp}}, 2_000
-    assert_receive {^master, {:data, "rhdgd:90;"}}, 2_000
+    assert_receive {^master, {:data, "t" <> stamp}}
+    assert_receive {^master, {:data, "rhdgd:90;"}}
     stamp = String.to_integer(stamp)
     assert before <= stamp and stamp <= os_monotonic_ns()
 
     # without the variable (the VM's board link): 'r' frames only
     plain_link = pty_link()
     plain = spawn_program(["pty", plain_link])
-    assert_receive {^plain, {:data, "o" <> _}}, 5_000
+    assert_receive {^plain, {:data, "o" <> _}}
     write(open!(plain_link), "x")
     assert next_frame(plain) == "O"
     assert next_frame(plain) == "rx"
@@ -212,7 +213,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
     receive do
       {^port, {:data, frame}} -> frame
     after
-      2_000 -> flunk("no frame from the program")
+      Patience.ms() -> flunk("no frame from the program")
     end
   end
 end

@@ -6,7 +6,7 @@ defmodule Neptunus.Vehicle.Board.UARTReopenTest do
   @moduletag :uart
   @moduletag :capture_log
 
-  import Neptunus.Test.Pty, only: [wait_until: 3]
+  import Neptunus.Test.Pty, only: [wait_until: 2]
 
   alias Neptunus.{Fleet, PubSub, Wiring}
   alias Neptunus.Vehicle.{Board, Control, Telemetry}
@@ -27,9 +27,9 @@ defmodule Neptunus.Vehicle.Board.UARTReopenTest do
       })
 
     on_exit(fn -> Fleet.stop_vehicle(id) end)
-    assert_receive {:pubsub, _, "link", %{up: true}}, 5_000
+    assert_receive {:pubsub, _, "link", %{up: true}}
     # the helm's stop as it starts, before we drive
-    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}, 5_000
+    assert_receive {:pubsub, _, "stopped", %{reason: "helm_started"}}
     # up for longer than reopen_min would need: only a link up a while reopens at once
     Process.sleep(200)
 
@@ -40,20 +40,18 @@ defmodule Neptunus.Vehicle.Board.UARTReopenTest do
 
     wait_until(
       fn -> SITL.Device.state(id).firmware.target_us != neutral end,
-      "the board to drive",
-      2_000
+      "the board to drive"
     )
 
     {:os_pid, os_pid} = :sys.get_state(Fleet.whereis(Board, id)).port |> Port.info(:os_pid)
     {_, 0} = System.cmd("kill", ["-KILL", Integer.to_string(os_pid)])
 
-    assert_receive {:pubsub, _, "link", %{up: false}}, 2_000
-    assert_receive {:pubsub, _, "link", %{up: true}}, 2_000
+    assert_receive {:pubsub, _, "link", %{up: false}}
+    assert_receive {:pubsub, _, "link", %{up: true}}
 
     wait_until(
       fn -> SITL.Device.state(id).firmware.target_us == neutral end,
-      "the board at neutral",
-      2_000
+      "the board at neutral"
     )
   end
 end

@@ -52,8 +52,29 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
   end
 
   defp link_event(up) do
-    assert_receive {:pubsub, _, "link", %{up: ^up, reason: reason}}, 5_000
+    assert_receive {:pubsub, _, "link", %{up: ^up, reason: reason}}
     reason
+  end
+
+  # The complete commands in `bytes`, in the order written.
+  defp commands(bytes), do: ~r/[a-z0-9]+\([^)]*\);/ |> Regex.scan(bytes) |> List.flatten()
+
+  # Reads whole commands (up to a `;`) until `done?` holds for the commands read; returns them.
+  defp read_commands(board, done?) do
+    board
+    |> recv_until(&(String.ends_with?(&1, ";") and done?.(commands(&1))))
+    |> commands()
+  end
+
+  defp ping?(command), do: String.starts_with?(command, "ping(")
+
+  # The next go() on the line. Deadman pings run on their own timer once control is heard
+  # (every go is), so they may come before it; nothing else may.
+  defp next_go(board) do
+    read = read_commands(board, &Enum.any?(&1, fn c -> String.starts_with?(c, "go(") end))
+    {_pings, [go | rest]} = Enum.split_while(read, &ping?/1)
+    assert String.starts_with?(go, "go(") and Enum.all?(rest, &ping?/1), inspect(read)
+    go
   end
 
   test "neutral on open, then go commands with the vehicle's wiring", ctx do
@@ -65,8 +86,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
     Board.go(ctx.id, %{port: 0.5, vertical: -0.2, starboard: 1.0})
     # default wiring: port reversed
-    # (the deadman's pings may follow it: control was heard)
-    assert recv_until(ctx.board, &String.contains?(&1, "go(")) =~ ~r/\Ago\(1250,1400,2000,1\);/
+    assert next_go(ctx.board) == "go(1250,1400,2000,1);"
 
     assert %{up: true, reason: "open", device: device, baud: 115_200, counters: c} =
              UART.link_status(ctx.id)
@@ -86,34 +106,47 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     opening = "go(1500,1500,1500,0);" <> @modifiers
     assert String.starts_with?(opened!(ctx, ctx.board, opening), opening)
     Board.go(ctx.id, %{port: 1.0, vertical: 1.0, starboard: 0.0})
-    assert recv_until(ctx.board, &String.contains?(&1, "go(")) =~ ~r/\Ago\(1500,1000,2000,0\);/
+    assert next_go(ctx.board) == "go(1500,1000,2000,0);"
   end
 
   test "deadman pings only while control is heard from", ctx do
     start_uart(ctx, keepalive_timeout: 200)
     opened!(ctx, ctx.board)
 
-    # control not heard yet: no pings
-    assert drain(ctx.board, 200) == ""
-    assert UART.link_status(ctx.id).counters.pings_withheld > 0
+    # control not heard yet: ping ticks pass without a ping (a lights command, written after
+    # a withheld tick, shows that none went out before it)
+    wait_until(fn -> UART.link_status(ctx.id).counters.pings_withheld >= 2 end, "pings withheld")
+    UART.lights(ctx.id, 1)
+    assert read_commands(ctx.board, &("ligt(1);" in &1)) == ["ligt(1);"]
 
-    # keepalives keep the pings coming, numbered
-    for _ <- 1..4 do
-      UART.keepalive(ctx.id)
-      Process.sleep(40)
-    end
+    # keepalives (as control sends them) keep the pings coming, numbered
+    pings = ctx |> keep_alive_until(&("ping(2);" in commands(&1)), "") |> commands()
+    assert Enum.take(pings, 3) == ["ping(0);", "ping(1);", "ping(2);"]
 
-    pings = recv_until(ctx.board, &String.contains?(&1, "ping(2);"))
-    assert pings =~ ~r/\Aping\(0\);ping\(1\);ping\(2\);/
-
-    # control silent: pings stop within keepalive_timeout + one interval
-    Process.sleep(300)
-    drain(ctx.board, 0)
-    assert drain(ctx.board, 200) == ""
+    # control silent: once a tick withholds its ping, no ping follows (two lights commands,
+    # each written after a withheld tick, with nothing but the pings already sent before the
+    # first)
+    withheld = UART.link_status(ctx.id).counters.pings_withheld
+    wait_until(fn -> UART.link_status(ctx.id).counters.pings_withheld > withheld end, "silence")
+    UART.lights(ctx.id, 2)
+    before = read_commands(ctx.board, &("ligt(2);" in &1))
+    assert List.last(before) == "ligt(2);" and Enum.all?(Enum.drop(before, -1), &ping?/1)
+    withheld = UART.link_status(ctx.id).counters.pings_withheld
+    wait_until(fn -> UART.link_status(ctx.id).counters.pings_withheld > withheld end, "silence")
+    UART.lights(ctx.id, 3)
+    assert read_commands(ctx.board, &("ligt(3);" in &1)) == ["ligt(3);"]
 
     # a go counts as hearing from control
     Board.neutral(ctx.id)
     assert recv_until(ctx.board, &String.contains?(&1, "ping(")) =~ @neutral
+  end
+
+  # Says keepalive, as control does, until the bytes read satisfy `done?`: returns them.
+  defp keep_alive_until(ctx, done?, read) do
+    UART.keepalive(ctx.id)
+    read = read <> drain(ctx.board, 40)
+
+    if done?.(read), do: read, else: keep_alive_until(ctx, done?, read)
   end
 
   test "telemetry lines become samples in SI units, sim: nil", ctx do
@@ -121,8 +154,8 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     opened!(ctx, ctx.board)
     write(ctx.board, @nav <> @status <> @nav)
 
-    assert_receive {:"$gen_cast", {:sample, s1}}, 2_000
-    assert_receive {:"$gen_cast", {:sample, s2}}, 2_000
+    assert_receive {:"$gen_cast", {:sample, s1}}
+    assert_receive {:"$gen_cast", {:sample, s2}}
     assert %{sim: nil, t: t, measurement: m, board: extra} = s1
     assert is_float(t) and s2.t >= t
     assert m.depth == 2.5 and m.voltage == 12.2 and m.current == 0.4
@@ -138,7 +171,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     pid = start_uart(ctx, max_line: 128)
     opened!(ctx, ctx.board)
     write(ctx.board, @nav <> @status)
-    assert_receive {:"$gen_cast", {:sample, _}}, 2_000
+    assert_receive {:"$gen_cast", {:sample, _}}
 
     garbage = [
       "hdgd:pitc;deap:2000;vout:1.2;iout:nan;\n",
@@ -150,7 +183,7 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
     Enum.each(garbage, &write(ctx.board, &1))
     write(ctx.board, "deap:3.0;\n")
-    assert_receive {:"$gen_cast", {:sample, %{measurement: m}}}, 2_000
+    assert_receive {:"$gen_cast", {:sample, %{measurement: m}}}
     assert m.depth == 3.0 and m.voltage == 12.2 and m.heading > 3.0
 
     c = UART.link_status(ctx.id).counters
@@ -237,6 +270,21 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     assert opened!(ctx, ctx.board) =~ @neutral
   end
 
+  test "its port closed without an exit status (a write that found the program gone) is a link down too, then it reopens",
+       ctx do
+    start_uart(ctx)
+    link_event(true)
+    recv_until(ctx.board, &String.starts_with?(&1, @opening))
+
+    # the port ends with only its exit signal, as when a write fails (epipe) before the
+    # program's exit status reached the VM
+    Port.close(:sys.get_state(Board.via(ctx.id)).port)
+
+    assert link_event(false) =~ "port program gone"
+    assert link_event(true) == "open"
+    assert %{up: true, counters: %{opens: 2}} = UART.link_status(ctx.id)
+  end
+
   test "the port program asks for the OS time slice of its option (Neptunus.OS)", ctx do
     # the node's vehicles get the configured slice as this option (Neptunus.Application)
     start_uart(ctx, os_time_slice_ns: Application.fetch_env!(:neptunus, :os_time_slice_ns))
@@ -271,8 +319,12 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
     start_uart(ctx)
     opened!(ctx, ctx.board)
     Board.go(ctx.id, %{port: 1.0, vertical: 0.0, starboard: 1.0})
-    recv_until(ctx.board, &String.ends_with?(&1, ";"))
+    assert next_go(ctx.board) == "go(1000,1500,2000,1);"
     stop_supervised!(UART)
-    assert recv_until(ctx.board, &String.contains?(&1, @neutral)) =~ @neutral
+
+    # the last command written is neutral: deadman pings written before the stop may come
+    # first (they run on their own timer), no other go()
+    after_stop = read_commands(ctx.board, &(List.last(&1) == @neutral))
+    assert Enum.all?(Enum.drop(after_stop, -1), &ping?/1), inspect(after_stop)
   end
 end
