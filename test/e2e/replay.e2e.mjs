@@ -108,6 +108,15 @@ test("replay: the dive listed with its summary; picked, its picture and HUD; it 
       events.map((e) => e.replace(/^\S+ /, "")),
       ["helm: ada", "stop: deadman", "autopilot: depth hold 2 m", "snapshot x.jpg"],
     );
+    // its exports, downloaded as the page offers them (the server makes them)
+    const exports = await page.locator('[data-testid="replay-exports"] a').evaluateAll((as) => as.map((a) => [a.dataset.format, a.getAttribute("href")]));
+    assert.deepEqual(exports.map(([f]) => f), ["mp4", "mcap", "csv", "ass", "jsonl"]);
+    for (const [format, href] of exports) {
+      const response = await page.request.get(new URL(href, page.url()).href);
+      assert.equal(response.status(), 200, `${format} export: HTTP ${response.status()}`);
+      assert.match(response.headers()["content-disposition"] ?? "", new RegExp(`attachment; filename=".+\\.${format}"`));
+      assert.ok((await response.body()).length > 0, `${format} export is empty`);
+    }
     await screenshot(page, "replay-desktop.png");
     assert.deepEqual(sockets, [], "the replay page opened a WebSocket");
   } finally {

@@ -84,9 +84,13 @@ export function parseRecordingLines(text: string): ParsedRecording {
 }
 
 /** The address of a recording's export; the token rides in the query (a plain link works). */
+/** The exports the server makes of a recording or dive (docs/API.md, `GET /api/recordings/ID/NAME`). */
+export type ExportFormat = "csv" | "jsonl" | "ass" | "mp4" | "mcap";
+
+/** A download address of a recording's export; the token (if any) in the query, as links carry no header. */
 export function recordingUrl(
   info: Pick<RecordingInfo, "vehicle" | "name">,
-  format: "csv" | "jsonl",
+  format: ExportFormat,
   token: string | null,
   max?: number,
 ): string {

@@ -9,8 +9,8 @@
 import { render } from "preact";
 import { useEffect, useMemo, useRef, useState } from "preact/hooks";
 import uPlot from "uplot";
-import { parseRecordingLines } from "../lib/recordings";
-import type { ParsedRecording, RecordedEntry } from "../lib/recordings";
+import { parseRecordingLines, recordingUrl } from "../lib/recordings";
+import type { ExportFormat, ParsedRecording, RecordedEntry } from "../lib/recordings";
 import { PageSession, browserSessionEnv } from "../lib/session";
 import { formatFixed, formatHeading } from "../lib/units";
 import { CompassTape } from "../operator/hud";
@@ -361,7 +361,31 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
         ))}
       </ul>
       <Plots loaded={loaded} cursorRef={cursor} onSeek={(to) => change((c, now) => seek(c, to, now))} />
+      <Exports dive={loaded.dive} token={props.token} />
     </div>
+  );
+}
+
+/** The dive's exports as downloads (the server makes them; docs/API.md): MP4 only with video. */
+function Exports(props: { dive: DiveInfo; token: string | null }): preact.JSX.Element {
+  const formats: readonly [ExportFormat, string, string][] = [
+    ["mp4", "MP4", "the video with a telemetry subtitle track"],
+    ["mcap", "MCAP", "telemetry, events and video for Foxglove"],
+    ["csv", "CSV", "the telemetry as a table"],
+    ["ass", "ASS", "the telemetry subtitles alone"],
+    ["jsonl", "JSON lines", "every entry as recorded"],
+  ];
+  return (
+    <p class="replay-exports" data-testid="replay-exports">
+      Export:{" "}
+      {formats
+        .filter(([format]) => format !== "mp4" || props.dive.video !== null)
+        .map(([format, label, title]) => (
+          <a key={format} href={recordingUrl(props.dive, format, props.token)} download title={title} data-format={format}>
+            {label}
+          </a>
+        ))}
+    </p>
   );
 }
 

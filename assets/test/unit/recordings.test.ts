@@ -54,6 +54,7 @@ describe("addresses and sizes", () => {
   it("encodes names and puts the token in the query", () => {
     expect(recordingUrl({ vehicle: "rov 1", name: info.name }, "csv", null)).toBe("/api/recordings/rov%201/20261122-130509Z-1.log?format=csv");
     expect(recordingUrl(info, "jsonl", "v1.a+b", 12000)).toBe("/api/recordings/rov-1/20261122-130509Z-1.log?format=jsonl&max=12000&token=v1.a%2Bb");
+    expect(recordingUrl({ vehicle: "rov-1", name: "20261128-104500Z-1" }, "mp4", "t")).toBe("/api/recordings/rov-1/20261128-104500Z-1?format=mp4&token=t");
   });
 
   it("formats sizes", () => {
