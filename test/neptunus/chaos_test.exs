@@ -255,7 +255,16 @@ defmodule Neptunus.ChaosTest do
   end
 
   defp tree(sup, id) do
-    for {child, pid, type, _} <- Supervisor.which_children(sup), is_pid(pid) do
+    # a supervisor that went while the tree was read (the last kill's restart still going)
+    # has no targets this round
+    children =
+      try do
+        Supervisor.which_children(sup)
+      catch
+        :exit, _ -> []
+      end
+
+    for {child, pid, type, _} <- children, is_pid(pid) do
       [{:vehicle, id, inspect(child), pid} | if(type == :supervisor, do: tree(pid, id), else: [])]
     end
     |> List.flatten()

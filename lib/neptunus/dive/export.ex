@@ -517,11 +517,20 @@ defmodule Neptunus.Dive.Export do
   defp next_mp4(%{port: port} = s) do
     receive do
       {^port, {:data, <<?d, bytes::binary>>}} ->
-        Port.command(port, <<?a, byte_size(bytes)::32>>)
+        ack(port, byte_size(bytes))
         {[bytes], s}
 
       {^port, {:data, <<?e, line::binary>>}} ->
         next_mp4(%{s | errors: Enum.take([line | s.errors], 5)})
+
+      # ffmpeg ended (the port program says its code before it exits, as the VM may see the
+      # port close without an exit status)
+      {^port, {:data, <<?x, 0>>}} ->
+        {:halt, s}
+
+      {^port, {:data, <<?x, status>>}} ->
+        raise ErlangError,
+          original: {:ffmpeg, status, Enum.join(Enum.reverse(s.errors), "; ")}
 
       {^port, {:data, _}} ->
         next_mp4(s)
@@ -549,11 +558,30 @@ defmodule Neptunus.Dive.Export do
       rescue
         _ -> :ok
       end
+
+      flush_port(s.port)
     end
 
     Process.exit(s.feeder, :kill)
     :gen_tcp.close(s.listen)
     File.rm_rf(s.tmp)
+  end
+
+  # the acknowledgement of ffmpeg's output (flow control); a program that has just ended has
+  # closed the port, and its end comes next ('x' or the exit status)
+  defp ack(port, bytes) do
+    Port.command(port, <<?a, bytes::32>>)
+  rescue
+    ArgumentError -> :ok
+  end
+
+  # what the port said after its end was read (its exit status) is not left to the caller
+  defp flush_port(port) do
+    receive do
+      {^port, _} -> flush_port(port)
+    after
+      0 -> :ok
+    end
   end
 
   defp open_ffmpeg(plan, sock, subs) do
