@@ -446,7 +446,8 @@ defmodule Neptunus.GCS.Vehicle do
   @doc """
   STATUSTEXT messages for a text at a MAV_SEVERITY (0 emergency … 7 debug): at most 50
   bytes each, cut at UTF-8 character boundaries; a longer text in chunks sharing a
-  non-zero `id` with `chunk_seq` 0, 1, … (MAVLink 2's chunked STATUSTEXT).
+  non-zero `id` with `chunk_seq` 0, 1, … (MAVLink 2's chunked STATUSTEXT). `chunk_seq` is
+  one byte: a text longer than 256 chunks (about 12 KB) is cut after the 256th.
 
       iex> [one] = Neptunus.GCS.Vehicle.statustext(4, "stopped: deadman", 7)
       iex> one

@@ -201,12 +201,19 @@ defmodule Neptunus.GCS.VehicleTest do
     assert Enum.map(chunks, &byte_size(&1.text)) == [50, 50, 50, 31]
     assert Enum.map(chunks, & &1.id) == [9, 9, 9, 9]
 
+    # chunk_seq is one byte: 256 chunks at most, the rest of a longer text is not sent
+    chunks = Vehicle.statustext(6, String.duplicate("é", 7000), 9)
+    assert length(chunks) == 256 and List.last(chunks).chunk_seq == 255
+
     long = :proper_types.bind(:proper_types.list(:proper_unicode.utf8()), &Enum.join/1, false)
 
     check(long, fn text ->
       chunks = Vehicle.statustext(6, text, 9)
+      sent = Enum.map_join(chunks, & &1.text)
+      text = String.replace(text, <<0>>, "")
 
-      Enum.map_join(chunks, & &1.text) == String.replace(text, <<0>>, "") and
+      # all of it, or (chunk_seq is one byte) the first 256 chunks of it
+      (sent == text or (length(chunks) == 256 and String.starts_with?(text, sent))) and
         Enum.all?(chunks, &(byte_size(&1.text) <= 50 and String.valid?(&1.text))) and
         Enum.all?(chunks, &encodes?(:statustext, &1)) and
         (length(chunks) == 1 or
