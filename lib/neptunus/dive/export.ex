@@ -596,13 +596,19 @@ defmodule Neptunus.Dive.Export do
         ["-metadata", "title=#{plan.title}"] ++
         ~w(-movflags frag_keyframe+empty_moov+default_base_moof -f mp4 pipe:1)
 
-    Port.open({:spawn_executable, camera}, [
-      :binary,
-      {:packet, 4},
-      :exit_status,
-      :use_stdio,
-      args: args
-    ])
+    port =
+      Port.open({:spawn_executable, camera}, [
+        :binary,
+        {:packet, 4},
+        :exit_status,
+        :use_stdio,
+        args: args
+      ])
+
+    # an acknowledgement written as the program ends fails (EPIPE) and closes the port with an
+    # exit signal: never the caller's (an API request, a mix task); its end is read from 'x'
+    Process.unlink(port)
+    port
   end
 
   # feeds ffmpeg the Matroska stream over the socket, at ffmpeg's pace
