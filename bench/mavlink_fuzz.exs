@@ -54,7 +54,8 @@ defmodule Fuzz do
     {{system, component}, seq, seqs} = next(seqs)
     definition = Enum.random(@definitions)
     fields = Map.new(definition.fields, &{&1.name, value(&1)})
-    version = if kind == :valid and :rand.uniform(5) == 1, do: 1, else: 2
+    # MAVLink 1 carries one-byte message ids only (CONTROL_STATUS, 512, is MAVLink 2 alone)
+    version = if kind == :valid and definition.id < 256 and :rand.uniform(5) == 1, do: 1, else: 2
     header = %{system: system, component: component, seq: seq}
     {:ok, frame} = MAVLink.encode(definition.name, fields, header, version)
     frame = if kind == :signed, do: sign(frame), else: frame
