@@ -656,7 +656,7 @@ defmodule NeptunusWeb.WireSchema do
          axes:
            {{:list, :axis},
             doc:
-              "the body-frame axes the vehicle can be commanded in (its board's): the pilot's inputs offer these; the three-thruster vehicle has `surge`, `heave`, `yaw`, an ArduSub vehicle `sway` too"},
+              "the body-frame axes the vehicle can be commanded in (its board's): the pilot's inputs offer these; the three-thruster vehicle has `surge`, `heave`, `yaw`; an ArduSub vehicle and a simulated `neptunus-sway` (a lateral thruster) `sway` too"},
          autopilots:
            {{:enum, ~w(neptunus vehicle)},
             doc:

@@ -18,9 +18,11 @@ defmodule NeptunusWeb.GCSExternalTest do
   # one word: MAVProxy's `signing key` takes its first argument
   @passphrase "neptunus-e2e-passphrase"
 
-  setup do
+  # a test's `@tag vehicle: %{...}` is merged into its simulated vehicle (a model, position sources)
+  setup ctx do
     id = "gcs-e2e-#{System.unique_integer([:positive])}"
-    {:ok, _} = Neptunus.Fleet.start_vehicle(%{id: id, board: :simulated})
+    vehicle = Map.merge(%{id: id, board: :simulated}, Map.get(ctx, :vehicle, %{}))
+    {:ok, _} = Neptunus.Fleet.start_vehicle(vehicle)
     on_exit(fn -> Neptunus.Fleet.stop_vehicle(id) end)
 
     endpoint = fn kind, address, loopback, link_id ->
@@ -49,7 +51,7 @@ defmodule NeptunusWeb.GCSExternalTest do
       mode: :local
     }
 
-    start_supervised!({Neptunus.GCS, gcs: gcs, vehicles: [%{id: id, board: :simulated}]})
+    start_supervised!({Neptunus.GCS, gcs: gcs, vehicles: [vehicle]})
     [loopback, far, tcp] = for link <- [0, 1, 2], do: Endpoint.stats(Endpoint.name(link)).port
     {:ok, id: id, loopback: loopback, far: far, tcp: tcp}
   end
@@ -122,6 +124,43 @@ defmodule NeptunusWeb.GCSExternalTest do
     assert report["disarm_ack"] == 0 and report["disarmed_heartbeat"]
     assert_received {:pubsub, _, "helm", %{pilot: %{name: "gcs-255 (GCS 255)"}}}
     assert Helm.status(id).pilot == nil
+  end
+
+  describe "MANUAL_CONTROL's y (lateral)" do
+    @tag vehicle: %{sim: [vehicle: "neptunus-sway"]}
+    test "is sway on a vehicle that can sway (a simulated neptunus-sway): its lateral thruster pushes it to starboard",
+         %{id: id, loopback: port} do
+      assert :sway in Neptunus.Vehicle.Board.capabilities(id).axes
+      Neptunus.PubSub.subscribe("vehicle:" <> id)
+      report = python!(["stick", "#{port}", "#{@sysid}", "0", "800"])
+      assert %{"heartbeat" => true, "helm_ack" => 0} = report
+
+      # the pilot's command carried sway; the vehicle moved to starboard under it
+      assert_received {:pubsub, _, "telemetry", %{command: %{sway: 0.8, surge: +0.0}}}
+      assert telemetry_seen(fn t -> t.sim.v > 0.01 end), "the vehicle never moved to starboard"
+    end
+
+    test "is ignored on a vehicle without sway (the three-thruster vehicle): the rest of the stick flies",
+         %{id: id, loopback: port} do
+      refute :sway in Neptunus.Vehicle.Board.capabilities(id).axes
+      Neptunus.PubSub.subscribe("vehicle:" <> id)
+      report = python!(["stick", "#{port}", "#{@sysid}", "300", "800"])
+      assert %{"heartbeat" => true, "helm_ack" => 0} = report
+
+      # not refused (the vehicle has no sway): the surge flew, without sway
+      assert_received {:pubsub, _, "telemetry", %{command: %{surge: 0.3} = command}}
+      refute Map.has_key?(command, :sway)
+      refute telemetry_seen(fn t -> is_map(t.command) and Map.has_key?(t.command, :sway) end)
+    end
+  end
+
+  # whether a telemetry broadcast already received satisfies `fun` (each is looked at once)
+  defp telemetry_seen(fun) do
+    receive do
+      {:pubsub, _, "telemetry", t} -> fun.(t) or telemetry_seen(fun)
+    after
+      0 -> false
+    end
   end
 
   test "beyond loopback: an unsigned ground station sees nothing; one with the key gets signed telemetry",

@@ -9,6 +9,9 @@
       parameters (a set refused while it does not pilot), a stick that moves nothing without
       the helm, the helm, arm, MANUAL_CONTROL at 10 Hz for 2 s, silence, disarm
 
+  .venv/bin/python test/support/gcs_pymavlink.py stick PORT SYSID X Y
+      the helm, then MANUAL_CONTROL x = X, y = Y (lateral), z neutral at 10 Hz for 2 s
+
   .venv/bin/python test/support/gcs_pymavlink.py behind PORT SYSID SECONDS
       an unsigned ground station behind a signing MAVProxy (`--out=udpout:127.0.0.1:PORT`):
       listens on PORT (udpin), and once it hears the vehicle asks for its parameters
@@ -140,6 +143,22 @@ def fly(port, sysid):
     return report
 
 
+def sticks(port, sysid, x, y):
+    m = connect(port)
+    heartbeat(m)
+    hb = wait(m, "HEARTBEAT", lambda h: h.get_srcSystem() == sysid)
+    report = {"heartbeat": hb is not None}
+    report["helm_ack"] = command(m, sysid, 32100, 0, 1, 0, 10)
+    for i in range(20):
+        m.mav.manual_control_send(sysid, x, y, 500, 0, 0)
+        if i % 10 == 0:
+            heartbeat(m)
+        until = time.time() + 0.1
+        while time.time() < until:
+            m.recv_match(blocking=True, timeout=max(0.0, until - time.time()))
+    return report
+
+
 def behind(port, sysid, seconds):
     m = mavutil.mavlink_connection("udpin:127.0.0.1:%d" % port, source_system=255, source_component=190)
     report = {"heartbeat": None, "params": 0}
@@ -188,6 +207,8 @@ def main(argv):
         answer = watch(argv[2], float(argv[3]), argv[4] if len(argv) > 4 else None)
     elif command_name == "behind":
         answer = behind(int(argv[2]), int(argv[3]), float(argv[4]))
+    elif command_name == "stick":
+        answer = sticks(argv[2], int(argv[3]), int(argv[4]), int(argv[5]))
     elif command_name == "fly":
         answer = fly(argv[2], int(argv[3]))
     else:

@@ -1479,7 +1479,8 @@ export interface VehicleInfo {
   readonly node: string | null;
   /**
    * the body-frame axes the vehicle can be commanded in (its board's): the pilot's inputs offer
-   * these; the three-thruster vehicle has `surge`, `heave`, `yaw`, an ArduSub vehicle `sway` too
+   * these; the three-thruster vehicle has `surge`, `heave`, `yaw`; an ArduSub vehicle and a
+   * simulated `neptunus-sway` (a lateral thruster) `sway` too
    */
   readonly axes: readonly Axis[] | null;
   /**

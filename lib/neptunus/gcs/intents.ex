@@ -8,6 +8,7 @@ defmodule Neptunus.GCS.Intents do
   task of its own, so a slow one never holds the pilot's input up).
   """
 
+  alias Neptunus.GCS.Manual
   alias Neptunus.Vehicle.{Board, Control, Helm}
 
   # how long an arm or a mode change waits for an ArduSub vehicle's answer (its board gives
@@ -24,15 +25,14 @@ defmodule Neptunus.GCS.Intents do
   @doc "Carries `intent` out for `party` on `vehicle`: `{:ok, map}` or `{:error, reason}`."
   @spec run(Neptunus.GCS.Session.intent(), vehicle(), Helm.party()) :: term()
   def run({:thrust, axes, epoch}, %{id: id}, party) do
-    payload = %{
-      "mode" => "motion",
-      "surge" => axes.surge,
-      "heave" => axes.heave,
-      "yaw" => axes.yaw,
-      "epoch" => epoch
-    }
+    # sway only to a vehicle that can sway (its board's axes, as the vehicle registered them)
+    vehicle_axes =
+      case Board.capabilities(id) do
+        %{axes: vehicle_axes} -> vehicle_axes
+        nil -> []
+      end
 
-    Helm.thrust(id, party, payload)
+    Helm.thrust(id, party, Manual.thrust_payload(axes, vehicle_axes, epoch))
   end
 
   def run(:heartbeat, %{id: id}, party), do: Helm.heartbeat(id, party)

@@ -245,14 +245,16 @@ defmodule Neptunus.Vehicle.Control do
     capabilities = Board.capabilities(id) || %{Board.thesis_capabilities() | real: false}
     run_modes = if capabilities.real, do: [:normal, :simulator], else: [:normal]
 
-    lateral? = lateral?(Board.type(id), opts)
+    # a vehicle that sways with our allocation has a lateral thruster (a simulated
+    # neptunus-sway): it gets the demand's sway, the others the three-thruster allocation
+    lateral? = capabilities.allocation == :thesis and :sway in capabilities.axes
 
     core =
       control
       |> Keyword.take([:gains, :stale_after, :deadband, :dp, :reference, :mission])
       |> Keyword.put(
         :actuation,
-        if(lateral? or :sway in capabilities.axes, do: :full, else: :surge)
+        if(:sway in capabilities.axes, do: :full, else: :surge)
       )
       |> Keyword.update(:gains, stored_gains(id), &Tuning.merge(Map.new(&1), stored_gains(id)))
       |> Keyword.merge(gain: Keyword.get(opts, :gain, @default_gain), run_modes: run_modes)
@@ -496,19 +498,6 @@ defmodule Neptunus.Vehicle.Control do
   # a mission's `plan` answers the waypoints it would fly
   defp planned(reply, {:mission, {:plan, waypoints}}), do: Map.put(reply, :waypoints, waypoints)
   defp planned(reply, _command), do: reply
-
-  # a simulated vehicle whose model has a lateral thruster (neptunus-sway) is fully actuated:
-  # its lateral thruster gets the demand's sway (the others the three-thruster allocation)
-  defp lateral?(:simulated, opts) do
-    model = opts |> Keyword.get(:sim, []) |> Keyword.get(:vehicle, "neptunus")
-
-    case Neptunus.Dynamics.Params.load_cached(to_string(model)) do
-      {:ok, params} -> Enum.any?(params.thrusters, &(&1.name == :lateral))
-      {:error, _} -> false
-    end
-  end
-
-  defp lateral?(_board, _opts), do: false
 
   defp with_lateral(thrusters, %State{lateral?: true, core: core}),
     do: Map.put(thrusters, :lateral, Core.demand(core).sway)

@@ -5,6 +5,7 @@ defmodule Neptunus.Vehicle.BoardRegistryTest do
   alias Neptunus.Vehicle.Board
 
   doctest Neptunus.Vehicle.Board
+  doctest Neptunus.Vehicle.Board.Simulated, only: [capabilities: 1]
 
   test "every board type has a module implementing the whole behaviour" do
     for type <- [:simulated, :sitl, :uart, :mavlink] do

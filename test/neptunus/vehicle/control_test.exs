@@ -351,6 +351,25 @@ defmodule Neptunus.Vehicle.ControlTest do
     assert Allocation.neutral() == Board.Simulated.state(id).sim.thrusters
   end
 
+  test "a simulated neptunus-sway sways: sway in its axes, the pilot's sway on its lateral thruster" do
+    id = "ctl-sway-#{System.unique_integer([:positive])}"
+
+    start_supervised!(
+      {Neptunus.Vehicle.Supervisor,
+       %{id: id, board: :simulated, sim: [vehicle: "neptunus-sway", noise: false]}},
+      id: :sway
+    )
+
+    assert %{axes: [:surge, :sway, :heave, :yaw], allocation: :thesis} = Board.capabilities(id)
+    payload = %{"mode" => "motion", "surge" => 0.0, "sway" => 0.8, "heave" => 0.0, "yaw" => 0.0}
+    assert {:ok, %{command: %{sway: 0.8}}} = Control.thrust(id, payload)
+    # the gain (0.5) once, on the lateral thruster; the three-thruster allocation neutral
+    wait_for(fn -> Board.Simulated.state(id).sim.thrusters[:lateral] == 0.4 end)
+
+    assert %{port: +0.0, vertical: +0.0, starboard: +0.0} =
+             Board.Simulated.state(id).sim.thrusters
+  end
+
   defp measurement,
     do: %{depth: 1.0, heading: 0.5, roll: 0.0, pitch: 0.0, voltage: 12.0, current: 1.0}
 

@@ -79,10 +79,36 @@ defmodule Neptunus.Vehicle.Board.Simulated do
     GenServer.start_link(__MODULE__, opts, name: Keyword.get(opts, :name, Board.via(id)))
   end
 
-  @doc "The built-in simulator flies the three-thruster vehicle: surge, heave, yaw."
+  @doc """
+  The built-in simulator flies the three-thruster vehicle (surge, heave, yaw) with our
+  allocation; a parameter set with a lateral thruster (`neptunus-sway`, `sim: [vehicle: …]`)
+  sways too: its lateral thruster gets the demand's sway (`Neptunus.Vehicle.Control`).
+
+      iex> Neptunus.Vehicle.Board.Simulated.capabilities([]).axes
+      [:surge, :heave, :yaw]
+      iex> Neptunus.Vehicle.Board.Simulated.capabilities(sim: [vehicle: "neptunus-sway"]).axes
+      [:surge, :sway, :heave, :yaw]
+  """
   @impl Board
   @spec capabilities(keyword()) :: Board.capabilities()
-  def capabilities(_opts), do: %{Board.thesis_capabilities() | real: false}
+  def capabilities(opts) do
+    capabilities = %{Board.thesis_capabilities() | real: false}
+
+    if lateral?(opts),
+      do: %{capabilities | axes: [:surge, :sway, :heave, :yaw]},
+      else: capabilities
+  end
+
+  # whether the simulated parameter set has a lateral thruster
+  defp lateral?(opts) do
+    sim = Keyword.get(opts, :sim, [])
+    model = if Keyword.keyword?(sim), do: Keyword.get(sim, :vehicle, "neptunus"), else: "neptunus"
+
+    case Neptunus.Dynamics.Params.load_cached(to_string(model)) do
+      {:ok, params} -> Enum.any?(params.thrusters, &(&1.name == :lateral))
+      {:error, _} -> false
+    end
+  end
 
   @impl Board
   @spec go(String.t(), Neptunus.Allocation.thrusters()) :: :ok
