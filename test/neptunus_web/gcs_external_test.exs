@@ -95,8 +95,11 @@ defmodule NeptunusWeb.GCSExternalTest do
     assert %{"type" => 12, "autopilot" => 0} = report["heartbeat"]
 
     for name <-
-          ~w(ATTITUDE VFR_HUD SYS_STATUS SCALED_PRESSURE SERVO_OUTPUT_RAW NAMED_VALUE_FLOAT SYSTEM_TIME LOCAL_POSITION_NED),
+          ~w(ATTITUDE VFR_HUD SYS_STATUS SCALED_PRESSURE SERVO_OUTPUT_RAW NAMED_VALUE_FLOAT SYSTEM_TIME),
         do: assert(report["seen"][name] > 0, "#{name} not seen: #{inspect(report["seen"])}")
+
+    # a vehicle without position sources has no position: the simulator's truth is not one
+    refute Map.has_key?(report["seen"], "LOCAL_POSITION_NED")
 
     # ATTITUDE and VFR_HUD at about 10 Hz, SYS_STATUS about 2 Hz over 3 s (ranges wide: a busy machine)
     assert report["seen"]["VFR_HUD"] >= 15
@@ -151,6 +154,47 @@ defmodule NeptunusWeb.GCSExternalTest do
       assert_received {:pubsub, _, "telemetry", %{command: %{surge: 0.3} = command}}
       refute Map.has_key?(command, :sway)
       refute telemetry_seen(fn t -> is_map(t.command) and Map.has_key?(t.command, :sway) end)
+    end
+  end
+
+  @tag vehicle: %{position: [{:sim_dvl, []}, {:sim_usbl, []}]}
+  test "pymavlink sees LOCAL_POSITION_NED from the position estimate of a vehicle with a DVL and a USBL; its interval is honoured",
+       %{id: id, loopback: port} do
+    Neptunus.PubSub.subscribe("vehicle:" <> id)
+    # the simulated DVL and USBL report through the real drivers: a valid position
+    assert_receive {:pubsub, _, "telemetry", %{position: %{valid: true}}}, 60_000
+    report = python!(["position", "#{port}", "#{@sysid}"])
+    positions = report["first"] ++ report["at_5hz"] ++ report["requested"]
+    assert [_ | _] = report["first"], inspect(report)
+
+    # each one the estimate of a telemetry broadcast (float32 on the wire), never the truth
+    estimates =
+      for {:pubsub, _, "telemetry", %{position: %{valid: true} = p}} <- mailbox(),
+          do: {p.north, p.east}
+
+    for p <- positions do
+      assert Enum.any?(estimates, fn {n, e} ->
+               abs(n - p["x"]) < 1.0e-3 and abs(e - p["y"]) < 1.0e-3
+             end),
+             "#{inspect(p)} is no estimate the vehicle broadcast"
+
+      assert p["z"] > -0.5
+    end
+
+    assert report["interval_ack"] == 0 and report["interval_us"] == 200_000
+    assert [_ | _] = report["at_5hz"]
+    assert report["off_ack"] == 0 and report["while_off"] == []
+    assert report["request_ack"] == 0
+    assert [_] = report["requested"]
+    # no geodetic origin: no GLOBAL_POSITION_INT (docs/MAVLINK.md)
+    assert report["global_position_int"] == 0
+  end
+
+  defp mailbox(acc \\ []) do
+    receive do
+      message -> mailbox([message | acc])
+    after
+      0 -> Enum.reverse(acc)
     end
   end
 

@@ -12,6 +12,11 @@
   .venv/bin/python test/support/gcs_pymavlink.py stick PORT SYSID X Y
       the helm, then MANUAL_CONTROL x = X, y = Y (lateral), z neutral at 10 Hz for 2 s
 
+  .venv/bin/python test/support/gcs_pymavlink.py position PORT SYSID
+      waits up to 60 s for LOCAL_POSITION_NED; then at 5 Hz (SET_MESSAGE_INTERVAL, read back
+      with GET_MESSAGE_INTERVAL) for 2 s; then off for 1.5 s; then once by REQUEST_MESSAGE;
+      and counts GLOBAL_POSITION_INT throughout
+
   .venv/bin/python test/support/gcs_pymavlink.py behind PORT SYSID SECONDS
       an unsigned ground station behind a signing MAVProxy (`--out=udpout:127.0.0.1:PORT`):
       listens on PORT (udpin), and once it hears the vehicle asks for its parameters
@@ -159,6 +164,48 @@ def sticks(port, sysid, x, y):
     return report
 
 
+def listen(m, sysid, seconds, counts, until=lambda msg: False):
+    """Every message from SYSID for SECONDS (a heartbeat a second keeps the session), counted
+    by type in COUNTS; the LOCAL_POSITION_NEDs as dicts; stops early at the first message for
+    which UNTIL is true."""
+    positions = []
+    deadline = time.time() + seconds
+    last_hb = 0
+    while time.time() < deadline:
+        if time.time() - last_hb >= 1:
+            heartbeat(m)
+            last_hb = time.time()
+        msg = m.recv_match(blocking=True, timeout=0.2)
+        if msg is None or msg.get_type() == "BAD_DATA" or msg.get_srcSystem() != sysid:
+            continue
+        counts[msg.get_type()] = counts.get(msg.get_type(), 0) + 1
+        if msg.get_type() == "LOCAL_POSITION_NED":
+            positions.append(msg.to_dict())
+        if until(msg):
+            break
+    return positions
+
+
+def position(port, sysid):
+    m = connect(port)
+    counts = {}
+    is_position = lambda msg: msg.get_type() == "LOCAL_POSITION_NED"
+    report = {"first": listen(m, sysid, 60, counts, is_position)}
+    report["interval_ack"] = command(m, sysid, 511, 32, 200000)
+    m.mav.command_long_send(sysid, 1, 510, 0, 32, 0, 0, 0, 0, 0, 0)
+    got = wait(m, "MESSAGE_INTERVAL", lambda i: i.message_id == 32)
+    report["interval_us"] = None if got is None else got.interval_us
+    report["at_5hz"] = listen(m, sysid, 2, counts)
+    # off: the session changed its schedule before it acknowledged, and the frames it sends
+    # after the ACK follow it on the same socket
+    report["off_ack"] = command(m, sysid, 511, 32, -1)
+    report["while_off"] = listen(m, sysid, 1.5, counts)
+    report["request_ack"] = command(m, sysid, 512, 32)
+    report["requested"] = listen(m, sysid, 3, counts, is_position)
+    report["global_position_int"] = counts.get("GLOBAL_POSITION_INT", 0)
+    return report
+
+
 def behind(port, sysid, seconds):
     m = mavutil.mavlink_connection("udpin:127.0.0.1:%d" % port, source_system=255, source_component=190)
     report = {"heartbeat": None, "params": 0}
@@ -209,6 +256,8 @@ def main(argv):
         answer = behind(int(argv[2]), int(argv[3]), float(argv[4]))
     elif command_name == "stick":
         answer = sticks(argv[2], int(argv[3]), int(argv[4]), int(argv[5]))
+    elif command_name == "position":
+        answer = position(argv[2], int(argv[3]))
     elif command_name == "fly":
         answer = fly(argv[2], int(argv[3]))
     else:

@@ -25,7 +25,8 @@ defmodule Neptunus.GCS.Session do
 
     * `{:message, message, now_ms}` — an admitted message from the ground station;
     * `{:vehicle, sysid, view}` — the vehicle's latest state from its source (`helm`,
-      `control`, `armed`, `custom_mode`), every tick;
+      `control`, `board`, and `messages`: the streamed messages it can say now — no
+      LOCAL_POSITION_NED without a valid position), every tick;
     * `{:helm, sysid, event, payload}` — the helm's targeted events for this party
       (`control_granted`, `control_lost`, `control_request`, `request_denied`);
     * `{:result, ref, result}` — what an intent gave (`{:ok, map}` / `{:error, reason}`);
@@ -526,7 +527,7 @@ defmodule Neptunus.GCS.Session do
     end
   end
 
-  defp run_command(s, sysid, _v, @request_message, [id | _]) do
+  defp run_command(s, sysid, v, @request_message, [id | _]) do
     case is_number(id) and trunc(id) do
       148 ->
         {s, actions} = ack(s, sysid, @request_message, @accepted, nil)
@@ -535,8 +536,20 @@ defmodule Neptunus.GCS.Session do
       id when is_integer(id) ->
         case Scheduler.streamed_name(id) do
           {:ok, name} ->
-            {s, actions} = ack(s, sysid, @request_message, @accepted, nil)
-            {s, actions ++ [{:frames, sysid, [name]}]}
+            case v.view do
+              %{messages: messages} when is_list(messages) ->
+                if name in messages do
+                  {s, actions} = ack(s, sysid, @request_message, @accepted, nil)
+                  {s, actions ++ [{:frames, sysid, [name]}]}
+                else
+                  # ArduPilot's answer to a message it cannot send now
+                  ack(s, sysid, @request_message, @failed, unavailable(name))
+                end
+
+              _ ->
+                {s, actions} = ack(s, sysid, @request_message, @accepted, nil)
+                {s, actions ++ [{:frames, sysid, [name]}]}
+            end
 
           {:error, _} ->
             ack(
@@ -704,6 +717,13 @@ defmodule Neptunus.GCS.Session do
         {s, []}
     end
   end
+
+  # why a streamed message cannot be sent now (REQUEST_MESSAGE)
+  defp unavailable(name) when name in [:local_position_ned],
+    do: "#{name |> Atom.to_string() |> String.upcase()}: the vehicle has no valid position"
+
+  defp unavailable(name),
+    do: "#{name |> Atom.to_string() |> String.upcase()}: not known yet"
 
   # ---- results -------------------------------------------------------------------------------
 

@@ -10,7 +10,8 @@ defmodule Neptunus.GCS.Source do
   Sessions listen by registering in `Neptunus.GCS.Registry` under `{:vehicle, sysid}` and get:
 
     * `{:gcs_tick, sysid, now_ms, view, frames}` — every tick: the vehicle's `view`
-      (`%{helm, control, board}`, what a session decides with) and its frames by message name
+      (`%{helm, control, board, messages}`, what a session decides with; `messages` the
+      streamed ones it has now) and its frames by message name
       (a binary, or a list of binaries for NAMED_VALUE_FLOAT), AUTOPILOT_VERSION among them
       (sent on request only);
     * `{:gcs_event, sysid, frames}` — at once: CONTROL_STATUS when the helm changes, and
@@ -123,7 +124,7 @@ defmodule Neptunus.GCS.Source do
       listeners ->
         now = Neptunus.Clock.monotonic_ms()
         frames = frames(state, now)
-        message = {:gcs_tick, sysid, now, view(state.vehicle), frames}
+        message = {:gcs_tick, sysid, now, view(state.vehicle, frames), frames}
         for {pid, _} <- listeners, do: send(pid, message)
     end
 
@@ -214,11 +215,12 @@ defmodule Neptunus.GCS.Source do
     |> Map.put(:autopilot_version, state.autopilot_version)
   end
 
-  defp view(vehicle) do
+  defp view(vehicle, frames) do
     %{
       helm: vehicle.helm,
       control: vehicle.telemetry && vehicle.telemetry[:control],
-      board: vehicle.board
+      board: vehicle.board,
+      messages: frames |> Map.keys() |> List.delete(:autopilot_version)
     }
   end
 

@@ -40,8 +40,13 @@ defmodule Neptunus.GCS.Vehicle do
     * NAMED_VALUE_FLOAT — `lights` (0..255), `tilt_deg` (camera tilt, degrees), `gain`
       (0..1).
     * SYSTEM_TIME — the node's wall clock and the time since the vehicle's source started.
-    * LOCAL_POSITION_NED — when the vehicle has a position (`position/1`): x north, y east,
-      z down (depth), velocities where known.
+    * LOCAL_POSITION_NED — while the vehicle has a valid position (`position/1`: the
+      position filter's estimate from its DVL, USBL or ArduSub position, telemetry's
+      `position`): x north, y east, z down (the depth), vx, vy the estimate's velocity, vz
+      the depth rate; in the estimate's frame (`local`: from where the DVL started, `usbl`:
+      the topside's, `ardusub`: the vehicle's own), whose origin may move (a frame change:
+      docs/POSITION.md). Never the simulator's truth: a ground station sees what Neptunus
+      knows. No GLOBAL_POSITION_INT: no frame has a geodetic origin (docs/MAVLINK.md).
     * CONTROL_STATUS — who flies: `sysid_in_control` the system id of the ground station
       holding the helm (0 when none does: a free helm, or a browser pilot), flags
       GCS_CONTROL_STATUS_FLAGS_SYSTEM_MANAGER (1).
@@ -350,42 +355,44 @@ defmodule Neptunus.GCS.Vehicle do
       nil ->
         nil
 
-      %{x: x, y: y} = p ->
+      p ->
         %{
           time_boot_ms: boot,
-          x: x * 1.0,
-          y: y * 1.0,
-          z: (depth(t) || 0.0) * 1.0,
-          vx: number(p[:vx]),
-          vy: number(p[:vy]),
-          vz: number(p[:vz])
+          x: p.north,
+          y: p.east,
+          z: p.depth,
+          vx: p.velocity_north,
+          vy: p.velocity_east,
+          vz: p.depth_rate
         }
     end
   end
 
   @doc """
-  The vehicle's position in telemetry, `%{x, y}` (m, north and east) with velocities where
-  known, or nil: telemetry's `position` when it carries one (a position source: DVL, USBL),
-  else the simulator's true position (the built-in simulator is its own position source, as
-  navigation takes it).
+  The vehicle's position in its telemetry, NED: `%{north, east, depth, velocity_north,
+  velocity_east, depth_rate}` (m, m/s; velocities 0.0 where the estimate has none, depth the
+  position's, else the depth estimate's, else 0.0), or nil while the position filter has no
+  valid position — an estimate navigation does not trust (too uncertain, its sources silent)
+  is not a position.
 
-      iex> Neptunus.GCS.Vehicle.position(%{position: %{x: 1.0, y: 2.0}})
-      %{x: 1.0, y: 2.0}
-      iex> Neptunus.GCS.Vehicle.position(%{sim: nil})
+      iex> Neptunus.GCS.Vehicle.position(%{position: %{valid: true, north: 1.0, east: 2, depth: 3.0,
+      ...>   velocity_north: 0.5, velocity_east: nil}, estimate: %{depth_rate: 0.1}})
+      %{north: 1.0, east: 2.0, depth: 3.0, velocity_north: 0.5, velocity_east: 0.0, depth_rate: 0.1}
+      iex> Neptunus.GCS.Vehicle.position(%{position: %{valid: false, north: 1.0, east: 2.0}})
+      nil
+      iex> Neptunus.GCS.Vehicle.position(%{sim: %{x: 1.0, y: 2.0}})
       nil
   """
   @spec position(map()) :: map() | nil
-  def position(%{position: %{x: x, y: y} = p}) when is_number(x) and is_number(y), do: p
-
-  def position(%{sim: %{x: x, y: y, u: u, v: v, w: w, psi: psi}})
-      when is_number(x) and is_number(y) do
-    # body velocities to north/east (level vehicle)
+  def position(%{position: %{valid: true, north: north, east: east} = p} = t)
+      when is_number(north) and is_number(east) do
     %{
-      x: x,
-      y: y,
-      vx: u * :math.cos(psi) - v * :math.sin(psi),
-      vy: u * :math.sin(psi) + v * :math.cos(psi),
-      vz: w
+      north: north * 1.0,
+      east: east * 1.0,
+      depth: if(is_number(p[:depth]), do: p.depth * 1.0, else: depth(t) || 0.0),
+      velocity_north: number(p[:velocity_north]),
+      velocity_east: number(p[:velocity_east]),
+      depth_rate: number(get_in(t, [:estimate, :depth_rate]))
     }
   end
 

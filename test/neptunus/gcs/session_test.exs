@@ -18,6 +18,7 @@ defmodule Neptunus.GCS.SessionTest do
   @temporarily_rejected 1
   @denied 2
   @unsupported 3
+  @failed 4
   @in_progress 5
 
   defp session(identity, board \\ :simulated) do
@@ -436,6 +437,21 @@ defmodule Neptunus.GCS.SessionTest do
       assert {:frames, 1, [:autopilot_version]} = List.last(actions)
       {_s, actions} = receive_msg(spoken(), command(512, [9999]))
       assert acks(actions) == [{512, @unsupported}]
+    end
+
+    test "a requested message the vehicle cannot say now (no position) FAILS with the reason; once it can, it comes" do
+      {s, []} = handle(spoken(), {:vehicle, 1, Map.put(view(%{}), :messages, [:heartbeat])})
+      {_s, actions} = receive_msg(s, command(512, [32]))
+      assert acks(actions) == [{512, @failed}]
+      assert ["rov: LOCAL_POSITION_NED: the vehicle has no valid position"] = texts(actions)
+      refute Enum.any?(actions, &match?({:frames, _, _}, &1))
+
+      {s, []} =
+        handle(s, {:vehicle, 1, Map.put(view(%{}), :messages, [:heartbeat, :local_position_ned])})
+
+      {_s, actions} = receive_msg(s, command(512, [32]))
+      assert acks(actions) == [{512, @accepted}]
+      assert {:frames, 1, [:local_position_ned]} = List.last(actions)
     end
 
     test "an unknown command is UNSUPPORTED; a command for another system is not ours" do

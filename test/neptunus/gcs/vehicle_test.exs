@@ -151,29 +151,104 @@ defmodule Neptunus.GCS.VehicleTest do
     assert Bitwise.band(s.onboard_control_sensors_health, 4) == 4
   end
 
-  test "a position: telemetry's own, else the simulator's with its velocity in north/east" do
-    sim = %{
-      x: 3.0,
-      y: -1.0,
-      z: 2.0,
-      phi: 0.0,
-      theta: 0.0,
-      psi: :math.pi() / 2,
-      u: 1.0,
-      v: 0.0,
-      w: 0.1,
-      p: 0.0,
-      q: 0.0,
-      r: 0.0
-    }
+  @position %{
+    valid: true,
+    reason: nil,
+    frame: "usbl",
+    epoch: 2,
+    north: 3.0,
+    east: -1.0,
+    depth: 2.5,
+    velocity_north: 0.25,
+    velocity_east: -0.5,
+    std_north: 0.3,
+    std_east: 0.2,
+    ellipse: %{major: 0.3, minor: 0.2, angle: 0.0},
+    sources: []
+  }
 
-    s = Vehicle.streamed(vehicle(%{@telemetry | sim: sim}), 0, 0)
-    assert %{x: 3.0, y: -1.0, z: 2.0, vz: 0.1} = s.local_position_ned
-    assert_in_delta s.local_position_ned.vx, 0.0, 1.0e-9
-    assert_in_delta s.local_position_ned.vy, 1.0, 1.0e-9
+  @truth %{
+    x: 40.0,
+    y: 50.0,
+    z: 2.0,
+    phi: 0.0,
+    theta: 0.0,
+    psi: 1.0,
+    u: 1.0,
+    v: 0.0,
+    w: 0.1,
+    p: 0.0,
+    q: 0.0,
+    r: 0.0
+  }
 
-    assert %{x: 5.0, y: 6.0} =
-             Vehicle.streamed(vehicle(Map.put(@telemetry, :position, %{x: 5.0, y: 6.0})), 0, 0).local_position_ned
+  describe "LOCAL_POSITION_NED" do
+    test "the position filter's valid estimate, NED: x north, y east, z the depth, vz the depth rate" do
+      s = Vehicle.streamed(vehicle(Map.put(@telemetry, :position, @position)), 1_500, 0)
+
+      assert %{
+               time_boot_ms: 1_500,
+               x: 3.0,
+               y: -1.0,
+               z: 2.5,
+               vx: 0.25,
+               vy: -0.5,
+               vz: 0.5
+             } == s.local_position_ned
+
+      assert encodes?(:local_position_ned, s.local_position_ned)
+      # no geodetic origin: no GLOBAL_POSITION_INT
+      refute Map.has_key?(s, :global_position_int)
+    end
+
+    test "the depth estimate where the position has no depth; unknown velocities 0" do
+      position = %{@position | depth: nil, velocity_north: nil, velocity_east: nil}
+      s = Vehicle.streamed(vehicle(Map.put(@telemetry, :position, position)), 0, 0)
+      assert %{z: 2.0, vx: +0.0, vy: +0.0} = s.local_position_ned
+    end
+
+    test "not sent without a valid position, whatever the simulator's truth" do
+      no_position = %{
+        @position
+        | valid: false,
+          reason: "no position source",
+          frame: nil,
+          north: nil,
+          east: nil
+      }
+
+      untrusted = %{@position | valid: false, reason: "position uncertainty 3.4 m beyond 3.0 m"}
+
+      for position <- [no_position, untrusted] do
+        telemetry = @telemetry |> Map.put(:position, position) |> Map.put(:sim, @truth)
+        refute Map.has_key?(Vehicle.streamed(vehicle(telemetry), 0, 0), :local_position_ned)
+      end
+
+      # a simulated vehicle without position sources: the truth is not its position
+      refute Map.has_key?(
+               Vehicle.streamed(vehicle(%{@telemetry | sim: @truth}), 0, 0),
+               :local_position_ned
+             )
+    end
+
+    test "any valid estimate encodes" do
+      check(
+        :proper_types.tuple(List.duplicate(:proper_types.float(), 5)),
+        fn {n, e, d, vn, ve} ->
+          position = %{
+            @position
+            | north: n,
+              east: e,
+              depth: d,
+              velocity_north: vn,
+              velocity_east: ve
+          }
+
+          s = Vehicle.streamed(vehicle(Map.put(@telemetry, :position, position)), 0, 0)
+          encodes?(:local_position_ned, s.local_position_ned)
+        end
+      )
+    end
   end
 
   test "CONTROL_STATUS: the ground station holding the helm, 0 for a browser or nobody" do
@@ -187,7 +262,10 @@ defmodule Neptunus.GCS.VehicleTest do
   end
 
   test "every streamed message and AUTOPILOT_VERSION encode" do
-    for {name, fields} <- Vehicle.streamed(vehicle(), 5_000_000_000, 1_700_000_000_000_000),
+    telemetry = Map.put(@telemetry, :position, @position)
+
+    for {name, fields} <-
+          Vehicle.streamed(vehicle(telemetry), 5_000_000_000, 1_700_000_000_000_000),
         f <- List.wrap(fields),
         do: assert(encodes?(name, f), "#{name} #{inspect(f)}")
 
