@@ -284,6 +284,135 @@ defmodule NeptunusWeb.MAVLinkWireTest do
              push(ada, "autopilot", %{"depth" => 3})
   end
 
+  test "ArduSub's own position (LOCAL_POSITION_NED) is the vehicle's: a valid position in the ardusub frame, served to a ground station",
+       %{fake: fake, id: id, topic: topic} do
+    Neptunus.PubSub.subscribe(topic)
+    # no position before the vehicle has one
+    assert_receive {:pubsub, _, "telemetry", %{position: %{valid: false, sources: []}}}
+
+    FakeArduSub.tell(fake, %{position: %{north: 3.0, east: -2.0}})
+    FakeArduSub.expect!(fake, &(&1["event"] == "position"))
+
+    assert_receive {:pubsub, _, "telemetry",
+                    %{
+                      position: %{
+                        valid: true,
+                        frame: "ardusub",
+                        north: north,
+                        east: east,
+                        sources: [%{name: "ardusub", kind: "fix", state: "valid"}]
+                      }
+                    }}
+
+    assert_in_delta north, 3.0, 0.05
+    assert_in_delta east, -2.0, 0.05
+
+    # a ground station sees it as Neptunus' vehicle's LOCAL_POSITION_NED
+    gcs = %{
+      endpoints: [
+        %{
+          kind: :udpin,
+          address: {127, 0, 0, 1},
+          port: 0,
+          loopback: true,
+          gcs: nil,
+          spec: "udpin (test)",
+          link_id: 0
+        }
+      ],
+      systems: %{id => 4},
+      keys: %{},
+      trusted: [],
+      unsigned: :none,
+      mode: :local
+    }
+
+    start_supervised!({Neptunus.GCS, gcs: gcs, vehicles: [%{id: id, board: :mavlink}]})
+    port = Neptunus.GCS.Endpoint.stats(Neptunus.GCS.Endpoint.name(0)).port
+    client = Neptunus.Test.GCSClient.start!(port)
+
+    Neptunus.Test.GCSClient.send!(client, :heartbeat, %{
+      type: 6,
+      autopilot: 8,
+      base_mode: 0,
+      custom_mode: 0,
+      system_status: 4
+    })
+
+    assert %{system: 4, fields: %{x: x, y: y}} =
+             Neptunus.Test.GCSClient.expect!(
+               client,
+               &(&1.name == :local_position_ned),
+               Patience.ms()
+             )
+
+    assert_in_delta x, 3.0, 0.05
+    assert_in_delta y, -2.0, 0.05
+
+    # without its position again, the estimate is lost (invalid once its fixes stop for 5 s):
+    # no more LOCAL_POSITION_NED for ground stations
+    FakeArduSub.tell(fake, %{position: :null})
+    drain_telemetry()
+
+    assert_receive {:pubsub, _, "telemetry",
+                    %{position: %{valid: false, frame: "ardusub", reason: reason}}},
+                   Patience.ms() + 10_000
+
+    assert reason =~ "ardusub"
+
+    # the ground station is told so once the vehicle's source has heard it (REQUEST_MESSAGE
+    # FAILS), and from then on gets none
+    no_position!(client, 4, div(Patience.ms(), 100))
+    Neptunus.Test.GCSClient.flush(client)
+    refute Neptunus.Test.GCSClient.arrives?(client, &(&1.name == :local_position_ned), 1_000)
+  end
+
+  # forgets the telemetry received so far (the broadcasts from before a change)
+  defp drain_telemetry do
+    receive do
+      {:pubsub, _, "telemetry", _} -> drain_telemetry()
+    after
+      0 -> :ok
+    end
+  end
+
+  # asks ground station system `sysid` for LOCAL_POSITION_NED until it answers FAILED (no
+  # position), once per tick of the vehicle's source (an ATTITUDE comes with each tenth)
+  defp no_position!(client, sysid, tries) do
+    Neptunus.Test.GCSClient.send!(client, :command_long, %{
+      target_system: sysid,
+      target_component: 1,
+      command: 512,
+      confirmation: 0,
+      param1: 32.0,
+      param2: 0.0,
+      param3: 0.0,
+      param4: 0.0,
+      param5: 0.0,
+      param6: 0.0,
+      param7: 0.0
+    })
+
+    ack =
+      Neptunus.Test.GCSClient.expect!(
+        client,
+        &(&1.name == :command_ack and &1.fields.command == 512),
+        Patience.ms()
+      )
+
+    cond do
+      ack.fields.result == 4 ->
+        :ok
+
+      tries == 0 ->
+        flunk("the ground station still gets a position")
+
+      true ->
+        Neptunus.Test.GCSClient.expect!(client, &(&1.name == :attitude), Patience.ms())
+        no_position!(client, sysid, tries - 1)
+    end
+  end
+
   defp link_up!(id),
     do: Pty.wait_until(fn -> Neptunus.Vehicle.Board.link_status(id).up end, "the mavlink link up")
 

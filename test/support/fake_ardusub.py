@@ -13,6 +13,9 @@ datagram, as ArduSub's UDP server does) or, with --tcp, accepts one TCP connecti
 * Telemetry without any request, at ArduSub's default stream rates: ATTITUDE and VFR_HUD 10 Hz,
   GLOBAL_POSITION_INT 3 Hz, SYS_STATUS, SCALED_PRESSURE and SERVO_OUTPUT_RAW 2 Hz; TIMESYNC
   requests (tc1 = 0) are answered. REQUEST_DATA_STREAM sets the rate of its stream.
+* A position only when told one (as ArduSub's EKF has one only with a DVL or a GPS):
+  LOCAL_POSITION_NED at 3 Hz in the POSITION stream with GLOBAL_POSITION_INT, moved by the
+  toy motion (0.5 m/s at full forward or lateral, by the heading).
 * COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (400): arming answers COMMAND_ACK ACCEPTED, or —
   when told to refuse — STATUSTEXT (severity CRITICAL) with ArduSub's text, then ACK FAILED;
   disarming a disarmed vehicle answers FAILED. MAV_CMD_DO_SET_MODE (176) with a known Sub
@@ -31,7 +34,7 @@ What it receives and does is reported on stdout as JSON lines (`{"event": ...}`)
 params, result), `heartbeat` (the GCS's), `armed` (true/false, why), `failsafe` (what),
 `request_data_stream`, `mode`, `gain`. Lines on stdin are JSON commands: `{"refuse_arm": TEXT}`
 (or null to accept again), `{"gain": G}` (the joystick gain, as ArduSub's gain buttons set it),
-`{"quit": true}`.
+`{"position": {"north": N, "east": E}}` (m; null: no position again), `{"quit": true}`.
 """
 
 import argparse
@@ -58,7 +61,8 @@ FACTORS = [(1, 0, -1, 1), (-1, 0, -1, -1), (-1, 0, 1, 1), (1, 0, 1, -1), (0, -1,
            (0, -1, 0, 0)]
 # MAV_DATA_STREAM id -> (message kinds, default Hz) as ArduSub streams them
 STREAMS = {1: (["scaled_pressure"], 2), 2: (["sys_status"], 2), 3: (["servo_output_raw"], 2),
-           6: (["global_position_int"], 3), 10: (["attitude"], 10), 11: (["vfr_hud"], 10)}
+           6: (["global_position_int", "local_position_ned"], 3), 10: (["attitude"], 10),
+           11: (["vfr_hud"], 10)}
 
 PREARM_NO_DISARM_BUTTON = "PreArm: Must assign a disarm or arm_toggle button or disarm aux function"
 
@@ -139,7 +143,8 @@ class FakeSub:
         self.depth = 0.0
         self.heading = 0.0
         self.last_step = self.start
-        self.rates = {kinds[0]: hz for kinds, hz in STREAMS.values()}
+        self.position = None
+        self.rates = {kind: hz for kinds, hz in STREAMS.values() for kind in kinds}
         self.rates["heartbeat"] = 1
         self.next_at = {kind: self.start for kind in self.rates}
 
@@ -270,6 +275,12 @@ class FakeSub:
         # toy motion: 0.5 m/s at full heave, 0.5 rad/s at full yaw
         self.depth = max(0.0, self.depth - 0.5 * self.gain * (c["z"] - 500) / 500 * dt)
         self.heading = (self.heading + 0.5 * self.gain * c["r"] / 1000 * dt) % (2 * math.pi)
+        if self.position is not None:
+            forward = 0.5 * self.gain * c["x"] / 1000
+            lateral = 0.5 * self.gain * c["y"] / 1000
+            cos, sin = math.cos(self.heading), math.sin(self.heading)
+            self.position = (self.position[0] + (forward * cos - lateral * sin) * dt,
+                             self.position[1] + (forward * sin + lateral * cos) * dt)
 
     def heartbeat(self):
         base = 1 | 16 | 64 | (128 if self.armed else 0)
@@ -292,6 +303,9 @@ class FakeSub:
             self.send(mavlink.MAVLink_global_position_int_message(
                 t, 0, 0, int(-self.depth * 1000), int(-self.depth * 1000), 0, 0, 0,
                 int(math.degrees(self.heading) * 100)))
+        elif kind == "local_position_ned" and self.position is not None:
+            self.send(mavlink.MAVLink_local_position_ned_message(
+                t, self.position[0], self.position[1], self.depth, 0, 0, 0))
         elif kind == "sys_status":
             self.send(mavlink.MAVLink_sys_status_message(0, 0, 0, 200, 15800, 150, 80, 0, 0, 0, 0,
                                                          0, 0))
@@ -340,6 +354,11 @@ def main():
                         if "refuse_arm" in order:
                             sub.refuse_arm = order["refuse_arm"]
                             report("refuse_arm", text=sub.refuse_arm)
+                        if "position" in order:
+                            p = order["position"]
+                            sub.position = None if p is None else (float(p["north"]),
+                                                                   float(p["east"]))
+                            report("position", position=p)
                         if "gain" in order:
                             sub.gain = max(0.1, min(1.0, float(order["gain"])))
                             report("gain", gain=sub.gain)
