@@ -231,7 +231,18 @@ defmodule NeptunusWeb.WireSchema do
          ellipse:
            {:position_ellipse,
             null: true, doc: "the 1-σ uncertainty ellipse; null without an estimate"},
+         origin:
+           {:geo_point,
+            null: true,
+            doc:
+              "the frame's geodetic origin where it is known: an ArduSub vehicle's own (`ardusub` frame), from its GLOBAL_POSITION_INT and LOCAL_POSITION_NED; null otherwise (a DVL's and a USBL's frames have none)"},
          sources: {{:list, :position_source}, doc: "each position source's state"}
+       ]},
+    geo_point:
+      {:object, "A point on the Earth (WGS 84).",
+       [
+         lat: {:number, unit: "rad", essential: true, doc: "latitude, north positive"},
+         lon: {:number, unit: "rad", essential: true, doc: "longitude, east positive"}
        ]},
     position_ellipse:
       {:object, "A 1-σ uncertainty ellipse.",

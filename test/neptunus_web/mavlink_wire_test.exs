@@ -284,12 +284,15 @@ defmodule NeptunusWeb.MAVLinkWireTest do
              push(ada, "autopilot", %{"depth" => 3})
   end
 
-  test "ArduSub's own position (LOCAL_POSITION_NED) is the vehicle's: a valid position in the ardusub frame, served to a ground station",
+  test "ArduSub's own position (LOCAL_POSITION_NED) is the vehicle's: a valid position in the ardusub frame with its geodetic origin, served to a ground station",
        %{fake: fake, id: id, topic: topic} do
     Neptunus.PubSub.subscribe(topic)
     # no position before the vehicle has one
     assert_receive {:pubsub, _, "telemetry", %{position: %{valid: false, sources: []}}}
 
+    # its EKF origin (a GPS at the surface), then a position (a DVL)
+    FakeArduSub.tell(fake, %{origin: %{lat: 59.8, lon: 10.7}})
+    FakeArduSub.expect!(fake, &(&1["event"] == "origin"))
     FakeArduSub.tell(fake, %{position: %{north: 3.0, east: -2.0}})
     FakeArduSub.expect!(fake, &(&1["event"] == "position"))
 
@@ -300,12 +303,17 @@ defmodule NeptunusWeb.MAVLinkWireTest do
                         frame: "ardusub",
                         north: north,
                         east: east,
+                        origin: %{lat: lat0, lon: lon0},
                         sources: [%{name: "ardusub", kind: "fix", state: "valid"}]
                       }
                     }}
 
     assert_in_delta north, 3.0, 0.05
     assert_in_delta east, -2.0, 0.05
+    # the origin ArduSub's GLOBAL_POSITION_INT and LOCAL_POSITION_NED give (degE7: 1.1 cm)
+    deg = :math.pi() / 180
+    assert_in_delta lat0, 59.8 * deg, 2.0e-9
+    assert_in_delta lon0, 10.7 * deg, 2.0e-9
 
     # a ground station sees it as Neptunus' vehicle's LOCAL_POSITION_NED
     gcs = %{
@@ -348,6 +356,20 @@ defmodule NeptunusWeb.MAVLinkWireTest do
 
     assert_in_delta x, 3.0, 0.05
     assert_in_delta y, -2.0, 0.05
+
+    # and, the frame's origin being known, where it is on the Earth
+    assert %{system: 4, fields: %{lat: lat, lon: lon, relative_alt: relative_alt}} =
+             Neptunus.Test.GCSClient.expect!(
+               client,
+               &(&1.name == :global_position_int),
+               Patience.ms()
+             )
+
+    here = Neptunus.Navigation.Geo.offset(%{lat: 59.8 * deg, lon: 10.7 * deg}, 3.0, -2.0)
+    # within 5 cm (the estimate's filtering), in degE7
+    assert_in_delta lat, here.lat / deg * 1.0e7, 5
+    assert_in_delta lon, here.lon / deg * 1.0e7, 10
+    assert relative_alt <= 0
 
     # without its position again, the estimate is lost (invalid once its fixes stop for 5 s):
     # no more LOCAL_POSITION_NED for ground stations

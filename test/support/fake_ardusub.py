@@ -15,7 +15,9 @@ datagram, as ArduSub's UDP server does) or, with --tcp, accepts one TCP connecti
   requests (tc1 = 0) are answered. REQUEST_DATA_STREAM sets the rate of its stream.
 * A position only when told one (as ArduSub's EKF has one only with a DVL or a GPS):
   LOCAL_POSITION_NED at 3 Hz in the POSITION stream with GLOBAL_POSITION_INT, moved by the
-  toy motion (0.5 m/s at full forward or lateral, by the heading).
+  toy motion (0.5 m/s at full forward or lateral, by the heading); GLOBAL_POSITION_INT's
+  latitude and longitude are 0, 0 (no origin, as ArduSub sends them without a GPS) unless told
+  an origin: then the origin plus the position.
 * COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (400): arming answers COMMAND_ACK ACCEPTED, or —
   when told to refuse — STATUSTEXT (severity CRITICAL) with ArduSub's text, then ACK FAILED;
   disarming a disarmed vehicle answers FAILED. MAV_CMD_DO_SET_MODE (176) with a known Sub
@@ -34,7 +36,8 @@ What it receives and does is reported on stdout as JSON lines (`{"event": ...}`)
 params, result), `heartbeat` (the GCS's), `armed` (true/false, why), `failsafe` (what),
 `request_data_stream`, `mode`, `gain`. Lines on stdin are JSON commands: `{"refuse_arm": TEXT}`
 (or null to accept again), `{"gain": G}` (the joystick gain, as ArduSub's gain buttons set it),
-`{"position": {"north": N, "east": E}}` (m; null: no position again), `{"quit": true}`.
+`{"position": {"north": N, "east": E}}` (m; null: no position again), `{"origin": {"lat": DEG,
+"lon": DEG}}` (its EKF origin), `{"quit": true}`.
 """
 
 import argparse
@@ -144,6 +147,7 @@ class FakeSub:
         self.heading = 0.0
         self.last_step = self.start
         self.position = None
+        self.origin = None
         self.rates = {kind: hz for kinds, hz in STREAMS.values() for kind in kinds}
         self.rates["heartbeat"] = 1
         self.next_at = {kind: self.start for kind in self.rates}
@@ -300,8 +304,16 @@ class FakeSub:
             self.send(mavlink.MAVLink_vfr_hud_message(0, 0, int(math.degrees(self.heading)), 0,
                                                       -self.depth, 0))
         elif kind == "global_position_int":
+            lat, lon = 0, 0
+            if self.origin is not None and self.position is not None:
+                # a local tangent plane, as ArduPilot offsets its locations
+                north, east = self.position
+                lat0 = math.radians(self.origin[0])
+                lat = round((self.origin[0] + math.degrees(north / 6378137.0)) * 1e7)
+                lon = round((self.origin[1] + math.degrees(east / (6378137.0 * math.cos(lat0))))
+                            * 1e7)
             self.send(mavlink.MAVLink_global_position_int_message(
-                t, 0, 0, int(-self.depth * 1000), int(-self.depth * 1000), 0, 0, 0,
+                t, lat, lon, int(-self.depth * 1000), int(-self.depth * 1000), 0, 0, 0,
                 int(math.degrees(self.heading) * 100)))
         elif kind == "local_position_ned" and self.position is not None:
             self.send(mavlink.MAVLink_local_position_ned_message(
@@ -359,6 +371,10 @@ def main():
                             sub.position = None if p is None else (float(p["north"]),
                                                                    float(p["east"]))
                             report("position", position=p)
+                        if "origin" in order:
+                            sub.origin = (float(order["origin"]["lat"]),
+                                          float(order["origin"]["lon"]))
+                            report("origin", origin=order["origin"])
                         if "gain" in order:
                             sub.gain = max(0.1, min(1.0, float(order["gain"])))
                             report("gain", gain=sub.gain)

@@ -271,6 +271,12 @@ export interface PositionStatus {
   readonly std_east: number | null;
   /** the 1-σ uncertainty ellipse; null without an estimate */
   readonly ellipse: PositionEllipse | null;
+  /**
+   * the frame's geodetic origin where it is known: an ArduSub vehicle's own (`ardusub` frame),
+   * from its GLOBAL_POSITION_INT and LOCAL_POSITION_NED; null otherwise (a DVL's and a USBL's
+   * frames have none)
+   */
+  readonly origin: GeoPoint | null;
   /** each position source's state */
   readonly sources: readonly PositionSource[] | null;
 }
@@ -292,11 +298,33 @@ function readPositionStatus(json: unknown): PositionStatus | undefined {
     std_north: readNumber(json["std_north"]) ?? null,
     std_east: readNumber(json["std_east"]) ?? null,
     ellipse: readPositionEllipse(json["ellipse"]) ?? null,
+    origin: readGeoPoint(json["origin"]) ?? null,
     sources: readList(json["sources"], readPositionSource) ?? null,
   };
 }
 
 export const decodePositionStatus = (json: unknown): PositionStatus | null => readPositionStatus(json) ?? null;
+
+/** A point on the Earth (WGS 84). */
+export interface GeoPoint {
+  /** rad; latitude, north positive */
+  readonly lat: number;
+  /** rad; longitude, east positive */
+  readonly lon: number;
+}
+
+function readGeoPoint(json: unknown): GeoPoint | undefined {
+  if (!isRecord(json)) return undefined;
+  const lat = readNumber(json["lat"]);
+  const lon = readNumber(json["lon"]);
+  if (lat === undefined || lon === undefined) return undefined;
+  return {
+    lat,
+    lon,
+  };
+}
+
+export const decodeGeoPoint = (json: unknown): GeoPoint | null => readGeoPoint(json) ?? null;
 
 /** A 1-σ uncertainty ellipse. */
 export interface PositionEllipse {

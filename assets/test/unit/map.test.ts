@@ -37,6 +37,7 @@ function position(extra: Partial<PositionStatus> = {}): PositionStatus {
     std_north: 0.2,
     std_east: 0.1,
     ellipse: { major: 0.2, minor: 0.1, angle: 0 },
+    origin: null,
     sources: [],
     ...extra,
   };

@@ -18,7 +18,7 @@ defmodule Neptunus.GCS.Scheduler do
   | HEARTBEAT, CONTROL_STATUS, SYSTEM_TIME | 1 s |
   | SYS_STATUS, SCALED_PRESSURE, SERVO_OUTPUT_RAW, NAMED_VALUE_FLOAT | 500 ms |
   | ATTITUDE, VFR_HUD | 100 ms |
-  | LOCAL_POSITION_NED | 333 ms |
+  | LOCAL_POSITION_NED, GLOBAL_POSITION_INT | 333 ms |
   """
 
   alias Neptunus.Protocol.MAVLink.Messages
@@ -33,7 +33,8 @@ defmodule Neptunus.GCS.Scheduler do
     named_value_float: 500,
     attitude: 100,
     vfr_hud: 100,
-    local_position_ned: 333
+    local_position_ned: 333,
+    global_position_int: 333
   }
   @early_ms 20
   @min_ms 50
@@ -45,7 +46,7 @@ defmodule Neptunus.GCS.Scheduler do
     1 => [:scaled_pressure],
     2 => [:sys_status, :control_status],
     3 => [:servo_output_raw],
-    6 => [:local_position_ned],
+    6 => [:local_position_ned, :global_position_int],
     10 => [:attitude],
     11 => [:vfr_hud],
     12 => [:named_value_float, :system_time]

@@ -719,8 +719,11 @@ defmodule Neptunus.GCS.Session do
   end
 
   # why a streamed message cannot be sent now (REQUEST_MESSAGE)
-  defp unavailable(name) when name in [:local_position_ned],
-    do: "#{name |> Atom.to_string() |> String.upcase()}: the vehicle has no valid position"
+  defp unavailable(:global_position_int),
+    do: "GLOBAL_POSITION_INT: the vehicle has no valid position with a geodetic origin"
+
+  defp unavailable(:local_position_ned),
+    do: "LOCAL_POSITION_NED: the vehicle has no valid position"
 
   defp unavailable(name),
     do: "#{name |> Atom.to_string() |> String.upcase()}: not known yet"

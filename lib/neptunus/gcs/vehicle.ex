@@ -46,7 +46,13 @@ defmodule Neptunus.GCS.Vehicle do
       the depth rate; in the estimate's frame (`local`: from where the DVL started, `usbl`:
       the topside's, `ardusub`: the vehicle's own), whose origin may move (a frame change:
       docs/POSITION.md). Never the simulator's truth: a ground station sees what Neptunus
-      knows. No GLOBAL_POSITION_INT: no frame has a geodetic origin (docs/MAVLINK.md).
+      knows.
+    * GLOBAL_POSITION_INT — as LOCAL_POSITION_NED, while the estimate's frame has a known
+      geodetic origin (telemetry's `position.origin`: an ArduSub vehicle's own frame): its
+      latitude and longitude (degE7) from the origin and the offset (`Neptunus.Navigation.Geo`),
+      `relative_alt` and `alt` −depth (mm; the surface taken as sea level), velocities (cm/s),
+      `hdg` the heading (cdeg, UINT16_MAX unknown). A DVL's and a USBL's frames have no
+      geodetic origin: no GLOBAL_POSITION_INT for them (docs/MAVLINK.md).
     * CONTROL_STATUS — who flies: `sysid_in_control` the system id of the ground station
       holding the helm (0 when none does: a free helm, or a browser pilot), flags
       GCS_CONTROL_STATUS_FLAGS_SYSTEM_MANAGER (1).
@@ -55,6 +61,7 @@ defmodule Neptunus.GCS.Vehicle do
   """
 
   alias Neptunus.GCS.{Modes, Party}
+  alias Neptunus.Navigation.Geo
 
   @component 1
   @mav_type_submarine 12
@@ -136,6 +143,7 @@ defmodule Neptunus.GCS.Vehicle do
     |> put_some(:servo_output_raw, t && servo_output_raw(t, boot))
     |> put_some(:named_value_float, t && named_values(t, boot))
     |> put_some(:local_position_ned, t && local_position(t, boot))
+    |> put_some(:global_position_int, t && global_position(t, boot))
   end
 
   defp put_some(map, _key, nil), do: map
@@ -367,6 +375,35 @@ defmodule Neptunus.GCS.Vehicle do
         }
     end
   end
+
+  defp global_position(t, boot) do
+    with %{} = p <- position(t),
+         %{lat: lat0, lon: lon0} when is_number(lat0) and is_number(lon0) <-
+           get_in(t, [:position, :origin]) do
+      %{lat: lat, lon: lon} = Geo.offset(%{lat: lat0, lon: lon0}, p.north, p.east)
+
+      %{
+        time_boot_ms: boot,
+        lat: int(lat * 180 / :math.pi() * 1.0e7, 0x7FFF_FFFF),
+        lon: int(lon * 180 / :math.pi() * 1.0e7, 0x7FFF_FFFF),
+        alt: int(-p.depth * 1000, 0x7FFF_FFFF),
+        relative_alt: int(-p.depth * 1000, 0x7FFF_FFFF),
+        vx: int(p.velocity_north * 100, 0x7FFF),
+        vy: int(p.velocity_east * 100, 0x7FFF),
+        vz: int(p.depth_rate * 100, 0x7FFF),
+        hdg:
+          case angle(t, :heading) do
+            nil -> 0xFFFF
+            h -> rem(rem(round(h * 18_000 / :math.pi()), 36_000) + 36_000, 36_000)
+          end
+      }
+    else
+      _ -> nil
+    end
+  end
+
+  # a signed integer field of at most `max`
+  defp int(value, max), do: value |> round() |> max(-max) |> min(max)
 
   @doc """
   The vehicle's position in its telemetry, NED: `%{north, east, depth, velocity_north,

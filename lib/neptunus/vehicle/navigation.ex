@@ -65,6 +65,7 @@ defmodule Neptunus.Vehicle.Navigation do
             position: Neptunus.Navigation.Position.t(),
             temperature: float() | nil,
             board_position_at: term(),
+            ardusub_origin: Neptunus.Navigation.Geo.point() | nil,
             samples: non_neg_integer(),
             board_resets: non_neg_integer()
           }
@@ -76,6 +77,7 @@ defmodule Neptunus.Vehicle.Navigation do
       :position,
       :temperature,
       :board_position_at,
+      :ardusub_origin,
       samples: 0,
       board_resets: 0
     ]
@@ -193,7 +195,7 @@ defmodule Neptunus.Vehicle.Navigation do
         measurement_state: Map.new(states, fn {k, v} -> {k, Atom.to_string(v)} end),
         estimate: Map.delete(estimate, :t),
         wild_points: Estimator.wild_points(estimator),
-        position: Position.status(position, now)
+        position: status(state, position, now)
       })
     )
 
@@ -274,15 +276,24 @@ defmodule Neptunus.Vehicle.Navigation do
     Keyword.merge([vehicle: vehicle], Keyword.get(opts, :navigation, []))
   end
 
-  # an ArduSub vehicle's own position (LOCAL_POSITION_NED), when it sends a new one
-  defp board_position(state, %{board: %{position: %{x: x, y: y, time_boot_ms: at}}}, now)
+  # an ArduSub vehicle's own position (LOCAL_POSITION_NED), when it sends a new one, and the
+  # geodetic origin of its frame where it has one
+  defp board_position(state, %{board: %{position: %{x: x, y: y, time_boot_ms: at} = p}}, now)
        when is_number(x) and is_number(y) and at != state.board_position_at do
     fix = %{t: now, north: x, east: y, std: @ardusub_std, valid: true, frame: :ardusub}
     position = Position.report(state.position, :ardusub, {:fix, fix}, now)
-    %{state | position: position, board_position_at: at}
+    %{state | position: position, board_position_at: at, ardusub_origin: Map.get(p, :origin)}
   end
 
   defp board_position(state, _sample, _now), do: state
+
+  # telemetry's position: the filter's status, and the geodetic origin of its frame where
+  # one is known (an ArduSub vehicle's own frame, from its GLOBAL_POSITION_INT)
+  defp status(state, position, now) do
+    status = Position.status(position, now)
+    origin = if status.frame == "ardusub", do: state.ardusub_origin
+    Map.put(status, :origin, origin)
+  end
 
   defp temperature(%{board: %{temperature: t}}) when is_number(t), do: t * 1.0
   defp temperature(_sample), do: nil

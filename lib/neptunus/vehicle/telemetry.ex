@@ -53,6 +53,7 @@ defmodule Neptunus.Vehicle.Telemetry do
     std_north: nil,
     std_east: nil,
     ellipse: nil,
+    origin: nil,
     sources: []
   }
 

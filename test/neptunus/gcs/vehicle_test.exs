@@ -197,7 +197,7 @@ defmodule Neptunus.GCS.VehicleTest do
              } == s.local_position_ned
 
       assert encodes?(:local_position_ned, s.local_position_ned)
-      # no geodetic origin: no GLOBAL_POSITION_INT
+      # a USBL's frame has no geodetic origin: no GLOBAL_POSITION_INT
       refute Map.has_key?(s, :global_position_int)
     end
 
@@ -231,6 +231,37 @@ defmodule Neptunus.GCS.VehicleTest do
              )
     end
 
+    test "GLOBAL_POSITION_INT where the frame has a geodetic origin (an ArduSub's): the origin plus the offset" do
+      deg = :math.pi() / 180
+      origin = %{lat: 59.8 * deg, lon: 10.7 * deg}
+      position = %{@position | frame: "ardusub"} |> Map.put(:origin, origin)
+      s = Vehicle.streamed(vehicle(Map.put(@telemetry, :position, position)), 1_500, 0)
+      here = Neptunus.Navigation.Geo.offset(origin, 3.0, -1.0)
+
+      assert %{
+               time_boot_ms: 1_500,
+               relative_alt: -2500,
+               alt: -2500,
+               vx: 25,
+               vy: -50,
+               vz: 50,
+               # the heading estimate, 4 rad
+               hdg: 22_918
+             } = s.global_position_int
+
+      assert s.global_position_int.lat == round(here.lat / deg * 1.0e7)
+      assert s.global_position_int.lon == round(here.lon / deg * 1.0e7)
+      # 3 m north of the origin: 269 degE7 of latitude (one is 1.1 cm)
+      assert s.global_position_int.lat - 598_000_000 == 269
+      assert encodes?(:global_position_int, s.global_position_int)
+      assert %{x: 3.0, y: -1.0} = s.local_position_ned
+
+      # no valid position: neither
+      invalid = %{position | valid: false, reason: "no position measurement for a while: …"}
+      s = Vehicle.streamed(vehicle(Map.put(@telemetry, :position, invalid)), 0, 0)
+      refute Map.has_key?(s, :global_position_int) or Map.has_key?(s, :local_position_ned)
+    end
+
     test "any valid estimate encodes" do
       check(
         :proper_types.tuple(List.duplicate(:proper_types.float(), 5)),
@@ -244,8 +275,11 @@ defmodule Neptunus.GCS.VehicleTest do
               velocity_east: ve
           }
 
+          position = Map.put(position, :origin, %{lat: 1.0, lon: -3.0})
           s = Vehicle.streamed(vehicle(Map.put(@telemetry, :position, position)), 0, 0)
-          encodes?(:local_position_ned, s.local_position_ned)
+
+          encodes?(:local_position_ned, s.local_position_ned) and
+            encodes?(:global_position_int, s.global_position_int)
         end
       )
     end

@@ -439,6 +439,42 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
       assert m.current == 1.23
     end
 
+    test "LOCAL_POSITION_NED is the vehicle's position; with GLOBAL_POSITION_INT of the same moment, its frame's geodetic origin" do
+      deg = :math.pi() / 180
+      global = %{time_boot_ms: 5_000, lat: 598_000_000, lon: 107_000_000, relative_alt: -2000}
+      local = %{time_boot_ms: 5_010, x: 10.0, y: -5.0, z: 2.0, vx: 0.0, vy: 0.0, vz: 0.0}
+      attitude = msg(:attitude, %{time_boot_ms: 5_020, roll: 0.0, pitch: 0.0, yaw: 0.0})
+
+      {core, []} = Core.receive(linked(), msg(:global_position_int, global), 1.0)
+      {core, []} = Core.receive(core, msg(:local_position_ned, local), 1.01)
+      {_core, [{:sample, s}]} = Core.receive(core, attitude, 1.02)
+
+      assert %{x: 10.0, y: -5.0, time_boot_ms: 5_010, origin: origin} = s.board.position
+
+      here = Neptunus.Navigation.Geo.offset(origin, 10.0, -5.0)
+
+      assert_in_delta here.lat, 59.8 * deg, 1.0e-12
+      assert_in_delta here.lon, 10.7 * deg, 1.0e-12
+      assert origin.lat < 59.8 * deg and origin.lon > 10.7 * deg
+
+      # ArduSub without an origin sends 0, 0: a position without a geodetic origin
+      {core, []} =
+        Core.receive(linked(), msg(:global_position_int, %{global | lat: 0, lon: 0}), 1.0)
+
+      {core, []} = Core.receive(core, msg(:local_position_ned, local), 1.01)
+      {_core, [{:sample, s}]} = Core.receive(core, attitude, 1.02)
+      assert %{x: 10.0, origin: nil} = s.board.position
+
+      # a global position of another moment is not the same frame's
+      {core, []} = Core.receive(linked(), msg(:global_position_int, global), 1.0)
+
+      {core, []} =
+        Core.receive(core, msg(:local_position_ned, %{local | time_boot_ms: 9_000}), 1.01)
+
+      {_core, [{:sample, s}]} = Core.receive(core, attitude, 1.02)
+      assert %{origin: nil} = s.board.position
+    end
+
     test "depth from GLOBAL_POSITION_INT only while no VFR_HUD came; unknown battery left out" do
       core = linked()
       {core, []} = Core.receive(core, msg(:global_position_int, %{relative_alt: -1500}), 1.0)

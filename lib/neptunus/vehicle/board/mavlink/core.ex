@@ -108,6 +108,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   # (ATTITUDE), EXTRA2 (VFR_HUD)
   @streams [{1, 5}, {2, 2}, {3, 5}, {6, 3}, {10, 10}, {11, 10}]
 
+  # GLOBAL_POSITION_INT and LOCAL_POSITION_NED this close (ms) are of the same moment
+  @same_moment_ms 200
+
   @pilot_loss_reasons ~w(pilot_left pilot_disconnected deadman released helm_started)
 
   @typedoc "What the process carries out."
@@ -708,6 +711,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
        do: {put_reading(%{core | readings: Map.put(core.readings, :hud, true)}, :depth, -alt), []}
 
   defp from_vehicle(core, %Message{name: :global_position_int, fields: f}, _now) do
+    core = global(core, f)
+
     if Map.has_key?(core.readings, :hud),
       do: {core, []},
       else: {put_reading(core, :depth, -f.relative_alt / 1000), []}
@@ -716,8 +721,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   # the vehicle's own position, where its EKF has one (a DVL or a GPS feeding ArduSub):
   # navigation takes it as a position source
   defp from_vehicle(core, %Message{name: :local_position_ned, fields: f}, _now) do
-    position = %{x: f.x * 1.0, y: f.y * 1.0, time_boot_ms: f.time_boot_ms}
-    {%{core | readings: Map.put(core.readings, :position, position)}, []}
+    position = %{x: f.x * 1.0, y: f.y * 1.0, time_boot_ms: f.time_boot_ms, origin: nil}
+    {with_origin(%{core | readings: Map.put(core.readings, :position, position)}), []}
   end
 
   defp from_vehicle(core, %Message{name: :sys_status, fields: f}, _now) do
@@ -775,6 +780,29 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
       "the only one), so an axis gets at most #{percent}% thrust; set JS_GAIN_DEFAULT 1 on " <>
       "the vehicle (and reboot it) for the full range"
   end
+
+  # GLOBAL_POSITION_INT's latitude and longitude, where the vehicle has them: ArduSub sends
+  # 0, 0 while its EKF has no origin (no GPS, no origin set)
+  defp global(core, %{lat: 0, lon: 0}),
+    do: %{core | readings: Map.delete(core.readings, :global)}
+
+  defp global(core, %{lat: lat, lon: lon, time_boot_ms: at})
+       when abs(lat) <= 900_000_000 and abs(lon) <= 1_800_000_000 do
+    global = %{lat: lat / 1.0e7 * :math.pi() / 180, lon: lon / 1.0e7 * :math.pi() / 180, at: at}
+    with_origin(%{core | readings: Map.put(core.readings, :global, global)})
+  end
+
+  defp global(core, _fields), do: %{core | readings: Map.delete(core.readings, :global)}
+
+  # the geodetic origin of the vehicle's own frame: its global position less its local one,
+  # both of the same moment (ArduSub sends them together, in its POSITION stream)
+  defp with_origin(%{readings: %{position: p, global: g}} = core)
+       when abs(p.time_boot_ms - g.at) <= @same_moment_ms do
+    origin = Neptunus.Navigation.Geo.origin(%{lat: g.lat, lon: g.lon}, p.x, p.y)
+    put_in(core.readings.position.origin, origin)
+  end
+
+  defp with_origin(core), do: core
 
   # the codec decodes every numeric field as a number
   defp put_reading(core, key, value),
