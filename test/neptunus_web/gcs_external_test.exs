@@ -134,9 +134,7 @@ defmodule NeptunusWeb.GCSExternalTest do
     test "is sway on a vehicle that can sway (a simulated neptunus-sway): its lateral thruster pushes it to starboard",
          %{id: id, loopback: port} do
       assert :sway in Neptunus.Vehicle.Board.capabilities(id).axes
-      Neptunus.PubSub.subscribe("vehicle:" <> id)
-      report = python!(["stick", "#{port}", "#{@sysid}", "0", "800"])
-      assert %{"heartbeat" => true, "helm_ack" => 0} = report
+      stick!(id, port, 0, 800)
 
       # the pilot's command carried sway; the vehicle moved to starboard under it
       assert_received {:pubsub, _, "telemetry", %{command: %{sway: 0.8, surge: +0.0}}}
@@ -146,9 +144,7 @@ defmodule NeptunusWeb.GCSExternalTest do
     test "is ignored on a vehicle without sway (the three-thruster vehicle): the rest of the stick flies",
          %{id: id, loopback: port} do
       refute :sway in Neptunus.Vehicle.Board.capabilities(id).axes
-      Neptunus.PubSub.subscribe("vehicle:" <> id)
-      report = python!(["stick", "#{port}", "#{@sysid}", "300", "800"])
-      assert %{"heartbeat" => true, "helm_ack" => 0} = report
+      stick!(id, port, 300, 800)
 
       # not refused (the vehicle has no sway): the surge flew, without sway
       assert_received {:pubsub, _, "telemetry", %{command: %{surge: 0.3} = command}}
@@ -196,6 +192,14 @@ defmodule NeptunusWeb.GCSExternalTest do
     after
       0 -> Enum.reverse(acc)
     end
+  end
+
+  # the helm, then MANUAL_CONTROL x, y from pymavlink for 2 s, the vehicle's broadcasts
+  # meanwhile in the mailbox
+  defp stick!(id, port, x, y) do
+    Neptunus.PubSub.subscribe("vehicle:" <> id)
+    report = python!(["stick", "#{port}", "#{@sysid}", "#{x}", "#{y}"])
+    assert %{"heartbeat" => true, "helm_ack" => 0} = report
   end
 
   # whether a telemetry broadcast already received satisfies `fun` (each is looked at once)

@@ -401,19 +401,7 @@ defmodule NeptunusWeb.MAVLinkWireTest do
   # asks ground station system `sysid` for LOCAL_POSITION_NED until it answers FAILED (no
   # position), once per tick of the vehicle's source (an ATTITUDE comes with each tenth)
   defp no_position!(client, sysid, tries) do
-    Neptunus.Test.GCSClient.send!(client, :command_long, %{
-      target_system: sysid,
-      target_component: 1,
-      command: 512,
-      confirmation: 0,
-      param1: 32.0,
-      param2: 0.0,
-      param3: 0.0,
-      param4: 0.0,
-      param5: 0.0,
-      param6: 0.0,
-      param7: 0.0
-    })
+    Neptunus.Test.GCSClient.command!(client, sysid, 512, [32])
 
     ack =
       Neptunus.Test.GCSClient.expect!(

@@ -55,18 +55,7 @@ def watch(port, seconds, passphrase=None):
     m = connect(port, passphrase)
     counts = {}
     systems = set()
-    deadline = time.time() + seconds
-    last_hb = 0
-    while time.time() < deadline:
-        if time.time() - last_hb >= 1:
-            heartbeat(m)
-            last_hb = time.time()
-        msg = m.recv_match(blocking=True, timeout=0.2)
-        if msg is None or msg.get_type() == "BAD_DATA":
-            continue
-        counts[msg.get_type()] = counts.get(msg.get_type(), 0) + 1
-        if msg.get_type() == "HEARTBEAT":
-            systems.add(msg.get_srcSystem())
+    listen(m, None, seconds, counts, systems=systems)
     signing = m.mav.signing
     return {
         "messages": counts,
@@ -164,10 +153,10 @@ def sticks(port, sysid, x, y):
     return report
 
 
-def listen(m, sysid, seconds, counts, until=lambda msg: False):
-    """Every message from SYSID for SECONDS (a heartbeat a second keeps the session), counted
-    by type in COUNTS; the LOCAL_POSITION_NEDs as dicts; stops early at the first message for
-    which UNTIL is true."""
+def listen(m, sysid, seconds, counts, until=lambda msg: False, systems=None):
+    """Every message from SYSID (None: from anyone) for SECONDS (a heartbeat a second keeps
+    the session), counted by type in COUNTS, the systems heard in SYSTEMS; the
+    LOCAL_POSITION_NEDs as dicts; stops early at the first message for which UNTIL is true."""
     positions = []
     deadline = time.time() + seconds
     last_hb = 0
@@ -176,8 +165,12 @@ def listen(m, sysid, seconds, counts, until=lambda msg: False):
             heartbeat(m)
             last_hb = time.time()
         msg = m.recv_match(blocking=True, timeout=0.2)
-        if msg is None or msg.get_type() == "BAD_DATA" or msg.get_srcSystem() != sysid:
+        if msg is None or msg.get_type() == "BAD_DATA":
             continue
+        if sysid is not None and msg.get_srcSystem() != sysid:
+            continue
+        if systems is not None and msg.get_type() == "HEARTBEAT":
+            systems.add(msg.get_srcSystem())
         counts[msg.get_type()] = counts.get(msg.get_type(), 0) + 1
         if msg.get_type() == "LOCAL_POSITION_NED":
             positions.append(msg.to_dict())
