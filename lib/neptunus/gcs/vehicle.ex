@@ -32,7 +32,8 @@ defmodule Neptunus.GCS.Vehicle do
       (measurements where the estimate has none; 0 where neither is known); not sent before
       the heading is known.
     * VFR_HUD — heading (deg), altitude = −depth (m), climb = −depth rate (m/s), throttle =
-      |vertical thrust| (%), ground speed (the simulator's surge speed, else 0).
+      |vertical thrust| (%), ground speed the valid position's horizontal speed (m/s; 0
+      without one).
     * SCALED_PRESSURE — absolute pressure from depth (sea water: 1013.25 hPa + 1025 kg/m³ ·
       g · depth), temperature 0 (no sensor reports it).
     * SERVO_OUTPUT_RAW — the thrusters' PWM (µs) in `go()` order (port, vertical,
@@ -296,7 +297,11 @@ defmodule Neptunus.GCS.Vehicle do
 
     %{
       airspeed: 0.0,
-      groundspeed: abs(number(get_in(t, [:sim, :u]))),
+      groundspeed:
+        case position(t) do
+          nil -> 0.0
+          p -> :math.sqrt(p.velocity_north ** 2 + p.velocity_east ** 2)
+        end,
       heading:
         case angle(t, :heading) do
           nil -> 0

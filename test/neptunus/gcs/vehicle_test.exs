@@ -197,6 +197,8 @@ defmodule Neptunus.GCS.VehicleTest do
              } == s.local_position_ned
 
       assert encodes?(:local_position_ned, s.local_position_ned)
+      # VFR_HUD's ground speed is the estimate's too
+      assert_in_delta s.vfr_hud.groundspeed, :math.sqrt(0.25 ** 2 + 0.5 ** 2), 1.0e-12
       # a USBL's frame has no geodetic origin: no GLOBAL_POSITION_INT
       refute Map.has_key?(s, :global_position_int)
     end
@@ -224,11 +226,11 @@ defmodule Neptunus.GCS.VehicleTest do
         refute Map.has_key?(Vehicle.streamed(vehicle(telemetry), 0, 0), :local_position_ned)
       end
 
-      # a simulated vehicle without position sources: the truth is not its position
-      refute Map.has_key?(
-               Vehicle.streamed(vehicle(%{@telemetry | sim: @truth}), 0, 0),
-               :local_position_ned
-             )
+      # a simulated vehicle without position sources: the truth is not its position, nor
+      # its speed
+      s = Vehicle.streamed(vehicle(%{@telemetry | sim: @truth}), 0, 0)
+      refute Map.has_key?(s, :local_position_ned)
+      assert s.vfr_hud.groundspeed == 0.0
     end
 
     test "GLOBAL_POSITION_INT where the frame has a geodetic origin (an ArduSub's): the origin plus the offset" do
