@@ -232,6 +232,7 @@ defmodule NeptunusWeb.FleetClusterTest do
     Cluster.call(peer, :init, :stop, [])
     assert %{"id" => ^id} = event!(ws, "unreachable", fn _ -> true end)
     Cluster.wait!(fn -> peer.node not in Node.list() end, "V down")
+    # the directory announces what it already shows
     assert %{status: "unreachable"} = Enum.find(Fleet.directory(), &(&1.id == id))
 
     [name, _] = peer.node |> Atom.to_string() |> String.split("@")

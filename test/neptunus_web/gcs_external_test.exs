@@ -116,7 +116,8 @@ defmodule NeptunusWeb.GCSExternalTest do
     assert [_ | _] = report["servo_without_helm"]
     assert Enum.all?(report["servo_without_helm"], &(&1 == [1500, 1500, 1500]))
     assert report["helm_ack"] == 0
-    assert report["arm_ack"] == 0 and report["armed_heartbeat"]
+    assert report["arm_ack"] == 0, inspect(report)
+    assert report["armed_heartbeat"], inspect(report)
     # forward on port and starboard, down on the vertical (go() order: port, vertical, starboard)
     assert [port_us, vertical_us, starboard_us] = report["servo"]
     assert port_us > 1500 and starboard_us > 1500 and vertical_us != 1500

@@ -21,6 +21,9 @@ defmodule Neptunus.Test.Cluster do
   @spec distribute!() :: node()
   def distribute! do
     unless Node.alive?() do
+      # a node started at run time does not start epmd (`erl -name` would): another test's
+      # peer may have, or not
+      {_, 0} = System.cmd("epmd", ["-daemon"])
       port = Application.fetch_env!(:neptunus, :endpoint).port
       name = :"neptunus_test_#{port}@127.0.0.1"
       {:ok, _} = :net_kernel.start(name, %{name_domain: :longnames})
@@ -62,7 +65,9 @@ defmodule Neptunus.Test.Cluster do
       host: String.to_charlist(Keyword.fetch!(opts, :host)),
       longnames: true,
       connection: :standard_io,
-      args: [~c"-setcookie", Atom.to_charlist(cookie) | args ++ paths]
+      # the cookie is set once the node runs, not with -setcookie: erl reads an argument
+      # starting with "+" as an emulator flag (a base64 cookie does, one time in 64)
+      args: args ++ paths
     }
 
     options =
@@ -79,6 +84,7 @@ defmodule Neptunus.Test.Cluster do
       end
 
     {:ok, pid, node} = :peer.start(options)
+    true = call(%{pid: pid}, :erlang, :set_cookie, [cookie])
 
     env =
       Application.get_all_env(:neptunus)

@@ -87,7 +87,7 @@ defmodule Neptunus.Fleet.Directory do
 
     book =
       Enum.reduce(groups, Book.new(), fn
-        {{:vehicle, id, board}, pids}, book -> join(book, id, board, pids)
+        {{:vehicle, id, board}, pids}, book -> book |> join(id, board, pids) |> elem(0)
         _, book -> book
       end)
 
@@ -108,27 +108,25 @@ defmodule Neptunus.Fleet.Directory do
   end
 
   def handle_info({ref, :join, {:vehicle, id, board}, pids}, %State{ref: ref} = state) do
-    book = join(state.book, id, board, pids, &announce/1)
-    {:noreply, publish(%{state | book: book})}
+    {book, announced} = join(state.book, id, board, pids)
+    {:noreply, publish_then_announce(state, book, announced)}
   end
 
   def handle_info({ref, :leave, {:vehicle, id, _board}, pids}, %State{ref: ref} = state) do
     connected = [node() | Node.list()]
 
-    book =
-      Enum.reduce(pids, state.book, fn pid, book ->
-        {book, announced} = Book.leave(book, id, pid, node(pid) in connected)
-        Enum.each(announced, &announce/1)
-        book
+    {book, announced} =
+      Enum.reduce(pids, {state.book, []}, fn pid, {book, announced} ->
+        {book, more} = Book.leave(book, id, pid, node(pid) in connected)
+        {book, announced ++ more}
       end)
 
-    {:noreply, publish(%{state | book: book})}
+    {:noreply, publish_then_announce(state, book, announced)}
   end
 
   def handle_info({:nodedown, node}, state) do
     {book, announced} = Book.nodedown(state.book, node)
-    Enum.each(announced, &announce/1)
-    {:noreply, publish(%{state | book: book})}
+    {:noreply, publish_then_announce(state, book, announced)}
   end
 
   def handle_info(_msg, state), do: {:noreply, state}
@@ -142,12 +140,18 @@ defmodule Neptunus.Fleet.Directory do
     end
   end
 
-  defp join(book, id, board, pids, announce \\ fn _ -> :ok end) do
-    Enum.reduce(pids, book, fn pid, book ->
-      {book, announced} = Book.join(book, id, board, pid, node(pid), node())
-      Enum.each(announced, announce)
-      book
+  defp join(book, id, board, pids) do
+    Enum.reduce(pids, {book, []}, fn pid, {book, announced} ->
+      {book, more} = Book.join(book, id, board, pid, node(pid), node())
+      {book, announced ++ more}
     end)
+  end
+
+  # whoever hears an announcement and reads the directory sees what was announced
+  defp publish_then_announce(state, book, announced) do
+    state = publish(%{state | book: book})
+    Enum.each(announced, &announce/1)
+    state
   end
 
   defp publish(state) do

@@ -257,9 +257,19 @@ defmodule Neptunus.GCS.Session do
 
         v =
           case view.helm do
-            %{pilot: %{id: ^me}, epoch: epoch} -> %{v | view: view, pilot: true, epoch: epoch}
-            %{pilot: _} -> %{v | view: view, pilot: false, asked: false}
-            _ -> %{v | view: view}
+            # a view taken before the grant (or trip) this session already knows of: the helm
+            # only moves forward (its epoch never goes down), so an older one is not news
+            %{epoch: epoch} when is_integer(v.epoch) and epoch < v.epoch ->
+              %{v | view: %{view | helm: v.view && v.view.helm}}
+
+            %{pilot: %{id: ^me}, epoch: epoch} ->
+              %{v | view: view, pilot: true, epoch: epoch}
+
+            %{pilot: _} ->
+              %{v | view: view, pilot: false, asked: false}
+
+            _ ->
+              %{v | view: view}
           end
 
         {put_vehicle(s, sysid, v), []}

@@ -119,7 +119,8 @@ defmodule Neptunus.GCS.SessionTest do
       assert Session.piloting(s) == [1]
       assert s.vehicles[1].epoch == 42
 
-      {s, []} = handle(s, {:vehicle, 1, view(%{pilot: %{id: "someone else"}})})
+      # the helm went to someone else (a grant: a newer epoch)
+      {s, []} = handle(s, {:vehicle, 1, view(%{pilot: %{id: "someone else"}, epoch: 43})})
       assert Session.piloting(s) == []
     end
 
@@ -235,6 +236,25 @@ defmodule Neptunus.GCS.SessionTest do
       # the request is finished: a second grant acknowledges nothing
       {_s, actions} = handle(s, {:helm, 1, "control_granted", %{epoch: 9}})
       assert acks(actions) == []
+    end
+
+    test "a view taken before the grant arrives after it: the helm is still this session's" do
+      {s, actions} = receive_msg(spoken(), command(32_100, [0, 1, 0, 10]))
+
+      {s, _} =
+        handle(s, {:result, ref_of(actions), {:ok, %{status: "pending", timeout_ms: 10_000}}})
+
+      {s, _} = handle(s, {:helm, 1, "control_granted", %{epoch: 9}})
+
+      # the source's tick, read before the grant (epoch 8, someone else piloting)
+      {s, []} = handle(s, {:vehicle, 1, view(%{pilot: %{id: "someone else"}, epoch: 8})})
+      assert Session.piloting(s) == [1]
+      {s, actions} = receive_msg(s, command(400, [1]))
+      assert acks(actions) == [{400, @accepted}]
+
+      # a view as new as the grant is news: the helm went elsewhere
+      {s, []} = handle(s, {:vehicle, 1, view(%{pilot: %{id: "someone else"}, epoch: 10})})
+      assert Session.piloting(s) == []
     end
 
     test "refused or timed out: DENIED with the reason" do
