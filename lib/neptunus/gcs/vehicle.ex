@@ -300,7 +300,7 @@ defmodule Neptunus.GCS.Vehicle do
       groundspeed:
         case position(t) do
           nil -> 0.0
-          p -> :math.sqrt(p.velocity_north ** 2 + p.velocity_east ** 2)
+          p -> :math.sqrt(p.velocity_north * p.velocity_north + p.velocity_east * p.velocity_east)
         end,
       heading:
         case angle(t, :heading) do
