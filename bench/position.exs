@@ -8,24 +8,30 @@
 # Run through bench/position (MIX_ENV=prod mix run --no-start bench/position.exs). Prints
 # figures, never asserts. The errors are the truth's: the simulator's true position against
 # the target (so a drifting estimate counts), and against the mission's legs.
+# BENCH_SMOKE=1 (bench/smoke, which make test runs): one seed, holds of 60 s judged from 20 s,
+# the missions whole — seconds, to show the bench still starts and prints; its figures mean
+# little then.
 
 defmodule Bench.Position do
   alias Neptunus.Scenario
   alias Neptunus.Scenario.Run
 
   @current [0.0, 0.1, 0.0]
-  @hold_s 150
-  @settle_s 40
   @mission_speed 0.3
 
   def main(args) do
     Logger.configure(level: :warning)
 
+    smoke? = System.get_env("BENCH_SMOKE") == "1"
+
     seeds =
       case args do
         [n] -> String.to_integer(n)
-        [] -> String.to_integer(System.get_env("POSITION_SEEDS", "8"))
+        [] -> String.to_integer(System.get_env("POSITION_SEEDS", if(smoke?, do: "1", else: "8")))
       end
+
+    # a hold's length and when its radius starts counting, s
+    {hold_s, settle_s} = if smoke?, do: {60, 20}, else: {150, 40}
 
     IO.puts(
       "Neptunus position bench — #{System.schedulers_online()} schedulers, " <>
@@ -34,7 +40,7 @@ defmodule Bench.Position do
     )
 
     IO.puts(
-      "## Position hold (DP), #{@hold_s} s, radius from #{@settle_s} s on (m, true position to target)"
+      "## Position hold (DP), #{hold_s} s, radius from #{settle_s} s on (m, true position to target)"
     )
 
     IO.puts("| vehicle | sources | p50 | p95 | max | valid % | estimate RMS (m) |")
@@ -46,7 +52,7 @@ defmodule Bench.Position do
           {"USBL only", %{"usbl" => true}},
           {"DVL + USBL", %{"dvl" => true, "usbl" => true}}
         ] do
-      results = for seed <- 1..seeds, do: hold(vehicle, position, seed)
+      results = for seed <- 1..seeds, do: hold(vehicle, position, seed, hold_s, settle_s)
       radii = Enum.flat_map(results, & &1.radii)
 
       valid =
@@ -94,19 +100,19 @@ defmodule Bench.Position do
     s
   end
 
-  defp hold(vehicle, position, seed) do
+  defp hold(vehicle, position, seed, hold_s, settle_s) do
     events = [
       %{"t" => 0, "autopilot" => %{"depth" => "hold", "heading" => "hold"}},
       %{"t" => 5, "control_mode" => "dp"}
     ]
 
-    s = scenario(vehicle, position, seed, @hold_s, events)
+    s = scenario(vehicle, position, seed, hold_s, events)
     cols = index()
 
     rows =
       s
       |> Run.rows(10)
-      |> Enum.filter(fn row -> at(row, cols, "t") >= @settle_s end)
+      |> Enum.filter(fn row -> at(row, cols, "t") >= settle_s end)
 
     radii =
       for row <- rows,
