@@ -65,11 +65,7 @@ defmodule Neptunus.Position.DVL do
 
   @impl Source
   @spec start_link(keyword()) :: GenServer.on_start()
-  def start_link(opts) do
-    id = Keyword.fetch!(opts, :id)
-    name = Keyword.get(opts, :name, :dvl)
-    GenServer.start_link(__MODULE__, Keyword.put(opts, :name, name), name: Source.via(id, name))
-  end
+  def start_link(opts), do: Source.start_server(__MODULE__, opts, :dvl)
 
   @impl Source
   @spec command(String.t(), atom(), atom()) :: {:ok, term()} | {:error, String.t()}
@@ -88,13 +84,9 @@ defmodule Neptunus.Position.DVL do
   @impl true
   def init(opts) do
     endpoint =
-      case Keyword.fetch(opts, :endpoint) do
-        {:ok, fun} when is_function(fun, 0) ->
-          fun
-
-        :error ->
-          fn -> {Keyword.fetch!(opts, :host), Keyword.get(opts, :port, WaterLinkedDVL.port())} end
-      end
+      Source.endpoint(opts, fn ->
+        {Keyword.fetch!(opts, :host), Keyword.get(opts, :port, WaterLinkedDVL.port())}
+      end)
 
     state = %State{
       id: Keyword.fetch!(opts, :id),

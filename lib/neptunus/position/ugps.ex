@@ -55,21 +55,13 @@ defmodule Neptunus.Position.UGPS do
 
   @impl Source
   @spec start_link(keyword()) :: GenServer.on_start()
-  def start_link(opts) do
-    id = Keyword.fetch!(opts, :id)
-    name = Keyword.get(opts, :name, :usbl)
-    GenServer.start_link(__MODULE__, Keyword.put(opts, :name, name), name: Source.via(id, name))
-  end
+  def start_link(opts), do: Source.start_server(__MODULE__, opts, :usbl)
 
   # Callbacks
 
   @impl true
   def init(opts) do
-    endpoint =
-      case Keyword.fetch(opts, :endpoint) do
-        {:ok, fun} when is_function(fun, 0) -> fun
-        :error -> fn -> Keyword.fetch!(opts, :url) end
-      end
+    endpoint = Source.endpoint(opts, fn -> Keyword.fetch!(opts, :url) end)
 
     state = %State{
       id: Keyword.fetch!(opts, :id),
