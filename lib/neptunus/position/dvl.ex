@@ -121,7 +121,7 @@ defmodule Neptunus.Position.DVL do
           {:noreply, %{state | pending: Map.put(state.pending, key, {from, timer})}}
 
         {:error, reason} ->
-          {:reply, {:error, "DVL not connected: #{format(reason)}"}, state}
+          {:reply, {:error, "DVL not connected: #{Source.describe_error(reason)}"}, state}
       end
     end
   end
@@ -149,7 +149,7 @@ defmodule Neptunus.Position.DVL do
     do: {:noreply, lost(state, "closed by the DVL")}
 
   def handle_info({:tcp_error, socket, reason}, %State{socket: socket} = state),
-    do: {:noreply, lost(state, format(reason))}
+    do: {:noreply, lost(state, Source.describe_error(reason))}
 
   def handle_info(:reconnect, state), do: {:noreply, connect(state)}
 
@@ -191,7 +191,7 @@ defmodule Neptunus.Position.DVL do
         }
 
       {:error, reason} ->
-        retry(state, format(reason))
+        retry(state, Source.describe_error(reason))
     end
   end
 
@@ -265,13 +265,4 @@ defmodule Neptunus.Position.DVL do
         state
     end
   end
-
-  defp format(reason) when is_atom(reason) do
-    case :inet.format_error(reason) do
-      ~c"unknown POSIX error" ++ _ -> Atom.to_string(reason)
-      text -> List.to_string(text)
-    end
-  end
-
-  defp format(reason), do: inspect(reason)
 end

@@ -59,6 +59,27 @@ defmodule Neptunus.Position.Source do
     end
   end
 
+  @doc """
+  Why a network source's link failed, as navigation says it: the socket error's text
+  (`:econnrefused` is `"connection refused"`), else the reason as it is.
+
+      iex> Neptunus.Position.Source.describe_error(:econnrefused)
+      "connection refused"
+      iex> Neptunus.Position.Source.describe_error(:closed)
+      "closed"
+      iex> Neptunus.Position.Source.describe_error({:tls, 1})
+      "{:tls, 1}"
+  """
+  @spec describe_error(term()) :: String.t()
+  def describe_error(reason) when is_atom(reason) do
+    case :inet.format_error(reason) do
+      ~c"unknown POSIX error" ++ _ -> Atom.to_string(reason)
+      text -> List.to_string(text)
+    end
+  end
+
+  def describe_error(reason), do: inspect(reason)
+
   @doc "Reports to vehicle `id`'s navigation (asynchronous), at monotonic `at` (s)."
   @spec report(String.t(), atom(), Neptunus.Navigation.Position.report(), float()) :: :ok
   def report(id, name, report, at),

@@ -218,20 +218,13 @@ defmodule Neptunus.Position.UGPS do
     :exit, _ -> nil
   end
 
-  defp describe({:failed_connect, [{:to_address, _} | [{_, _, reason} | _]]}), do: format(reason)
+  defp describe({:failed_connect, [{:to_address, _} | [{_, _, reason} | _]]}),
+    do: Source.describe_error(reason)
+
   defp describe({:failed_connect, _}), do: "cannot connect"
   defp describe(:timeout), do: "no answer in time"
   defp describe(:socket_closed_remotely), do: "closed by the topside"
-  defp describe(reason), do: format(reason)
-
-  defp format(reason) when is_atom(reason) do
-    case :inet.format_error(reason) do
-      ~c"unknown POSIX error" ++ _ -> Atom.to_string(reason)
-      text -> List.to_string(text)
-    end
-  end
-
-  defp format(reason), do: inspect(reason)
+  defp describe(reason), do: Source.describe_error(reason)
 
   defp excerpt(body) when is_binary(body) do
     if byte_size(body) > 80, do: binary_part(body, 0, 80) <> "…", else: body
