@@ -66,24 +66,8 @@ defmodule Neptunus.GCSTest do
         opts
       )
 
-  defp command!(gcs, command, params) do
-    [p1, p2, p3, p4, p5, p6, p7] =
-      Enum.take(Enum.map(params, &(&1 * 1.0)) ++ List.duplicate(0.0, 7), 7)
-
-    GCSClient.send!(gcs, :command_long, %{
-      target_system: @sysid,
-      target_component: 1,
-      command: command,
-      confirmation: 0,
-      param1: p1,
-      param2: p2,
-      param3: p3,
-      param4: p4,
-      param5: p5,
-      param6: p6,
-      param7: p7
-    })
-  end
+  defp command!(gcs, command, params),
+    do: GCSClient.send!(gcs, :command_long, GCSClient.command_long(@sysid, command, params))
 
   defp ack!(gcs, command, ms \\ 3_000),
     do:

@@ -51,6 +51,31 @@ defmodule Neptunus.Test.GCSClient do
   @doc "Stops streaming message `name`."
   def stop_stream(pid, name), do: GenServer.call(pid, {:stop_stream, name})
 
+  @doc """
+  The fields of a COMMAND_LONG to system `target`, component 1: `command` with `params`, the
+  first seven of them (numbers as floats, atoms such as `:nan` as they are), the rest 0.0.
+  """
+  def command_long(target, command, params) do
+    [p1, p2, p3, p4, p5, p6, p7] =
+      (params ++ List.duplicate(0.0, 7))
+      |> Enum.take(7)
+      |> Enum.map(&if(is_atom(&1), do: &1, else: &1 * 1.0))
+
+    %{
+      target_system: target,
+      target_component: 1,
+      command: command,
+      confirmation: 0,
+      param1: p1,
+      param2: p2,
+      param3: p3,
+      param4: p4,
+      param5: p5,
+      param6: p6,
+      param7: p7
+    }
+  end
+
   @doc "Sends raw bytes."
   def send_raw!(pid, bytes), do: GenServer.call(pid, {:raw, bytes})
 

@@ -6,6 +6,7 @@ defmodule Neptunus.GCS.SessionTest do
   alias Neptunus.GCS.{Party, Session}
   alias Neptunus.Protocol.MAVLink
   alias Neptunus.Protocol.MAVLink.Message
+  alias Neptunus.Test.GCSClient
   alias Neptunus.Test.MAVLinkGen, as: Gen
 
   @pilot %{name: "qgc", role: :pilot, trusted: false}
@@ -36,26 +37,8 @@ defmodule Neptunus.GCS.SessionTest do
   defp manual(x, z \\ 500, r \\ 0, target \\ 1),
     do: msg(:manual_control, %{target: target, x: x, y: 0, z: z, r: r, buttons: 0})
 
-  defp command(command, params, target \\ 1) do
-    [p1, p2, p3, p4, p5, p6, p7] =
-      (params ++ List.duplicate(0.0, 7))
-      |> Enum.take(7)
-      |> Enum.map(&if(is_atom(&1), do: &1, else: &1 * 1.0))
-
-    msg(:command_long, %{
-      target_system: target,
-      target_component: 1,
-      command: command,
-      confirmation: 0,
-      param1: p1,
-      param2: p2,
-      param3: p3,
-      param4: p4,
-      param5: p5,
-      param6: p6,
-      param7: p7
-    })
-  end
+  defp command(command, params, target \\ 1),
+    do: msg(:command_long, GCSClient.command_long(target, command, params))
 
   defp handle(s, event), do: Session.handle(s, event)
   defp receive_msg(s, message, now \\ 0), do: handle(s, {:message, message, now})
