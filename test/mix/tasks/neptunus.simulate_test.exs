@@ -221,6 +221,24 @@ defmodule Mix.Tasks.Neptunus.SimulateTest do
       assert text =~ "missions finished: 0/1"
       assert text =~ "worst run: seed 1 (current 0.000 m/s"
       assert text =~ "mission not done"
+
+      # a mission the control refuses (no position: the DVL's bottom out of its range): that
+      # run failed, with the reason, and is the worst
+      refused =
+        write!(
+          dir,
+          "refused.json",
+          String.replace(File.read!(short), ~s("dvl": true), ~s("dvl": {"seabed": 100}))
+          |> String.replace(~s("usbl": true), ~s("usbl": false))
+        )
+
+      {text, _lines, [run]} = monte_carlo([refused, "--runs", "1"])
+
+      assert List.last(run) =~
+               "failed: scenario event at t = 5.0 s: a mission needs a valid position"
+
+      assert text =~ "runs failed: 1/1"
+      assert text =~ ~r/worst run: seed 1 .*: failed: scenario event/
     end
 
     test "bad options stop with a clear error, before any run", %{tmp_dir: dir} do
