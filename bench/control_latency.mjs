@@ -59,11 +59,19 @@ const OBSERVER_URL_BASE = process.env.LAT_OBSERVER_URL ?? URL_BASE;
 // stations watching (each its own UDP socket, a session of its own)
 const GCS_PORT = process.env.LAT_GCS_PORT ? Number(process.env.LAT_GCS_PORT) : null;
 const GCS_SYSID = 1; // the vehicle's MAVLink system id (the node's only vehicle)
+const WINDOW = Number(process.env.LAT_WINDOW ?? 100); // observers opening at once
+// an observer not joined (a ground station: not answered) within this counts as not joined
+const OBSERVER_OPEN_MS = 30_000;
 
 if (process.env.LAT_ROLE === 'observers') {
   await observers();
 } else {
-  await main();
+  // a failure (the observer process gone, no answer from it) is said, and the exit status
+  // tells bench/control_latency: never a wait without end
+  await main().catch((err) => {
+    console.error(`control_latency: ${err.message}`);
+    process.exit(1);
+  });
 }
 
 // ---------------------------------------------------------------------------------------
@@ -158,12 +166,28 @@ async function main() {
     stdio: ['ignore', 'inherit', 'inherit', 'ipc'],
     env: { ...process.env, LAT_ROLE: 'observers' },
   });
-  worker.on('exit', (code, signal) => {
-    if (!closing) { console.error(`observer process exited (${code ?? signal})`); process.exit(1); }
+  // The observer process' end, however it comes (an exit, or an error that kept it from
+  // running or from being spoken to): no wait for its answers outlives it.
+  const workerEnded = new Promise((resolve) => {
+    worker.once('exit', (code, signal) => resolve({ code, why: `exited (${signal ?? `status ${code}`})` }));
+    worker.once('error', (err) => resolve({ code: null, why: `failed (${err.message})` }));
   });
-  const fromWorker = (type) => new Promise((resolve) => {
-    const h = (m) => { if (m.type === type) { worker.off('message', h); resolve(m); } };
+  workerEnded.then(({ why }) => {
+    if (!closing) { console.error(`control_latency: the observer process ${why} during the run`); process.exit(1); }
+  });
+  // The next message of this type from the observer process; rejects when the process ends
+  // first (one that says 'closed' and exits 0 may be seen exiting before its message is read)
+  // or after `timeoutMs`.
+  const fromWorker = (type, timeoutMs) => new Promise((resolve, reject) => {
+    let timer = null;
+    const settle = (f, v) => { worker.off('message', h); clearTimeout(timer); f(v); };
+    const h = (m) => { if (m.type === type) settle(resolve, m); };
     worker.on('message', h);
+    timer = setTimeout(() => settle(reject, new Error(`no '${type}' from the observer process within ${timeoutMs / 1000} s`)), timeoutMs);
+    workerEnded.then(({ code, why }) => {
+      if (type === 'closed' && code === 0) settle(resolve, { type });
+      else settle(reject, new Error(`the observer process ${why} before its '${type}'`));
+    });
   });
   let observing = 0;
 
@@ -180,13 +204,14 @@ async function main() {
   for (const n of counts) {
     if (n > observing) {
       worker.send({ type: 'open', count: n - observing });
-      const m = await fromWorker('opened');
+      // each observer gets OBSERVER_OPEN_MS to join (or counts as not joined), WINDOW at a time
+      const m = await fromWorker('opened', (Math.ceil((n - observing) / WINDOW) + 1) * OBSERVER_OPEN_MS);
       observing = m.joined;
       await sleep(2000); // let the presence traffic of the joins settle
     }
 
     worker.send({ type: 'count' });
-    const before = await fromWorker('counted');
+    const before = await fromWorker('counted', 30_000);
     const cpu0 = cpuTicks(SERVER_PID), obs0 = cpuTicks(worker.pid), self0 = process.cpuUsage();
     const m0 = machine();
     const t0 = performance.now();
@@ -222,7 +247,7 @@ async function main() {
     const cpu1 = cpuTicks(SERVER_PID), obs1 = cpuTicks(worker.pid), self1 = process.cpuUsage(self0);
     const m1 = machine();
     worker.send({ type: 'count' });
-    const after = await fromWorker('counted');
+    const after = await fromWorker('counted', 30_000);
 
     console.log(`\n## ${observing} observers`);
     out('observers joined', observing);
@@ -252,7 +277,7 @@ async function main() {
   clearInterval(telemetry);
   closing = true;
   worker.send({ type: 'close' });
-  await fromWorker('closed');
+  await fromWorker('closed', 30_000);
   pilot.close();
   // Keep the pty until bench/control_latency has stopped the server (its end of the line would
   // otherwise hang up under it): say we are done and wait for SIGTERM.
@@ -294,6 +319,9 @@ async function browserPilot() {
  */
 async function gcsPilot(port) {
   const sock = dgram.createSocket('udp4');
+  // ECONNREFUSED while the endpoint is not up yet: the request below is tried again
+  let lastError = 'none';
+  sock.on('error', (err) => { lastError = err.message; });
   await new Promise((resolve, reject) => sock.connect(port, '127.0.0.1', (e) => (e ? reject(e) : resolve())));
   let seq = 0;
   const send = (build) => sock.send(build({ seq: seq++ }));
@@ -309,7 +337,7 @@ async function gcsPilot(port) {
     send((o) => mavHeartbeat(o));
     send((o) => commandLong(GCS_SYSID, 32100, [0, 1, 0, 10], o));
     if (await Promise.race([grant.then(() => true), sleep(1000).then(() => false)])) break;
-    if (tries === 10) throw new Error(`no ACCEPTED answer to MAV_CMD_REQUEST_OPERATOR_CONTROL on udp 127.0.0.1:${port}`);
+    if (tries === 10) throw new Error(`no ACCEPTED answer to MAV_CMD_REQUEST_OPERATOR_CONTROL on udp 127.0.0.1:${port} (last socket error: ${lastError})`);
   }
   return {
     thrust: (s) => { send((o) => manualControl(GCS_SYSID, { x: Math.round(s * 1000) }, o)); return null; },
@@ -399,20 +427,41 @@ function connect(name) {
 async function observers() {
   const sockets = [];
   let messages = 0;
-  const WINDOW = Number(process.env.LAT_WINDOW ?? 100);
 
-  const openOne = (k) => (GCS_PORT ? openGcs(k) : openWs(k));
-  // a ground station watching: its own socket (a session), a HEARTBEAT a second, frames counted
+  // an observer that has not joined (a ground station: heard nothing) within OBSERVER_OPEN_MS
+  // counts as not joined, so the 'opened' answer always comes
+  const openOne = (k) => Promise.race([GCS_PORT ? openGcs(k) : openWs(k), sleep(OBSERVER_OPEN_MS).then(() => false)]);
+  // a ground station watching: its own socket (a session), a HEARTBEAT a second, frames
+  // counted. Its close stops the heartbeat before the socket, and a send the socket can no
+  // longer make is dropped, never thrown (a send on a closed UDP socket throws
+  // ERR_SOCKET_DGRAM_NOT_RUNNING, which ended the process before it said 'closed').
   const openGcs = (k) => new Promise((resolve) => {
     const sock = dgram.createSocket('udp4');
+    let open = true;
+    let timer = null;
+    const beat = () => {
+      if (!open) return;
+      try {
+        sock.send(mavHeartbeat({ sysid: 200 + (k % 50) }), () => {}); // an error goes to the callback
+      } catch {
+        // closed under us
+      }
+    };
     sock.on('message', (buf) => { messages += frames(buf).length; });
-    sock.on('error', () => resolve(false));
+    sock.on('error', () => resolve(false)); // e.g. ECONNREFUSED: nobody on the port
+    sockets.push({
+      close: () => {
+        if (!open) return;
+        open = false;
+        clearInterval(timer);
+        sock.close();
+      },
+    });
     sock.connect(GCS_PORT, '127.0.0.1', () => {
-      const beat = () => sock.send(mavHeartbeat({ sysid: 200 + (k % 50) }));
-      beat();
-      const timer = setInterval(beat, 1000).unref();
-      sockets.push({ close: () => { clearInterval(timer); sock.close(); } });
+      if (!open) return;
       sock.once('message', () => resolve(true));
+      beat();
+      timer = setInterval(beat, 1000).unref();
     });
   });
   const openWs = (k) => new Promise((resolve) => {
@@ -425,7 +474,7 @@ async function observers() {
       else if (text.startsWith('["j","j"')) done(text.includes('"status":"ok"'));
     });
     ws.once('open', () => ws.send(JSON.stringify(['j', 'j', TOPIC, 'phx_join', {}])));
-    ws.once('error', () => done(false));
+    ws.on('error', () => done(false)); // not once: a close while connecting is an error too
     sockets.push(ws);
     setInterval(() => { if (ws.readyState === 1) ws.send(JSON.stringify([null, 'hb', 'phoenix', 'heartbeat', {}])); }, 30000).unref();
   });
@@ -443,7 +492,13 @@ async function observers() {
     } else if (m.type === 'count') {
       parentPort.postMessage({ type: 'counted', messages });
     } else if (m.type === 'close') {
-      for (const ws of sockets) ws.close(1000); // a ground station's close() takes no code
+      for (const ws of sockets) {
+        try {
+          ws.close(1000); // a ground station's close() takes no code
+        } catch (err) {
+          console.error(`observer process: a close failed: ${err.message}`);
+        }
+      }
       await sleep(500);
       parentPort.postMessage({ type: 'closed' });
       process.disconnect();

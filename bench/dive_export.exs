@@ -11,11 +11,13 @@
 # figures, never asserts.
 
 Code.require_file("support/telemetry_sample.exs", __DIR__)
+Code.require_file("support/export_figures.exs", __DIR__)
 Code.require_file("../test/support/dives.ex", __DIR__)
 
 defmodule Bench.DiveExport do
   alias Neptunus.Dive.Export
   alias Neptunus.Test.Dives
+  import Bench.ExportFigures
 
   @fps 15
   @start_ms 1_795_000_000_000
@@ -75,7 +77,7 @@ defmodule Bench.DiveExport do
       schemas = %{"telemetry" => NeptunusWeb.API.Recordings.telemetry_schema()}
 
       for format <- ~w(csv jsonl mcap mp4) do
-        row(format, baseline, fn ->
+        row(format, 8, baseline, fn ->
           {:ok, plan} = Export.plan(folder, "bench", %{"format" => format, "schemas" => schemas})
           plan |> Export.stream() |> Enum.reduce(0, &(&2 + IO.iodata_length(&1)))
         end)
@@ -92,34 +94,6 @@ defmodule Bench.DiveExport do
     |> Enum.map(&File.stat!(&1).size)
     |> Enum.sum()
   end
-
-  defp row(label, baseline, fun) do
-    :erlang.garbage_collect()
-    sampler = spawn_link(fn -> sample(baseline) end)
-    {us, bytes} = :timer.tc(fn -> Task.async(fun) |> Task.await(:infinity) end)
-    send(sampler, {:report, self()})
-
-    peak =
-      receive do
-        {:peak, peak} -> peak
-      end
-
-    IO.puts(
-      "#{String.pad_trailing(label <> ":", 8)} #{mb(bytes)} in #{s(us)} " <>
-        "(#{Float.round(bytes / 1_048_576 / (us / 1_000_000), 1)} MB/s), peak VM memory +#{mb(peak - baseline)}"
-    )
-  end
-
-  defp sample(peak) do
-    receive do
-      {:report, to} -> send(to, {:peak, max(peak, :erlang.memory(:total))})
-    after
-      5 -> sample(max(peak, :erlang.memory(:total)))
-    end
-  end
-
-  defp mb(bytes), do: "#{Float.round(bytes / 1_048_576, 1)} MB"
-  defp s(us), do: "#{Float.round(us / 1_000_000, 2)} s"
 end
 
 Bench.DiveExport.main(System.argv())

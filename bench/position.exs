@@ -7,25 +7,33 @@
 #
 # Run through bench/position (MIX_ENV=prod mix run --no-start bench/position.exs). Prints
 # figures, never asserts. The errors are the truth's: the simulator's true position against
-# the target (so a drifting estimate counts), and against the mission's legs.
+# the target (so a drifting estimate counts), and against the mission's legs; beside them the
+# estimate's RMS against the true position while valid (`Neptunus.Scenario.MonteCarlo`'s
+# statistics, as `mix neptunus.simulate --runs` prints them).
+# BENCH_SMOKE=1 (bench/smoke, which make test runs): one seed, holds of 60 s judged from 20 s,
+# the missions whole — seconds, to show the bench still starts and prints; its figures mean
+# little then.
 
 defmodule Bench.Position do
   alias Neptunus.Scenario
-  alias Neptunus.Scenario.Run
+  alias Neptunus.Scenario.{MonteCarlo, Run}
 
   @current [0.0, 0.1, 0.0]
-  @hold_s 150
-  @settle_s 40
   @mission_speed 0.3
 
   def main(args) do
     Logger.configure(level: :warning)
 
+    smoke? = System.get_env("BENCH_SMOKE") == "1"
+
     seeds =
       case args do
         [n] -> String.to_integer(n)
-        [] -> String.to_integer(System.get_env("POSITION_SEEDS", "8"))
+        [] -> String.to_integer(System.get_env("POSITION_SEEDS", if(smoke?, do: "1", else: "8")))
       end
+
+    # a hold's length and when its radius starts counting, s
+    {hold_s, settle_s} = if smoke?, do: {60, 20}, else: {150, 40}
 
     IO.puts(
       "Neptunus position bench — #{System.schedulers_online()} schedulers, " <>
@@ -34,7 +42,7 @@ defmodule Bench.Position do
     )
 
     IO.puts(
-      "## Position hold (DP), #{@hold_s} s, radius from #{@settle_s} s on (m, true position to target)"
+      "## Position hold (DP), #{hold_s} s, radius from #{settle_s} s on (m, true position to target)"
     )
 
     IO.puts("| vehicle | sources | p50 | p95 | max | valid % | estimate RMS (m) |")
@@ -46,14 +54,13 @@ defmodule Bench.Position do
           {"USBL only", %{"usbl" => true}},
           {"DVL + USBL", %{"dvl" => true, "usbl" => true}}
         ] do
-      results = for seed <- 1..seeds, do: hold(vehicle, position, seed)
+      results = for seed <- 1..seeds, do: hold(vehicle, position, seed, hold_s, settle_s)
       radii = Enum.flat_map(results, & &1.radii)
 
       valid =
         Enum.sum(Enum.map(results, & &1.valid)) / max(Enum.sum(Enum.map(results, & &1.rows)), 1)
 
-      errors = Enum.flat_map(results, & &1.errors)
-      rms = if errors == [], do: nil, else: :math.sqrt(Enum.sum(errors) / length(errors))
+      rms = results |> Enum.flat_map(& &1.errors) |> MonteCarlo.rms()
 
       IO.puts(
         "| #{vehicle} | #{label} | #{f(pct(radii, 50))} | #{f(pct(radii, 95))} | " <>
@@ -63,8 +70,12 @@ defmodule Bench.Position do
 
     IO.puts("\n## Mission: a 10 m square at #{@mission_speed} m/s, depth 3 m, DVL + USBL")
     IO.puts("(cross-track: the true position's distance from the leg's line, legs 2–4)")
-    IO.puts("| vehicle | cross-track p50 | p95 | max | done in (s, median) | runs done |")
-    IO.puts("|---|---|---|---|---|---|")
+
+    IO.puts(
+      "| vehicle | cross-track p50 | p95 | max | done in (s, median) | runs done | estimate RMS (m) |"
+    )
+
+    IO.puts("|---|---|---|---|---|---|---|")
 
     for vehicle <- ["neptunus-sway", "neptunus"] do
       results = for seed <- 1..seeds, do: mission(vehicle, seed)
@@ -73,7 +84,8 @@ defmodule Bench.Position do
 
       IO.puts(
         "| #{vehicle} | #{f(pct(xt, 50))} | #{f(pct(xt, 95))} | #{f(Enum.max(xt, fn -> nil end))} | " <>
-          "#{f(pct(done, 50), 0)} | #{length(done)}/#{seeds} |"
+          "#{f(pct(done, 50), 0)} | #{length(done)}/#{seeds} | " <>
+          "#{f(results |> Enum.flat_map(& &1.errors) |> MonteCarlo.rms())} |"
       )
     end
   end
@@ -94,19 +106,19 @@ defmodule Bench.Position do
     s
   end
 
-  defp hold(vehicle, position, seed) do
+  defp hold(vehicle, position, seed, hold_s, settle_s) do
     events = [
       %{"t" => 0, "autopilot" => %{"depth" => "hold", "heading" => "hold"}},
       %{"t" => 5, "control_mode" => "dp"}
     ]
 
-    s = scenario(vehicle, position, seed, @hold_s, events)
+    s = scenario(vehicle, position, seed, hold_s, events)
     cols = index()
 
     rows =
       s
       |> Run.rows(10)
-      |> Enum.filter(fn row -> at(row, cols, "t") >= @settle_s end)
+      |> Enum.filter(fn row -> at(row, cols, "t") >= settle_s end)
 
     radii =
       for row <- rows,
@@ -116,19 +128,22 @@ defmodule Bench.Position do
         :math.sqrt(sq(at(row, cols, "x") - tn) + sq(at(row, cols, "y") - te))
       end
 
-    # the estimate against the truth, while valid (squared errors)
-    errors =
-      for row <- rows, at(row, cols, "position_valid") == 1.0 do
-        sq(at(row, cols, "north_est") - at(row, cols, "x")) +
-          sq(at(row, cols, "east_est") - at(row, cols, "y"))
-      end
-
     %{
       radii: radii,
       rows: length(rows),
       valid: Enum.count(rows, &(at(&1, cols, "position_valid") == 1.0)),
-      errors: errors
+      errors: estimate_errors(rows, cols)
     }
+  end
+
+  # the estimate's distance from the truth, while valid
+  defp estimate_errors(rows, cols) do
+    for row <- rows, at(row, cols, "position_valid") == 1.0 do
+      :math.sqrt(
+        sq(at(row, cols, "north_est") - at(row, cols, "x")) +
+          sq(at(row, cols, "east_est") - at(row, cols, "y"))
+      )
+    end
   end
 
   defp mission(vehicle, seed) do
@@ -170,7 +185,7 @@ defmodule Bench.Position do
            do: t - 30
       end)
 
-    %{cross_track: cross_track, done_at: done_at}
+    %{cross_track: cross_track, done_at: done_at, errors: estimate_errors(rows, cols)}
   end
 
   defp line_distance({x, y}, {an, ae}, {bn, be}) do
@@ -183,12 +198,7 @@ defmodule Bench.Position do
   defp at(row, cols, name), do: Enum.at(row, Map.fetch!(cols, name))
   defp sq(x), do: x * x
 
-  defp pct([], _p), do: nil
-
-  defp pct(values, p) do
-    sorted = Enum.sort(values)
-    Enum.at(sorted, min(length(sorted) - 1, floor(p / 100 * length(sorted))))
-  end
+  defp pct(values, p), do: MonteCarlo.percentile(values, p)
 
   defp f(x, decimals \\ 2)
   defp f(nil, _decimals), do: "—"

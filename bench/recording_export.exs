@@ -8,9 +8,11 @@
 # another process. Prints figures, never asserts.
 
 Code.require_file("support/telemetry_sample.exs", __DIR__)
+Code.require_file("support/export_figures.exs", __DIR__)
 
 defmodule Bench.RecordingExport do
   alias Neptunus.Recording
+  import Bench.ExportFigures
 
   def main(args) do
     minutes =
@@ -36,9 +38,9 @@ defmodule Bench.RecordingExport do
       baseline = :erlang.memory(:total)
       IO.puts("VM memory before each run: #{mb(baseline)}\n")
 
-      row("streamed CSV (two passes, 64 KiB chunks)", baseline, fn -> streamed_csv(path) end)
-      row("streamed JSON lines", baseline, fn -> streamed_jsonl(path) end)
-      row("CSV of the whole file in memory (before)", baseline, fn -> eager_csv(path) end)
+      row("streamed CSV (two passes, 64 KiB chunks)", 46, baseline, fn -> streamed_csv(path) end)
+      row("streamed JSON lines", 46, baseline, fn -> streamed_jsonl(path) end)
+      row("CSV of the whole file in memory (before)", 46, baseline, fn -> eager_csv(path) end)
     after
       File.rm_rf!(dir)
     end
@@ -86,34 +88,6 @@ defmodule Bench.RecordingExport do
     |> Stream.chunk_every(500)
     |> Enum.reduce(0, fn chunk, bytes -> bytes + IO.iodata_length(chunk) end)
   end
-
-  defp row(label, baseline, fun) do
-    :erlang.garbage_collect()
-    sampler = spawn_link(fn -> sample(baseline) end)
-    {us, bytes} = :timer.tc(fn -> Task.async(fun) |> Task.await(:infinity) end)
-    send(sampler, {:report, self()})
-
-    peak =
-      receive do
-        {:peak, peak} -> peak
-      end
-
-    IO.puts(
-      "#{String.pad_trailing(label <> ":", 46)} #{mb(bytes)} in #{s(us)} " <>
-        "(#{Float.round(bytes / 1_048_576 / (us / 1_000_000), 1)} MB/s), peak VM memory +#{mb(peak - baseline)}"
-    )
-  end
-
-  defp sample(peak) do
-    receive do
-      {:report, to} -> send(to, {:peak, max(peak, :erlang.memory(:total))})
-    after
-      5 -> sample(max(peak, :erlang.memory(:total)))
-    end
-  end
-
-  defp mb(bytes), do: "#{Float.round(bytes / 1_048_576, 1)} MB"
-  defp s(us), do: "#{Float.round(us / 1_000_000, 2)} s"
 end
 
 Bench.RecordingExport.main(System.argv())

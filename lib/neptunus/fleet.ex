@@ -215,6 +215,20 @@ defmodule Neptunus.Fleet do
     Enum.uniq([node() | remote])
   end
 
+  @doc """
+  The nodes to read what is kept of vehicle `id` from (its recordings, its snapshots): its
+  node, none while it is unreachable; for `nil`, every node (`nodes/0`).
+  """
+  @spec nodes_of(vehicle_id() | nil) :: [node()]
+  def nodes_of(nil), do: nodes()
+
+  def nodes_of(id) do
+    case vehicle_node(id) do
+      {:ok, node} -> [node]
+      {:error, :unreachable} -> []
+    end
+  end
+
   @doc false
   # This node's vehicles' helm state, pilot and link (called by directory/0 on every node).
   @spec local_details() :: %{optional(vehicle_id()) => map()}

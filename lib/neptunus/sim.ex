@@ -95,6 +95,34 @@ defmodule Neptunus.Sim do
   def default_hz, do: @default_hz
 
   @doc """
+  The settings of a simulated device fitted to the vehicle (`Neptunus.Sim.DVL`,
+  `Neptunus.Sim.USBL`): `overrides` (a keyword or map) over its `defaults`. Raises
+  `ArgumentError` naming `device` on a setting it does not have or a `rate` that is not > 0
+  (scenarios are validated before, see `Neptunus.Scenario`).
+
+      iex> Neptunus.Sim.device_settings(%{rate: 8.0, noise: 0.1}, [noise: 0.2], "DVL")
+      %{rate: 8.0, noise: 0.2}
+
+      iex> Neptunus.Sim.device_settings(%{rate: 8.0}, %{fast: true}, "DVL")
+      ** (ArgumentError) unknown DVL setting :fast
+
+      iex> Neptunus.Sim.device_settings(%{rate: 2.0}, [rate: 0], "USBL")
+      ** (ArgumentError) USBL rate must be > 0
+  """
+  @spec device_settings(map(), keyword() | map(), String.t()) :: map()
+  def device_settings(defaults, overrides, device) do
+    settings =
+      Enum.reduce(overrides, defaults, fn {key, value}, acc ->
+        if Map.has_key?(defaults, key),
+          do: Map.put(acc, key, value),
+          else: raise(ArgumentError, "unknown #{device} setting #{inspect(key)}")
+      end)
+
+    if settings.rate <= 0, do: raise(ArgumentError, "#{device} rate must be > 0")
+    settings
+  end
+
+  @doc """
   A new simulation, at rest with the thrusters neutral. Options:
 
     * `:vehicle` — parameter set name (`"thesis-4dof"`, `"neptunus"`, see

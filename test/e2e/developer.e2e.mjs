@@ -39,6 +39,9 @@ const DEFAULT_SERIES = [
   "thrusters.port,thrusters.vertical,thrusters.starboard",
   "measurement.voltage",
   "measurement.current",
+  // the test server's simulated vehicle has a position source (its simulated DVL and USBL)
+  "position.north,position.east",
+  "position.std_north,position.std_east",
 ];
 
 /** Back to the default plots (this server's local user keeps them), then none on the page. */
@@ -49,13 +52,14 @@ async function noPlots(page) {
   await until(() => plots(page).count(), (n) => n === 0, WAIT_MS, "no plots");
 }
 
-test("developer page: opens with the default plots (depth, heading, thrusters, voltage, current), kept per user on the server; telemetry age", { timeout: TEST_MS }, async () => {
+test("developer page: opens with the default plots (depth, heading, thrusters, voltage, current, position), kept per user on the server; telemetry age", { timeout: TEST_MS }, async () => {
   const dev = await open(browser, { ...DESKTOP, name: "e2e-dev-defaults", path: "/dev.html" });
   try {
     const { page } = dev;
     await page.locator("#reset-plots").click();
     await until(() => plotsStatus(page), (s) => s === "default", WAIT_MS, "default plots");
-    assert.deepEqual(await seriesOf(page), DEFAULT_SERIES);
+    // with position once the vehicle's telemetry says it has a position source
+    await until(() => seriesOf(page), (s) => JSON.stringify(s) === JSON.stringify(DEFAULT_SERIES), WAIT_MS, "the default plots, with position");
     await until(() => samples(page), (n) => n > 5, WAIT_MS, "recorded samples");
     await page.locator('[data-testid="plot"] canvas').nth(4).waitFor();
     // the estimate is drawn next to the measurement: the legend has a value for it on hover
@@ -74,7 +78,7 @@ test("developer page: opens with the default plots (depth, heading, thrusters, v
     await plots(page).nth(3).locator('[data-testid="remove-plot"]').click();
     await plots(page).first().locator("select.add-series").selectOption("measurement.roll");
     await until(() => plotsStatus(page), (s) => s === "saved", WAIT_MS, "plots saved");
-    const changed = [DEFAULT_SERIES[0] + ",measurement.roll", DEFAULT_SERIES[1], DEFAULT_SERIES[2], DEFAULT_SERIES[4]];
+    const changed = [DEFAULT_SERIES[0] + ",measurement.roll", ...DEFAULT_SERIES.slice(1, 3), ...DEFAULT_SERIES.slice(4)];
     assert.deepEqual(await seriesOf(page), changed);
     const other = await open(browser, { ...TABLET, name: "e2e-dev-defaults-2", path: "/dev.html" });
     try {
@@ -91,7 +95,7 @@ test("developer page: opens with the default plots (depth, heading, thrusters, v
     const third = await open(browser, { ...DESKTOP, name: "e2e-dev-defaults-3", path: "/dev.html" });
     try {
       await until(() => plotsStatus(third.page), (s) => s === "default", WAIT_MS, "the default plots");
-      assert.deepEqual(await seriesOf(third.page), DEFAULT_SERIES);
+      await until(() => seriesOf(third.page), (s) => JSON.stringify(s) === JSON.stringify(DEFAULT_SERIES), WAIT_MS, "the default plots, with position");
     } finally {
       await third.context.close();
     }

@@ -170,6 +170,8 @@ test("developer page in secure mode: to the login page and back; each user's plo
   try {
     await olga.page.locator("#reset-plots").click();
     await waitFor(() => status(olga.page), (s) => s === "default", "olga's default plots");
+    // the vehicle has a position source: the default set includes position once telemetry says so
+    await olga.page.locator('[data-testid="plot"][data-series="position.north,position.east"]').waitFor();
     const defaults = await count(olga.page);
     assert.ok(defaults >= 4, `the default set has ${defaults} plots`);
     await olga.page.locator("#remove-plots").click();
@@ -182,6 +184,7 @@ test("developer page in secure mode: to the login page and back; each user's plo
         await pilot.page.locator("#reset-plots").click();
         await waitFor(() => status(pilot.page), (s) => s === "default", "the pilot's default plots");
       }
+      await pilot.page.locator('[data-testid="plot"][data-series="position.north,position.east"]').waitFor();
       assert.equal(await count(pilot.page), defaults);
     } finally {
       await pilot.context.close();

@@ -243,7 +243,7 @@ defmodule Neptunus.ScenarioTest do
                   depth_setpoint heading_setpoint depth_reference heading_reference port
                   vertical starboard lateral north_est east_est velocity_north_est
                   velocity_east_est position_std position_valid target_north target_east
-                  cross_track leg)
+                  cross_track leg mission_done)
     end
 
     test "events take effect at their step; gain scales motion and manual thrust" do

@@ -3,6 +3,8 @@ defmodule Neptunus.SimTest do
 
   alias Neptunus.{Allocation, Sim}
 
+  doctest Neptunus.Sim
+
   test "starts at rest at 1 m depth, neutral" do
     sim = Sim.new()
     assert sim.dyn.z == 1.0 and sim.dyn.u == 0.0

@@ -56,8 +56,8 @@ defmodule Neptunus.Test.GCSClient do
     do: send!(pid, :command_long, command_long(target, command, params))
 
   @doc """
-  The fields of COMMAND_LONG `command` to component 1 of system `target`: up to 7 params,
-  numbers as floats (atoms, e.g. `:nan`, kept), the rest 0.0.
+  The fields of a COMMAND_LONG to system `target`, component 1: `command` with `params`, the
+  first seven of them (numbers as floats, atoms such as `:nan` as they are), the rest 0.0.
   """
   def command_long(target, command, params) do
     [p1, p2, p3, p4, p5, p6, p7] =

@@ -6,7 +6,8 @@
  * vehicle topic and the `log:<id>` topic.
  *
  * The plots open with the user's set, kept on the server (`developer.plots`, plot_set.ts),
- * or the default set; every change of the plots is saved, "reset to defaults" deletes it.
+ * or the default set (with position for a vehicle with a position source, once its telemetry
+ * says so); every change of the plots is saved, "reset to defaults" deletes it.
  */
 
 import { LogBook, entryFromRecordedEvent, entryFromServerLog, linkEntry, recorded, stopEntry, telemetryChanges, telemetryFacts } from "../logger/model";
@@ -27,7 +28,7 @@ import { DEVELOPER_PLOTS_KEY, SettingsClient } from "../lib/settings";
 import { Store } from "../lib/store";
 import { CommandError, NeptunusClient } from "../lib/vehicle_client";
 import type { ConnectionStatus, VehicleChannel } from "../lib/vehicle_client";
-import { DEFAULT_PLOT_SET, MAX_PLOTS, encodePlotSet, parsePlotSet } from "./plot_set";
+import { DEFAULT_PLOT_SET, MAX_PLOTS, adaptDefaultPlots, defaultPlotSet, encodePlotSet, hasPositionSource, parsePlotSet } from "./plot_set";
 import type { PlotSet } from "./plot_set";
 import { TuningController } from "./tuning";
 
@@ -102,6 +103,8 @@ export class DevController {
   readonly tuning = new TuningController();
   private readonly params: URLSearchParams;
   private facts: TelemetryFacts | null = null;
+  /** whether the vehicle has a position source (the default plots then include position) */
+  private withPosition = false;
   private lastHelm: Helm | null = null;
   private nextPlotId = 1;
   private starter = 0;
@@ -239,6 +242,20 @@ export class DevController {
     const facts = telemetryFacts(t);
     for (const e of telemetryChanges(this.facts, facts, t.sent_at)) this.add(e);
     this.facts = facts;
+    this.positionPlots(hasPositionSource(t.position));
+  }
+
+  // while the page shows the default plots, they follow whether the vehicle has a position
+  // source (a reset meanwhile included); the user's own set is never changed
+  private positionPlots(withPosition: boolean): void {
+    this.withPosition = withPosition;
+    const { plots, plotsStatus } = this.store.get();
+    const next = adaptDefaultPlots(
+      plots.map((p) => p.series),
+      plotsStatus.state,
+      withPosition,
+    );
+    if (next !== null) this.store.update({ plots: this.specs(next) });
   }
 
   private tick(): void {
@@ -317,7 +334,7 @@ export class DevController {
 
   /** Back to the default plots (the user's stored set is deleted on the server). */
   resetPlots(): void {
-    this.kept.reset(this.specs(DEFAULT_PLOT_SET));
+    this.kept.reset(this.specs(defaultPlotSet(this.withPosition)));
   }
 
   private specs(set: PlotSet): PlotSpec[] {

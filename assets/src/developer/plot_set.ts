@@ -2,10 +2,14 @@
  * The developer page's plots as the user keeps them (pure): which plots, each a list of
  * series, stored on the server (`/api/settings/developer.plots`) so they follow the user from
  * device to device. The default set is what a developer looks at first: depth and heading,
- * each with its setpoint and estimate, the three thrusters, the voltage and the current.
- * A series not in the telemetry yet (a setpoint while its autopilot is off) is drawn as soon
- * as it appears.
+ * each with its setpoint and estimate, the three thrusters, the voltage and the current; and,
+ * for a vehicle with a position source (a DVL, a USBL, an ArduSub vehicle's own), its position
+ * north and east and their 1-σ uncertainty. A series not in the telemetry yet (a setpoint
+ * while its autopilot is off) is drawn as soon as it appears.
  */
+
+import type { KeptStatus } from "../lib/kept_setting";
+import type { PositionStatus } from "../lib/protocol";
 
 export const MAX_PLOTS = 10;
 export const MAX_SERIES_PER_PLOT = 12;
@@ -20,6 +24,42 @@ export const DEFAULT_PLOT_SET: PlotSet = Object.freeze([
   Object.freeze(["measurement.voltage"]),
   Object.freeze(["measurement.current"]),
 ]);
+
+/** What the default set adds for a vehicle with a position source. */
+export const POSITION_PLOTS: PlotSet = Object.freeze([
+  Object.freeze(["position.north", "position.east"]),
+  Object.freeze(["position.std_north", "position.std_east"]),
+]);
+
+const WITH_POSITION: PlotSet = Object.freeze([...DEFAULT_PLOT_SET, ...POSITION_PLOTS]);
+
+/** The default set for a vehicle with, or without, a position source. */
+export function defaultPlotSet(hasPosition: boolean): PlotSet {
+  return hasPosition ? WITH_POSITION : DEFAULT_PLOT_SET;
+}
+
+/** Whether telemetry's `position` says the vehicle has a position source (valid or not). */
+export function hasPositionSource(position: PositionStatus | null | undefined): boolean {
+  return position !== null && position !== undefined && position.sources !== null && position.sources.length > 0;
+}
+
+function samePlots(a: PlotSet, b: PlotSet): boolean {
+  return a.length === b.length && a.every((p, i) => {
+    const q = b[i];
+    return q !== undefined && p.length === q.length && p.every((s, j) => s === q[j]);
+  });
+}
+
+/**
+ * The plots to show once the page learns whether the vehicle has a position source: the
+ * default set for it, when the page shows the other default set unchanged and the user has no
+ * set of their own (the kept setting still loading, or at its default); otherwise null (the
+ * plots stay as they are — the user's own set is never changed by a vehicle).
+ */
+export function adaptDefaultPlots(plots: PlotSet, state: KeptStatus["state"], hasPosition: boolean): PlotSet | null {
+  if (state !== "loading" && state !== "default") return null;
+  return samePlots(plots, defaultPlotSet(!hasPosition)) ? defaultPlotSet(hasPosition) : null;
+}
 
 /** The JSON kept on the server: `{"version": 1, "plots": [[series, …], …]}`. */
 export function encodePlotSet(plots: PlotSet): { version: 1; plots: string[][] } {

@@ -1,5 +1,4 @@
 import { describe, expect, it } from "vitest";
-import { decodeTelemetry } from "../../src/lib/protocol";
 import type { Mission, MissionReply, PositionStatus } from "../../src/lib/protocol";
 import type { WaypointOut } from "../../src/lib/vehicle_client";
 import {
@@ -22,6 +21,7 @@ import { MissionCommands } from "../../src/operator/mission_commands";
 import type { MissionVehicle } from "../../src/operator/mission_commands";
 import { initialState } from "../../src/operator/state";
 import type { OperatorState } from "../../src/operator/state";
+import { telemetry } from "./telemetry_fixtures";
 
 function position(extra: Partial<PositionStatus> = {}): PositionStatus {
   return {
@@ -155,13 +155,7 @@ describe("what the pilot reads", () => {
   });
 
   it("telemetry's position and DP status decode into the page's view", () => {
-    const t = decodeTelemetry({
-      t: 1,
-      sent_at: 1000,
-      measurement: { depth: 1, heading: 0.5, roll: 0, pitch: 0, voltage: 12, current: 1 },
-      command: { surge: 0, heave: 0, yaw: 0 },
-      thrusters: { port: 0, vertical: 0, starboard: 0, port_us: 1500, vertical_us: 1500, starboard_us: 1500 },
-      sim: null,
+    const t = telemetry({
       position: position(),
       autopilot: { depth: null, heading: null, position: { x: 1, y: 2, heading: 0, phase: "hold", distance: 0.3, output: 0, sway: 0, waiting: null, mission: null } },
     });

@@ -1,26 +1,12 @@
 import { describe, expect, it } from "vitest";
 import { DEFAULT_MAPPING } from "../../src/input/buttons";
 import { TOUCH_REST } from "../../src/input/touch";
-import { decodeTelemetry } from "../../src/lib/protocol";
-import type { ControlSettings, Telemetry } from "../../src/lib/protocol";
+import type { ControlSettings } from "../../src/lib/protocol";
 import { HEADSET_OFF } from "../../src/operator/headset";
 import { NO_LATENCY, controlModeOf, initialState, withField, withMessage, withStatus, withTelemetry, withoutMessage } from "../../src/operator/state";
+import { telemetry } from "./telemetry_fixtures";
 
 const control: ControlSettings = { mode: "manual", gain: 0.5, lights: null, laser: null, tilt: null, run_mode: null, autopilot: null };
-
-function telemetry(extra: Record<string, unknown> = {}): Telemetry {
-  const t = decodeTelemetry({
-    t: 1,
-    sent_at: 1000,
-    measurement: { depth: 1, heading: 0.5, roll: 0, pitch: 0, voltage: 12, current: 1 },
-    command: { surge: 0, heave: 0, yaw: 0 },
-    thrusters: { port: 0, vertical: 0, starboard: 0, port_us: 1500, vertical_us: 1500, starboard_us: 1500 },
-    sim: null,
-    ...extra,
-  });
-  if (t === null) throw new Error("test telemetry does not decode");
-  return t;
-}
 
 describe("initialState", () => {
   it("starts connecting, with nothing known of the vehicle, the browser's input mode and pad options", () => {

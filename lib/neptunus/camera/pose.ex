@@ -35,6 +35,7 @@ defmodule Neptunus.Camera.Pose do
 
   @dyn_fields [:x, :y, :z, :phi, :theta, :psi, :u, :v, :w, :p, :q, :r]
   @fields @dyn_fields ++ [:lights, :laser, :tilt]
+  @follow_again_ms 100
 
   @doc "The topic a vehicle's simulator publishes its pose on (event `\"pose\"`)."
   @spec topic(String.t()) :: String.t()
@@ -42,9 +43,9 @@ defmodule Neptunus.Camera.Pose do
 
   @doc """
   Follows vehicle `id`'s pose from the calling process (a simulated device): subscribes to
-  `topic/1` and monitors PubSub, whose restart then arrives as `{:DOWN, ref, …}` — follow
-  again after it. Returns the monitor's reference, or nil while PubSub is not up (try again
-  later).
+  `topic/1` and monitors PubSub, whose restart then arrives as `{:DOWN, ref, …}` — then
+  `follow_later/0`. Returns the monitor's reference, or nil while PubSub is not up: the
+  caller then receives `:resubscribe` 100 ms later and follows again.
   """
   @spec follow(String.t()) :: reference() | nil
   def follow(id) do
@@ -54,8 +55,19 @@ defmodule Neptunus.Camera.Pose do
         ref
 
       {:error, _} ->
-        nil
+        follow_later()
     end
+  end
+
+  @doc """
+  Asks the calling process to follow the pose again in 100 ms (it receives `:resubscribe`):
+  after PubSub went down, which gives it time to restart. Returns nil, the monitor it has
+  until then.
+  """
+  @spec follow_later() :: nil
+  def follow_later do
+    Process.send_after(self(), :resubscribe, @follow_again_ms)
+    nil
   end
 
   @doc """

@@ -85,12 +85,7 @@ defmodule Neptunus.Camera.Snapshots do
     if vehicle != nil and not Regex.match?(~r/\A[A-Za-z0-9_-]{1,32}\z/, vehicle) do
       {:error, :invalid, "vehicle must be a vehicle id"}
     else
-      nodes =
-        case vehicle && Fleet.vehicle_node(vehicle) do
-          nil -> Fleet.nodes()
-          {:ok, node} -> [node]
-          {:error, :unreachable} -> []
-        end
+      nodes = Fleet.nodes_of(vehicle)
 
       snapshots =
         nodes

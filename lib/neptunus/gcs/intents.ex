@@ -83,15 +83,7 @@ defmodule Neptunus.GCS.Intents do
     ref = make_ref()
     notify = fn result -> send(me, {ref, result}) end
 
-    asked =
-      Helm.command(id, party, :none, fn ->
-        case request.(id, notify) do
-          :ok -> {:ok, %{}}
-          {:error, reason} -> {:error, reason}
-        end
-      end)
-
-    with {:ok, _} <- asked do
+    with {:ok, _} <- Helm.board_request(id, party, request, notify) do
       receive do
         {^ref, :ok} -> {:ok, %{}}
         {^ref, {:error, reason}} -> {:error, reason}

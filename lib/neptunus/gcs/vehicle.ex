@@ -95,6 +95,24 @@ defmodule Neptunus.GCS.Vehicle do
                   Bitwise.bor(8192, Bitwise.bor(131_072, 524_288))
                 )
 
+  # SYS_STATUS while nothing is known (no telemetry yet): no sensors, voltage and current
+  # unknown (UINT16_MAX, -1); what telemetry tells replaces its fields
+  @unknown_sys_status %{
+    onboard_control_sensors_present: 0,
+    onboard_control_sensors_enabled: 0,
+    onboard_control_sensors_health: 0,
+    load: 0,
+    voltage_battery: 0xFFFF,
+    current_battery: -1,
+    battery_remaining: -1,
+    drop_rate_comm: 0,
+    errors_comm: 0,
+    errors_count1: 0,
+    errors_count2: 0,
+    errors_count3: 0,
+    errors_count4: 0
+  }
+
   @surface_hpa 1013.25
   # hPa per metre of sea water (1025 kg/m³ · 9.80665 m/s² / 100 Pa/hPa)
   @hpa_per_m 1025 * 9.80665 / 100
@@ -214,23 +232,7 @@ defmodule Neptunus.GCS.Vehicle do
     %{sysid_in_control: pilot_sysid, flags: 1}
   end
 
-  defp sys_status(%{telemetry: nil}) do
-    %{
-      onboard_control_sensors_present: 0,
-      onboard_control_sensors_enabled: 0,
-      onboard_control_sensors_health: 0,
-      load: 0,
-      voltage_battery: 0xFFFF,
-      current_battery: -1,
-      battery_remaining: -1,
-      drop_rate_comm: 0,
-      errors_comm: 0,
-      errors_count1: 0,
-      errors_count2: 0,
-      errors_count3: 0,
-      errors_count4: 0
-    }
-  end
+  defp sys_status(%{telemetry: nil}), do: @unknown_sys_status
 
   defp sys_status(%{telemetry: t}) do
     m = t[:measurement] || %{}
@@ -252,19 +254,13 @@ defmodule Neptunus.GCS.Vehicle do
     loss = get_in(t, [:link, :mavlink, :loss])
 
     %{
-      onboard_control_sensors_present: present,
-      onboard_control_sensors_enabled: present,
-      onboard_control_sensors_health: healthy,
-      load: 0,
-      voltage_battery: scaled(m[:voltage], 1000, 0, 0xFFFE, 0xFFFF),
-      current_battery: scaled(m[:current], 100, -1, 0x7FFF, -1),
-      battery_remaining: -1,
-      drop_rate_comm: if(is_number(loss), do: round(min(max(loss, 0), 1) * 10_000), else: 0),
-      errors_comm: 0,
-      errors_count1: 0,
-      errors_count2: 0,
-      errors_count3: 0,
-      errors_count4: 0
+      @unknown_sys_status
+      | onboard_control_sensors_present: present,
+        onboard_control_sensors_enabled: present,
+        onboard_control_sensors_health: healthy,
+        voltage_battery: scaled(m[:voltage], 1000, 0, 0xFFFE, 0xFFFF),
+        current_battery: scaled(m[:current], 100, -1, 0x7FFF, -1),
+        drop_rate_comm: if(is_number(loss), do: round(min(max(loss, 0), 1) * 10_000), else: 0)
     }
   end
 

@@ -65,11 +65,7 @@ defmodule Neptunus.Position.DVL do
 
   @impl Source
   @spec start_link(keyword()) :: GenServer.on_start()
-  def start_link(opts) do
-    id = Keyword.fetch!(opts, :id)
-    name = Keyword.get(opts, :name, :dvl)
-    GenServer.start_link(__MODULE__, Keyword.put(opts, :name, name), name: Source.via(id, name))
-  end
+  def start_link(opts), do: Source.start_server(__MODULE__, opts, :dvl)
 
   @impl Source
   @spec command(String.t(), atom(), atom()) :: {:ok, term()} | {:error, String.t()}
@@ -88,13 +84,9 @@ defmodule Neptunus.Position.DVL do
   @impl true
   def init(opts) do
     endpoint =
-      case Keyword.fetch(opts, :endpoint) do
-        {:ok, fun} when is_function(fun, 0) ->
-          fun
-
-        :error ->
-          fn -> {Keyword.fetch!(opts, :host), Keyword.get(opts, :port, WaterLinkedDVL.port())} end
-      end
+      Source.endpoint(opts, fn ->
+        {Keyword.fetch!(opts, :host), Keyword.get(opts, :port, WaterLinkedDVL.port())}
+      end)
 
     state = %State{
       id: Keyword.fetch!(opts, :id),
@@ -129,7 +121,7 @@ defmodule Neptunus.Position.DVL do
           {:noreply, %{state | pending: Map.put(state.pending, key, {from, timer})}}
 
         {:error, reason} ->
-          {:reply, {:error, "DVL not connected: #{format(reason)}"}, state}
+          {:reply, {:error, "DVL not connected: #{Source.describe_error(reason)}"}, state}
       end
     end
   end
@@ -157,7 +149,7 @@ defmodule Neptunus.Position.DVL do
     do: {:noreply, lost(state, "closed by the DVL")}
 
   def handle_info({:tcp_error, socket, reason}, %State{socket: socket} = state),
-    do: {:noreply, lost(state, format(reason))}
+    do: {:noreply, lost(state, Source.describe_error(reason))}
 
   def handle_info(:reconnect, state), do: {:noreply, connect(state)}
 
@@ -199,7 +191,7 @@ defmodule Neptunus.Position.DVL do
         }
 
       {:error, reason} ->
-        retry(state, format(reason))
+        retry(state, Source.describe_error(reason))
     end
   end
 
@@ -273,13 +265,4 @@ defmodule Neptunus.Position.DVL do
         state
     end
   end
-
-  defp format(reason) when is_atom(reason) do
-    case :inet.format_error(reason) do
-      ~c"unknown POSIX error" ++ _ -> Atom.to_string(reason)
-      text -> List.to_string(text)
-    end
-  end
-
-  defp format(reason), do: inspect(reason)
 end

@@ -34,6 +34,52 @@ defmodule Neptunus.Position.Source do
   @spec via(String.t(), atom()) :: GenServer.name()
   def via(id, name), do: Neptunus.Fleet.via({__MODULE__, name}, id)
 
+  @doc """
+  Starts `module`, a GenServer source, registered under `via/2` with the options' `:id` and
+  `:name` (`default_name` when they have none); `module.init/1` receives the options with
+  `:name` set.
+  """
+  @spec start_server(module(), keyword(), atom()) :: GenServer.on_start()
+  def start_server(module, opts, default_name) do
+    id = Keyword.fetch!(opts, :id)
+    name = Keyword.get(opts, :name, default_name)
+    GenServer.start_link(module, Keyword.put(opts, :name, name), name: via(id, name))
+  end
+
+  @doc """
+  Where a network source connects: the options' `:endpoint` (a function of no arguments,
+  asked at each connection: a simulated device's port is known only once it listens), else
+  `default` (a function reading the fixed address from the options).
+  """
+  @spec endpoint(keyword(), (() -> term())) :: (() -> term())
+  def endpoint(opts, default) do
+    case Keyword.fetch(opts, :endpoint) do
+      {:ok, fun} when is_function(fun, 0) -> fun
+      :error -> default
+    end
+  end
+
+  @doc """
+  Why a network source's link failed, as navigation says it: the socket error's text
+  (`:econnrefused` is `"connection refused"`), else the reason as it is.
+
+      iex> Neptunus.Position.Source.describe_error(:econnrefused)
+      "connection refused"
+      iex> Neptunus.Position.Source.describe_error(:closed)
+      "closed"
+      iex> Neptunus.Position.Source.describe_error({:tls, 1})
+      "{:tls, 1}"
+  """
+  @spec describe_error(term()) :: String.t()
+  def describe_error(reason) when is_atom(reason) do
+    case :inet.format_error(reason) do
+      ~c"unknown POSIX error" ++ _ -> Atom.to_string(reason)
+      text -> List.to_string(text)
+    end
+  end
+
+  def describe_error(reason), do: inspect(reason)
+
   @doc "Reports to vehicle `id`'s navigation (asynchronous), at monotonic `at` (s)."
   @spec report(String.t(), atom(), Neptunus.Navigation.Position.report(), float()) :: :ok
   def report(id, name, report, at),

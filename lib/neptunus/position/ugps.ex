@@ -55,21 +55,13 @@ defmodule Neptunus.Position.UGPS do
 
   @impl Source
   @spec start_link(keyword()) :: GenServer.on_start()
-  def start_link(opts) do
-    id = Keyword.fetch!(opts, :id)
-    name = Keyword.get(opts, :name, :usbl)
-    GenServer.start_link(__MODULE__, Keyword.put(opts, :name, name), name: Source.via(id, name))
-  end
+  def start_link(opts), do: Source.start_server(__MODULE__, opts, :usbl)
 
   # Callbacks
 
   @impl true
   def init(opts) do
-    endpoint =
-      case Keyword.fetch(opts, :endpoint) do
-        {:ok, fun} when is_function(fun, 0) -> fun
-        :error -> fn -> Keyword.fetch!(opts, :url) end
-      end
+    endpoint = Source.endpoint(opts, fn -> Keyword.fetch!(opts, :url) end)
 
     state = %State{
       id: Keyword.fetch!(opts, :id),
@@ -226,20 +218,13 @@ defmodule Neptunus.Position.UGPS do
     :exit, _ -> nil
   end
 
-  defp describe({:failed_connect, [{:to_address, _} | [{_, _, reason} | _]]}), do: format(reason)
+  defp describe({:failed_connect, [{:to_address, _} | [{_, _, reason} | _]]}),
+    do: Source.describe_error(reason)
+
   defp describe({:failed_connect, _}), do: "cannot connect"
   defp describe(:timeout), do: "no answer in time"
   defp describe(:socket_closed_remotely), do: "closed by the topside"
-  defp describe(reason), do: format(reason)
-
-  defp format(reason) when is_atom(reason) do
-    case :inet.format_error(reason) do
-      ~c"unknown POSIX error" ++ _ -> Atom.to_string(reason)
-      text -> List.to_string(text)
-    end
-  end
-
-  defp format(reason), do: inspect(reason)
+  defp describe(reason), do: Source.describe_error(reason)
 
   defp excerpt(body) when is_binary(body) do
     if byte_size(body) > 80, do: binary_part(body, 0, 80) <> "…", else: body

@@ -40,7 +40,7 @@ defmodule Neptunus.Protocol.WaterLinkedDVL do
   `velocity report: vx must be a number, got "fast"`.
   """
 
-  alias Neptunus.JSON
+  alias Neptunus.{JSON, Validate}
 
   @format "json_v3.1"
   @commands ~w(reset_dead_reckoning calibrate_gyro get_config trigger_ping)
@@ -214,59 +214,39 @@ defmodule Neptunus.Protocol.WaterLinkedDVL do
   defp in_report(ok, _what), do: ok
 
   defp covariance(rows, path) when is_list(rows) and length(rows) == 3 do
-    rows
-    |> Enum.with_index()
-    |> Enum.reduce_while({:ok, []}, fn {row, i}, {:ok, acc} ->
-      case row do
-        [a, b, c] when is_number(a) and is_number(b) and is_number(c) ->
-          {:cont, {:ok, [[a * 1.0, b * 1.0, c * 1.0] | acc]}}
+    Validate.map_ok(rows, fn
+      [a, b, c], _i when is_number(a) and is_number(b) and is_number(c) ->
+        {:ok, [a * 1.0, b * 1.0, c * 1.0]}
 
-        _ ->
-          {:halt, {:error, "#{path}[#{i}] must be a list of 3 numbers, got #{show(row)}"}}
-      end
+      row, i ->
+        {:error, "#{path}[#{i}] must be a list of 3 numbers, got #{show(row)}"}
     end)
-    |> case do
-      {:ok, acc} -> {:ok, Enum.reverse(acc)}
-      error -> error
-    end
   end
 
   defp covariance(value, path), do: {:error, "#{path} must be a 3x3 matrix, got #{show(value)}"}
 
   defp transducers(list, path) when is_list(list) do
-    list
-    |> Enum.with_index()
-    |> Enum.reduce_while({:ok, []}, fn {beam, i}, {:ok, acc} ->
+    Validate.map_ok(list, fn beam, i ->
       bpath = "#{path}[#{i}]"
 
-      result =
-        with true <- is_map(beam) || {:error, "#{bpath} must be an object, got #{show(beam)}"},
-             {:ok, id} <- field(beam, "id", &int/2, bpath),
-             {:ok, velocity} <- field(beam, "velocity", &number/2, bpath),
-             {:ok, distance} <- field(beam, "distance", &number/2, bpath),
-             {:ok, rssi} <- field(beam, "rssi", &number/2, bpath),
-             {:ok, nsd} <- field(beam, "nsd", &number/2, bpath),
-             {:ok, valid} <- field(beam, "beam_valid", &boolean/2, bpath) do
-          {:ok,
-           %{
-             id: id,
-             velocity: velocity,
-             distance: distance,
-             rssi: rssi,
-             nsd: nsd,
-             beam_valid: valid
-           }}
-        end
-
-      case result do
-        {:ok, b} -> {:cont, {:ok, [b | acc]}}
-        error -> {:halt, error}
+      with true <- is_map(beam) || {:error, "#{bpath} must be an object, got #{show(beam)}"},
+           {:ok, id} <- field(beam, "id", &int/2, bpath),
+           {:ok, velocity} <- field(beam, "velocity", &number/2, bpath),
+           {:ok, distance} <- field(beam, "distance", &number/2, bpath),
+           {:ok, rssi} <- field(beam, "rssi", &number/2, bpath),
+           {:ok, nsd} <- field(beam, "nsd", &number/2, bpath),
+           {:ok, valid} <- field(beam, "beam_valid", &boolean/2, bpath) do
+        {:ok,
+         %{
+           id: id,
+           velocity: velocity,
+           distance: distance,
+           rssi: rssi,
+           nsd: nsd,
+           beam_valid: valid
+         }}
       end
     end)
-    |> case do
-      {:ok, acc} -> {:ok, Enum.reverse(acc)}
-      error -> error
-    end
   end
 
   defp transducers(value, path), do: {:error, "#{path} must be a list, got #{show(value)}"}
@@ -317,7 +297,7 @@ defmodule Neptunus.Protocol.WaterLinkedDVL do
   defp string(x, _path) when is_binary(x), do: {:ok, x}
   defp string(x, path), do: {:error, "#{path} must be a string, got #{show(x)}"}
 
-  defp show(value), do: Neptunus.Validate.show(value)
+  defp show(value), do: Validate.show(value)
 
   # --- commands (what we send) --------------------------------------------------------------
 

@@ -67,12 +67,7 @@ defmodule Neptunus.Recording.Pull do
     if vehicle != nil and not Dive.valid_vehicle?(vehicle) do
       {:error, :invalid, "vehicle must be a vehicle id"}
     else
-      nodes =
-        case vehicle && Fleet.vehicle_node(vehicle) do
-          nil -> Fleet.nodes()
-          {:ok, node} -> [node]
-          {:error, :unreachable} -> []
-        end
+      nodes = Fleet.nodes_of(vehicle)
 
       results = on_nodes(nodes, :list_here, [vehicle, dir])
       list = Enum.flat_map(results, & &1.recordings)

@@ -28,6 +28,10 @@ defmodule Neptunus.Scenario.Run do
       cross_track, leg                                        a mission's cross-track error
                                                               (m) and the waypoint steered
                                                               to (1-based)
+      mission_done                                            1 once the mission's last
+                                                              waypoint is reached, 0 while
+                                                              it runs or is paused (empty
+                                                              without a mission)
 
   The estimate is `Neptunus.Estimator` — the same filter as a live vehicle's
   `Neptunus.Vehicle.Navigation` — run on every step's measurements (wild points and all) and
@@ -68,7 +72,7 @@ defmodule Neptunus.Scenario.Run do
   @reference_columns ~w(depth heading)a
   @thruster_columns ~w(port vertical starboard)a
   @position_columns ~w(north_est east_est velocity_north_est velocity_east_est position_std
-                       position_valid target_north target_east cross_track leg)
+                       position_valid target_north target_east cross_track leg mission_done)
 
   @doc "The CSV columns, in order."
   @spec columns() :: [String.t()]
@@ -245,15 +249,16 @@ defmodule Neptunus.Scenario.Run do
     p = position(control, sim, t)
     std = if p[:std_north], do: max(p.std_north, p.std_east)
 
-    {tn, te, cross, leg} =
+    {tn, te, cross, leg, done} =
       case control.core.dp do
         %DP{} = dp ->
           {tn, te} = DP.target(dp) || {nil, nil}
           mission = DP.public(dp).mission
-          {tn, te, mission && mission.cross_track, mission && mission.leg}
+          done = mission && if(mission.state == "done", do: 1, else: 0)
+          {tn, te, mission && mission.cross_track, mission && mission.leg, done}
 
         nil ->
-          {nil, nil, nil, nil}
+          {nil, nil, nil, nil, nil}
       end
 
     [
@@ -266,7 +271,8 @@ defmodule Neptunus.Scenario.Run do
       tn,
       te,
       cross,
-      leg
+      leg,
+      done
     ]
   end
 

@@ -115,15 +115,7 @@ defmodule Neptunus.Sim.DVL do
   @doc "A DVL with settings overriding `defaults/0` (a keyword or map), seeded with `seed`."
   @spec new(keyword() | map(), integer()) :: t()
   def new(opts \\ [], seed \\ 0) do
-    config =
-      Enum.reduce(opts, @defaults, fn {key, value}, acc ->
-        if Map.has_key?(@defaults, key),
-          do: Map.put(acc, key, value),
-          else: raise(ArgumentError, "unknown DVL setting #{inspect(key)}")
-      end)
-
-    if config.rate <= 0, do: raise(ArgumentError, "DVL rate must be > 0")
-
+    config = Neptunus.Sim.device_settings(@defaults, opts, "DVL")
     %__MODULE__{config: config, rand: :rand.seed_s(:exsss, {seed, 0xD71, 0x5EA})}
   end
 

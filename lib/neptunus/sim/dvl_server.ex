@@ -61,7 +61,8 @@ defmodule Neptunus.Sim.DVLServer do
   end
 
   @impl true
-  def handle_continue(:subscribe, state), do: {:noreply, subscribe(state)}
+  def handle_continue(:subscribe, state),
+    do: {:noreply, %{state | monitor: Pose.follow(state.id)}}
 
   @impl true
   def handle_call(:port, _from, state), do: {:reply, state.port, state}
@@ -103,24 +104,11 @@ defmodule Neptunus.Sim.DVLServer do
   end
 
   # PubSub restarted: subscribe to the simulator's pose again
-  def handle_info({:DOWN, ref, :process, _, _}, %State{monitor: ref} = state) do
-    Process.send_after(self(), :resubscribe, 100)
-    {:noreply, %{state | monitor: nil}}
-  end
+  def handle_info({:DOWN, ref, :process, _, _}, %State{monitor: ref} = state),
+    do: {:noreply, %{state | monitor: Pose.follow_later()}}
 
-  def handle_info(:resubscribe, state), do: {:noreply, subscribe(state)}
+  def handle_info(:resubscribe, state), do: {:noreply, %{state | monitor: Pose.follow(state.id)}}
   def handle_info(_other, state), do: {:noreply, state}
-
-  defp subscribe(state) do
-    case Pose.follow(state.id) do
-      nil ->
-        Process.send_after(self(), :resubscribe, 100)
-        state
-
-      ref ->
-        %{state | monitor: ref}
-    end
-  end
 
   defp encode({:velocity, v}), do: WaterLinkedDVL.encode_velocity(v)
   defp encode({:position_local, p}), do: WaterLinkedDVL.encode_position_local(p)

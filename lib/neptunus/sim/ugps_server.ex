@@ -63,7 +63,8 @@ defmodule Neptunus.Sim.UGPSServer do
   end
 
   @impl true
-  def handle_continue(:subscribe, state), do: {:noreply, subscribe(state)}
+  def handle_continue(:subscribe, state),
+    do: {:noreply, %{state | monitor: Pose.follow(state.id)}}
 
   @impl true
   def handle_call(:port, _from, state), do: {:reply, state.port, state}
@@ -94,24 +95,11 @@ defmodule Neptunus.Sim.UGPSServer do
     {:noreply, %{state | usbl: usbl, fix: List.last(fixes) || state.fix, pose_at: t}}
   end
 
-  def handle_info({:DOWN, ref, :process, _, _}, %State{monitor: ref} = state) do
-    Process.send_after(self(), :resubscribe, 100)
-    {:noreply, %{state | monitor: nil}}
-  end
+  def handle_info({:DOWN, ref, :process, _, _}, %State{monitor: ref} = state),
+    do: {:noreply, %{state | monitor: Pose.follow_later()}}
 
-  def handle_info(:resubscribe, state), do: {:noreply, subscribe(state)}
+  def handle_info(:resubscribe, state), do: {:noreply, %{state | monitor: Pose.follow(state.id)}}
   def handle_info(_other, state), do: {:noreply, state}
-
-  defp subscribe(state) do
-    case Pose.follow(state.id) do
-      nil ->
-        Process.send_after(self(), :resubscribe, 100)
-        state
-
-      ref ->
-        %{state | monitor: ref}
-    end
-  end
 
   defp invalid, do: %{x: 0.0, y: 0.0, z: 0.0, std: 0.0, valid: false, receivers: []}
 

@@ -74,14 +74,7 @@ defmodule Neptunus.Sim.USBL do
   @doc "A topside with settings overriding `defaults/0`, seeded with `seed`."
   @spec new(keyword() | map(), integer()) :: t()
   def new(opts \\ [], seed \\ 0) do
-    config =
-      Enum.reduce(opts, @defaults, fn {key, value}, acc ->
-        if Map.has_key?(@defaults, key),
-          do: Map.put(acc, key, value),
-          else: raise(ArgumentError, "unknown USBL setting #{inspect(key)}")
-      end)
-
-    if config.rate <= 0, do: raise(ArgumentError, "USBL rate must be > 0")
+    config = Neptunus.Sim.device_settings(@defaults, opts, "USBL")
     %__MODULE__{config: config, rand: :rand.seed_s(:exsss, {seed, 0x05B, 0x1A7})}
   end
 

@@ -180,6 +180,28 @@ defmodule Neptunus.Vehicle.Helm do
     do: call(id, {:command, party, stamp, fun})
 
   @doc """
+  Sends the vehicle a request whose outcome comes later, if `party` is the pilot (as
+  `command/4` checks): calls `request.(id, notify)` in the helm's process — a board command
+  (`Neptunus.Vehicle.Board.command/3`) or a position source's (`notify` gets `:ok` or
+  `{:error, reason}` when the vehicle answers). Replies `{:ok, %{}}` once asked, or why not.
+  """
+  @spec board_request(
+          String.t(),
+          party(),
+          (String.t(), notify -> :ok | {:error, String.t()}),
+          notify
+        ) :: reply()
+        when notify: (:ok | {:error, String.t()} -> term())
+  def board_request(id, party, request, notify) do
+    command(id, party, :none, fn ->
+      case request.(id, notify) do
+        :ok -> {:ok, %{}}
+        {:error, reason} -> {:error, reason}
+      end
+    end)
+  end
+
+  @doc """
   A party's connection left the vehicle's topic or closed (`reason`: `pilot_left`,
   `pilot_disconnected`). Its pilot's helm is freed and the vehicle stops. A vehicle that is
   unreachable is left already (its helm monitors every party's connection).

@@ -43,7 +43,6 @@ defmodule NeptunusWeb.API.Recordings do
 
   alias Neptunus.Recording.Pull
   alias NeptunusWeb.API.{Request, Response}
-  alias NeptunusWeb.Auth
   alias NeptunusWeb.WireSchema.JSONSchema
 
   # each node's recordings directory, read on that node
@@ -167,25 +166,21 @@ defmodule NeptunusWeb.API.Recordings do
 
   # who may change a dive: local mode, a pilot or the main station; their name
   defp may_change(arg, what) do
-    with {:origin, :ok} <- {:origin, Request.check_origin(arg)} do
-      case Auth.session(Request.token(arg)) do
-        {:ok, %{mode: "local"}} ->
-          {:ok, "local"}
+    case Request.checked_session(arg) do
+      {:ok, %{mode: "local"}} ->
+        {:ok, "local"}
 
-        {:ok, %{user: %{role: role, name: name}}} when role in ["pilot", "main_station"] ->
-          {:ok, name}
+      {:ok, %{user: %{role: role, name: name}}} when role in ["pilot", "main_station"] ->
+        {:ok, name}
 
-        {:ok, %{user: %{}}} ->
-          {403, %{error: "only a pilot or the main station may #{what}"}}
+      {:ok, %{user: %{}}} ->
+        {403, %{error: "only a pilot or the main station may #{what}"}}
 
-        {:ok, _} ->
-          {401, %{error: "log in to #{what}"}}
+      {:ok, _} ->
+        {401, %{error: "log in to #{what}"}}
 
-        {:error, %{error: reason}} ->
-          {401, %{error: reason}}
-      end
-    else
-      {:origin, {:error, status, reason}} -> {status, %{error: reason}}
+      refused ->
+        refused
     end
   end
 end

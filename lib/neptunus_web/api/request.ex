@@ -75,21 +75,34 @@ defmodule NeptunusWeb.API.Request do
   end
 
   @doc """
+  The session of a request whose `Origin` is checked first (`check_origin/1`, then
+  `NeptunusWeb.Auth.session/1`), for a request that changes something: `{:ok, session}`, or
+  the HTTP status and body to refuse it with — 403 for a foreign `Origin`, 401 for a token
+  that is not valid. What the session may do is the caller's to say.
+  """
+  @spec checked_session(tuple()) :: {:ok, map()} | {401 | 403, map()}
+  def checked_session(arg) do
+    with {:origin, :ok} <- {:origin, check_origin(arg)},
+         {:ok, session} <- Auth.session(token(arg)) do
+      {:ok, session}
+    else
+      {:origin, {:error, status, reason}} -> {status, %{error: reason}}
+      {:error, %{error: reason}} -> {401, %{error: reason}}
+    end
+  end
+
+  @doc """
   Whose settings a request reads and writes (`Neptunus.Settings`): in local mode the node's
   one user `{:user, "local"}`; in secure mode the token's user (any role); otherwise the
   HTTP status and reason to refuse with (401). A foreign `Origin` is refused (403).
   """
   @spec user_scope(tuple()) :: {:ok, Neptunus.Settings.scope()} | {401 | 403, map()}
   def user_scope(arg) do
-    with {:origin, :ok} <- {:origin, check_origin(arg)} do
-      case Auth.session(token(arg)) do
-        {:ok, %{mode: "local"}} -> {:ok, {:user, Neptunus.Settings.local_user()}}
-        {:ok, %{user: %{name: name}}} -> {:ok, {:user, name}}
-        {:ok, _} -> {401, %{error: "log in to keep settings"}}
-        {:error, %{error: reason}} -> {401, %{error: reason}}
-      end
-    else
-      {:origin, {:error, status, reason}} -> {status, %{error: reason}}
+    case checked_session(arg) do
+      {:ok, %{mode: "local"}} -> {:ok, {:user, Neptunus.Settings.local_user()}}
+      {:ok, %{user: %{name: name}}} -> {:ok, {:user, name}}
+      {:ok, _} -> {401, %{error: "log in to keep settings"}}
+      refused -> refused
     end
   end
 end

@@ -385,15 +385,7 @@ defmodule NeptunusWeb.Channels.VehicleChannel do
     notify = fn result -> Channel.send_self(socket, {:vehicle_answer, ref, event, result}) end
     topic = socket.topic
 
-    asked =
-      Helm.command(id, party(socket), :none, fn ->
-        case request.(id, notify) do
-          :ok -> {:ok, %{}}
-          {:error, reason} -> {:error, reason}
-        end
-      end)
-
-    with {:ok, _} <- asked do
+    with {:ok, _} <- Helm.board_request(id, party(socket), request, notify) do
       receive do
         {:channel_info, ^topic, {:vehicle_answer, ^ref, _event, :ok}} ->
           {:ok, %{status: "ok", control: on_vehicle(id, Control, :status, [id])}}

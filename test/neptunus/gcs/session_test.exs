@@ -6,6 +6,7 @@ defmodule Neptunus.GCS.SessionTest do
   alias Neptunus.GCS.{Party, Session}
   alias Neptunus.Protocol.MAVLink
   alias Neptunus.Protocol.MAVLink.Message
+  alias Neptunus.Test.GCSClient
   alias Neptunus.Test.MAVLinkGen, as: Gen
 
   @pilot %{name: "qgc", role: :pilot, trusted: false}
@@ -38,7 +39,7 @@ defmodule Neptunus.GCS.SessionTest do
     do: msg(:manual_control, %{target: target, x: x, y: 0, z: z, r: r, buttons: 0})
 
   defp command(command, params, target \\ 1),
-    do: msg(:command_long, Neptunus.Test.GCSClient.command_long(target, command, params))
+    do: msg(:command_long, GCSClient.command_long(target, command, params))
 
   defp handle(s, event), do: Session.handle(s, event)
   defp receive_msg(s, message, now \\ 0), do: handle(s, {:message, message, now})

@@ -123,6 +123,8 @@ defmodule Neptunus.Position.ClosedLoopTest do
     # done: holding at the last waypoint, and there
     last = List.last(rows)
     assert at.(last, "leg") == 4.0
+    assert at.(last, "mission_done") == 1
+    assert Enum.any?(rows, &(at.(&1, "mission_done") == 0))
     assert at.(last, "target_north") == 0.0 and at.(last, "target_east") == 0.0
     assert :math.sqrt(:math.pow(at.(last, "x"), 2) + :math.pow(at.(last, "y"), 2)) < 1.0
     assert_in_delta at.(last, "z"), 3.0, 0.2

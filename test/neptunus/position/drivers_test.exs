@@ -14,6 +14,8 @@ defmodule Neptunus.Position.DriversTest do
   alias Neptunus.PubSub
   alias Neptunus.Vehicle.Navigation
 
+  doctest Neptunus.Position.Source
+
   defp id, do: "pos-#{System.unique_integer([:positive])}"
 
   # the test process stands in for the vehicle's navigation: the drivers' reports arrive
