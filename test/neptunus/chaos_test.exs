@@ -450,6 +450,7 @@ defmodule Neptunus.ChaosTest do
       |> Enum.with_index(kills + 1)
       |> Enum.reduce(history, fn {which, n}, acc ->
         for {id, _} <- vehicles, do: await_driving(table, id)
+        await_connected(Map.keys(clients))
         flush_reports()
         Process.sleep(max(@app_gap_ms - (now() - (acc.last_app || 0)), 0))
 
@@ -481,8 +482,9 @@ defmodule Neptunus.ChaosTest do
   end
 
   defp round(n, ctx, vehicles, clients, table, acc) do
-    # every pilot drives again before the next kill
+    # every pilot drives again, and every client is connected, before the next kill
     for {id, _} <- vehicles, do: await_driving(table, id)
+    await_connected(Map.keys(clients))
     flush_reports()
 
     app =
@@ -721,6 +723,21 @@ defmodule Neptunus.ChaosTest do
     end
 
     wait_for(granted, Patience.ms()) || flunk("#{name} not granted control")
+  end
+
+  # every client joined since its connection last closed: one still reconnecting after the
+  # last round (an app kill may follow a connection kill at once) has nothing to be told
+  defp await_connected(names) do
+    connected? = fn name ->
+      name
+      |> reports(0)
+      |> Enum.filter(fn {what, _} -> what in [:joined, :closed] end)
+      |> List.last()
+      |> match?({:joined, _})
+    end
+
+    wait_for(fn -> Enum.all?(names, connected?) end, Patience.ms()) ||
+      flunk("not every client connected again: #{inspect(Enum.reject(names, connected?))}")
   end
 
   defp await_driving(table, id) do
