@@ -17,7 +17,7 @@ import { CompassTape } from "../operator/hud";
 import { flattenNumeric, seriesLabel } from "../plots/series";
 import { RATES, formatOffset, indexAt, keyAction, nextEvent, previousEvent, replayEvents } from "./core";
 import type { Rate, ReplayClock, ReplayEvent } from "./core";
-import { decodeDiveList } from "./dives";
+import { decodeDiveList, mayEditNotes, notesChanges, withNotes } from "./dives";
 import type { DiveInfo } from "./dives";
 import { NO_FOOTAGE, display, newSync, react } from "./sync";
 import type { Footage, SyncEvent, SyncState } from "./sync";
@@ -145,7 +145,7 @@ function Plots(props: { loaded: Loaded; cursorRef: { current: ((pos: number) => 
   return <div class="replay-plot" ref={host} data-testid="replay-plot" />;
 }
 
-function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Element {
+function Player(props: { loaded: Loaded; token: string | null; editable: boolean; onNotes: (d: DiveInfo) => void }): preact.JSX.Element {
   const { loaded } = props;
   const canvas = useRef<HTMLCanvasElement>(null);
   const player = useRef<HTMLDivElement>(null);
@@ -227,6 +227,7 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
     const onKey = (e: KeyboardEvent): void => {
       if (e.ctrlKey || e.metaKey || e.altKey) return;
       if (e.target instanceof HTMLInputElement && e.target.type !== "range") return;
+      if (e.target instanceof HTMLTextAreaElement) return;
       // a focused button (reached by Tab) is pressed by space or Enter, as everywhere
       if (e.target instanceof HTMLButtonElement && (e.key === " " || e.key === "Enter")) return;
       const action = keyAction(e.key);
@@ -355,7 +356,99 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
       </ul>
       <Plots loaded={loaded} cursorRef={cursor} onSeek={seekTo} />
       <Exports dive={loaded.dive} token={props.token} />
+      <DiveNotes dive={loaded.dive} token={props.token} editable={props.editable} onSaved={props.onNotes} />
     </div>
+  );
+}
+
+/**
+ * The dive's title and notes (an inspection's findings, what went wrong): edited by who may
+ * pilot (local mode, a pilot, the main station), read by everyone else.
+ */
+function DiveNotes(props: { dive: DiveInfo; token: string | null; editable: boolean; onSaved: (d: DiveInfo) => void }): preact.JSX.Element {
+  // the dive as last saved (the page's `loaded` keeps the dive as it was loaded)
+  const [saved, setSaved] = useState(props.dive);
+  const [title, setTitle] = useState(props.dive.title ?? "");
+  const [notes, setNotes] = useState(props.dive.notes ?? "");
+  const [status, setStatus] = useState<{ readonly error: boolean; readonly text: string } | null>(null);
+  const [saving, setSaving] = useState(false);
+  if (!props.editable) {
+    return (
+      <section class="replay-notes" data-testid="replay-notes">
+        <h2>{saved.title ?? "Untitled dive"}</h2>
+        <p class="replay-notes-text">{saved.notes ?? "No notes."}</p>
+      </section>
+    );
+  }
+  const changes = notesChanges(saved, title, notes);
+  const save = async (): Promise<void> => {
+    if (changes === null) return;
+    setSaving(true);
+    try {
+      const url = `/api/recordings/${encodeURIComponent(saved.vehicle)}/${encodeURIComponent(saved.name)}`;
+      const response = await fetch(url, { method: "PUT", headers: { ...headers(props.token), "content-type": "application/json" }, body: JSON.stringify(changes) });
+      if (!response.ok) throw new Error(await errorOf(response));
+      const next = withNotes(saved, await response.json());
+      if (next === null) throw new Error("unexpected reply");
+      setSaved(next);
+      setTitle(next.title ?? "");
+      setNotes(next.notes ?? "");
+      props.onSaved(next);
+      setStatus({ error: false, text: "Saved." });
+    } catch (err) {
+      setStatus({ error: true, text: `Cannot save: ${err instanceof Error ? err.message : String(err)}` });
+    } finally {
+      setSaving(false);
+    }
+  };
+  return (
+    <form
+      class="replay-notes"
+      data-testid="replay-notes"
+      onSubmit={(e) => {
+        e.preventDefault();
+        void save();
+      }}
+    >
+      <label>
+        Title
+        <input
+          type="text"
+          data-testid="replay-title"
+          maxLength={200}
+          value={title}
+          placeholder="e.g. Hull inspection, pier 4"
+          onInput={(e) => {
+            setTitle((e.target as HTMLInputElement).value);
+            setStatus(null);
+          }}
+        />
+      </label>
+      <label>
+        Notes
+        <textarea
+          data-testid="replay-notes-text"
+          rows={3}
+          maxLength={10_000}
+          value={notes}
+          placeholder="What was found, what went wrong, what to do next"
+          onInput={(e) => {
+            setNotes((e.target as HTMLTextAreaElement).value);
+            setStatus(null);
+          }}
+        />
+      </label>
+      <span class="replay-notes-actions">
+        <button type="submit" data-testid="replay-notes-save" disabled={changes === null || saving}>
+          {saving ? "Saving…" : "Save"}
+        </button>
+        {status !== null ? (
+          <span class={status.error ? "replay-notes-status error" : "replay-notes-status"} data-testid="replay-notes-status">
+            {status.text}
+          </span>
+        ) : null}
+      </span>
+    </form>
   );
 }
 
@@ -384,6 +477,7 @@ function Exports(props: { dive: DiveInfo; token: string | null }): preact.JSX.El
 
 function ReplayApp(props: { session: PageSession; params: URLSearchParams }): preact.JSX.Element {
   const [token, setToken] = useState<string | null>(null);
+  const [editable, setEditable] = useState(false);
   const [ready, setReady] = useState(false);
   const [dives, setDives] = useState<readonly DiveInfo[] | null>(null);
   const [loaded, setLoaded] = useState<Loaded | null>(null);
@@ -396,6 +490,7 @@ function ReplayApp(props: { session: PageSession; params: URLSearchParams }): pr
       if (session === null) return; // leaving for the login page
       const t = props.session.token;
       setToken(t);
+      setEditable(mayEditNotes(session));
       setReady(true);
       try {
         const query = vehicle !== null ? `?${new URLSearchParams({ vehicle }).toString()}` : "";
@@ -443,7 +538,13 @@ function ReplayApp(props: { session: PageSession; params: URLSearchParams }): pr
       </header>
       <div class="replay-body">
         <aside class="replay-side">{list !== null ? <DiveList dives={list} selected={selected} onPick={(d) => void pick(d)} /> : <p>Listing the dives…</p>}</aside>
-        <main class="replay-main">{loaded !== null ? <Player key={selected} loaded={loaded} token={token} /> : <p>Pick a dive.</p>}</main>
+        <main class="replay-main">{loaded !== null ? <Player
+              key={selected}
+              loaded={loaded}
+              token={token}
+              editable={editable}
+              onNotes={(d) => setDives((list) => (list ?? []).map((x) => (x.vehicle === d.vehicle && x.name === d.name ? d : x)))}
+            /> : <p>Pick a dive.</p>}</main>
       </div>
     </div>
   );
