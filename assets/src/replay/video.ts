@@ -101,6 +101,11 @@ export class ReplayVideo {
     const index = Math.max(0, indexAt(w.times, Math.round(posMs * 1000)));
     if (w.frames.length === 0 || index === this.wanted) return;
     this.wanted = index;
+    // a picture decoded for a later position (before a seek back or a pause) is not shown
+    if (this.ready !== null && this.ready.us > (w.times[index] ?? Infinity)) {
+      this.ready.image.close();
+      this.ready = null;
+    }
     if (!this.busy) void this.decodeWanted();
   }
 
