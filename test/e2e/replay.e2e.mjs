@@ -153,7 +153,23 @@ test("replay: the dive listed with its summary; picked, its picture and HUD; it 
       assert.match(response.headers()["content-disposition"] ?? "", new RegExp(`attachment; filename=".+\\.${format}"`));
       assert.ok((await response.body()).length > 0, `${format} export is empty`);
     }
+    // its title and notes, edited here (local mode: anyone may); typing them plays nothing
+    const before = await shown(page);
+    await page.locator('[data-testid="replay-title"]').fill("Hull inspection, pier 4");
+    await page.locator('[data-testid="replay-notes-text"]').click();
+    await page.keyboard.type("kept: two anodes worn\nnext: change them");
+    await page.locator('[data-testid="replay-notes-save"]').click();
+    await page.locator('[data-testid="replay-notes-status"]', { hasText: "Saved." }).waitFor();
+    const typed = await shown(page);
+    assert.deepEqual([typed.playing, typed.holds], ["false", before.holds], "keys typed in the notes played or sought");
+    assert.match((await page.locator(`[data-testid="replay-dive"][data-name="${DIVE}"]`).textContent()) ?? "", /^Hull inspection, pier 4/);
+    assert.ok(await page.locator('[data-testid="replay-notes-save"]').isDisabled(), "nothing left to save");
     await screenshot(page, "replay-desktop.png");
+    // saved on the server: a new page shows them
+    await page.reload();
+    await page.locator(`[data-testid="replay-dive"][data-name="${DIVE}"]`).click();
+    assert.equal(await page.locator('[data-testid="replay-title"]').inputValue(), "Hull inspection, pier 4");
+    assert.equal(await page.locator('[data-testid="replay-notes-text"]').inputValue(), "kept: two anodes worn\nnext: change them");
     assert.deepEqual(sockets, [], "the replay page opened a WebSocket");
   } finally {
     await context.close();
