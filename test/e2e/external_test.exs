@@ -234,11 +234,15 @@ defmodule Neptunus.E2E.ExternalTest do
         info: %{codec: "h264", generation: 1, width: 160, height: 120, fps: 15}
       )
 
-      node_suite!("test/e2e/replay.e2e.mjs", [
-        {"E2E_DIVE", name},
-        {"E2E_FRAMES_US", Enum.map_join(frames, ",", &elem(&1, 0))},
-        {"E2E_EVENTS_MS", Enum.map_join(events, ",", &elem(&1, 0))}
-      ])
+      output =
+        node_suite!("test/e2e/replay.e2e.mjs", [
+          {"E2E_DIVE", name},
+          {"E2E_FRAMES_US", Enum.map_join(frames, ",", &elem(&1, 0))},
+          {"E2E_EVENTS_MS", Enum.map_join(events, ",", &elem(&1, 0))}
+        ])
+
+      # the figures of how closely the picture follows the cursor while playing (printed, not judged)
+      for line <- String.split(output, "\n"), line =~ "# sync", do: IO.puts(String.trim(line))
     after
       File.rm_rf!(dir)
     end

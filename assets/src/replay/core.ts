@@ -1,6 +1,6 @@
 /**
  * The replay page's decisions (pure): where in the dive the replay is (a clock that plays at
- * 0.25×–4×, pauses, seeks), which recorded frame and telemetry sample show at a position, the
+ * 0.25×–4×, pauses, seeks; sync.ts holds it until the picture is shown), which recorded frame and telemetry sample show at a position, the
  * events one jumps between (stops, handovers, autopilot changes, logger entries, snapshots),
  * the keyboard shortcuts, and the frames of `GET /api/recordings/…/video` (docs/API.md).
  *
@@ -53,10 +53,6 @@ export function play(c: ReplayClock, now: number): ReplayClock {
 
 export function pause(c: ReplayClock, now: number): ReplayClock {
   return c.playing ? { ...c, playing: false, anchorPos: positionAt(c, now), anchorNow: now } : c;
-}
-
-export function toggle(c: ReplayClock, now: number): ReplayClock {
-  return c.playing ? pause(c, now) : play(c, now);
 }
 
 export function seek(c: ReplayClock, pos: number, now: number): ReplayClock {

@@ -15,27 +15,12 @@ import { PageSession, browserSessionEnv } from "../lib/session";
 import { formatFixed, formatHeading } from "../lib/units";
 import { CompassTape } from "../operator/hud";
 import { flattenNumeric, seriesLabel } from "../plots/series";
-import {
-  RATES,
-  formatOffset,
-  frameStep,
-  indexAt,
-  keyAction,
-  newClock,
-  nextEvent,
-  pause,
-  positionAt,
-  previousEvent,
-  replayEvents,
-  seek,
-  setRate,
-  stepRate,
-  tick,
-  toggle,
-} from "./core";
+import { RATES, formatOffset, indexAt, keyAction, nextEvent, previousEvent, replayEvents } from "./core";
 import type { Rate, ReplayClock, ReplayEvent } from "./core";
-import { decodeDiveList } from "./dives";
+import { decodeDiveList, mayEditNotes, notesChanges, withNotes } from "./dives";
 import type { DiveInfo } from "./dives";
+import { NO_FOOTAGE, display, newSync, react } from "./sync";
+import type { Footage, SyncEvent, SyncState } from "./sync";
 import { ReplayVideo } from "./video";
 
 /** telemetry samples asked for: the server thins a long dive to this many */
@@ -160,22 +145,25 @@ function Plots(props: { loaded: Loaded; cursorRef: { current: ((pos: number) => 
   return <div class="replay-plot" ref={host} data-testid="replay-plot" />;
 }
 
-function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Element {
+function Player(props: { loaded: Loaded; token: string | null; editable: boolean; onNotes: (d: DiveInfo) => void }): preact.JSX.Element {
   const { loaded } = props;
   const canvas = useRef<HTMLCanvasElement>(null);
+  const player = useRef<HTMLDivElement>(null);
   const video = useRef<ReplayVideo | null>(null);
   const cursor = useRef<((pos: number) => void) | null>(null);
-  const [clock, setClock] = useState<ReplayClock>(() => newClock(loaded.start, loaded.end, performance.now()));
-  const clockRef = useRef(clock);
-  clockRef.current = clock;
+  const footage = (): Footage => video.current?.footage ?? NO_FOOTAGE;
+  // the clock and the picture's hold (sync.ts); the page re-renders when what it shows changes
+  const sync = useRef<SyncState>(newSync(loaded.start, loaded.end, performance.now(), loaded.dive.video !== null ? { kind: "loading" } : NO_FOOTAGE));
+  const [clock, setClock] = useState<ReplayClock>(sync.current.clock);
   const [pos, setPos] = useState(loaded.start);
   const [problem, setProblem] = useState<string | null>(null);
 
-  const change = (f: (c: ReplayClock, now: number) => ReplayClock): void => {
-    const next = f(clockRef.current, performance.now());
-    clockRef.current = next;
-    setClock(next);
+  const send = (e: SyncEvent): void => {
+    const next = react(sync.current, e, footage());
+    sync.current = next;
+    setClock(next.clock);
   };
+  const shownPos = (): number => display(sync.current, performance.now(), footage()).pos;
 
   useEffect(() => {
     const el = canvas.current;
@@ -194,23 +182,33 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
     };
   }, [loaded]);
 
-  // one loop draws everything at the clock's position: the picture, the plots' cursor, the HUD
+  // one loop draws everything at one position, in one step: the picture, the plots' cursor,
+  // the HUD (sync.ts: the cursor and the HUD never run ahead of the picture)
   useEffect(() => {
     let frame = 0;
     let lastShown = Number.NaN;
     const draw = (): void => {
       const now = performance.now();
-      const ticked = tick(clockRef.current, now);
-      if (ticked !== clockRef.current) {
-        clockRef.current = ticked;
-        setClock(ticked);
+      const f = footage();
+      let s = react(sync.current, { type: "tick", now }, f);
+      video.current?.want(display(s, now, f).want);
+      const us = video.current?.present() ?? null;
+      if (us !== null && us !== s.shownUs) s = react(s, { type: "picture", us, now }, f);
+      if (s !== sync.current) {
+        sync.current = s;
+        setClock(s.clock);
       }
-      const p = positionAt(ticked, now);
-      video.current?.show(p);
-      cursor.current?.(p);
-      if (p !== lastShown) {
-        lastShown = p;
-        setPos(p);
+      const d = display(s, now, f);
+      cursor.current?.(d.pos);
+      const el = player.current;
+      if (el !== null) {
+        el.dataset["stale"] = String(d.stale);
+        el.dataset["holds"] = String(s.holds);
+        el.dataset["settled"] = String(s.settled);
+      }
+      if (d.pos !== lastShown) {
+        lastShown = d.pos;
+        setPos(d.pos);
       }
       frame = requestAnimationFrame(draw);
     };
@@ -218,48 +216,45 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
     return () => cancelAnimationFrame(frame);
   }, [loaded]);
 
-  const frameTimes = (): Float64Array => video.current?.loaded?.times ?? new Float64Array();
-  const stepFrame = (dir: 1 | -1): void => {
-    const p = positionAt(clockRef.current, performance.now());
-    const to = frameStep(frameTimes(), p, dir);
-    if (to !== null) change((c, now) => seek(pause(c, now), to, now));
-  };
   const jump = (dir: 1 | -1): void => {
-    const p = positionAt(clockRef.current, performance.now());
+    const p = shownPos();
     const e = dir === 1 ? nextEvent(loaded.events, p) : previousEvent(loaded.events, p);
-    if (e !== null) change((c, now) => seek(c, e.at, now));
+    if (e !== null) send({ type: "seek", pos: e.at, now: performance.now() });
   };
+  const seekTo = (to: number): void => send({ type: "seek", pos: to, now: performance.now() });
 
   useEffect(() => {
     const onKey = (e: KeyboardEvent): void => {
       if (e.ctrlKey || e.metaKey || e.altKey) return;
       if (e.target instanceof HTMLInputElement && e.target.type !== "range") return;
+      if (e.target instanceof HTMLTextAreaElement) return;
       // a focused button (reached by Tab) is pressed by space or Enter, as everywhere
       if (e.target instanceof HTMLButtonElement && (e.key === " " || e.key === "Enter")) return;
       const action = keyAction(e.key);
       if (action === null) return;
       e.preventDefault();
+      const now = performance.now();
       switch (action.type) {
         case "toggle":
-          change(toggle);
+          send({ type: "toggle", now });
           break;
         case "seekBy":
-          change((c, now) => seek(c, positionAt(c, now) + action.ms, now));
+          send({ type: "seekBy", ms: action.ms, now });
           break;
         case "frame":
-          stepFrame(action.dir);
+          send({ type: "step", dir: action.dir, now });
           break;
         case "rate":
-          change((c, now) => stepRate(c, action.dir, now));
+          send({ type: "stepRate", dir: action.dir, now });
           break;
         case "event":
           jump(action.dir);
           break;
         case "home":
-          change((c, now) => seek(c, c.start, now));
+          seekTo(loaded.start);
           break;
         case "end":
-          change((c, now) => seek(c, c.end, now));
+          seekTo(loaded.end);
           break;
       }
     };
@@ -277,7 +272,7 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
   const current = [...loaded.events].reverse().find((e) => e.at <= pos && pos - e.at < 3_000);
 
   return (
-    <div class="replay-player" data-testid="replay-player" data-playing={String(clock.playing)} data-rate={String(clock.rate)}>
+    <div class="replay-player" ref={player} data-testid="replay-player" data-playing={String(clock.playing)} data-rate={String(clock.rate)}>
       <div class="replay-stage">
         {loaded.dive.video !== null ? (
           <canvas ref={canvas} class="replay-video" data-testid="replay-video" width={640} height={360} />
@@ -308,13 +303,13 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
         <button type="button" data-testid="replay-prev-event" title="previous event (p)" onClick={() => jump(-1)}>
           ⏮
         </button>
-        <button type="button" data-testid="replay-frame-back" title="one frame back (,)" onClick={() => stepFrame(-1)}>
+        <button type="button" data-testid="replay-frame-back" title="one frame back (,)" onClick={() => send({ type: "step", dir: -1, now: performance.now() })}>
           ◀|
         </button>
-        <button type="button" class="replay-play" data-testid="replay-play" title="play / pause (space, k)" onClick={() => change(toggle)}>
+        <button type="button" class="replay-play" data-testid="replay-play" title="play / pause (space, k)" onClick={() => send({ type: "toggle", now: performance.now() })}>
           {clock.playing ? "❚❚" : "▶"}
         </button>
-        <button type="button" data-testid="replay-frame-forward" title="one frame on (.)" onClick={() => stepFrame(1)}>
+        <button type="button" data-testid="replay-frame-forward" title="one frame on (.)" onClick={() => send({ type: "step", dir: 1, now: performance.now() })}>
           |▶
         </button>
         <button type="button" data-testid="replay-next-event" title="next event (n)" onClick={() => jump(1)}>
@@ -330,7 +325,7 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
               type="button"
               class={clock.rate === r ? "selected" : ""}
               data-testid={`replay-rate-${r}`}
-              onClick={() => change((c, now) => setRate(c, r, now))}
+              onClick={() => send({ type: "rate", rate: r, now: performance.now() })}
             >
               {r}×
             </button>
@@ -347,22 +342,113 @@ function Player(props: { loaded: Loaded; token: string | null }): preact.JSX.Ele
         step={1}
         value={pos}
         onInput={(e) => {
-          const to = Number((e.target as HTMLInputElement).value);
-          change((c, now) => seek(c, to, now));
+          seekTo(Number((e.target as HTMLInputElement).value));
         }}
       />
       <ul class="replay-events" data-testid="replay-events">
         {loaded.events.map((e) => (
           <li key={`${e.at}-${e.label}`}>
-            <button type="button" class={`replay-event ${e.kind}`} onClick={() => change((c, now) => seek(c, e.at, now))}>
+            <button type="button" class={`replay-event ${e.kind}`} onClick={() => seekTo(e.at)}>
               {formatOffset(e.at - loaded.start)} {e.label}
             </button>
           </li>
         ))}
       </ul>
-      <Plots loaded={loaded} cursorRef={cursor} onSeek={(to) => change((c, now) => seek(c, to, now))} />
+      <Plots loaded={loaded} cursorRef={cursor} onSeek={seekTo} />
       <Exports dive={loaded.dive} token={props.token} />
+      <DiveNotes dive={loaded.dive} token={props.token} editable={props.editable} onSaved={props.onNotes} />
     </div>
+  );
+}
+
+/**
+ * The dive's title and notes (an inspection's findings, what went wrong): edited by who may
+ * pilot (local mode, a pilot, the main station), read by everyone else.
+ */
+function DiveNotes(props: { dive: DiveInfo; token: string | null; editable: boolean; onSaved: (d: DiveInfo) => void }): preact.JSX.Element {
+  // the dive as last saved (the page's `loaded` keeps the dive as it was loaded)
+  const [saved, setSaved] = useState(props.dive);
+  const [title, setTitle] = useState(props.dive.title ?? "");
+  const [notes, setNotes] = useState(props.dive.notes ?? "");
+  const [status, setStatus] = useState<{ readonly error: boolean; readonly text: string } | null>(null);
+  const [saving, setSaving] = useState(false);
+  if (!props.editable) {
+    return (
+      <section class="replay-notes" data-testid="replay-notes">
+        <h2>{saved.title ?? "Untitled dive"}</h2>
+        <p class="replay-notes-text">{saved.notes ?? "No notes."}</p>
+      </section>
+    );
+  }
+  const changes = notesChanges(saved, title, notes);
+  const save = async (): Promise<void> => {
+    if (changes === null) return;
+    setSaving(true);
+    try {
+      const url = `/api/recordings/${encodeURIComponent(saved.vehicle)}/${encodeURIComponent(saved.name)}`;
+      const response = await fetch(url, { method: "PUT", headers: { ...headers(props.token), "content-type": "application/json" }, body: JSON.stringify(changes) });
+      if (!response.ok) throw new Error(await errorOf(response));
+      const next = withNotes(saved, await response.json());
+      if (next === null) throw new Error("unexpected reply");
+      setSaved(next);
+      setTitle(next.title ?? "");
+      setNotes(next.notes ?? "");
+      props.onSaved(next);
+      setStatus({ error: false, text: "Saved." });
+    } catch (err) {
+      setStatus({ error: true, text: `Cannot save: ${err instanceof Error ? err.message : String(err)}` });
+    } finally {
+      setSaving(false);
+    }
+  };
+  return (
+    <form
+      class="replay-notes"
+      data-testid="replay-notes"
+      onSubmit={(e) => {
+        e.preventDefault();
+        void save();
+      }}
+    >
+      <label>
+        Title
+        <input
+          type="text"
+          data-testid="replay-title"
+          maxLength={200}
+          value={title}
+          placeholder="e.g. Hull inspection, pier 4"
+          onInput={(e) => {
+            setTitle((e.target as HTMLInputElement).value);
+            setStatus(null);
+          }}
+        />
+      </label>
+      <label>
+        Notes
+        <textarea
+          data-testid="replay-notes-text"
+          rows={3}
+          maxLength={10_000}
+          value={notes}
+          placeholder="What was found, what went wrong, what to do next"
+          onInput={(e) => {
+            setNotes((e.target as HTMLTextAreaElement).value);
+            setStatus(null);
+          }}
+        />
+      </label>
+      <span class="replay-notes-actions">
+        <button type="submit" data-testid="replay-notes-save" disabled={changes === null || saving}>
+          {saving ? "Saving…" : "Save"}
+        </button>
+        {status !== null ? (
+          <span class={status.error ? "replay-notes-status error" : "replay-notes-status"} data-testid="replay-notes-status">
+            {status.text}
+          </span>
+        ) : null}
+      </span>
+    </form>
   );
 }
 
@@ -391,6 +477,7 @@ function Exports(props: { dive: DiveInfo; token: string | null }): preact.JSX.El
 
 function ReplayApp(props: { session: PageSession; params: URLSearchParams }): preact.JSX.Element {
   const [token, setToken] = useState<string | null>(null);
+  const [editable, setEditable] = useState(false);
   const [ready, setReady] = useState(false);
   const [dives, setDives] = useState<readonly DiveInfo[] | null>(null);
   const [loaded, setLoaded] = useState<Loaded | null>(null);
@@ -403,6 +490,7 @@ function ReplayApp(props: { session: PageSession; params: URLSearchParams }): pr
       if (session === null) return; // leaving for the login page
       const t = props.session.token;
       setToken(t);
+      setEditable(mayEditNotes(session));
       setReady(true);
       try {
         const query = vehicle !== null ? `?${new URLSearchParams({ vehicle }).toString()}` : "";
@@ -450,7 +538,13 @@ function ReplayApp(props: { session: PageSession; params: URLSearchParams }): pr
       </header>
       <div class="replay-body">
         <aside class="replay-side">{list !== null ? <DiveList dives={list} selected={selected} onPick={(d) => void pick(d)} /> : <p>Listing the dives…</p>}</aside>
-        <main class="replay-main">{loaded !== null ? <Player key={selected} loaded={loaded} token={token} /> : <p>Pick a dive.</p>}</main>
+        <main class="replay-main">{loaded !== null ? <Player
+              key={selected}
+              loaded={loaded}
+              token={token}
+              editable={editable}
+              onNotes={(d) => setDives((list) => (list ?? []).map((x) => (x.vehicle === d.vehicle && x.name === d.name ? d : x)))}
+            /> : <p>Pick a dive.</p>}</main>
       </div>
     </div>
   );

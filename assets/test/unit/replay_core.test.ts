@@ -15,7 +15,6 @@ import {
   seek,
   stepRate,
   tick,
-  toggle,
 } from "../../src/replay/core";
 
 describe("the replay clock", () => {
@@ -29,7 +28,7 @@ describe("the replay clock", () => {
     expect(positionAt(c, 2_100)).toBe(6_000);
     c = pause(c, 2_100);
     expect(positionAt(c, 9_999)).toBe(6_000);
-    c = toggle(c, 10_000);
+    c = play(c, 10_000);
     expect(positionAt(c, 20_000)).toBe(11_000);
     c = tick(c, 20_000);
     expect(c.playing).toBe(false);
