@@ -88,8 +88,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   @doc """
   Starts the board of vehicle `opts[:id]`, registered as `Board.via(id)`. Options: `:link`
   (required, see the moduledoc), `:system`, `:component` (ours, default 255/190),
-  `:manual_period`, `:link_timeout`, `:command_timeout`, `:disarm_delay` (s),
-  `:lights_servo`, `:reconnect_ms`, `:program` (the port program for serial links).
+  `:manual_period_ms`, `:link_timeout_ms`, `:command_timeout_ms`, `:disarm_delay` (s, as
+  `NEPTUNUS_MAVLINK_DISARM_DELAY` configures it), `:lights_servo`, `:reconnect_ms`,
+  `:program` (the port program for serial links).
   """
   @impl Board
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -200,7 +201,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       id: id,
       topic: Telemetry.topic(id),
       link: Keyword.fetch!(opts, :link),
-      core: Core.new(now(), opts),
+      core: Core.new(now_ms(), core_options(opts)),
       decoder: Codec.new(),
       reconnect_ms: Keyword.get(opts, :reconnect_ms, 1_000),
       program: Keyword.get(opts, :program) || Board.UART.program()
@@ -212,7 +213,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   @impl true
-  def handle_continue(:open, state), do: {:noreply, state |> open() |> run(&Core.tick(&1, now()))}
+  def handle_continue(:open, state),
+    do: {:noreply, state |> open() |> run(&Core.tick(&1, now_ms()))}
 
   @impl true
   def handle_call(:link_status, _from, state) do
@@ -229,27 +231,27 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   def handle_call({:arm, arm?, notify}, _from, state) do
-    {:reply, :ok, run(state, &Core.arm(&1, notify, arm?, now()))}
+    {:reply, :ok, run(state, &Core.arm(&1, notify, arm?, now_ms()))}
   end
 
   def handle_call({:autopilot, setpoints, notify}, _from, state) do
-    {:reply, :ok, run(state, &Core.autopilot(&1, notify, setpoints, now()))}
+    {:reply, :ok, run(state, &Core.autopilot(&1, notify, setpoints, now_ms()))}
   end
 
   def handle_call({:set_mode, mode, notify}, _from, state) do
-    {:reply, :ok, run(state, &Core.set_mode(&1, notify, mode, now()))}
+    {:reply, :ok, run(state, &Core.set_mode(&1, notify, mode, now_ms()))}
   end
 
   @impl true
   def handle_cast({:go, demand}, state),
-    do: {:noreply, run(state, &Core.go(&1, demand, now()))}
+    do: {:noreply, run(state, &Core.go(&1, demand, now_ms()))}
 
   def handle_cast({:lights, n}, state), do: {:noreply, run(state, &Core.lights(&1, n))}
   def handle_cast({:tilt, rad}, state), do: {:noreply, run(state, &Core.tilt(&1, rad))}
 
   @impl true
   def handle_info(:tick, state) do
-    {:noreply, run(%{state | timer: nil}, &Core.tick(&1, now()))}
+    {:noreply, run(%{state | timer: nil}, &Core.tick(&1, now_ms()))}
   end
 
   def handle_info(:report, state) do
@@ -306,7 +308,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   # the vehicle's topic: stops and the helm (disarm after pilot loss)
   def handle_info({:pubsub, _topic, "stopped", %{reason: reason}}, state),
-    do: {:noreply, %{state | core: Core.stopped(state.core, reason, now())} |> arm_timer()}
+    do: {:noreply, %{state | core: Core.stopped(state.core, reason, now_ms())} |> arm_timer()}
 
   # the pilot is known by their connection's id (the rest of the helm's party may change)
   def handle_info({:pubsub, _topic, "helm", %{pilot: pilot}}, state) do
@@ -335,7 +337,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   @impl true
   def terminate(_reason, state) do
     # an orderly shutdown leaves the vehicle neutral
-    _ = run(state, &Core.neutral(&1, now()))
+    _ = run(state, &Core.neutral(&1, now_ms()))
     :ok
   end
 
@@ -406,7 +408,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
     {decoder, messages, _events} = Codec.decode(state.decoder, data)
     counters = Map.update!(state.counters, :received, &(&1 + length(messages)))
     state = %{state | decoder: decoder, counters: counters}
-    t = now()
+    t = now_ms()
     Enum.reduce(messages, state, fn m, state -> run(state, &Core.receive(&1, m, t)) end)
   end
 
@@ -426,7 +428,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   defp arm_timer(state) do
     if state.timer, do: Process.cancel_timer(state.timer)
-    ms = max(0, ceil((Core.due(state.core) - now()) * 1000))
+    ms = max(0, Core.due(state.core) - now_ms())
     %{state | timer: Process.send_after(self(), :tick, ms)}
   end
 
@@ -539,6 +541,13 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
     :ok
   end
 
-  # the core runs on float seconds of the monotonic clock (converted here, at its edge)
-  defp now, do: Neptunus.Clock.monotonic_ms() / 1000
+  # the configured disarm delay is in seconds; the core's durations are in ms
+  defp core_options(opts) do
+    case Keyword.pop(opts, :disarm_delay) do
+      {nil, opts} -> opts
+      {s, opts} -> Keyword.put(opts, :disarm_delay_ms, round(s * 1000))
+    end
+  end
+
+  defp now_ms, do: Neptunus.Clock.monotonic_ms()
 end
