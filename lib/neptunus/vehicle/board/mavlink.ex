@@ -16,8 +16,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       the answers there;
     * `{:tcp, host, port}` — connects (ArduPilot SITL listens on TCP 5760); reconnects
       `reconnect_ms` (1 s) after a failure or a close;
-    * `{:serial, device, baud}` — the `neptunus_uart` port program (`c_src/neptunus_uart.c`,
-      as `Neptunus.Vehicle.Board.UART` uses it); reopened `reconnect_ms` after it exits.
+    * `{:serial, device, baud}` — the `neptunus_uart` port program
+      (`Neptunus.Vehicle.Board.SerialPort`, as `Neptunus.Vehicle.Board.UART` uses it); reopened
+      `reconnect_ms` after it exits.
 
   Bytes from the link go through one decoder; frames lost, garbage and unknown messages are
   counted in `link_status/1`.
@@ -47,6 +48,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   alias Neptunus.Protocol.MAVLink, as: Codec
   alias Neptunus.Vehicle.{Board, Telemetry}
   alias Neptunus.Vehicle.Board.MAVLink.Core
+  alias Neptunus.Vehicle.Board.SerialPort
 
   @behaviour Board
 
@@ -204,7 +206,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       core: Core.new(now_ms(), core_options(opts)),
       decoder: Codec.new(),
       reconnect_ms: Keyword.get(opts, :reconnect_ms, 1_000),
-      program: Keyword.get(opts, :program) || Board.UART.program()
+      program: Keyword.get(opts, :program) || SerialPort.program()
     }
 
     subscribe(state.topic)
@@ -276,24 +278,10 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   def handle_info({:tcp_error, socket, why}, %State{socket: socket} = state),
     do: {:noreply, closed(state, "TCP error: #{inspect(why)}")}
 
-  # serial: the port program's frames
-  def handle_info({port, {:data, <<?r, data::binary>>}}, %State{socket: port} = state)
-      when is_port(port),
-      do: {:noreply, received(state, data)}
-
-  def handle_info({port, {:data, <<?o, _path::binary>>}}, %State{socket: port} = state)
-      when is_port(port),
-      do: {:noreply, %{state | transport: "serial open"}}
-
-  def handle_info({port, {:data, <<?e, text::binary>>}}, %State{socket: port} = state)
-      when is_port(port),
-      do: {:noreply, %{state | transport: "serial: #{text}"}}
-
-  def handle_info({port, {:data, _other}}, %State{socket: port} = state) when is_port(port),
-    do: {:noreply, state}
-
-  def handle_info({port, {:exit_status, n}}, %State{socket: port} = state) when is_port(port),
-    do: {:noreply, closed(state, "the serial port program exited (#{n}): #{state.transport}")}
+  # serial: the port program's messages
+  def handle_info({port, {kind, _} = message}, %State{socket: port} = state)
+      when is_port(port) and kind in [:data, :exit_status],
+      do: {:noreply, serial(SerialPort.decode(message), state)}
 
   # The serial port is linked to us (we trap exits): its program's exit comes as exit_status
   # (above) first. A port closed before that status reached the VM (a write to a program that
@@ -369,18 +357,20 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   defp open(%State{link: {:serial, device, baud}} = state) do
-    port =
-      Port.open({:spawn_executable, state.program}, [
-        :binary,
-        {:packet, 2},
-        :exit_status,
-        args: ["tty", device, Integer.to_string(baud)]
-      ])
-
-    opened(state, port, "opening #{device}")
-  rescue
-    e -> failed(state, "cannot start the serial port program: #{Exception.message(e)}")
+    case SerialPort.open_tty(device, baud, program: state.program) do
+      {:ok, port} -> opened(state, port, "opening #{device}")
+      {:error, why} -> failed(state, "cannot start the serial port program: #{why}")
+    end
   end
+
+  defp serial({:read, data}, state), do: received(state, data)
+  defp serial({:open, _path}, state), do: %{state | transport: "serial open"}
+  defp serial({:error, text}, state), do: %{state | transport: "serial: #{text}"}
+
+  defp serial({:exit, n}, state),
+    do: closed(state, "the serial port program exited (#{n}): #{state.transport}")
+
+  defp serial(_other, state), do: state
 
   defp opened(state, socket, transport) do
     counters = Map.update!(state.counters, :opens, &(&1 + 1))
@@ -394,15 +384,17 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   defp closed(state, why) do
-    if is_port(state.socket), do: safe_close(state.socket)
+    close(state)
     failed(%{state | socket: nil, decoder: Codec.new()}, why)
   end
 
-  defp safe_close(port) do
-    Port.close(port)
-  catch
-    :error, _ -> :ok
-  end
+  defp close(%State{link: {:serial, _, _}, socket: port}) when is_port(port),
+    do: SerialPort.close(port)
+
+  defp close(%State{link: {:tcp, _, _}, socket: socket}) when socket != nil,
+    do: :gen_tcp.close(socket)
+
+  defp close(_state), do: :ok
 
   defp received(state, data) do
     {decoder, messages, _events} = Codec.decode(state.decoder, data)
@@ -504,10 +496,10 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   defp write(%State{link: {:serial, _, _}, socket: port} = state, frame) do
-    Port.command(port, [?w, frame], [:nosuspend])
-    |> then(&if(&1, do: count(state, :sent), else: count(state, :send_errors)))
-  catch
-    :error, _ -> count(state, :send_errors)
+    case SerialPort.write(port, frame) do
+      :ok -> count(state, :sent)
+      {:error, _busy_or_closed} -> count(state, :send_errors)
+    end
   end
 
   defp count(state, key), do: %{state | counters: Map.update!(state.counters, key, &(&1 + 1))}
