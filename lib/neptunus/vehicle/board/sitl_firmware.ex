@@ -19,78 +19,16 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   start at millis 0, before the devices' setup; the devices' own timers, and the loop itself,
   start when that setup ends (`:setup_ms`, default 20: the depth sensor's two 10 ms waits).
 
-  **Receive buffer** (`:loop_ms`, `:stall_ms`). Bytes land in the serial receive buffer
-  (64 bytes); what arrives while it is full is lost and counted in `rx_dropped`. The loop
-  empties it every `loop_ms` (default 10), except that the depth sensor's conversion once a
-  second (two 10 ms waits) stalls it for `stall_ms` (default 20). So a burst of more than
-  64 bytes loses bytes, and a link that writes at most 60 bytes in any 30 ms loses none.
+  The firmware's parts, as its own files are: the serial input
+  (`Neptunus.Vehicle.Board.SITL.Firmware.Commands`: the receive buffer, commands, their CRC
+  and echo, the internal command ring), the devices and their timers
+  (`Neptunus.Vehicle.Board.SITL.Firmware.Devices`: motors, deadman, lights, laser, camera
+  servo, IMU, depth sensor, controller board) and the lines it prints
+  (`Neptunus.Vehicle.Board.SITL.Firmware.Output`: boot, navigation, shared data). This module
+  is the firmware's state and its loop.
 
-  **Commands** are read into an 80-byte command buffer up to their `;` (a command that grows
-  past 80 bytes is cut and its next byte lost, as the firmware does). 2.5.2 parses the text;
-  30.0.2 first checks the leading byte against the Dallas/Maxim CRC-8 of the rest (`;`
-  included), prints `rawcmd:` with every byte in hex and `,` then `;\\r\\n`, then
-  `crc:pass;` or `crc:fail,COMPUTED/RECEIVED;` (hex, no newline) and drops a failed command.
-  A CRC byte equal to `;` ends the command at once (it then fails, and the rest is read as
-  another command). An accepted command is split at spaces, commas, parentheses and `;`,
-  echoed as `cmd:name(arg,arg);\\r\\n` (the arguments as received) and its arguments read as
-  16-bit integers (`atoi`). A device takes a command whose name *starts with* its own word
-  (the firmware's `cmp`). Internal commands (the deadman's) go through a three-slot ring that
-  holds two (the oldest is overwritten; 30.0.2 prints `log: CommandBufferOverrun;\\r\\n`) and
-  are announced `icmd:name(args);\\r\\n`; 2.5.2 reads the slot before advancing, 30.0.2 after,
-  so they lose different commands when it overflows.
-
-  **Motors** (`Motor::goms`). `go(p,v,s[,flag])` (each 1000..2000, else ignored) sets the
-  targets; the 4th argument only sets a bypass flag nothing reads (the smoothing ramp was
-  removed before 2.5.2). Every 50 ms tick (`controltime`, 51 ms) changed targets are applied:
-  the ESC pulse is `1500 + (us - 1500) * modifier` within 1000..2000, with the forward
-  modifier (default 1) above 1500 and the reverse one (default 2) below, then mapped around
-  a ±50 µs dead zone: 1500..2000 → 1550..2000, 1000..1500 → 1000..1450 (integer arithmetic).
-  `go(1300,1500,1700)` gives 1090/1500/1730 µs; 1000..1250 give 1000. `mtrmod1(p,v,s)` /
-  `mtrmod2(p,v,s)` set the forward / reverse modifiers in percent, integer-divided by 100
-  (`150` → 1). The ESC pulses drive the simulated thrusters through the vehicle's
-  `Neptunus.Wiring` (a reversed motor turns the other way). `stop()` sets the targets to
-  1500 and does not detach the motors. A change prints `motors:p,v,s;\\r\\n` (the ESC
-  pulses); once a second `mtarg:p,v,s;\\r\\n` and `mtrmod:` with the six modifiers.
-
-  **Deadman** (`DeadManSwitch.cpp`). `ping(...)` answers `pong:<argument count>,<millis>;`
-  without newline. The switch arms when millis passes `arm_ms` (default 180 000, an option so
-  tests can shorten it). Its 2000 ms timer (`:deadman_ms`) restarts at each ping and whenever
-  it fires; when it fires armed it pushes `deptloff`, `headloff`, `stop` and starts blinking:
-  every 501 ms it pushes `ligt(50)` / `ligt(0)` in turn. It prints no deadman line and
-  `go()` is still obeyed. A ping ends it, pushing `start`; the lights stay where the blink
-  left them.
-
-  **Telemetry** (2 decimals, `\\r\\n` line ends, fields glued as printed):
-
-    * every 101 ms `hdgd:…;deap:…;pitc:…;roll:…;yaw:…;fthr:…;\\r\\n` — `fthr` is the mean
-      of the raw port and starboard targets mapped to ±100 (integer `map`);
-    * every 1001 ms (from the end of the setup) the controller board's
-      `BRDT:…;SC1I:…;SC2I:…;SC3I:…;BRDI:…;BT1I:…;BT2I:…;BRDV:…;AVCC:5000;\\r\\n` (ESC
-      currents on a 0..10 A ADC, battery currents likewise, the board's own supply current
-      on 0..2 A), then the shared data: `motorAttached:1;`, `servo:…;starg:…;`,
-      `fmem:…;vout:…;iout:…;atmp:…;ver:…;cmpd:<date>, <time>, <gcc>` (every 1001 ms from
-      boot) whose newline comes
-      before its `;` (the next line begins `;time:`), `pres:…;temp:…;`, `dlms:…;`,
-      `alps:…;`. `iout` is the controller board's own supply current (`BRDI`), `vout`,
-      `iout` and `time` are sampled every 101 ms;
-    * the depth sensor reads once a second (first at `setup_ms` + 1001 ms; until then `deap`,
-      `pres` and `temp` print `0.00`, the first shared data at 1001 ms included); depth is `(pres - 1015) * 1.019716 / 100` (fresh water). The
-      simulated lake has 1015 mbar at its surface and fresh water, so `deap` is the
-      simulator's depth, updated once a second. 2.5.2's driver prints two plain-text
-      temperature lines at each reading; 30.0.2 prints its calibration constants at boot as
-      `Depth.C0:…;` … `Depth.C7:…;` (keys with a dot) and `BNO055.status:…;` once a second;
-    * the IMU updates heading, pitch, roll and yaw every 51 ms (first at `setup_ms` + 51 ms,
-      before the first navigation line, so heading has no visible placeholder with a working
-      IMU; `hdgd` is `0.00` until then).
-
-  `ligt(n)` prints `LIGT:n;LIGP:<n/255>;\r\n`, `claser(n)` prints `claser:n;` without
-  newline, `tilt(us)` (1000..2000) moves the camera servo (taken at once here; the firmware
-  moves it 1 µs a loop) and shows in `servo:`/`starg:`.
-
-  **Boot.** At boot the board prints its setup lines (the depth sensor's, the IMU's) and, when
-  its setup is done (`setup_ms`), `boot:1;\r\n` — 2.5.x and 30.x alike (`OpenROV.ino`'s
-  `setup()` ends with it). `reset/2` reboots it: millis back to 0 and every state lost
-  (targets, modifiers, lights, laser, tilt, deadman, buffers).
+  **Boot.** `reset/2` reboots the board: millis back to 0 and every state lost (targets,
+  modifiers, lights, laser, tilt, deadman, buffers).
 
   **Bootloader** (`:bootloader_ms`, default 0). An Arduino that resets runs its bootloader
   first (a USB Arduino resets whenever its port is opened: DTR), for a few hundred ms to a
@@ -104,26 +42,10 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   thrust was never unbalanced.
   """
 
-  import Bitwise, only: [&&&: 2]
-
   alias Neptunus.{Allocation, Wiring}
-  alias Neptunus.Protocol.OpenROV
+  alias Neptunus.Vehicle.Board.SITL.Firmware.{Commands, Devices, Output}
 
-  @rx_size 64
-  @cmd_size 80
-  @max_args 9
-  @ring 3
   @neutral 1500
-  @atmos_mbar 1015.0
-  @fresh 1.019716
-  @water_temp 10.0
-  @board_current 0.25
-  @lights_current 0.6
-  @compiled "Dec 10 2014, 10:42:17, 4.3.2"
-  # the devices as the firmware registers them (their loop times print in `dlms:`)
-  @devices [:controller, :lights, :laser, :thrusters, :deadman, :camera, :imu, :depth]
-  @depth_index 7
-  @calibration [0, 46372, 43981, 29059, 27842, 31553, 28165, 0]
 
   @typedoc "A firmware profile: `:openrov_25` (2.5.2) or `:openrov_30` (30.0.2)."
   @type profile :: :openrov_25 | :openrov_30
@@ -197,9 +119,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
     the end of the setup (`setup_ms`, millis)
   * `boot_lost` — bytes that arrived during the bootloader (before millis 0), lost
   * `esc_log` — `{millis, esc_us}` of the last changes of the ESC pulses, newest first
-  * `rx` — the serial receive buffer (at most #{@rx_size} bytes); `rx_dropped` — bytes lost
+  * `rx` — the serial receive buffer (at most 64 bytes); `rx_dropped` — bytes lost
     because it was full; `rx_bytes` — every byte that reached the board's serial port (kept,
-    dropped, or lost in the bootloader); `cmdbuf` — the command being read (at most #{@cmd_size} bytes)
+    dropped, or lost in the bootloader); `cmdbuf` — the command being read (at most 80 bytes)
   * `next_drain` — millis when the loop next empties `rx` (first at `setup_ms`); `drains`, `alps` — loops counted
     this second and in the last
   * `timers` — millis each firmware timer last fired
@@ -266,7 +188,6 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   @profiles [:openrov_25, :openrov_30]
   @option_keys [:firmware, :wiring, :deadman_ms, :arm_ms, :loop_ms, :stall_ms, :setup_ms] ++
                  [:bootloader_ms]
-  @esc_log 32
   @reading_keys [:heading, :depth, :pitch, :roll, :voltage, :current]
   @device_timers [:control, :thruster_out, :imu, :depth, :board, :status, :deadman, :blink]
 
@@ -316,7 +237,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
         )
     }
 
-    %{fw | outbox: boot_lines(profile)}
+    %{fw | outbox: Output.boot_lines(profile)}
   end
 
   defp positive!(opts, key, default) do
@@ -400,16 +321,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
 
     if millis(fw, now) < 0,
       do: {%{fw | boot_lost: fw.boot_lost + byte_size(bytes)}, out},
-      else: buffer(fw, bytes, out)
-  end
-
-  # the serial receive buffer keeps what fits
-  defp buffer(fw, bytes, out) do
-    room = @rx_size - byte_size(fw.rx)
-    kept = binary_part(bytes, 0, min(room, byte_size(bytes)))
-
-    {%{fw | rx: fw.rx <> kept, rx_dropped: fw.rx_dropped + byte_size(bytes) - byte_size(kept)},
-     out}
+      else: {Commands.buffer(fw, bytes), out}
   end
 
   @doc """
@@ -468,72 +380,15 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   # taken by the loops that follow at once (a loop takes about a millisecond).
   defp iteration(fw, m) do
     fw = %{fw | at: m}
-    {fw, serial} = if m >= fw.next_drain, do: drain(fw, m), else: {fw, []}
-    {fw, internal} = internal_commands(fw, m)
-    {fw, timers} = timers(fw, m)
-    {fw, pushed} = internal_commands(fw, m)
-    {fw, [serial, internal, timers, pushed]}
+    {fw, serial} = if m >= fw.next_drain, do: Commands.drain(fw, m), else: {fw, []}
+    {fw, internal} = Commands.internal_commands(fw, m)
+    {fw, timers} = Devices.timers(fw, m)
+    {fw, lines} = Output.outputs(fw, m)
+    {fw, pushed} = Commands.internal_commands(fw, m)
+    {fw, [serial, internal, timers, lines, pushed]}
   end
 
-  # Receive buffer → command buffer → commands -----------------------------------------------
-
-  defp drain(fw, m) do
-    {commands, cmdbuf} = read_commands(fw.rx, fw.cmdbuf, [])
-    fw = %{fw | rx: "", cmdbuf: cmdbuf, drains: fw.drains + 1}
-    fw = %{fw | next_drain: next_drain(fw, m)}
-
-    Enum.reduce(commands, {fw, []}, fn raw, {fw, out} ->
-      {fw, more} = serial_command(fw, raw, m)
-      {fw, [out, more]}
-    end)
-  end
-
-  # the next read: a loop later, or after the depth sensor's stall if it falls in between
-  defp next_drain(fw, m) do
-    next = m + fw.loop_ms
-    conversion = fw.timers.depth + 1001
-    if conversion <= next, do: max(next, conversion + fw.stall_ms), else: next
-  end
-
-  # getSerialString: bytes up to and including ';' (2.5.2 drops the ';', 30.0.2 keeps it); a
-  # command that reaches the buffer size is discarded with the byte that overflows it
-  defp read_commands(<<>>, buf, acc), do: {Enum.reverse(acc), buf}
-
-  defp read_commands(<<_byte, rest::binary>>, buf, acc) when byte_size(buf) == @cmd_size,
-    do: read_commands(rest, "", acc)
-
-  defp read_commands(<<?;, rest::binary>>, buf, acc),
-    do: read_commands(rest, "", [buf <> ";" | acc])
-
-  defp read_commands(<<byte, rest::binary>>, buf, acc),
-    do: read_commands(rest, <<buf::binary, byte>>, acc)
-
-  defp serial_command(%{profile: :openrov_25} = fw, raw, m) do
-    text = binary_part(raw, 0, byte_size(raw) - 1)
-    accept(fw, text, [], m)
-  end
-
-  defp serial_command(%{profile: :openrov_30} = fw, raw, m) do
-    rawcmd = ["rawcmd:", for(<<b <- raw>>, do: [hex(b), ?,]), ";\r\n"]
-
-    case OpenROV.unframe(raw) do
-      {:ok, text} ->
-        accept(fw, text, [rawcmd, "crc:pass;"], m)
-
-      {:error, {computed, received}} ->
-        fail = ["crc:fail,", hex(computed), ?/, hex(received), ?;]
-        {%{fw | bad_commands: fw.bad_commands + 1}, [rawcmd, fail]}
-    end
-  end
-
-  defp accept(fw, text, prefix, m) do
-    {name, tokens} = tokens(text)
-    # without a name the firmware prints only the closing ");"
-    echo = if name == "", do: ");\r\n", else: ["cmd:", name, ?(, Enum.join(tokens, ","), ");\r\n"]
-    args = tokens |> Enum.take(@max_args) |> Enum.map(&atoi/1)
-    {fw, out} = handle(%{fw | commands: fw.commands + 1}, name, length(tokens), args, m)
-    {fw, [prefix, echo, out]}
-  end
+  # Helpers of the parts, with the firmware's own behaviour ------------------------------------
 
   @doc """
   The firmware's split of a command (`strtok` at spaces, commas, parentheses and `;`): the
@@ -547,7 +402,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
       {"", []}
   """
   @spec tokens(binary()) :: {binary(), [binary()]}
-  def tokens(text) when is_binary(text), do: OpenROV.call(text)
+  defdelegate tokens(text), to: Commands
 
   @doc """
   C's `atoi` into the AVR's 16-bit `int`: leading spaces, a sign, digits; anything else
@@ -558,210 +413,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
       {1500, -20, 0, -25536}
   """
   @spec atoi(binary()) :: integer()
-  def atoi(text) when is_binary(text) do
-    n =
-      case Regex.run(~r/\A\s*([+-]?)(\d+)/, text) do
-        [_, sign, digits] -> if(sign == "-", do: -1, else: 1) * String.to_integer(digits)
-        nil -> 0
-      end
-
-    wrap16(n)
-  end
-
-  defp wrap16(n) do
-    n = n &&& 0xFFFF
-    if n >= 0x8000, do: n - 0x10000, else: n
-  end
-
-  defp hex(byte), do: Integer.to_string(byte, 16)
-
-  # Internal commands ------------------------------------------------------------------------
-
-  defp ring_empty?({_slots, head, tail}), do: head == tail
-
-  defp push(fw, command) do
-    {slots, head, tail} = fw.ring
-    head = rem(head + 1, @ring)
-
-    {tail, out} =
-      cond do
-        head != tail -> {tail, []}
-        fw.profile == :openrov_30 -> {rem(tail + 1, @ring), "log: CommandBufferOverrun;\r\n"}
-        true -> {rem(tail + 1, @ring), []}
-      end
-
-    {%{fw | ring: {put_elem(slots, head, command), head, tail}}, out}
-  end
-
-  defp pop(%{ring: {slots, head, tail}, profile: :openrov_25} = fw),
-    do: {%{fw | ring: {slots, head, rem(tail + 1, @ring)}}, elem(slots, tail)}
-
-  defp pop(%{ring: {slots, head, tail}} = fw) do
-    tail = rem(tail + 1, @ring)
-    {%{fw | ring: {slots, head, tail}}, elem(slots, tail)}
-  end
-
-  defp internal_commands(fw, m) do
-    if ring_empty?(fw.ring) do
-      {fw, []}
-    else
-      {fw, {name, args}} = pop(fw)
-      echo = ["icmd:", name, ?(, Enum.map_join(args, ",", &Integer.to_string/1), ");\r\n"]
-      {fw, out} = handle(fw, name, length(args), args, m)
-      {fw, more} = internal_commands(fw, m)
-      {fw, [echo, out, more]}
-    end
-  end
-
-  # The devices' command handling ------------------------------------------------------------
-
-  defp handle(fw, name, count, args, m) do
-    arg = fn i -> Enum.at(args, i - 1, 0) end
-    is = &String.starts_with?(name, &1)
-
-    cond do
-      name == "" ->
-        {fw, []}
-
-      is.("ligt") ->
-        v = arg.(1)
-        ligp = float2(v / 255)
-        {%{fw | lights: v}, ["LIGT:", Integer.to_string(v), ";LIGP:", ligp, ";\r\n"]}
-
-      is.("claser") ->
-        v = arg.(1)
-        {%{fw | laser: v}, ["claser:", Integer.to_string(v), ?;]}
-
-      is.("tilt") ->
-        v = arg.(1)
-        {if(v > 999 and v < 2001, do: %{fw | tilt: v}, else: fw), []}
-
-      is.("ping") ->
-        ping(fw, count, m)
-
-      is.("dms") ->
-        {%{fw | armed: arg.(1) != 0}, []}
-
-      is.("mtrmod1") ->
-        {%{fw | positive_mod: {cdiv(arg.(1)), cdiv(arg.(2)), cdiv(arg.(3))}}, []}
-
-      is.("mtrmod2") ->
-        {%{fw | negative_mod: {cdiv(arg.(1)), cdiv(arg.(2)), cdiv(arg.(3))}}, []}
-
-      is.("go") ->
-        {go(fw, arg.(1), arg.(2), arg.(3), arg.(4)), []}
-
-      is.("stop") ->
-        {%{
-           fw
-           | target_us: {@neutral, @neutral, @neutral},
-             neutral_commands: fw.neutral_commands + 1
-         }, []}
-
-      true ->
-        {fw, []}
-    end
-  end
-
-  # the modifier as the firmware stores it: args / 100 in integer arithmetic
-  defp cdiv(n), do: div(n, 100)
-
-  defp go(fw, p, v, s, flag) do
-    if Enum.all?([p, v, s], &(&1 > 999 and &1 < 2001)) do
-      neutral = if {p, v, s} == {@neutral, @neutral, @neutral}, do: 1, else: 0
-
-      %{
-        fw
-        | target_us: {p, v, s},
-          bypass: fw.bypass or flag == 1,
-          neutral_commands: fw.neutral_commands + neutral
-      }
-    else
-      fw
-    end
-  end
-
-  defp ping(fw, count, m) do
-    fw = %{fw | timers: %{fw.timers | deadman: m}, last_ping: m}
-
-    {fw, out} = if fw.tripped, do: push(%{fw | tripped: false}, {"start", []}), else: {fw, []}
-
-    {fw, [out, "pong:", Integer.to_string(count), ?,, Integer.to_string(m), ?;]}
-  end
-
-  # Timers -------------------------------------------------------------------------------------
-
-  defp timers(fw, m) do
-    [&deadman/2, &thrusters/2, &imu/2, &depth/2, &controller/2, &outputs/2]
-    |> Enum.reduce({fw, []}, fn step, {fw, out} ->
-      {fw, more} = step.(fw, m)
-      {fw, [out, more]}
-    end)
-  end
-
-  defp elapsed(fw, timer, period, m) do
-    if m - Map.fetch!(fw.timers, timer) > period,
-      do: {true, %{fw | timers: Map.put(fw.timers, timer, m)}},
-      else: {false, fw}
-  end
-
-  defp deadman(fw, m) do
-    fw = if not fw.armed and m > fw.arm_ms, do: %{fw | armed: true}, else: fw
-    {fired, fw} = elapsed(fw, :deadman, fw.deadman_ms, m)
-
-    {fw, out} =
-      if fired and fw.armed do
-        {fw, a} = push(fw, {"deptloff", []})
-        {fw, b} = push(fw, {"headloff", []})
-        {fw, c} = push(fw, {"stop", []})
-        {%{fw | tripped: true}, [a, b, c]}
-      else
-        {fw, []}
-      end
-
-    {blink, fw} = if fw.tripped, do: elapsed(fw, :blink, 500, m), else: {false, fw}
-
-    if blink do
-      {fw, d} = push(fw, {"ligt", [if(fw.blink, do: 0, else: 50)]})
-      {%{fw | blink: not fw.blink}, [out, d]}
-    else
-      {fw, out}
-    end
-  end
-
-  defp thrusters(fw, m) do
-    {tick, fw} = elapsed(fw, :control, 50, m)
-
-    {fw, out} =
-      if tick and fw.target_us != fw.applied_us do
-        esc = esc_us(fw)
-
-        {%{
-           fw
-           | applied_us: fw.target_us,
-             esc_us: esc,
-             esc_log: Enum.take([{m, esc} | fw.esc_log], @esc_log),
-             bypass: false,
-             thrusters: Wiring.from_us(fw.wiring, esc)
-         }, ["motors:", join3(esc), ";\r\n"]}
-      else
-        {fw, []}
-      end
-
-    {second, fw} = elapsed(fw, :thruster_out, 1000, m)
-
-    if second do
-      {p1, v1, s1} = fw.positive_mod
-      {p2, v2, s2} = fw.negative_mod
-      mods = Enum.map_join([p1, v1, s1, p2, v2, s2], ",", &float2/1)
-      {fw, [out, "mtarg:", join3(fw.target_us), ";\r\nmtrmod:", mods, ";\r\n"]}
-    else
-      {fw, out}
-    end
-  end
-
-  defp esc_us(%{target_us: {p, v, s}, positive_mod: {pp, pv, ps}, negative_mod: {np, nv, ns}}),
-    do: {goms(p, pp, np), goms(v, pv, nv), goms(s, ps, ns)}
+  defdelegate atoi(text), to: Commands
 
   @doc """
   `Motor::goms`: the ESC pulse for a target pulse `us` with the forward and reverse
@@ -774,248 +426,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
       {1270, 1730}
   """
   @spec goms(integer(), integer(), integer()) :: integer()
-  def goms(us, positive, negative) do
-    modifier =
-      cond do
-        us > @neutral -> positive
-        us < @neutral -> negative
-        true -> 1
-      end
-
-    pre = clamp(@neutral + (us - @neutral) * modifier, 1000, 2000)
-
-    final =
-      cond do
-        pre < @neutral -> map(pre, 1000, @neutral, 1000, @neutral - 50)
-        pre > @neutral -> map(pre, @neutral, 2000, @neutral + 50, 2000)
-        true -> @neutral
-      end
-
-    clamp(final, 1000, 2000)
-  end
-
-  # Arduino's map(): integer arithmetic, truncating
-  defp map(x, in_min, in_max, out_min, out_max),
-    do: div((x - in_min) * (out_max - out_min), in_max - in_min) + out_min
-
-  defp clamp(x, lo, hi), do: x |> max(lo) |> min(hi)
-
-  defp imu(fw, m) do
-    case elapsed(fw, :imu, 50, m) do
-      {true, %{reading: %{} = r} = fw} ->
-        heading = r.heading * 180 / :math.pi()
-        yaw = if heading > 180, do: heading - 360, else: heading
-
-        attitude = %{
-          heading: heading,
-          pitch: r.pitch * 180 / :math.pi(),
-          roll: r.roll * 180 / :math.pi(),
-          yaw: yaw
-        }
-
-        {%{fw | attitude: attitude}, []}
-
-      {_, fw} ->
-        {fw, []}
-    end
-  end
-
-  defp depth(fw, m) do
-    {read, fw} = elapsed(fw, :depth, 1000, m)
-
-    if read and fw.reading != nil do
-      pressure = @atmos_mbar + fw.reading.depth / @fresh * 100
-      depth = (pressure - @atmos_mbar) * @fresh / 100
-
-      fw = %{
-        fw
-        | pressure: pressure,
-          depth: depth,
-          temperature: @water_temp,
-          depth_ms: fw.depth_ms + fw.stall_ms
-      }
-
-      case fw.profile do
-        :openrov_25 ->
-          t = float2(@water_temp)
-
-          {fw,
-           [
-             "First-Order Temperature in Degrees C is ",
-             t,
-             "\r\nSecond-Order Temperature in Degrees C is ",
-             t,
-             "\r\n"
-           ]}
-
-        :openrov_30 ->
-          {fw, []}
-      end
-    else
-      {fw, []}
-    end
-  end
-
-  # the controller board: vout/iout/time every 101 ms, its current line once a second
-  defp controller(fw, m) do
-    {sample, fw} = elapsed(fw, :status, 100, m)
-
-    fw =
-      if sample do
-        %{fw | status: %{vout: voltage(fw), iout: board_current(fw), utim: m * 1.0}}
-      else
-        fw
-      end
-
-    case elapsed(fw, :board, 1000, m) do
-      {true, fw} -> {fw, controller_line(fw)}
-      {false, fw} -> {fw, []}
-    end
-  end
-
-  defp voltage(%{reading: %{voltage: v}}), do: adc(v, 20)
-  defp voltage(_fw), do: 0.0
-
-  defp board_current(fw), do: adc(@board_current + @lights_current * fw.lights / 255, 2)
-
-  # an analogRead on a 0..full scale, 10 bits
-  defp adc(x, full), do: clamp(round(x / full * 1023), 0, 1023) * full / 1023
-
-  defp controller_line(fw) do
-    battery = if fw.reading, do: max(fw.reading.current, 0.0), else: 0.0
-    {p, v, s} = fw.esc_us
-    offsets = Enum.map([p, v, s], &abs(&1 - @neutral))
-    total = Enum.sum(offsets)
-    esc = Enum.map(offsets, &if(total == 0, do: 0.0, else: battery * &1 / total))
-    [sc1, sc2, sc3] = Enum.map(esc, &adc(&1, 10))
-    half = adc(battery / 2, 10)
-
-    [
-      "BRDT:",
-      float2(25.0),
-      ";SC1I:",
-      float2(sc1),
-      ";SC2I:",
-      float2(sc2),
-      ";SC3I:",
-      float2(sc3),
-      ";BRDI:",
-      float2(board_current(fw)),
-      ";BT1I:",
-      float2(half),
-      ";BT2I:",
-      float2(half),
-      ";BRDV:",
-      float2(voltage(fw)),
-      ";AVCC:5000;\r\n"
-    ]
-  end
-
-  defp outputs(fw, m) do
-    {second, fw} = elapsed(fw, :second, 1000, m)
-
-    {fw, shared} =
-      if second do
-        fw = %{fw | alps: fw.drains, drains: 0}
-        {fw, shared_data(fw)}
-      else
-        {fw, []}
-      end
-
-    {nav, fw} = elapsed(fw, :nav, 100, m)
-    {fw, [shared, if(nav, do: navdata(fw), else: [])]}
-  end
-
-  defp shared_data(fw) do
-    dlms =
-      @devices
-      |> Enum.with_index()
-      |> Enum.map(fn {_device, i} ->
-        [
-          Integer.to_string(i),
-          ?|,
-          Integer.to_string(if i == @depth_index, do: fw.depth_ms, else: 0)
-        ]
-      end)
-
-    [
-      "motorAttached:1;\r\n",
-      "servo:",
-      Integer.to_string(fw.tilt),
-      ";starg:",
-      Integer.to_string(fw.tilt),
-      ";\r\n",
-      "fmem:",
-      float2(1843.0),
-      ";vout:",
-      float2(fw.status.vout),
-      ";iout:",
-      float2(fw.status.iout),
-      ";atmp:",
-      float2(0.0),
-      ";ver:CUSTOM_BUILD;cmpd:",
-      @compiled,
-      "\r\n;time:",
-      float2(fw.status.utim),
-      ";\r\n",
-      "pres:",
-      float2(fw.pressure),
-      ";temp:",
-      float2(fw.temperature),
-      ";\r\n",
-      "dlms:",
-      dlms,
-      ";\r\n",
-      if(fw.profile == :openrov_30, do: "BNO055.status:5;\r\n", else: []),
-      "alps:",
-      Integer.to_string(fw.alps),
-      ";\r\n"
-    ]
-  end
-
-  defp navdata(fw) do
-    {p, _v, s} = fw.applied_us
-    fthr = map(div(p + s, 2), 1000, 2000, -100, 100)
-    a = fw.attitude
-
-    [
-      "hdgd:",
-      float2(a.heading),
-      ";deap:",
-      float2(fw.depth),
-      ";pitc:",
-      float2(a.pitch),
-      ";roll:",
-      float2(a.roll),
-      ";yaw:",
-      float2(a.yaw),
-      ";fthr:",
-      float2(fthr),
-      ";\r\n"
-    ]
-  end
-
-  defp boot_lines(:openrov_25) do
-    [
-      "Depth Sensor setup.\r\nDepth Sensor: initialized I2C\r\nDepth Sensor is reset\r\n",
-      "Depth: Calibration constants are:\r\n",
-      "log:init on primary addresses;\r\n",
-      "boot:1;\r\n"
-    ]
-  end
-
-  defp boot_lines(:openrov_30) do
-    constants =
-      @calibration
-      |> Enum.with_index()
-      |> Enum.map(fn {c, i} ->
-        ["Depth.C", Integer.to_string(i), ?:, Integer.to_string(c), ";\r\n"]
-      end)
-
-    [constants, "log:init on primary addresses;\r\n", "boot:1;\r\n"]
-  end
-
-  defp join3({a, b, c}), do: Enum.map_join([a, b, c], ",", &Integer.to_string/1)
+  defdelegate goms(us, positive, negative), to: Devices
 
   @doc """
   A number as the Arduino prints a float: 2 decimals (no `-` on zero).
@@ -1025,6 +436,5 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
       {"1.00", "0.00", "12.00", "-3.14"}
   """
   @spec float2(number()) :: binary()
-  def float2(x) when x == 0, do: "0.00"
-  def float2(x), do: :erlang.float_to_binary(x * 1.0, decimals: 2)
+  defdelegate float2(x), to: Output
 end
