@@ -3,13 +3,14 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   Every decision of the `mavlink` board (`Neptunus.Vehicle.Board.MAVLink`), pure: the link's
   state, the vehicle's state as its heartbeat tells it, the arming state machine, what to send
   and when, and the samples made of the vehicle's telemetry. The process only carries out the
-  actions returned here. Times are seconds of one monotonic clock, given by the caller.
+  actions returned here. Times are integer milliseconds of the monotonic clock
+  (`Neptunus.Clock.monotonic_ms/0`), given by the caller.
 
   ## What it sends (our system/component ids, 255/190 by default)
 
     * **HEARTBEAT** every second as a ground station (`MAV_TYPE_GCS`, `MAV_AUTOPILOT_INVALID`):
       ArduSub's ground-station failsafe counts it.
-    * **MANUAL_CONTROL** to the vehicle's system every `manual_period` (0.1 s, the 10 Hz ground
+    * **MANUAL_CONTROL** to the vehicle's system every `manual_period_ms` (100 ms, the 10 Hz ground
       stations send; ArduSub's pilot-input failsafe fires after 3 s without it), and at once
       whenever the command changes (so a pilot's command or a stop never waits for the next
       period). The command is the body-frame demand `go/3` gets (our gain already in it),
@@ -30,7 +31,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   entry) and docs/MAVLINK.md says to set `JS_GAIN_DEFAULT` 1.
     * **Stream requests** each time the link comes up: REQUEST_DATA_STREAM for the streams
       carrying what we show (`@streams`); ArduSub streams them by default too.
-    * **TIMESYNC** every second (`tc1 = 0`, `ts1` our clock in ns): the vehicle's answer gives
+    * **TIMESYNC** every second (`tc1 = 0`, `ts1` our clock in ns, from its ms): the vehicle's answer gives
       the round-trip time (`rtt_ms`).
     * **COMMAND_LONG** `MAV_CMD_COMPONENT_ARM_DISARM` (400) for `arm/4`, `MAV_CMD_DO_SET_MODE`
       (176) for `set_mode/4` and `autopilot/4`, `MAV_CMD_DO_SET_SERVO` (183) for the lights and
@@ -41,7 +42,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   Up from the first HEARTBEAT of a vehicle (an autopilot: any type but a ground station, and
   an autopilot other than `MAV_AUTOPILOT_INVALID`, so the companion computer's, camera's or
   gimbal's heartbeats are not taken for it; the first one heard is the target of our
-  commands) until none came for `link_timeout` (3 s); every change is an action
+  commands) until none came for `link_timeout_ms` (3 s); every change is an action
   `{:link, %{up, reason}}`. Messages of other systems are ignored.
 
   ## Arming
@@ -51,11 +52,11 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   STATUSTEXT the vehicle sent while the command waited (ArduSub explains a refusal there,
   e.g. "PreArm: Must assign a disarm or arm_toggle button or disarm aux function"; texts
   over 50 bytes come in chunks and are joined), or the result's name. No ACK within
-  `command_timeout` (3 s) → `{:error, "no answer from the vehicle within 3.0 s"}`. Refused at
+  `command_timeout_ms` (3 s) → `{:error, "no answer from the vehicle within 3.0 s"}`. Refused at
   once while the link is down.
 
   **Pilot loss** (`pilot/2` with the helm's pilot, `stopped/3` with a stop's reason): a stop for
-  one of the `pilot_loss_reasons/0` schedules a disarm `disarm_delay` later (2 s), which a new
+  one of the `pilot_loss_reasons/0` schedules a disarm `disarm_delay_ms` later (2 s), which a new
   pilot taking the helm before then cancels; a handover never schedules one.
   """
 
@@ -127,7 +128,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
           kind: :arm | :disarm | :mode,
           command: non_neg_integer(),
           from: term(),
-          deadline: float(),
+          deadline_ms: integer(),
           text: String.t() | nil
         }
 
@@ -138,7 +139,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
           seq: byte(),
           up: boolean(),
           reason: String.t(),
-          heard_at: float() | nil,
+          heard_at_ms: integer() | nil,
           vehicle: %{
             armed: boolean(),
             mode: String.t() | nil,
@@ -149,32 +150,32 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
           control: control(),
           demand: Neptunus.Control.Demand.t(),
           pilot_gain: float() | nil,
-          next_heartbeat: float(),
-          next_manual: float(),
-          next_timesync: float(),
+          next_heartbeat_ms: integer(),
+          next_manual_ms: integer(),
+          next_timesync_ms: integer(),
           pending: pending() | nil,
           pilot: term(),
-          disarm_at: float() | nil,
-          started: float(),
+          disarm_at_ms: integer() | nil,
+          started_ms: integer(),
           readings: map(),
           texts: %{optional(pos_integer()) => binary()},
           rtt_ms: float() | nil,
           servo_us: [non_neg_integer()],
-          manual_period: float(),
-          link_timeout: float(),
-          command_timeout: float(),
-          disarm_delay: float(),
+          manual_period_ms: pos_integer(),
+          link_timeout_ms: pos_integer(),
+          command_timeout_ms: pos_integer(),
+          disarm_delay_ms: pos_integer(),
           lights_servo: pos_integer()
         }
 
-  @enforce_keys [:started]
+  @enforce_keys [:started_ms]
   defstruct [
     :target,
-    :heard_at,
+    :heard_at_ms,
     :pending,
     :pilot,
-    :disarm_at,
-    :started,
+    :disarm_at_ms,
+    :started_ms,
     :rtt_ms,
     :pilot_gain,
     system: 255,
@@ -185,39 +186,44 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     vehicle: %{armed: false, mode: nil, custom_mode: nil, system_status: nil, type: nil},
     control: %{x: 0, y: 0, z: 500, r: 0, buttons: 0},
     demand: %{surge: 0.0, sway: 0.0, heave: 0.0, yaw: 0.0},
-    next_heartbeat: 0.0,
-    next_manual: 0.0,
-    next_timesync: 0.0,
+    next_heartbeat_ms: 0,
+    next_manual_ms: 0,
+    next_timesync_ms: 0,
     readings: %{},
     texts: %{},
     servo_us: [],
-    manual_period: 0.1,
-    link_timeout: 3.0,
-    command_timeout: 3.0,
-    disarm_delay: 2.0,
+    manual_period_ms: 100,
+    link_timeout_ms: 3_000,
+    command_timeout_ms: 3_000,
+    disarm_delay_ms: 2_000,
     lights_servo: 9
   ]
 
   @doc """
-  A board core at time `now`. Options: `:system`, `:component` (ours, 255/190),
-  `:manual_period`, `:link_timeout`, `:command_timeout`, `:disarm_delay` (s), `:lights_servo`
-  (the servo output of the lights, default 9).
+  A board core at time `now_ms`. Options: `:system`, `:component` (ours, 255/190),
+  `:manual_period_ms`, `:link_timeout_ms`, `:command_timeout_ms`, `:disarm_delay_ms`,
+  `:lights_servo` (the servo output of the lights, default 9).
   """
-  @spec new(float(), keyword()) :: t()
-  def new(now, opts \\ []) do
+  @spec new(integer(), keyword()) :: t()
+  def new(now_ms, opts \\ []) when is_integer(now_ms) do
     fields =
       Keyword.take(opts, [
         :system,
         :component,
-        :manual_period,
-        :link_timeout,
-        :command_timeout,
-        :disarm_delay,
+        :manual_period_ms,
+        :link_timeout_ms,
+        :command_timeout_ms,
+        :disarm_delay_ms,
         :lights_servo
       ])
 
     struct!(
-      %__MODULE__{started: now, next_heartbeat: now, next_manual: now, next_timesync: now},
+      %__MODULE__{
+        started_ms: now_ms,
+        next_heartbeat_ms: now_ms,
+        next_manual_ms: now_ms,
+        next_timesync_ms: now_ms
+      },
       fields
     )
   end
@@ -259,7 +265,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   # ── time ─────────────────────────────────────────────────────────────────────────────
 
   @doc "What is due at `now`: heartbeat, MANUAL_CONTROL, TIMESYNC, timeouts, a scheduled disarm."
-  @spec tick(t(), float()) :: {t(), [action()]}
+  @spec tick(t(), integer()) :: {t(), [action()]}
   def tick(%__MODULE__{} = core, now) do
     {core, []}
     |> heartbeat_due(now)
@@ -272,7 +278,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   end
 
   defp heartbeat_due({core, actions}, now) do
-    if now >= core.next_heartbeat do
+    if now >= core.next_heartbeat_ms do
       fields = %{
         type: @mav_type_gcs,
         autopilot: @mav_autopilot_invalid,
@@ -281,7 +287,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
         system_status: 4
       }
 
-      {%{core | next_heartbeat: next(core.next_heartbeat, 1.0, now)},
+      {%{core | next_heartbeat_ms: next(core.next_heartbeat_ms, 1_000, now)},
        [{:send, :heartbeat, fields} | actions]}
     else
       {core, actions}
@@ -289,7 +295,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   end
 
   defp manual_due({core, actions}, now) do
-    if now >= core.next_manual and core.target != nil do
+    if now >= core.next_manual_ms and core.target != nil do
       {core, send} = send_manual(core, now)
       {core, send ++ actions}
     else
@@ -298,39 +304,42 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   end
 
   defp timesync_due({core, actions}, now) do
-    if now >= core.next_timesync and core.up do
-      ts1 = round(now * 1.0e9)
+    if now >= core.next_timesync_ms and core.up do
+      ts1 = now * 1_000_000
 
-      {%{core | next_timesync: next(core.next_timesync, 1.0, now)},
+      {%{core | next_timesync_ms: next(core.next_timesync_ms, 1_000, now)},
        [{:send, :timesync, %{tc1: 0, ts1: ts1}} | actions]}
     else
       {core, actions}
     end
   end
 
-  defp link_timeout({%__MODULE__{up: true, heard_at: at} = core, actions}, now)
-       when now - at > core.link_timeout do
-    reason = "no heartbeat from the vehicle for #{core.link_timeout} s"
+  defp link_timeout({%__MODULE__{up: true, heard_at_ms: at} = core, actions}, now)
+       when now - at > core.link_timeout_ms do
+    reason = "no heartbeat from the vehicle for #{seconds(core.link_timeout_ms)} s"
     core = %{core | up: false, reason: reason}
     {core, [{:link, %{up: false, reason: reason}} | actions]}
   end
 
   defp link_timeout(acc, _now), do: acc
 
-  defp command_timeout({%__MODULE__{pending: %{deadline: d} = p} = core, actions}, now)
+  defp command_timeout({%__MODULE__{pending: %{deadline_ms: d} = p} = core, actions}, now)
        when now >= d do
-    reason = "no answer from the vehicle within #{core.command_timeout} s"
+    reason = "no answer from the vehicle within #{seconds(core.command_timeout_ms)} s"
     {%{core | pending: nil}, [{:reply, p.from, {:error, reason}} | actions]}
   end
 
   defp command_timeout(acc, _now), do: acc
 
-  defp disarm_due({%__MODULE__{disarm_at: at} = core, actions}, now)
-       when is_float(at) and now >= at do
-    core = %{core | disarm_at: nil}
+  defp disarm_due({%__MODULE__{disarm_at_ms: at} = core, actions}, now)
+       when is_integer(at) and now >= at do
+    core = %{core | disarm_at_ms: nil}
 
     if core.up and core.vehicle.armed do
-      log = {:log, :warning, "disarming the vehicle: no pilot for #{core.disarm_delay} s", %{}}
+      log =
+        {:log, :warning, "disarming the vehicle: no pilot for #{seconds(core.disarm_delay_ms)} s",
+         %{}}
+
       {core, [command(core, @mav_cmd_component_arm_disarm, [0.0]), log | actions]}
     else
       {core, actions}
@@ -342,23 +351,23 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   defp finish({core, actions}), do: {core, Enum.reverse(actions)}
 
   # the next deadline after `now` on the grid of `period` (a late tick does not send a burst)
-  defp next(deadline, period, now) do
-    n = Float.floor((now - deadline) / period) + 1
-    deadline + n * period
-  end
+  defp next(deadline, period, now), do: deadline + (div(now - deadline, period) + 1) * period
+
+  # a duration as the texts say it: seconds (3_000 → 3.0)
+  defp seconds(ms), do: ms / 1000
 
   defp send_manual(core, now) do
     target = elem(core.target, 0)
     fields = Map.put(core.control, :target, target)
-    {%{core | next_manual: now + core.manual_period}, [{:send, :manual_control, fields}]}
+    {%{core | next_manual_ms: now + core.manual_period_ms}, [{:send, :manual_control, fields}]}
   end
 
   @doc "The earliest time something is due (the process sleeps until then)."
-  @spec due(t()) :: float()
+  @spec due(t()) :: integer()
   def due(core) do
-    [core.next_heartbeat, core.next_manual, core.next_timesync]
-    |> then(&if(core.pending, do: [core.pending.deadline | &1], else: &1))
-    |> then(&if(core.disarm_at, do: [core.disarm_at | &1], else: &1))
+    [core.next_heartbeat_ms, core.next_manual_ms, core.next_timesync_ms]
+    |> then(&if(core.pending, do: [core.pending.deadline_ms | &1], else: &1))
+    |> then(&if(core.disarm_at_ms, do: [core.disarm_at_ms | &1], else: &1))
     |> Enum.min()
   end
 
@@ -368,7 +377,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   The body-frame demand from control (`Neptunus.Control.Demand`, our gain in it):
   MANUAL_CONTROL at once when the command changes.
   """
-  @spec go(t(), Neptunus.Control.Demand.t(), float()) :: {t(), [action()]}
+  @spec go(t(), Neptunus.Control.Demand.t(), integer()) :: {t(), [action()]}
   def go(core, %{surge: _, sway: _, heave: _, yaw: _} = demand, now) do
     command(%{core | demand: demand}, now)
   end
@@ -385,7 +394,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   end
 
   @doc "Neutral MANUAL_CONTROL now, changed or not (the board's last word when it stops)."
-  @spec neutral(t(), float()) :: {t(), [action()]}
+  @spec neutral(t(), integer()) :: {t(), [action()]}
   def neutral(core, now) do
     demand = Neptunus.Control.Demand.zero()
     core = %{core | demand: demand, control: manual_control(demand, 1.0)}
@@ -396,19 +405,19 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   Arms (`true`) or disarms (`false`) the vehicle; `from` gets the answer as an action
   `{:reply, from, :ok | {:error, reason}}` (see the moduledoc).
   """
-  @spec arm(t(), term(), boolean(), float()) :: {t(), [action()]}
+  @spec arm(t(), term(), boolean(), integer()) :: {t(), [action()]}
   def arm(core, from, arm?, now) when is_boolean(arm?) do
     kind = if arm?, do: :arm, else: :disarm
     param1 = if arm?, do: 1.0, else: 0.0
     # a disarm asked for by the pilot supersedes a scheduled one
-    core = if arm?, do: core, else: %{core | disarm_at: nil}
+    core = if arm?, do: core, else: %{core | disarm_at_ms: nil}
     request(core, from, kind, @mav_cmd_component_arm_disarm, [param1], now)
   end
 
   @doc """
   Sets the vehicle's flight mode by name (`modes/0`, e.g. `"ALT_HOLD"`), answered like `arm/4`.
   """
-  @spec set_mode(t(), term(), String.t(), float()) :: {t(), [action()]}
+  @spec set_mode(t(), term(), String.t(), integer()) :: {t(), [action()]}
   def set_mode(core, from, name, now) do
     case Enum.find(modes(), fn {_n, mode} -> mode == name end) do
       {number, _} ->
@@ -428,7 +437,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   (ArduSub holds the depth and heading it has when the mode engages) and depth hold without
   heading hold (ALT_HOLD holds both). Answered like `arm/4`.
   """
-  @spec autopilot(t(), term(), map(), float()) :: {t(), [action()]}
+  @spec autopilot(t(), term(), map(), integer()) :: {t(), [action()]}
   def autopilot(core, from, %{depth: depth, heading: heading}, now) do
     held = %{
       depth: core.vehicle.mode == "ALT_HOLD",
@@ -509,7 +518,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
           kind: kind,
           command: command,
           from: from,
-          deadline: now + core.command_timeout,
+          deadline_ms: now + core.command_timeout_ms,
           text: nil
         }
 
@@ -562,15 +571,15 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
 
   @doc """
   A stop of the vehicle with `reason`: a pilot loss (`pilot_loss_reasons/0`) schedules a
-  disarm `disarm_delay` from `now` while the vehicle is armed or being armed.
+  disarm `disarm_delay_ms` after `now` while the vehicle is armed or being armed.
   """
-  @spec stopped(t(), String.t(), float()) :: t()
+  @spec stopped(t(), String.t(), integer()) :: t()
   def stopped(core, reason, now) do
     arming? = match?(%{kind: :arm}, core.pending)
 
     if reason in @pilot_loss_reasons and (core.vehicle.armed or arming?) and
-         core.disarm_at == nil,
-       do: %{core | disarm_at: now + core.disarm_delay},
+         core.disarm_at_ms == nil,
+       do: %{core | disarm_at_ms: now + core.disarm_delay_ms},
        else: core
   end
 
@@ -580,14 +589,14 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   """
   @spec pilot(t(), term()) :: t()
   def pilot(core, pilot) do
-    core = if pilot != nil and pilot != core.pilot, do: %{core | disarm_at: nil}, else: core
+    core = if pilot != nil and pilot != core.pilot, do: %{core | disarm_at_ms: nil}, else: core
     %{core | pilot: pilot}
   end
 
   # ── what the vehicle sends ───────────────────────────────────────────────────────────
 
   @doc "A message from the link."
-  @spec receive(t(), Message.t(), float()) :: {t(), [action()]}
+  @spec receive(t(), Message.t(), integer()) :: {t(), [action()]}
   def receive(
         core,
         %Message{name: :heartbeat, fields: %{type: type, autopilot: autopilot}} = m,
@@ -616,7 +625,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     }
 
     before = core.vehicle
-    core = %{core | target: {m.system, m.component}, heard_at: now, vehicle: vehicle}
+    core = %{core | target: {m.system, m.component}, heard_at_ms: now, vehicle: vehicle}
 
     link =
       if core.up,
@@ -761,7 +770,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
 
   defp from_vehicle(core, %Message{name: :timesync, fields: %{tc1: tc1, ts1: ts1}}, now)
        when tc1 != 0 do
-    rtt_ms = (now * 1.0e9 - ts1) / 1.0e6
+    rtt_ms = (now * 1_000_000 - ts1) / 1.0e6
 
     if rtt_ms >= 0 and rtt_ms < 10_000,
       do: {%{core | rtt_ms: Float.round(rtt_ms, 3)}, []},
@@ -817,7 +826,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
         _ -> %{board_time: time_boot_ms / 1000}
       end
 
-    %{t: now - core.started, measurement: measurement, sim: nil, board: board}
+    %{t: (now - core.started_ms) / 1000, measurement: measurement, sim: nil, board: board}
   end
 
   defp wrap(yaw) when is_number(yaw) do
@@ -855,7 +864,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
         servo_us: core.servo_us,
         thrusters: Enum.map(core.servo_us, &thruster/1),
         control: core.control,
-        disarm_pending: core.disarm_at != nil,
+        disarm_pending: core.disarm_at_ms != nil,
         pilot_gain: core.pilot_gain
       }
     }

@@ -16,8 +16,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       the answers there;
     * `{:tcp, host, port}` — connects (ArduPilot SITL listens on TCP 5760); reconnects
       `reconnect_ms` (1 s) after a failure or a close;
-    * `{:serial, device, baud}` — the `neptunus_uart` port program (`c_src/neptunus_uart.c`,
-      as `Neptunus.Vehicle.Board.UART` uses it); reopened `reconnect_ms` after it exits.
+    * `{:serial, device, baud}` — the `neptunus_uart` port program
+      (`Neptunus.Vehicle.Board.SerialPort`, as `Neptunus.Vehicle.Board.UART` uses it); reopened
+      `reconnect_ms` after it exits.
 
   Bytes from the link go through one decoder; frames lost, garbage and unknown messages are
   counted in `link_status/1`.
@@ -47,6 +48,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   alias Neptunus.Protocol.MAVLink, as: Codec
   alias Neptunus.Vehicle.{Board, Telemetry}
   alias Neptunus.Vehicle.Board.MAVLink.Core
+  alias Neptunus.Vehicle.Board.SerialPort
 
   @behaviour Board
 
@@ -88,8 +90,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   @doc """
   Starts the board of vehicle `opts[:id]`, registered as `Board.via(id)`. Options: `:link`
   (required, see the moduledoc), `:system`, `:component` (ours, default 255/190),
-  `:manual_period`, `:link_timeout`, `:command_timeout`, `:disarm_delay` (s),
-  `:lights_servo`, `:reconnect_ms`, `:program` (the port program for serial links).
+  `:manual_period_ms`, `:link_timeout_ms`, `:command_timeout_ms`, `:disarm_delay` (s, as
+  `NEPTUNUS_MAVLINK_DISARM_DELAY` configures it), `:lights_servo`, `:reconnect_ms`,
+  `:program` (the port program for serial links).
   """
   @impl Board
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -200,10 +203,10 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       id: id,
       topic: Telemetry.topic(id),
       link: Keyword.fetch!(opts, :link),
-      core: Core.new(now(), opts),
+      core: Core.new(now_ms(), core_options(opts)),
       decoder: Codec.new(),
       reconnect_ms: Keyword.get(opts, :reconnect_ms, 1_000),
-      program: Keyword.get(opts, :program) || Board.UART.program()
+      program: Keyword.get(opts, :program) || SerialPort.program()
     }
 
     subscribe(state.topic)
@@ -212,7 +215,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   @impl true
-  def handle_continue(:open, state), do: {:noreply, state |> open() |> run(&Core.tick(&1, now()))}
+  def handle_continue(:open, state),
+    do: {:noreply, state |> open() |> run(&Core.tick(&1, now_ms()))}
 
   @impl true
   def handle_call(:link_status, _from, state) do
@@ -229,27 +233,27 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   def handle_call({:arm, arm?, notify}, _from, state) do
-    {:reply, :ok, run(state, &Core.arm(&1, notify, arm?, now()))}
+    {:reply, :ok, run(state, &Core.arm(&1, notify, arm?, now_ms()))}
   end
 
   def handle_call({:autopilot, setpoints, notify}, _from, state) do
-    {:reply, :ok, run(state, &Core.autopilot(&1, notify, setpoints, now()))}
+    {:reply, :ok, run(state, &Core.autopilot(&1, notify, setpoints, now_ms()))}
   end
 
   def handle_call({:set_mode, mode, notify}, _from, state) do
-    {:reply, :ok, run(state, &Core.set_mode(&1, notify, mode, now()))}
+    {:reply, :ok, run(state, &Core.set_mode(&1, notify, mode, now_ms()))}
   end
 
   @impl true
   def handle_cast({:go, demand}, state),
-    do: {:noreply, run(state, &Core.go(&1, demand, now()))}
+    do: {:noreply, run(state, &Core.go(&1, demand, now_ms()))}
 
   def handle_cast({:lights, n}, state), do: {:noreply, run(state, &Core.lights(&1, n))}
   def handle_cast({:tilt, rad}, state), do: {:noreply, run(state, &Core.tilt(&1, rad))}
 
   @impl true
   def handle_info(:tick, state) do
-    {:noreply, run(%{state | timer: nil}, &Core.tick(&1, now()))}
+    {:noreply, run(%{state | timer: nil}, &Core.tick(&1, now_ms()))}
   end
 
   def handle_info(:report, state) do
@@ -274,24 +278,10 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   def handle_info({:tcp_error, socket, why}, %State{socket: socket} = state),
     do: {:noreply, closed(state, "TCP error: #{inspect(why)}")}
 
-  # serial: the port program's frames
-  def handle_info({port, {:data, <<?r, data::binary>>}}, %State{socket: port} = state)
-      when is_port(port),
-      do: {:noreply, received(state, data)}
-
-  def handle_info({port, {:data, <<?o, _path::binary>>}}, %State{socket: port} = state)
-      when is_port(port),
-      do: {:noreply, %{state | transport: "serial open"}}
-
-  def handle_info({port, {:data, <<?e, text::binary>>}}, %State{socket: port} = state)
-      when is_port(port),
-      do: {:noreply, %{state | transport: "serial: #{text}"}}
-
-  def handle_info({port, {:data, _other}}, %State{socket: port} = state) when is_port(port),
-    do: {:noreply, state}
-
-  def handle_info({port, {:exit_status, n}}, %State{socket: port} = state) when is_port(port),
-    do: {:noreply, closed(state, "the serial port program exited (#{n}): #{state.transport}")}
+  # serial: the port program's messages
+  def handle_info({port, {kind, _} = message}, %State{socket: port} = state)
+      when is_port(port) and kind in [:data, :exit_status],
+      do: {:noreply, serial(SerialPort.decode(message), state)}
 
   # The serial port is linked to us (we trap exits): its program's exit comes as exit_status
   # (above) first. A port closed before that status reached the VM (a write to a program that
@@ -306,7 +296,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   # the vehicle's topic: stops and the helm (disarm after pilot loss)
   def handle_info({:pubsub, _topic, "stopped", %{reason: reason}}, state),
-    do: {:noreply, %{state | core: Core.stopped(state.core, reason, now())} |> arm_timer()}
+    do: {:noreply, %{state | core: Core.stopped(state.core, reason, now_ms())} |> arm_timer()}
 
   # the pilot is known by their connection's id (the rest of the helm's party may change)
   def handle_info({:pubsub, _topic, "helm", %{pilot: pilot}}, state) do
@@ -335,7 +325,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   @impl true
   def terminate(_reason, state) do
     # an orderly shutdown leaves the vehicle neutral
-    _ = run(state, &Core.neutral(&1, now()))
+    _ = run(state, &Core.neutral(&1, now_ms()))
     :ok
   end
 
@@ -367,18 +357,20 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   defp open(%State{link: {:serial, device, baud}} = state) do
-    port =
-      Port.open({:spawn_executable, state.program}, [
-        :binary,
-        {:packet, 2},
-        :exit_status,
-        args: ["tty", device, Integer.to_string(baud)]
-      ])
-
-    opened(state, port, "opening #{device}")
-  rescue
-    e -> failed(state, "cannot start the serial port program: #{Exception.message(e)}")
+    case SerialPort.open_tty(device, baud, program: state.program) do
+      {:ok, port} -> opened(state, port, "opening #{device}")
+      {:error, why} -> failed(state, "cannot start the serial port program: #{why}")
+    end
   end
+
+  defp serial({:read, data}, state), do: received(state, data)
+  defp serial({:open, _path}, state), do: %{state | transport: "serial open"}
+  defp serial({:error, text}, state), do: %{state | transport: "serial: #{text}"}
+
+  defp serial({:exit, n}, state),
+    do: closed(state, "the serial port program exited (#{n}): #{state.transport}")
+
+  defp serial(_other, state), do: state
 
   defp opened(state, socket, transport) do
     counters = Map.update!(state.counters, :opens, &(&1 + 1))
@@ -392,21 +384,23 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   defp closed(state, why) do
-    if is_port(state.socket), do: safe_close(state.socket)
+    close(state)
     failed(%{state | socket: nil, decoder: Codec.new()}, why)
   end
 
-  defp safe_close(port) do
-    Port.close(port)
-  catch
-    :error, _ -> :ok
-  end
+  defp close(%State{link: {:serial, _, _}, socket: port}) when is_port(port),
+    do: SerialPort.close(port)
+
+  defp close(%State{link: {:tcp, _, _}, socket: socket}) when socket != nil,
+    do: :gen_tcp.close(socket)
+
+  defp close(_state), do: :ok
 
   defp received(state, data) do
     {decoder, messages, _events} = Codec.decode(state.decoder, data)
     counters = Map.update!(state.counters, :received, &(&1 + length(messages)))
     state = %{state | decoder: decoder, counters: counters}
-    t = now()
+    t = now_ms()
     Enum.reduce(messages, state, fn m, state -> run(state, &Core.receive(&1, m, t)) end)
   end
 
@@ -426,7 +420,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   defp arm_timer(state) do
     if state.timer, do: Process.cancel_timer(state.timer)
-    ms = max(0, ceil((Core.due(state.core) - now()) * 1000))
+    ms = max(0, Core.due(state.core) - now_ms())
     %{state | timer: Process.send_after(self(), :tick, ms)}
   end
 
@@ -502,10 +496,10 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   end
 
   defp write(%State{link: {:serial, _, _}, socket: port} = state, frame) do
-    Port.command(port, [?w, frame], [:nosuspend])
-    |> then(&if(&1, do: count(state, :sent), else: count(state, :send_errors)))
-  catch
-    :error, _ -> count(state, :send_errors)
+    case SerialPort.write(port, frame) do
+      :ok -> count(state, :sent)
+      {:error, _busy_or_closed} -> count(state, :send_errors)
+    end
   end
 
   defp count(state, key), do: %{state | counters: Map.update!(state.counters, key, &(&1 + 1))}
@@ -539,6 +533,13 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
     :ok
   end
 
-  # the core runs on float seconds of the monotonic clock (converted here, at its edge)
-  defp now, do: Neptunus.Clock.monotonic_ms() / 1000
+  # the configured disarm delay is in seconds; the core's durations are in ms
+  defp core_options(opts) do
+    case Keyword.pop(opts, :disarm_delay) do
+      {nil, opts} -> opts
+      {s, opts} -> Keyword.put(opts, :disarm_delay_ms, round(s * 1000))
+    end
+  end
+
+  defp now_ms, do: Neptunus.Clock.monotonic_ms()
 end

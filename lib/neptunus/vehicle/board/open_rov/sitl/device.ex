@@ -2,9 +2,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   @moduledoc """
   The simulated OpenROV board of a SITL vehicle: owns a `Neptunus.Sim` and the firmware
   (`Neptunus.Vehicle.Board.SITL.Firmware`, which decides every byte and timing), and speaks on
-  the master end of a pseudo-terminal pair created by the port program
-  (`neptunus_uart pty LINK`), whose slave end is symlinked at `link` for
-  `Neptunus.Vehicle.Board.UART` to open.
+  the master end of a pseudo-terminal pair created by the port program (`neptunus_uart pty
+  LINK`, `Neptunus.Vehicle.Board.SerialPort.open_pty/2`), whose slave end is symlinked at
+  `link` for `Neptunus.Vehicle.Board.UART` to open.
 
   It steps the simulation at `hz` (default `Neptunus.Sim.default_hz/0`, 100 Hz) on absolute deadlines
   (`Neptunus.Periodic`, at most #{20} catch-up steps per tick); at each step it gives the
@@ -30,6 +30,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
 
   alias Neptunus.{Periodic, Sim}
   alias Neptunus.Camera.Pose
+  alias Neptunus.Vehicle.Board.SerialPort
   alias Neptunus.Vehicle.Board.SITL.Firmware
 
   @max_catch_up 20
@@ -115,45 +116,29 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
 
     File.mkdir_p!(Path.dirname(link))
 
-    port =
-      Port.open({:spawn_executable, Neptunus.Vehicle.Board.UART.program()}, [
-        :binary,
-        {:packet, 2},
-        :exit_status,
-        :use_stdio,
-        {:env,
-         [{~c"NEPTUNUS_UART_RX_STAMPS", ~c"1"}] ++
-           Neptunus.OS.port_env(Keyword.get(opts, :os_time_slice_ns))},
-        args: ["pty", link]
-      ])
+    port_opts = [rx_stamps: true, env: Neptunus.OS.port_env(opts[:os_time_slice_ns])]
 
     # Deliberately synchronous (a few ms): the board link starts after us and must find the
     # device, as a real board's device node exists before the server starts.
-    receive do
-      {^port, {:data, "o" <> pty}} ->
-        # the board was powered before anyone opened its line, as a real one is: its boot
-        # output waits in the pty, where the opener drops it (a new session's stale input)
-        {firmware, boot} = Firmware.started(firmware, Neptunus.Clock.monotonic_ms())
+    with {:ok, port} <- SerialPort.open_pty(link, port_opts),
+         {:ok, pty} <- SerialPort.await_open(port, @open_timeout) do
+      # the board was powered before anyone opened its line, as a real one is: its boot
+      # output waits in the pty, where the opener drops it (a new session's stale input)
+      {firmware, boot} = Firmware.started(firmware, Neptunus.Clock.monotonic_ms())
 
-        state = %State{
-          id: id,
-          port: port,
-          pty: pty,
-          sim: Sim.new(sim_opts(opts, hz)),
-          firmware: firmware,
-          periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick)),
-          reset_on_open: Keyword.get(opts, :reset_on_open, false) == true
-        }
+      state = %State{
+        id: id,
+        port: port,
+        pty: pty,
+        sim: Sim.new(sim_opts(opts, hz)),
+        firmware: firmware,
+        periodic: Periodic.new(hz) |> tap(&Periodic.arm(&1, :tick)),
+        reset_on_open: Keyword.get(opts, :reset_on_open, false) == true
+      }
 
-        {:ok, send_bytes(state, boot)}
-
-      {^port, {:data, "e" <> why}} ->
-        {:stop, {:pty, why}}
-
-      {^port, {:exit_status, status}} ->
-        {:stop, {:pty, "port program exited with status #{status}"}}
-    after
-      @open_timeout -> {:stop, {:pty, :timeout}}
+      {:ok, send_bytes(state, boot)}
+    else
+      {:error, why} -> {:stop, {:pty, why}}
     end
   end
 
@@ -187,11 +172,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   end
 
   @impl true
-  def handle_info({port, {:data, frame}}, %State{port: port} = state)
-      when binary_part(frame, 0, 1) in ["r", "t", "O"],
-      do: {:noreply, line_frame(frame, state)}
-
-  def handle_info({port, {:data, _other}}, %State{port: port} = state), do: {:noreply, state}
+  def handle_info({port, {:data, _} = message}, %State{port: port} = state),
+    do: {:noreply, line_event(SerialPort.decode(message), state)}
 
   def handle_info({port, {:exit_status, status}}, %State{port: port} = state) do
     {:stop, {:pty_exited, status}, state}
@@ -233,30 +215,27 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   end
 
   # Bytes from the line at the time they were read (the stamp before them), an open of the
-  # line (a USB Arduino resets on it: DTR)
-  defp line_frame("t" <> ns, state) do
-    case Integer.parse(ns) do
-      {ns, ""} -> %{state | rx_stamp_ms: vm_ms(ns)}
-      _ -> state
-    end
-  end
+  # line (a USB Arduino resets on it: DTR); nothing else the program says matters here
+  defp line_event({:read_at_ns, ns}, state), do: %{state | rx_stamp_ms: vm_ms(ns)}
 
-  defp line_frame("r" <> bytes, state) do
+  defp line_event({:read, bytes}, state) do
     now = Neptunus.Clock.monotonic_ms()
     at = min(state.rx_stamp_ms || now, now)
     {firmware, reply} = Firmware.receive(state.firmware, bytes, at)
     send_bytes(apply_firmware(%{state | rx_stamp_ms: nil}, firmware), reply)
   end
 
-  defp line_frame("O", state) do
+  defp line_event(:peer_opened, state) do
     state = %{state | opens: state.opens + 1}
     if state.reset_on_open, do: reboot(state), else: state
   end
 
+  defp line_event(_other, state), do: state
+
   defp take_line_frames(%State{port: port} = state) do
     receive do
-      {^port, {:data, frame}} when binary_part(frame, 0, 1) in ["r", "t", "O"] ->
-        take_line_frames(line_frame(frame, state))
+      {^port, {:data, _} = message} ->
+        take_line_frames(line_event(SerialPort.decode(message), state))
     after
       0 -> state
     end
@@ -287,7 +266,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   defp send_bytes(state, bytes) do
     if IO.iodata_length(bytes) > 0 do
       # the program queues what the pty does not take at once; never block here
-      _ = :erlang.port_command(state.port, ["w", bytes], [:nosuspend])
+      _ = SerialPort.write(state.port, bytes)
     end
 
     state

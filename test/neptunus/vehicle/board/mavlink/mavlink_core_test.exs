@@ -41,38 +41,38 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
 
   # a core with the vehicle heard at t = 0.5
   defp linked(opts \\ []) do
-    core = Core.new(0.0, opts)
-    {core, _} = Core.tick(core, 0.0)
-    {core, _} = Core.receive(core, heartbeat(opts), 0.5)
+    core = Core.new(0, opts)
+    {core, _} = Core.tick(core, 0)
+    {core, _} = Core.receive(core, heartbeat(opts), 500)
     core
   end
 
   describe "time" do
     test "a GCS heartbeat every second, on the grid, from the start" do
-      core = Core.new(10.0)
-      {core, actions} = Core.tick(core, 10.0)
+      core = Core.new(10_000)
+      {core, actions} = Core.tick(core, 10_000)
       assert [%{type: 6, autopilot: 8}] = sends(actions, :heartbeat)
-      {core, actions} = Core.tick(core, 10.5)
+      {core, actions} = Core.tick(core, 10_500)
       assert sends(actions, :heartbeat) == []
       # late: one heartbeat, the next on the grid
-      {core, actions} = Core.tick(core, 13.2)
+      {core, actions} = Core.tick(core, 13_200)
       assert length(sends(actions, :heartbeat)) == 1
-      assert core.next_heartbeat == 14.0
+      assert core.next_heartbeat_ms == 14_000
     end
 
     test "no MANUAL_CONTROL before a vehicle is known; neutral at 10 Hz after" do
-      core = Core.new(0.0)
-      {core, actions} = Core.tick(core, 0.0)
+      core = Core.new(0)
+      {core, actions} = Core.tick(core, 0)
       assert sends(actions, :manual_control) == []
-      {core, _} = Core.receive(core, heartbeat(), 0.05)
-      {core, actions} = Core.tick(core, 0.1)
+      {core, _} = Core.receive(core, heartbeat(), 50)
+      {core, actions} = Core.tick(core, 100)
 
       assert [%{target: 1, x: 0, y: 0, z: 500, r: 0, buttons: 0}] =
                sends(actions, :manual_control)
 
-      {core, actions} = Core.tick(core, 0.15)
+      {core, actions} = Core.tick(core, 150)
       assert sends(actions, :manual_control) == []
-      {_core, actions} = Core.tick(core, 0.2)
+      {_core, actions} = Core.tick(core, 200)
       assert length(sends(actions, :manual_control)) == 1
     end
 
@@ -80,11 +80,11 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
       core = linked()
 
       assert Core.due(core) ==
-               Enum.min([core.next_heartbeat, core.next_manual, core.next_timesync])
+               Enum.min([core.next_heartbeat_ms, core.next_manual_ms, core.next_timesync_ms])
 
-      {core, _} = Core.arm(core, :me, true, 0.5)
-      core = %{core | next_heartbeat: 9.0, next_manual: 9.0, next_timesync: 9.0}
-      assert Core.due(core) == 3.5
+      {core, _} = Core.arm(core, :me, true, 500)
+      core = %{core | next_heartbeat_ms: 9_000, next_manual_ms: 9_000, next_timesync_ms: 9_000}
+      assert Core.due(core) == 3_500
     end
   end
 
@@ -132,30 +132,30 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
 
     test "a change is sent at once and restarts the period; no change sends nothing" do
       core = linked()
-      {core, actions} = Core.go(core, @ahead, 0.6)
+      {core, actions} = Core.go(core, @ahead, 600)
       assert [%{x: 500, z: 500, target: 1}] = sends(actions, :manual_control)
-      assert core.next_manual == 0.6 + 0.1
-      {_core, actions} = Core.go(core, @ahead, 0.62)
+      assert core.next_manual_ms == 600 + 100
+      {_core, actions} = Core.go(core, @ahead, 620)
       assert actions == []
     end
 
     test "before a vehicle is known the command is kept, not sent" do
-      core = Core.new(0.0)
-      {core, actions} = Core.go(core, @ahead, 0.1)
+      core = Core.new(0)
+      {core, actions} = Core.go(core, @ahead, 100)
       assert actions == []
-      {core, _} = Core.receive(core, heartbeat(), 0.2)
-      {_core, actions} = Core.tick(core, 0.2)
+      {core, _} = Core.receive(core, heartbeat(), 200)
+      {_core, actions} = Core.tick(core, 200)
       assert [%{x: 500}] = sends(actions, :manual_control)
     end
 
     test "neutral/2 sends neutral even when unchanged; nothing before a vehicle is known" do
       core = linked()
-      {core, actions} = Core.neutral(core, 0.6)
+      {core, actions} = Core.neutral(core, 600)
       assert [%{x: 0, y: 0, z: 500, r: 0}] = sends(actions, :manual_control)
-      {core, _} = Core.go(core, demand(surge: 0.5, sway: 0.5), 0.7)
-      {_core, actions} = Core.neutral(core, 0.71)
+      {core, _} = Core.go(core, demand(surge: 0.5, sway: 0.5), 700)
+      {_core, actions} = Core.neutral(core, 710)
       assert [%{x: 0, y: 0, z: 500}] = sends(actions, :manual_control)
-      assert {_, []} = Core.neutral(Core.new(0.0), 0.1)
+      assert {_, []} = Core.neutral(Core.new(0), 100)
     end
 
     test "out-of-range values are clamped" do
@@ -165,11 +165,11 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
 
     test "PilotGain: the command is re-scaled and sent at once, the pilot told once per gain" do
       core = linked()
-      {core, _} = Core.go(core, demand(surge: 0.25, yaw: -0.1), 0.6)
+      {core, _} = Core.go(core, demand(surge: 0.25, yaw: -0.1), 600)
       assert %{x: 250, r: -100} = core.control
       assert Core.status(core).mavlink.pilot_gain == nil
 
-      {core, actions} = Core.receive(core, named_float("PilotGain", 0.5), 0.65)
+      {core, actions} = Core.receive(core, named_float("PilotGain", 0.5), 650)
       assert [%{x: 500, r: -200}] = sends(actions, :manual_control)
 
       assert [{:log, :info, "ArduSub's joystick gain is 50%" <> _, _}] =
@@ -177,22 +177,22 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
 
       assert Core.status(core).mavlink.pilot_gain == 0.5
       # the same gain again: nothing
-      assert {^core, []} = Core.receive(core, named_float("PilotGain", 0.5), 0.7)
+      assert {^core, []} = Core.receive(core, named_float("PilotGain", 0.5), 700)
       # other named values and implausible gains are not the gain
-      assert {^core, []} = Core.receive(core, named_float("Lights1", 0.3), 0.7)
-      assert {^core, []} = Core.receive(core, named_float("PilotGain", 0.0), 0.7)
-      assert {^core, []} = Core.receive(core, named_float("PilotGain", 2.0), 0.7)
+      assert {^core, []} = Core.receive(core, named_float("Lights1", 0.3), 700)
+      assert {^core, []} = Core.receive(core, named_float("PilotGain", 0.0), 700)
+      assert {^core, []} = Core.receive(core, named_float("PilotGain", 2.0), 700)
 
       # a new demand is sent at the gain heard
-      {_core, actions} = Core.go(core, demand(heave: 0.1), 0.8)
+      {_core, actions} = Core.go(core, demand(heave: 0.1), 800)
       assert [%{x: 0, z: 400}] = sends(actions, :manual_control)
     end
   end
 
   describe "link" do
     test "up on the vehicle's first heartbeat: requests the streams, logs armed and mode" do
-      core = Core.new(0.0)
-      {core, actions} = Core.receive(core, heartbeat(), 1.0)
+      core = Core.new(0)
+      {core, actions} = Core.receive(core, heartbeat(), 1000)
       assert {:link, %{up: true, reason: "heartbeat"}} in actions
       streams = sends(actions, :request_data_stream)
       assert length(streams) == 6
@@ -211,7 +211,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
     end
 
     test "a ground station's heartbeat is not a vehicle" do
-      {core, actions} = Core.receive(Core.new(0.0), heartbeat(type: 6, system: 254), 1.0)
+      {core, actions} = Core.receive(Core.new(0), heartbeat(type: 6, system: 254), 1000)
       assert actions == []
       refute core.up
       assert core.target == nil
@@ -221,7 +221,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
       for {type, component} <- [{18, 191}, {26, 154}, {30, 100}] do
         hb = heartbeat(type: type, component: component)
         hb = %{hb | fields: %{hb.fields | autopilot: 8}}
-        {core, actions} = Core.receive(Core.new(0.0), hb, 1.0)
+        {core, actions} = Core.receive(Core.new(0), hb, 1000)
         assert actions == []
         assert core.target == nil
       end
@@ -229,100 +229,100 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
 
     test "the first vehicle heard is the target; another system's heartbeat is ignored" do
       core = linked()
-      {core2, actions} = Core.receive(core, heartbeat(system: 2, armed: true), 0.7)
+      {core2, actions} = Core.receive(core, heartbeat(system: 2, armed: true), 700)
       assert actions == []
       assert core2 == core
     end
 
     test "changes of armed and mode are logged, repeated heartbeats are not" do
       core = linked()
-      {core, actions} = Core.receive(core, heartbeat(), 1.5)
+      {core, actions} = Core.receive(core, heartbeat(), 1500)
       assert actions == []
-      {core, actions} = Core.receive(core, heartbeat(armed: true), 2.5)
+      {core, actions} = Core.receive(core, heartbeat(armed: true), 2500)
       assert actions == [{:log, :info, "vehicle armed: true", %{}}]
-      {_core, actions} = Core.receive(core, heartbeat(armed: true, mode: 2), 3.5)
+      {_core, actions} = Core.receive(core, heartbeat(armed: true, mode: 2), 3500)
       assert actions == [{:log, :info, "vehicle mode: ALT_HOLD", %{}}]
     end
 
     test "down after link_timeout without a heartbeat; up again with the streams requested" do
       core = linked()
-      {core, actions} = Core.tick(core, 3.5)
+      {core, actions} = Core.tick(core, 3500)
       refute Enum.any?(actions, &match?({:link, _}, &1))
-      {core, actions} = Core.tick(core, 3.51)
+      {core, actions} = Core.tick(core, 3510)
       assert {:link, %{up: false, reason: "no heartbeat from the vehicle for 3.0 s"}} in actions
       refute core.up
-      {_core, actions} = Core.receive(core, heartbeat(), 4.0)
+      {_core, actions} = Core.receive(core, heartbeat(), 4000)
       assert {:link, %{up: true, reason: "heartbeat"}} in actions
       assert length(sends(actions, :request_data_stream)) == 6
     end
 
     test "TIMESYNC every second while up; the answer gives the round trip" do
       core = linked()
-      {core, actions} = Core.tick(core, 1.0)
+      {core, actions} = Core.tick(core, 1000)
       assert [%{tc1: 0, ts1: 1_000_000_000}] = sends(actions, :timesync)
       answer = msg(:timesync, %{tc1: 77, ts1: 1_000_000_000})
-      {core, []} = Core.receive(core, answer, 1.004)
+      {core, []} = Core.receive(core, answer, 1004)
       assert_in_delta Core.status(core).rtt_ms, 4.0, 1.0e-6
       # a request from the vehicle (tc1 0) or a reply to nothing we sent changes nothing
-      {^core, []} = Core.receive(core, msg(:timesync, %{tc1: 0, ts1: 5}), 1.1)
-      {^core, []} = Core.receive(core, msg(:timesync, %{tc1: 1, ts1: 9_000_000_000}), 1.1)
+      {^core, []} = Core.receive(core, msg(:timesync, %{tc1: 0, ts1: 5}), 1100)
+      {^core, []} = Core.receive(core, msg(:timesync, %{tc1: 1, ts1: 9_000_000_000}), 1100)
     end
   end
 
   describe "arming" do
     test "arm sends COMMAND_LONG 400 param1 1 to the vehicle; ACCEPTED replies ok" do
       core = linked()
-      {core, actions} = Core.arm(core, :me, true, 1.0)
+      {core, actions} = Core.arm(core, :me, true, 1000)
 
       assert [%{command: 400, param1: 1.0, param2: 0.0, target_system: 1, target_component: 1}] =
                sends(actions, :command_long)
 
-      {core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 0}), 1.05)
+      {core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 0}), 1050)
       assert actions == [{:reply, :me, :ok}]
       assert core.pending == nil
     end
 
     test "a refusal replies with the vehicle's STATUSTEXT, else the result's name" do
       core = linked()
-      {core, _} = Core.arm(core, :me, true, 1.0)
+      {core, _} = Core.arm(core, :me, true, 1000)
       text = msg(:statustext, %{severity: 2, text: "Arm: Throttle too high"})
-      {core, actions} = Core.receive(core, text, 1.01)
+      {core, actions} = Core.receive(core, text, 1010)
 
       assert [{:log, :error, "Arm: Throttle too high", %{severity: 2, source: "vehicle"}}] =
                actions
 
-      {core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 4}), 1.02)
+      {core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 4}), 1020)
       assert actions == [{:reply, :me, {:error, "Arm: Throttle too high"}}]
 
-      {core, _} = Core.arm(core, :me, true, 2.0)
-      {_core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 2}), 2.1)
+      {core, _} = Core.arm(core, :me, true, 2000)
+      {_core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 2}), 2100)
       assert actions == [{:reply, :me, {:error, "denied"}}]
     end
 
     test "an ACK of another command does not answer" do
       core = linked()
-      {core, _} = Core.arm(core, :me, false, 1.0)
-      {core, actions} = Core.receive(core, msg(:command_ack, %{command: 176, result: 0}), 1.1)
+      {core, _} = Core.arm(core, :me, false, 1000)
+      {core, actions} = Core.receive(core, msg(:command_ack, %{command: 176, result: 0}), 1100)
       assert actions == []
       assert core.pending.kind == :disarm
     end
 
     test "no answer within command_timeout: a clear error, and the next command may go" do
       core = linked()
-      {core, _} = Core.arm(core, :me, true, 1.0)
-      {core, _} = Core.receive(core, heartbeat(), 2.0)
-      {core, actions} = Core.tick(core, 3.99)
+      {core, _} = Core.arm(core, :me, true, 1000)
+      {core, _} = Core.receive(core, heartbeat(), 2000)
+      {core, actions} = Core.tick(core, 3990)
       refute Enum.any?(actions, &match?({:reply, _, _}, &1))
-      {core, actions} = Core.tick(core, 4.0)
+      {core, actions} = Core.tick(core, 4000)
       assert {:reply, :me, {:error, "no answer from the vehicle within 3.0 s"}} in actions
-      {_core, actions} = Core.arm(core, :me, true, 4.1)
+      {_core, actions} = Core.arm(core, :me, true, 4100)
       assert [_] = sends(actions, :command_long)
     end
 
     test "one command at a time; refused while the link is down" do
       core = linked()
-      {core, _} = Core.arm(core, :a, true, 1.0)
-      {core2, actions} = Core.arm(core, :b, false, 1.1)
+      {core, _} = Core.arm(core, :a, true, 1000)
+      {core2, actions} = Core.arm(core, :b, false, 1100)
 
       assert actions == [
                {:reply, :b, {:error, "a arm command is still waiting for the vehicle's answer"}}
@@ -330,7 +330,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
 
       assert core2 == core
 
-      {down, actions} = Core.arm(Core.new(0.0), :c, true, 0.0)
+      {down, actions} = Core.arm(Core.new(0), :c, true, 0)
 
       assert [
                {:reply, :c,
@@ -342,92 +342,92 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
 
     test "set_mode sends DO_SET_MODE with the custom mode; unknown modes are refused" do
       core = linked()
-      {core, actions} = Core.set_mode(core, :me, "ALT_HOLD", 1.0)
+      {core, actions} = Core.set_mode(core, :me, "ALT_HOLD", 1000)
       assert [%{command: 176, param1: 1.0, param2: 2.0}] = sends(actions, :command_long)
-      {_core, actions} = Core.receive(core, msg(:command_ack, %{command: 176, result: 0}), 1.1)
+      {_core, actions} = Core.receive(core, msg(:command_ack, %{command: 176, result: 0}), 1100)
       assert actions == [{:reply, :me, :ok}]
-      {_core, actions} = Core.set_mode(linked(), :me, "LOITER", 1.0)
+      {_core, actions} = Core.set_mode(linked(), :me, "LOITER", 1000)
       assert actions == [{:reply, :me, {:error, "unknown flight mode \"LOITER\""}}]
     end
   end
 
   describe "pilot loss" do
-    defp armed, do: elem(Core.receive(linked(), heartbeat(armed: true), 0.6), 0)
+    defp armed, do: elem(Core.receive(linked(), heartbeat(armed: true), 600), 0)
 
     test "a pilot-loss stop disarms after disarm_delay" do
       for reason <- Core.pilot_loss_reasons() do
-        core = armed() |> Core.pilot("p1") |> Core.stopped(reason, 1.0)
-        {core, actions} = Core.tick(core, 2.99)
+        core = armed() |> Core.pilot("p1") |> Core.stopped(reason, 1000)
+        {core, actions} = Core.tick(core, 2990)
         assert sends(actions, :command_long) == []
-        {core, actions} = Core.tick(core, 3.0)
+        {core, actions} = Core.tick(core, 3000)
         assert [%{command: 400, param1: +0.0}] = sends(actions, :command_long)
         assert Enum.any?(actions, &match?({:log, :warning, "disarming the vehicle" <> _, _}, &1))
-        assert core.disarm_at == nil
+        assert core.disarm_at_ms == nil
       end
     end
 
     test "the delay is configurable" do
-      core = elem(Core.receive(linked(disarm_delay: 0.5), heartbeat(armed: true), 0.6), 0)
-      core = Core.stopped(core, "deadman", 1.0)
-      {_core, actions} = Core.tick(core, 1.5)
+      core = elem(Core.receive(linked(disarm_delay_ms: 500), heartbeat(armed: true), 600), 0)
+      core = Core.stopped(core, "deadman", 1000)
+      {_core, actions} = Core.tick(core, 1500)
       assert [%{command: 400}] = sends(actions, :command_long)
     end
 
     test "a new pilot before the delay cancels it; the same pilot staying does not" do
-      core = armed() |> Core.pilot("p1") |> Core.stopped("pilot_disconnected", 1.0)
+      core = armed() |> Core.pilot("p1") |> Core.stopped("pilot_disconnected", 1000)
       core = core |> Core.pilot(nil) |> Core.pilot("p2")
-      {_core, actions} = Core.tick(core, 5.0)
+      {_core, actions} = Core.tick(core, 5000)
       assert sends(actions, :command_long) == []
 
       # the deadman keeps the pilot: the helm broadcast after the stop names them again
-      core = armed() |> Core.pilot("p1") |> Core.stopped("deadman", 1.0) |> Core.pilot("p1")
-      {_core, actions} = Core.tick(core, 3.0)
+      core = armed() |> Core.pilot("p1") |> Core.stopped("deadman", 1000) |> Core.pilot("p1")
+      {_core, actions} = Core.tick(core, 3000)
       assert [%{command: 400}] = sends(actions, :command_long)
     end
 
     test "handovers, the pilot's own stop and a disarmed vehicle schedule nothing" do
       for reason <- ["control_transferred", "main_station_takeover", "pilot_stop", "whatever"] do
-        assert (armed() |> Core.stopped(reason, 1.0)).disarm_at == nil
+        assert (armed() |> Core.stopped(reason, 1000)).disarm_at_ms == nil
       end
 
-      assert (linked() |> Core.stopped("deadman", 1.0)).disarm_at == nil
+      assert (linked() |> Core.stopped("deadman", 1000)).disarm_at_ms == nil
     end
 
     test "a vehicle being armed is disarmed too" do
-      {core, _} = Core.arm(linked(), :me, true, 1.0)
-      assert Core.stopped(core, "pilot_left", 1.0).disarm_at == 3.0
+      {core, _} = Core.arm(linked(), :me, true, 1000)
+      assert Core.stopped(core, "pilot_left", 1000).disarm_at_ms == 3_000
     end
 
     test "nothing is sent if the vehicle disarmed meanwhile or the link is down" do
-      core = armed() |> Core.stopped("deadman", 1.0)
-      {core2, _} = Core.receive(core, heartbeat(), 2.0)
-      {_core, actions} = Core.tick(core2, 3.0)
+      core = armed() |> Core.stopped("deadman", 1000)
+      {core2, _} = Core.receive(core, heartbeat(), 2000)
+      {_core, actions} = Core.tick(core2, 3000)
       assert sends(actions, :command_long) == []
-      {_core, actions} = Core.tick(%{core | up: false}, 3.0)
+      {_core, actions} = Core.tick(%{core | up: false}, 3000)
       assert sends(actions, :command_long) == []
     end
 
     test "the pilot's own disarm supersedes the scheduled one" do
-      core = armed() |> Core.stopped("deadman", 1.0)
-      {core, _} = Core.arm(core, :me, false, 1.5)
-      assert core.disarm_at == nil
+      core = armed() |> Core.stopped("deadman", 1000)
+      {core, _} = Core.arm(core, :me, false, 1500)
+      assert core.disarm_at_ms == nil
     end
   end
 
   describe "telemetry" do
     test "ATTITUDE makes a sample with the latest depth and battery" do
       core = linked()
-      {core, []} = Core.receive(core, msg(:vfr_hud, %{alt: -2.5}), 1.0)
+      {core, []} = Core.receive(core, msg(:vfr_hud, %{alt: -2.5}), 1000)
 
       {core, []} =
         Core.receive(
           core,
           msg(:sys_status, %{voltage_battery: 15_900, current_battery: 123}),
-          1.0
+          1000
         )
 
       attitude = %{time_boot_ms: 42_000, roll: 0.1, pitch: -0.2, yaw: -:math.pi() / 2}
-      {_core, [{:sample, sample}]} = Core.receive(core, msg(:attitude, attitude), 1.5)
+      {_core, [{:sample, sample}]} = Core.receive(core, msg(:attitude, attitude), 1500)
       assert sample.t == 1.5
       assert sample.sim == nil
       assert sample.board == %{board_time: 42.0}
@@ -477,20 +477,24 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
 
     test "depth from GLOBAL_POSITION_INT only while no VFR_HUD came; unknown battery left out" do
       core = linked()
-      {core, []} = Core.receive(core, msg(:global_position_int, %{relative_alt: -1500}), 1.0)
+      {core, []} = Core.receive(core, msg(:global_position_int, %{relative_alt: -1500}), 1000)
       assert core.readings.depth == 1.5
-      {core, []} = Core.receive(core, msg(:vfr_hud, %{alt: -1.0}), 1.1)
-      {core, []} = Core.receive(core, msg(:global_position_int, %{relative_alt: -3000}), 1.2)
+      {core, []} = Core.receive(core, msg(:vfr_hud, %{alt: -1.0}), 1100)
+      {core, []} = Core.receive(core, msg(:global_position_int, %{relative_alt: -3000}), 1200)
       assert core.readings.depth == 1.0
 
       {core, []} =
-        Core.receive(core, msg(:sys_status, %{voltage_battery: 0xFFFF, current_battery: -1}), 1.3)
+        Core.receive(
+          core,
+          msg(:sys_status, %{voltage_battery: 0xFFFF, current_battery: -1}),
+          1300
+        )
 
       {_core, [{:sample, s}]} =
         Core.receive(
           core,
           msg(:attitude, %{time_boot_ms: 0, roll: 0.0, pitch: 0.0, yaw: 0.0}),
-          1.4
+          1400
         )
 
       refute Map.has_key?(s.measurement, :voltage)
@@ -499,7 +503,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
 
     test "SERVO_OUTPUT_RAW shows as the servo outputs" do
       fields = Map.new(1..16, &{String.to_atom("servo#{&1}_raw"), 1400 + &1})
-      {core, []} = Core.receive(linked(), msg(:servo_output_raw, fields), 1.0)
+      {core, []} = Core.receive(linked(), msg(:servo_output_raw, fields), 1000)
       assert Core.status(core).mavlink.servo_us == Enum.map(1..8, &(1400 + &1))
       assert_in_delta Core.status(core).mavlink.thrusters |> hd(), -99 / 400, 0.001
 
@@ -507,7 +511,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
         Core.receive(
           core,
           msg(:servo_output_raw, %{fields | servo1_raw: 1900, servo2_raw: 0, servo3_raw: 1100}),
-          1.0
+          1000
         )
 
       assert [1.0, nil, -1.0 | _] = Core.status(core).mavlink.thrusters
@@ -523,7 +527,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
             {7, :info}
           ] do
         {_core, actions} =
-          Core.receive(linked(), msg(:statustext, %{severity: severity, text: "x"}), 1.0)
+          Core.receive(linked(), msg(:statustext, %{severity: severity, text: "x"}), 1000)
 
         assert [{:log, ^level, "x", %{severity: ^severity}}] = actions
       end
@@ -531,9 +535,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
 
     test "messages of other systems are ignored" do
       core = linked()
-      assert {^core, []} = Core.receive(core, msg(:vfr_hud, %{alt: -9.0}, 7), 1.0)
-      fresh = Core.new(0.0)
-      assert {^fresh, []} = Core.receive(fresh, msg(:vfr_hud, %{alt: 1.0}), 1.0)
+      assert {^core, []} = Core.receive(core, msg(:vfr_hud, %{alt: -9.0}, 7), 1000)
+      fresh = Core.new(0)
+      assert {^fresh, []} = Core.receive(fresh, msg(:vfr_hud, %{alt: 1.0}), 1000)
     end
   end
 
@@ -552,8 +556,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
     end
 
     test "nothing before a vehicle is known" do
-      assert {_, []} = Core.lights(Core.new(0.0), 10)
-      assert {_, []} = Core.tilt(Core.new(0.0), 0.1)
+      assert {_, []} = Core.lights(Core.new(0), 10)
+      assert {_, []} = Core.tilt(Core.new(0), 0.1)
     end
   end
 end
@@ -577,7 +581,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreModesTest do
       fields: fields
     }
 
-    elem(Core.receive(Core.new(0.0), m, 0.1), 0)
+    elem(Core.receive(Core.new(0), m, 100), 0)
   end
 
   defp mode_sent({_core, actions}) do
@@ -609,13 +613,13 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreModesTest do
           {@manual, %{depth: :unchanged, heading: 1.0},
            {:error, "ArduSub holds the heading it has when STABILIZE engages: use \"hold\""}}
         ] do
-      assert mode_sent(Core.autopilot(in_mode(from), :me, setpoints, 1.0)) == expected,
+      assert mode_sent(Core.autopilot(in_mode(from), :me, setpoints, 1000)) == expected,
              "from #{from} with #{inspect(setpoints)}"
     end
   end
 
   test "the mode's ACK answers" do
-    {core, _} = Core.autopilot(in_mode(@manual), :me, %{depth: :hold, heading: :hold}, 1.0)
+    {core, _} = Core.autopilot(in_mode(@manual), :me, %{depth: :hold, heading: :hold}, 1000)
 
     ack = %Message{
       id: 77,
@@ -627,7 +631,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreModesTest do
       fields: %{command: 176, result: 0}
     }
 
-    assert {_, [{:reply, :me, :ok}]} = Core.receive(core, ack, 1.1)
+    assert {_, [{:reply, :me, :ok}]} = Core.receive(core, ack, 1100)
   end
 
   test "vet refuses what ArduSub cannot fly, with a reason" do
@@ -665,21 +669,21 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTextTest do
 
   defp linked do
     hb = %{type: 12, autopilot: 3, base_mode: 81, custom_mode: 19, system_status: 3}
-    elem(Core.receive(Core.new(0.0), msg(:heartbeat, hb), 0.1), 0)
+    elem(Core.receive(Core.new(0), msg(:heartbeat, hb), 100), 0)
   end
 
   test "a long STATUSTEXT in chunks is one text, and answers a waiting command" do
-    {core, _} = Core.arm(linked(), :me, true, 1.0)
+    {core, _} = Core.arm(linked(), :me, true, 1000)
     first = String.duplicate("a", 50)
 
     {core, []} =
-      Core.receive(core, msg(:statustext, %{severity: 2, text: first, id: 7, chunk_seq: 0}), 1.0)
+      Core.receive(core, msg(:statustext, %{severity: 2, text: first, id: 7, chunk_seq: 0}), 1000)
 
     {core, [{:log, :error, text, _}]} =
-      Core.receive(core, msg(:statustext, %{severity: 2, text: "bc", id: 7, chunk_seq: 1}), 1.0)
+      Core.receive(core, msg(:statustext, %{severity: 2, text: "bc", id: 7, chunk_seq: 1}), 1000)
 
     assert text == first <> "bc"
-    {_core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 4}), 1.1)
+    {_core, actions} = Core.receive(core, msg(:command_ack, %{command: 400, result: 4}), 1100)
     assert actions == [{:reply, :me, {:error, first <> "bc"}}]
   end
 
@@ -690,14 +694,14 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTextTest do
       Core.receive(
         linked(),
         msg(:statustext, %{severity: 6, text: first, id: 3, chunk_seq: 0}),
-        1.0
+        1000
       )
 
     assert {_, [{:log, :info, ^first, _}]} =
              Core.receive(
                core,
                msg(:statustext, %{severity: 6, text: "", id: 3, chunk_seq: 1}),
-               1.0
+               1000
              )
   end
 end
@@ -785,8 +789,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CorePropertiesTest do
       :proper_types.list(step),
       fn steps ->
         {_core, _t, ok?} =
-          Enum.reduce(steps, {Core.new(0.0), 0.0, true}, fn s, {core, t, ok?} ->
-            t = t + 0.05
+          Enum.reduce(steps, {Core.new(0), 0, true}, fn s, {core, t, ok?} ->
+            t = t + 50
 
             {core, actions} =
               case s do

@@ -1,15 +1,16 @@
 defmodule Neptunus.Vehicle.Board.UART do
   @moduledoc """
   A real board on a serial port, speaking the OpenROV protocol (`Neptunus.Protocol.OpenROV`)
-  through our port program `priv/neptunus_uart` (`c_src/neptunus_uart.c`): the program owns
-  the file descriptor and its `poll()` loop, so nothing in the VM ever blocks on the tty.
+  through our port program `priv/neptunus_uart` (`Neptunus.Vehicle.Board.SerialPort`): the
+  program owns the file descriptor and its `poll()` loop, so nothing in the VM ever blocks on
+  the tty.
 
   ## What it does
 
     * **Link.** Opens the device at the configured baud (raw 8N1). The link is *up* once the
       program reports the device open; it is *down* when opening fails, the device hangs up
-      or is unplugged, or the program exits for any reason (`{port, {:exit_status, n}}`, or the
-      port's exit alone when a write found the program gone).
+      or is unplugged, or the program exits for any reason (its exit status, or the port's
+      exit alone when a write found the program gone).
       A link that was up for at least 100 ms is reopened at once (the board keeps the
       last `go()` until a link writes neutral: every open does first); after that, or when
       it flapped faster, it reopens after a backoff (`Neptunus.Vehicle.Board.Backoff`:
@@ -72,7 +73,7 @@ defmodule Neptunus.Vehicle.Board.UART do
   alias Neptunus.{Allocation, PubSub, Wiring}
   alias Neptunus.Protocol.{BoardLink, OpenROV, Pacer}
   alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
-  alias Neptunus.Vehicle.Board.{Backoff, Readings}
+  alias Neptunus.Vehicle.Board.{Backoff, Readings, SerialPort}
 
   @behaviour Board
 
@@ -232,9 +233,9 @@ defmodule Neptunus.Vehicle.Board.UART do
   @spec tilt(String.t(), number()) :: :ok
   def tilt(id, rad), do: GenServer.cast(Board.via(id), {:device, :tilt, rad})
 
-  @doc "Path of the port program."
+  @doc "Path of the port program (`Neptunus.Vehicle.Board.SerialPort.program/0`)."
   @spec program() :: String.t()
-  def program, do: Application.app_dir(:neptunus, "priv/neptunus_uart")
+  defdelegate program, to: SerialPort
 
   # Callbacks
 
@@ -348,14 +349,9 @@ defmodule Neptunus.Vehicle.Board.UART do
   end
 
   @impl true
-  def handle_info({port, {:data, <<tag, data::binary>>}}, %State{port: port} = state) do
-    {:noreply, program_message(tag, data, state)}
-  end
-
-  def handle_info({port, {:exit_status, status}}, %State{port: port} = state) do
-    reason = state.program_error || "port program exited with status #{status}"
-    {:noreply, down(%{state | port: nil}, reason)}
-  end
+  def handle_info({port, {kind, _} = message}, %State{port: port} = state)
+      when kind in [:data, :exit_status],
+      do: {:noreply, program_event(SerialPort.decode(message), state)}
 
   def handle_info(:reopen, %State{port: nil} = state), do: {:noreply, open(state)}
   def handle_info(:reopen, state), do: {:noreply, state}
@@ -399,7 +395,7 @@ defmodule Neptunus.Vehicle.Board.UART do
       OpenROV.frame(Wiring.go_command(state.wiring, Allocation.neutral()), state.profile)
     )
 
-    Port.close(state.port)
+    SerialPort.close(state.port)
   catch
     _, _ -> :ok
   end
@@ -413,25 +409,16 @@ defmodule Neptunus.Vehicle.Board.UART do
   defp device_command(:tilt, rad), do: OpenROV.tilt(Board.tilt_us(rad))
 
   defp open(state) do
-    args = ["tty", state.device, Integer.to_string(state.baud)]
-
-    port =
-      Port.open({:spawn_executable, state.program}, [
-        :binary,
-        {:packet, 2},
-        :exit_status,
-        :use_stdio,
-        {:env, state.port_env},
-        args: args
-      ])
-
-    %{state | port: port, link: :opening, program_error: nil}
-  rescue
-    error ->
-      down(state, "cannot start #{state.program}: #{Exception.message(error)}")
+    case SerialPort.open_tty(state.device, state.baud,
+           program: state.program,
+           env: state.port_env
+         ) do
+      {:ok, port} -> %{state | port: port, link: :opening, program_error: nil}
+      {:error, why} -> down(state, "cannot start #{state.program}: #{why}")
+    end
   end
 
-  defp program_message(?o, _path, state) do
+  defp program_event({:open, _path}, state) do
     now = now_ms()
     {board_link, actions} = BoardLink.opened(state.board_link, now)
 
@@ -451,7 +438,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     perform(state, actions)
   end
 
-  defp program_message(?r, bytes, state) do
+  defp program_event({:read, bytes}, state) do
     now = now_ms()
     t = (now - state.started_at_ms) / 1000
     {readings, samples} = Readings.feed(state.readings, bytes, t)
@@ -460,16 +447,15 @@ defmodule Neptunus.Vehicle.Board.UART do
     Enum.reduce(events, %{state | readings: readings}, &board_event(&1, &2, now))
   end
 
-  defp program_message(?e, text, state), do: %{state | program_error: text}
+  defp program_event({:error, text}, state), do: %{state | program_error: text}
+  defp program_event({:dropped, n}, state), do: bump(state, :dropped_bytes, n)
 
-  defp program_message(?d, count, state) do
-    case Integer.parse(count) do
-      {n, ""} -> bump(state, :dropped_bytes, n)
-      _ -> state
-    end
+  defp program_event({:exit, status}, state) do
+    reason = state.program_error || "port program exited with status #{status}"
+    down(%{state | port: nil}, reason)
   end
 
-  defp program_message(_tag, _data, state), do: state
+  defp program_event(_other, state), do: state
 
   defp down(state, reason) do
     now = now_ms()
@@ -721,11 +707,10 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   # Never blocks: a busy port program means the command is dropped (and counted).
   defp write(%State{port: port} = state, bytes) when is_port(port) do
-    if :erlang.port_command(port, ["w", bytes], [:nosuspend]),
-      do: state,
-      else: bump(state, :dropped_commands)
-  catch
-    :error, :badarg -> bump(state, :dropped_commands)
+    case SerialPort.write(port, bytes) do
+      :ok -> state
+      {:error, _busy_or_closed} -> bump(state, :dropped_commands)
+    end
   end
 
   defp write(state, _bytes), do: bump(state, :dropped_commands)
