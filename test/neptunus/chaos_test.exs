@@ -687,8 +687,21 @@ defmodule Neptunus.ChaosTest do
   end
 
   defp flush_reports do
-    _ = reports(nil, 0)
+    Process.put(:chaos_connections, connections())
     Process.put(:chaos_reports, [])
+  end
+
+  # each client's last `:joined` or `:closed`, kept across flushes
+  defp connections do
+    _ = reports(nil, 0)
+
+    :chaos_reports
+    |> Process.get([])
+    |> Enum.reverse()
+    |> Enum.reduce(Process.get(:chaos_connections, %{}), fn
+      {name, what, _at}, acc when what in [:joined, :closed] -> Map.put(acc, name, what)
+      _, acc -> acc
+    end)
   end
 
   # Whether `name` was told, since `t0`, of a stop or, for a board or link kill, of the link
@@ -728,16 +741,10 @@ defmodule Neptunus.ChaosTest do
   # every client joined since its connection last closed: one still reconnecting after the
   # last round (an app kill may follow a connection kill at once) has nothing to be told
   defp await_connected(names) do
-    connected? = fn name ->
-      name
-      |> reports(0)
-      |> Enum.filter(fn {what, _} -> what in [:joined, :closed] end)
-      |> List.last()
-      |> match?({:joined, _})
-    end
+    away = fn -> Enum.reject(names, &(connections()[&1] == :joined)) end
 
-    wait_for(fn -> Enum.all?(names, connected?) end, Patience.ms()) ||
-      flunk("not every client connected again: #{inspect(Enum.reject(names, connected?))}")
+    wait_for(fn -> away.() == [] end, Patience.ms()) ||
+      flunk("not every client connected again: #{inspect(away.())}")
   end
 
   defp await_driving(table, id) do
