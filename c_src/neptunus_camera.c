@@ -1,7 +1,7 @@
 /*
  * neptunus_camera - Erlang port program for one vehicle camera.
  *
- *   neptunus_camera run -- PROGRAM [ARGS...]
+ *   neptunus_camera run [--linger] -- PROGRAM [ARGS...]
  *       runs PROGRAM (ffmpeg on a V4L2 device or an RTSP URL, an exec: source) and passes
  *       its standard output on ('d' messages) and its error output line by line ('e').
  *   neptunus_camera sim WIDTH HEIGHT FPS BOTTOM -- PROGRAM [ARGS...]
@@ -28,7 +28,11 @@
  *                   'x' CODE    PROGRAM ended; this program exits with CODE (uint8) next.
  *                               Said first, since the VM may never see the exit status: a
  *                               message it writes as this program ends (an 'a') fails with
- *                               EPIPE and closes the port without one.
+ *                               EPIPE and closes the port without one, and without
+ *                               what it had not read yet. With `run --linger` this
+ *                               program then waits for the VM to close its end, so the
+ *                               VM reads everything (the dive export, which acknowledges
+ *                               every 'd', uses it).
  *
  * Flow control: at most CREDIT bytes of 'd' messages are unacknowledged ('a'); beyond that the
  * program's output is not read until the VM catches up, so a program that floods its output
@@ -125,6 +129,7 @@ static void send_text(char tag, const char *text) { send_msg(tag, text, strlen(t
 /* ---------------------------------------------------------------- the program we run */
 
 static int child_out = -1, child_err = -1, child_in = -1;
+static int linger = 0;        /* run --linger: after PROGRAM's end, wait for the VM to close */
 static uint32_t unacked = 0; /* bytes of 'd' messages the VM has not acknowledged */
 
 static void stop_child(void)
@@ -259,6 +264,19 @@ static void finish(void)
     uint8_t code = WIFEXITED(status) ? (uint8_t)WEXITSTATUS(status)
                                      : (uint8_t)(WIFSIGNALED(status) ? 128 + WTERMSIG(status) : 1);
     send_msg('x', &code, 1);
+    if (linger) {
+        /* until the VM closes its end: what it writes meanwhile (an 'a') must not fail, as a
+           failed write closes the port before the VM has read what was said above */
+        uint8_t sink[4096];
+        for (;;) {
+            struct pollfd in = {0, POLLIN, 0};
+            if (poll(&in, 1, -1) < 0 && errno != EINTR)
+                break;
+            ssize_t r = read(0, sink, sizeof sink);
+            if (r == 0 || (r < 0 && errno != EAGAIN && errno != EINTR))
+                break;
+        }
+    }
     exit(code);
 }
 
@@ -709,7 +727,7 @@ static int read_vm(void)
 
 static int usage(void)
 {
-    fprintf(stderr, "usage: neptunus_camera run -- PROGRAM [ARGS...]\n"
+    fprintf(stderr, "usage: neptunus_camera run [--linger] -- PROGRAM [ARGS...]\n"
                     "       neptunus_camera sim WIDTH HEIGHT FPS BOTTOM -- PROGRAM [ARGS...]\n");
     return EXIT_USAGE;
 }
@@ -719,6 +737,10 @@ int main(int argc, char **argv)
     int sim = 0, program = 0;
     if (argc >= 4 && strcmp(argv[1], "run") == 0 && strcmp(argv[2], "--") == 0) {
         program = 3;
+    } else if (argc >= 5 && strcmp(argv[1], "run") == 0 && strcmp(argv[2], "--linger") == 0 &&
+               strcmp(argv[3], "--") == 0) {
+        program = 4;
+        linger = 1;
     } else if (argc >= 8 && strcmp(argv[1], "sim") == 0 && strcmp(argv[6], "--") == 0) {
         sim = 1;
         program = 7;

@@ -506,7 +506,7 @@ defmodule Neptunus.Dive.Export do
 
       feeder = spawn_feeder(listen, plan.video)
       port = open_ffmpeg(plan, sock, subs)
-      %{port: port, feeder: feeder, listen: listen, tmp: tmp, errors: []}
+      %{port: port, feeder: feeder, listen: listen, tmp: tmp, errors: [], bytes: 0}
     rescue
       error ->
         File.rm_rf(tmp)
@@ -518,7 +518,7 @@ defmodule Neptunus.Dive.Export do
     receive do
       {^port, {:data, <<?d, bytes::binary>>}} ->
         ack(port, byte_size(bytes))
-        {[bytes], s}
+        {[bytes], %{s | bytes: s.bytes + byte_size(bytes)}}
 
       {^port, {:data, <<?e, line::binary>>}} ->
         next_mp4(%{s | errors: Enum.take([line | s.errors], 5)})
@@ -545,7 +545,15 @@ defmodule Neptunus.Dive.Export do
       {:feeder_failed, reason} ->
         raise ErlangError, original: {:video, reason}
     after
-      60_000 -> raise ErlangError, original: {:ffmpeg, :timeout}
+      60_000 ->
+        # what each side was doing, for the report: ffmpeg's last words, whether the feeder
+        # still feeds it (and where it waits)
+        feeder = Process.info(s.feeder, [:status, :current_function])
+
+        raise ErlangError,
+          original:
+            {:ffmpeg, :timeout,
+             %{errors: Enum.reverse(s.errors), output_bytes: s.bytes, feeder: feeder}}
     end
   end
 
@@ -587,8 +595,11 @@ defmodule Neptunus.Dive.Export do
   defp open_ffmpeg(plan, sock, subs) do
     camera = Application.app_dir(:neptunus, "priv/neptunus_camera")
 
+    # --linger: the program keeps its end of the port open after ffmpeg's end until we close
+    # it, so an acknowledgement written meanwhile never fails (EPIPE would close the port and
+    # drop what the program said last: output, and the end itself)
     args =
-      ["run", "--", plan.ffmpeg] ++
+      ["run", "--linger", "--", plan.ffmpeg] ++
         ~w(-nostdin -hide_banner -loglevel error -f matroska -i) ++
         ["unix:" <> sock] ++
         ["-i", subs] ++
