@@ -22,8 +22,9 @@ defmodule Neptunus.Dive.Export do
       `foxglove.CompressedImage` for JPEG), every message logged at its recorded time (the
       vehicle node's wall clock), in time order, and the dive's summary as metadata.
 
-  The MP4 runs ffmpeg under the camera port program (`priv/neptunus_camera run`, which
-  passes its output with flow control: at most 4 MB not yet taken), and feeds it the
+  The MP4 runs ffmpeg under the camera port program (`priv/neptunus_camera run --linger`,
+  which passes its output with flow control: at most 4 MB not yet taken; and keeps the port
+  open after ffmpeg's end until the export closes it, so nothing it said is lost), and feeds it the
   Matroska stream over a Unix socket from a process of its own: the client's pace holds
   ffmpeg back, and ffmpeg's the reading.
   """
