@@ -30,6 +30,7 @@ defmodule Neptunus.Dive.Export do
   """
 
   alias Neptunus.{Dive, JSON, Recording}
+  alias Neptunus.Camera.Program
   alias Neptunus.Dive.{ASS, MCAP, Matroska, Video}
 
   @formats ~w(csv jsonl ass mp4 mcap)
@@ -518,7 +519,7 @@ defmodule Neptunus.Dive.Export do
   defp next_mp4(%{port: port} = s) do
     receive do
       {^port, {:data, <<?d, bytes::binary>>}} ->
-        ack(port, byte_size(bytes))
+        Program.ack(port, byte_size(bytes))
         {[bytes], %{s | bytes: s.bytes + byte_size(bytes)}}
 
       {^port, {:data, <<?e, line::binary>>}} ->
@@ -561,41 +562,14 @@ defmodule Neptunus.Dive.Export do
   defp next_mp4(s), do: {:halt, s}
 
   defp stop_mp4(s) do
-    if s.port do
-      try do
-        Port.close(s.port)
-      rescue
-        _ -> :ok
-      end
-
-      flush_port(s.port)
-    end
+    if s.port, do: Program.close(s.port)
 
     Process.exit(s.feeder, :kill)
     :gen_tcp.close(s.listen)
     File.rm_rf(s.tmp)
   end
 
-  # the acknowledgement of ffmpeg's output (flow control); a program that has just ended has
-  # closed the port, and its end comes next ('x' or the exit status)
-  defp ack(port, bytes) do
-    Port.command(port, <<?a, bytes::32>>)
-  rescue
-    ArgumentError -> :ok
-  end
-
-  # what the port said after its end was read (its exit status) is not left to the caller
-  defp flush_port(port) do
-    receive do
-      {^port, _} -> flush_port(port)
-    after
-      0 -> :ok
-    end
-  end
-
   defp open_ffmpeg(plan, sock, subs) do
-    camera = Application.app_dir(:neptunus, "priv/neptunus_camera")
-
     # --linger: the program keeps its end of the port open after ffmpeg's end until we close
     # it, so an acknowledgement written meanwhile never fails (EPIPE would close the port and
     # drop what the program said last: output, and the end itself)
@@ -608,17 +582,10 @@ defmodule Neptunus.Dive.Export do
         ["-metadata", "title=#{plan.title}"] ++
         ~w(-movflags frag_keyframe+empty_moov+default_base_moof -f mp4 pipe:1)
 
-    port =
-      Port.open({:spawn_executable, camera}, [
-        :binary,
-        {:packet, 4},
-        :exit_status,
-        :use_stdio,
-        args: args
-      ])
+    port = Program.open(args)
 
-    # an acknowledgement written as the program ends fails (EPIPE) and closes the port with an
-    # exit signal: never the caller's (an API request, a mix task); its end is read from 'x'
+    # the port's end is read from 'x', never taken as an exit signal by the caller (an API
+    # request, a mix task)
     Process.unlink(port)
     port
   end

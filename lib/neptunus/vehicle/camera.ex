@@ -44,7 +44,7 @@ defmodule Neptunus.Vehicle.Camera do
   require Logger
 
   alias Neptunus.{Fleet, PubSub}
-  alias Neptunus.Camera.{Frame, Pose, Source, Stream, V4L2}
+  alias Neptunus.Camera.{Frame, Pose, Program, Source, Stream, V4L2}
   alias Neptunus.Vehicle.Telemetry
 
   @max_backoff_ms 30_000
@@ -252,7 +252,7 @@ defmodule Neptunus.Vehicle.Camera do
   @impl true
   def handle_info({port, {:data, <<?d, bytes::binary>>}}, %State{port: port} = state) do
     # handled: the port program may send more (it holds back beyond a few MB unhandled)
-    tell(port, <<?a, byte_size(bytes)::32>>)
+    Program.ack(port, byte_size(bytes))
 
     case Stream.feed(state.stream, bytes, Neptunus.Clock.wall_us()) do
       {:ok, stream, outputs} ->
@@ -305,7 +305,7 @@ defmodule Neptunus.Vehicle.Camera do
 
   def handle_info({:pubsub, _topic, "pose", pose}, %State{port: port} = state)
       when is_port(port) do
-    tell(port, Pose.encode(pose))
+    Program.tell(port, Pose.encode(pose))
     {:noreply, state}
   end
 
@@ -408,20 +408,11 @@ defmodule Neptunus.Vehicle.Camera do
   defp next_generation(%State{stream: stream}), do: Stream.restart(stream).generation
 
   defp tools(state) do
-    %{ffmpeg: state.ffmpeg, camera: Application.app_dir(:neptunus, "priv/neptunus_camera")}
+    %{ffmpeg: state.ffmpeg, camera: Program.executable()}
   end
 
   defp open(state, %{executable: executable, args: args}) do
-    port =
-      Port.open({:spawn_executable, executable}, [
-        :binary,
-        {:packet, 4},
-        :exit_status,
-        :use_stdio,
-        args: args
-      ])
-
-    %{state | port: port, errors: [], exit_code: nil}
+    %{state | port: Program.open(executable, args), errors: [], exit_code: nil}
   end
 
   # The program ended with `code` (nil: not known). A probe's end decides the codec; a
@@ -452,30 +443,12 @@ defmodule Neptunus.Vehicle.Camera do
     %{state | port: nil} |> stopped(:restarting, reason) |> report()
   end
 
-  # a message to the port program (nothing if it has just exited: its end follows)
-  defp tell(port, message) do
-    Port.command(port, message)
-  rescue
-    ArgumentError -> false
-  end
-
   defp stop_program(%State{port: port} = state) when is_port(port) do
-    Port.close(port)
-    flush_port(port)
+    Program.close(port)
     %{state | port: nil}
-  catch
-    _, _ -> %{state | port: nil}
   end
 
   defp stop_program(state), do: state
-
-  defp flush_port(port) do
-    receive do
-      {^port, _} -> flush_port(port)
-    after
-      0 -> :ok
-    end
-  end
 
   # The program stopped or could not start: say why, start again after the backoff.
   defp stopped(state, phase, reason) do

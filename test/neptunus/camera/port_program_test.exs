@@ -2,14 +2,9 @@ defmodule Neptunus.Camera.PortProgramTest do
   # the camera port program's `run` end (c_src/neptunus_camera.c), as the dive export uses it
   use ExUnit.Case, async: true
 
-  defp open(args) do
-    Port.open({:spawn_executable, Application.app_dir(:neptunus, "priv/neptunus_camera")}, [
-      {:packet, 4},
-      :binary,
-      :exit_status,
-      args: args
-    ])
-  end
+  alias Neptunus.Camera.Program
+
+  defp open(args), do: Program.open(args)
 
   defp ended(port, acc \\ []) do
     receive do
@@ -33,7 +28,7 @@ defmodule Neptunus.Camera.PortProgramTest do
     refute_received {^port, {:exit_status, _}}
 
     # the VM closes its end: the program goes
-    Port.close(port)
+    :ok = Program.close(port)
     Neptunus.Test.Cluster.wait!(fn -> not File.exists?("/proc/#{os_pid}") end, "the program gone")
   end
 
