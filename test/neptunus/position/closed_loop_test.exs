@@ -35,10 +35,7 @@ defmodule Neptunus.Position.ClosedLoopTest do
     %{"t" => 5, "control_mode" => "dp"}
   ]
 
-  defp p95(values) do
-    sorted = Enum.sort(values)
-    Enum.at(sorted, min(length(sorted) - 1, floor(0.95 * length(sorted))))
-  end
+  defp p95(values), do: Neptunus.Scenario.MonteCarlo.percentile(values, 95)
 
   defp hold_radius(rows, at, from_t) do
     for row <- rows, at.(row, "t") >= from_t, tn = at.(row, "target_north"), is_number(tn) do
