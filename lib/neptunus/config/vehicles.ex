@@ -79,7 +79,7 @@ defmodule Neptunus.Config.Vehicles do
           | %{
               required(:id) => String.t(),
               required(:board) => :mavlink,
-              required(:link) => mavlink_link(),
+              required(:link) => Neptunus.Vehicle.Board.MAVLink.link(),
               required(:system) => 1..255,
               required(:component) => 1..255,
               optional(:disarm_delay) => float(),
@@ -97,18 +97,7 @@ defmodule Neptunus.Config.Vehicles do
               optional(:camera) => Neptunus.Camera.Source.t()
             }
 
-  @typedoc """
-  Where a `mavlink` vehicle is: `{:udp, address, port}` (listen on a local address),
-  `{:udpout, host, port}` (send to the vehicle), `{:tcp, host, port}` (connect to it) or
-  `{:serial, device, baud}` (through the `neptunus_uart` port program).
-  """
-  @type mavlink_link ::
-          {:udp, :inet.ip_address(), :inet.port_number()}
-          | {:udpout | :tcp, String.t(), 1..65_535}
-          | {:serial, String.t(), pos_integer()}
-
   @default_vehicles "neptunus-1=simulated"
-  @bauds [1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 921_600]
 
   @doc """
   Vehicles from `NEPTUNUS_VEHICLES` (and their wiring from `NEPTUNUS_WIRING`).
@@ -384,32 +373,12 @@ defmodule Neptunus.Config.Vehicles do
           )
         end
 
-        case board(String.trim(board)) do
+        case Neptunus.Vehicle.Board.parse(String.trim(board)) do
           {:ok, board} ->
             Map.put(board, :id, id)
 
-          {:bad_mavlink, why} ->
-            Config.bad!(
-              "NEPTUNUS_VEHICLES",
-              spec,
-              "mavlink:udp:ADDRESS:PORT, mavlink:udpout:HOST:PORT, mavlink:tcp:HOST:PORT or " <>
-                "mavlink:serial:DEVICE[@BAUD] in #{inspect(pair)}: #{why}"
-            )
-
-          {:bad_uart, why} ->
-            Config.bad!(
-              "NEPTUNUS_VEHICLES",
-              spec,
-              "uart:DEVICE[@BAUD] in #{inspect(pair)}: #{why}"
-            )
-
-          :error ->
-            Config.bad!(
-              "NEPTUNUS_VEHICLES",
-              spec,
-              "a known board in #{inspect(pair)}: one of " <>
-                Enum.join(Neptunus.Vehicle.Board.syntaxes(), ", ")
-            )
+          {:error, expected, why} ->
+            Config.bad!("NEPTUNUS_VEHICLES", spec, "#{expected} in #{inspect(pair)}: #{why}")
         end
 
       _ ->
@@ -418,81 +387,6 @@ defmodule Neptunus.Config.Vehicles do
           spec,
           "id=board pairs separated by commas, e.g. rov=simulated"
         )
-    end
-  end
-
-  defp board("uart:" <> device_baud) do
-    case serial(device_baud) do
-      {:ok, device, baud} -> {:ok, %{board: :uart, device: device, baud: baud}}
-      {:error, why} -> {:bad_uart, why}
-    end
-  end
-
-  defp board("mavlink:" <> link) do
-    case mavlink_link(link) do
-      {:ok, link} -> {:ok, %{board: :mavlink, link: link}}
-      {:error, why} -> {:bad_mavlink, why}
-    end
-  end
-
-  defp board(name) do
-    with {:ok, board} <- Neptunus.Vehicle.Board.named(name), do: {:ok, %{board: board}}
-  end
-
-  defp serial(device_baud) do
-    {device, baud} =
-      case String.split(device_baud, "@") do
-        [device] -> {device, "115200"}
-        [device, baud] -> {device, baud}
-        _ -> {"", ""}
-      end
-
-    cond do
-      not String.starts_with?(device, "/") ->
-        {:error, "the device must be an absolute path such as /dev/ttyO1"}
-
-      not match?({_, ""}, Integer.parse(baud)) or elem(Integer.parse(baud), 0) not in @bauds ->
-        {:error, "the baud rate must be one of #{Enum.join(@bauds, ", ")}"}
-
-      true ->
-        {:ok, device, String.to_integer(baud)}
-    end
-  end
-
-  defp mavlink_link("serial:" <> device_baud) do
-    with {:ok, device, baud} <- serial(device_baud), do: {:ok, {:serial, device, baud}}
-  end
-
-  defp mavlink_link("udp:" <> address_port) do
-    with {:ok, host, port} <- host_port(address_port) do
-      case :inet.parse_address(String.to_charlist(host)) do
-        {:ok, address} -> {:ok, {:udp, address, port}}
-        {:error, _} -> {:error, "udp listens on a local IP address such as 0.0.0.0"}
-      end
-    end
-  end
-
-  defp mavlink_link("udpout:" <> host_port) do
-    with {:ok, host, port} <- host_port(host_port), do: {:ok, {:udpout, host, port}}
-  end
-
-  defp mavlink_link("tcp:" <> host_port) do
-    with {:ok, host, port} <- host_port(host_port), do: {:ok, {:tcp, host, port}}
-  end
-
-  defp mavlink_link(_), do: {:error, "the link must be udp, udpout, tcp or serial"}
-
-  # HOST:PORT; the host's last colon separates the port (an IPv6 address in brackets)
-  defp host_port(text) do
-    case Regex.run(~r/^\[?([^\[\]\s]+?)\]?:([0-9]+)$/, text) do
-      [_, host, port] ->
-        case Integer.parse(port) do
-          {port, ""} when port in 1..65_535 -> {:ok, host, port}
-          _ -> {:error, "the port must be in 1..65535"}
-        end
-
-      nil ->
-        {:error, "expected HOST:PORT (got #{inspect(text)})"}
     end
   end
 end

@@ -155,7 +155,19 @@ defmodule Neptunus.Vehicle.Board do
   """
   @callback link_details() :: [atom()]
 
-  @optional_callbacks link_details: 0,
+  @doc """
+  The options of a vehicle whose board `NEPTUNUS_VEHICLES` names `type:SPEC` (e.g.
+  `uart:/dev/ttyO1@57600`), from SPEC: `{:ok, options}` (the vehicle's, as `start_link/1`
+  and `capabilities/1` get them), or `{:error, expected, why}` — the spec's syntax and what
+  is wrong with this one, which `Neptunus.Config.Vehicles` puts in its error. Pure, and
+  never raises. A board named by its type alone (`simulated`) has no spec and no
+  `parse_spec/1`.
+  """
+  @callback parse_spec(spec :: String.t()) ::
+              {:ok, map()} | {:error, expected :: String.t(), why :: String.t()}
+
+  @optional_callbacks parse_spec: 1,
+                      link_details: 0,
                       keepalive: 1,
                       link_status: 1,
                       lights: 2,
@@ -165,7 +177,7 @@ defmodule Neptunus.Vehicle.Board do
                       vet: 1
 
   # The boards, once: type => {module, how NEPTUNUS_VEHICLES names it (nil: by its type alone;
-  # else the syntax of its spec, which Neptunus.Config.Vehicles parses)}
+  # else `type:` and the syntax of its spec, which the module's parse_spec/1 parses)}
   @registry [
     simulated: {Neptunus.Vehicle.Board.Simulated, nil},
     sitl: {Neptunus.Vehicle.Board.SITL, nil},
@@ -199,6 +211,39 @@ defmodule Neptunus.Vehicle.Board do
          end) do
       {type, _} -> {:ok, type}
       nil -> :error
+    end
+  end
+
+  @doc "The board types, in order."
+  @spec types() :: [atom()]
+  def types, do: Keyword.keys(@registry)
+
+  @doc """
+  The board of a vehicle as `NEPTUNUS_VEHICLES` names it: a type alone (`simulated`) or
+  `type:SPEC`, the spec parsed by the board (`c:parse_spec/1`). `{:ok, %{board: type, ...}}`
+  with the board's options, or `{:error, expected, why}`. Pure, and never raises.
+
+      iex> Neptunus.Vehicle.Board.parse("uart:/dev/ttyO1@57600")
+      {:ok, %{board: :uart, device: "/dev/ttyO1", baud: 57600}}
+      iex> Neptunus.Vehicle.Board.parse("sitl")
+      {:ok, %{board: :sitl}}
+      iex> Neptunus.Vehicle.Board.parse("uart:ttyO1")
+      {:error, "uart:DEVICE[@BAUD]", "the device must be an absolute path such as /dev/ttyO1"}
+      iex> Neptunus.Vehicle.Board.parse("warp")
+      {:error, "a known board", "one of simulated, sitl, uart:DEVICE[@BAUD], mavlink:…"}
+  """
+  @spec parse(String.t()) ::
+          {:ok, %{required(:board) => atom(), optional(atom()) => term()}}
+          | {:error, String.t(), String.t()}
+  def parse(text) when is_binary(text) do
+    with :error <- named(text),
+         [prefix, spec] <- String.split(text, ":", parts: 2),
+         {type, {module, syntax}} when syntax != nil <-
+           Enum.find(@registry, fn {type, _} -> Atom.to_string(type) == prefix end) do
+      with {:ok, options} <- module.parse_spec(spec), do: {:ok, Map.put(options, :board, type)}
+    else
+      {:ok, type} -> {:ok, %{board: type}}
+      _ -> {:error, "a known board", "one of " <> Enum.join(syntaxes(), ", ")}
     end
   end
 
