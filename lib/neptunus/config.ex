@@ -142,4 +142,18 @@ defmodule Neptunus.Config do
         {:error, "expected HOST:PORT (got #{inspect(text)})"}
     end
   end
+
+  @doc """
+  Words as alternatives in an error message.
+
+      iex> Neptunus.Config.alternatives(["sitl", "uart"])
+      "sitl or uart"
+      iex> Neptunus.Config.alternatives(["a", "b", "c"])
+      "a, b or c"
+  """
+  @spec alternatives([String.t()]) :: String.t()
+  def alternatives([one]), do: one
+
+  def alternatives([_ | _] = words),
+    do: Enum.join(Enum.drop(words, -1), ", ") <> " or " <> List.last(words)
 end

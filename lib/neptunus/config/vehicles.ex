@@ -57,45 +57,22 @@ defmodule Neptunus.Config.Vehicles do
   """
 
   alias Neptunus.Config
+  alias Neptunus.Vehicle.Board
 
-  @typedoc "A vehicle; `sim: [vehicle: name]` when `NEPTUNUS_MODELS` names its parameter set."
-  @type vehicle ::
-          %{
-            required(:id) => String.t(),
-            required(:board) => :simulated,
-            optional(:sim) => keyword(),
-            optional(:camera) => Neptunus.Camera.Source.t()
-          }
-          | %{
-              required(:id) => String.t(),
-              required(:board) => :sitl,
-              required(:wiring) => Neptunus.Wiring.t(),
-              required(:firmware) => Neptunus.Protocol.OpenROV.profile(),
-              optional(:reset_on_open) => boolean(),
-              optional(:bootloader_ms) => pos_integer(),
-              optional(:sim) => keyword(),
-              optional(:camera) => Neptunus.Camera.Source.t()
-            }
-          | %{
-              required(:id) => String.t(),
-              required(:board) => :mavlink,
-              required(:link) => Neptunus.Vehicle.Board.MAVLink.link(),
-              required(:system) => 1..255,
-              required(:component) => 1..255,
-              optional(:disarm_delay) => float(),
-              optional(:sim) => keyword(),
-              optional(:camera) => Neptunus.Camera.Source.t()
-            }
-          | %{
-              required(:id) => String.t(),
-              required(:board) => :uart,
-              required(:device) => String.t(),
-              required(:baud) => pos_integer(),
-              required(:wiring) => Neptunus.Wiring.t(),
-              required(:firmware) => Neptunus.Protocol.OpenROV.profile(),
-              optional(:sim) => keyword(),
-              optional(:camera) => Neptunus.Camera.Source.t()
-            }
+  @typedoc """
+  A vehicle: its `id`, its `board` (a type of `Neptunus.Vehicle.Board`), the options its
+  board's spec gives (`Neptunus.Vehicle.Board.parse/1`: `device` and `baud` for `uart`,
+  `link` for `mavlink`), the settings its board takes (`Neptunus.Vehicle.Board.takes?/2`:
+  `wiring`, `firmware`, `system` and `component`, …), `sim: [vehicle: name]` when
+  `NEPTUNUS_MODELS` names its parameter set, its `camera` and its `position` sources.
+  """
+  @type vehicle :: %{
+          required(:id) => String.t(),
+          required(:board) => atom(),
+          optional(:sim) => keyword(),
+          optional(:camera) => Neptunus.Camera.Source.t(),
+          optional(atom()) => term()
+        }
 
   @default_vehicles "neptunus-1=simulated"
 
@@ -148,9 +125,9 @@ defmodule Neptunus.Config.Vehicles do
     end
   end
 
-  # Every sitl/uart vehicle gets a wiring: the configured one or the default.
+  # Every vehicle whose board takes a wiring (sitl, uart) gets one: configured or the default.
   defp wiring!(vehicles, spec) do
-    serial_setting!(vehicles, spec, %{
+    board_setting!(vehicles, spec, %{
       var: "NEPTUNUS_WIRING",
       expected: "id=wiring pairs, e.g. rov=-port/vertical/starboard",
       key: :wiring,
@@ -159,9 +136,10 @@ defmodule Neptunus.Config.Vehicles do
     })
   end
 
-  # Every sitl/uart vehicle gets a firmware profile: the configured one or openrov-2.5.
+  # Every vehicle whose board takes a firmware profile (sitl, uart) gets one: configured or
+  # openrov-2.5.
   defp firmware!(vehicles, spec) do
-    serial_setting!(vehicles, spec, %{
+    board_setting!(vehicles, spec, %{
       var: "NEPTUNUS_FIRMWARE",
       expected: "id=firmware pairs, e.g. rov=openrov-30",
       key: :firmware,
@@ -170,14 +148,13 @@ defmodule Neptunus.Config.Vehicles do
     })
   end
 
-  # A setting of the vehicles on a serial line (sitl, uart): `id=value` pairs parsed with
-  # `parse`, the default for every such vehicle not named; refused for any other board.
-  defp serial_setting!(vehicles, spec, %{var: var} = setting) do
+  # A setting some boards take (Board.settings/0): `id=value` pairs parsed with `parse`, the
+  # default for every such vehicle not named; refused for any other board.
+  defp board_setting!(vehicles, spec, %{var: var} = setting) do
     configured =
       pairs!(var, spec, vehicles, setting.expected)
-      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
-        if board not in [:sitl, :uart],
-          do: Config.bad!(var, spec, "sitl or uart vehicles (#{id} is #{board})")
+      |> Map.new(fn {vehicle, pair, text} ->
+        id = taking!(vehicle, setting.key, var, spec)
 
         case setting.parse.(text) do
           {:ok, value} -> {id, value}
@@ -187,7 +164,7 @@ defmodule Neptunus.Config.Vehicles do
 
     defaults =
       for %{board: board, id: id} <- vehicles,
-          board in [:sitl, :uart],
+          Board.takes?(board, setting.key),
           into: %{},
           do: {id, setting.default}
 
@@ -216,7 +193,7 @@ defmodule Neptunus.Config.Vehicles do
   end
 
   # A vehicle's camera source (Neptunus.Camera.Source): the configured one, `none`, or by
-  # default the simulated camera for simulated and SITL vehicles.
+  # default the simulated camera for a vehicle in the simulator (simulated, sitl).
   defp cameras!(vehicles, spec) do
     configured =
       pairs!("NEPTUNUS_CAMERAS", spec, vehicles, "id=source pairs, e.g. rov=v4l2:/dev/video0")
@@ -240,7 +217,7 @@ defmodule Neptunus.Config.Vehicles do
 
     defaults =
       for %{id: id, board: board} <- vehicles,
-          board in [:simulated, :sitl],
+          Board.takes?(board, :sim_sources),
           into: %{},
           do: {id, sim}
 
@@ -259,8 +236,8 @@ defmodule Neptunus.Config.Vehicles do
 
     configured =
       pairs!(var, spec, vehicles, "id=SYSTEM/COMPONENT pairs, e.g. sub=255/190")
-      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
-        if board != :mavlink, do: Config.bad!(var, spec, "mavlink vehicles (#{id} is #{board})")
+      |> Map.new(fn {vehicle, pair, text} ->
+        id = taking!(vehicle, :mavlink_ids, var, spec)
 
         with [system, component] <- String.split(text, "/"),
              {system, ""} when system in 1..255 <- Integer.parse(system),
@@ -271,13 +248,13 @@ defmodule Neptunus.Config.Vehicles do
         end
       end)
 
-    Enum.map(vehicles, fn
-      %{board: :mavlink, id: id} = vehicle ->
+    Enum.map(vehicles, fn %{board: board, id: id} = vehicle ->
+      if Board.takes?(board, :mavlink_ids) do
         {system, component} = Map.get(configured, id, {255, 190})
         Map.merge(vehicle, %{system: system, component: component})
-
-      vehicle ->
+      else
         vehicle
+      end
     end)
   end
 
@@ -287,8 +264,8 @@ defmodule Neptunus.Config.Vehicles do
 
     configured =
       pairs!(var, spec, vehicles, "id=SECONDS pairs, e.g. sub=2")
-      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
-        if board != :mavlink, do: Config.bad!(var, spec, "mavlink vehicles (#{id} is #{board})")
+      |> Map.new(fn {vehicle, pair, text} ->
+        id = taking!(vehicle, :disarm_delay, var, spec)
 
         case Float.parse(text) do
           {s, ""} when s >= 0.1 and s <= 60 -> {id, s}
@@ -307,8 +284,8 @@ defmodule Neptunus.Config.Vehicles do
 
     configured =
       pairs!(var, spec, vehicles, "id=MS pairs, e.g. rov=500")
-      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
-        if board != :sitl, do: Config.bad!(var, spec, "sitl vehicles (#{id} is #{board})")
+      |> Map.new(fn {vehicle, pair, text} ->
+        id = taking!(vehicle, :bootloader, var, spec)
 
         case Integer.parse(text) do
           {ms, ""} when ms in 1..10_000 -> {id, ms}
@@ -322,6 +299,17 @@ defmodule Neptunus.Config.Vehicles do
         :error -> vehicle
       end
     end)
+  end
+
+  # the id of a vehicle whose board takes `setting` (Board.settings/0); refused otherwise,
+  # naming the boards that do
+  defp taking!(%{id: id, board: board}, setting, var, spec) do
+    unless Board.takes?(board, setting) do
+      boards = setting |> Board.taking() |> Enum.map(&Atom.to_string/1)
+      Config.bad!(var, spec, "#{Config.alternatives(boards)} vehicles (#{id} is #{board})")
+    end
+
+    id
   end
 
   # each vehicle with a configured value (by id) gets it under `key`
@@ -373,7 +361,7 @@ defmodule Neptunus.Config.Vehicles do
           )
         end
 
-        case Neptunus.Vehicle.Board.parse(String.trim(board)) do
+        case Board.parse(String.trim(board)) do
           {:ok, board} ->
             Map.put(board, :id, id)
 

@@ -33,7 +33,9 @@ defmodule Neptunus.Vehicle.Board do
   can go down), and `lights/2`, `laser/2` (0..255) and `tilt/2` (camera tilt, rad in
   [−π/4, π/4]; `tilt_us/1` gives the servo pulse width) — boards without them ignore those
   commands; `command/3` (vehicles with their own arming, flight modes or autopilots: one
-  entry point, `command/3` here refuses for the others); `vet/1`.
+  entry point, `command/3` here refuses for the others); `vet/1`; `parse_spec/1` (a board
+  that `NEPTUNUS_VEHICLES` names `type:SPEC` parses its spec: `parse/1`) and `settings/0`
+  (the per-vehicle settings its vehicles take: `takes?/2`).
 
   **Samples** go to navigation through `sample/3`, which passes on only the samples of the
   vehicle's current source: the board's, or — while `Vehicle.Control` runs in run mode
@@ -99,6 +101,24 @@ defmodule Neptunus.Vehicle.Board do
           {:arm, boolean()}
           | {:mode, String.t()}
           | {:autopilot, %{depth: term(), heading: term()}}
+
+  @typedoc """
+  A per-vehicle setting of `Neptunus.Config.Vehicles` that only some boards take, as each
+  board declares (`c:settings/0`): a vehicle whose board takes it gets its default, one
+  whose board does not refuses a configured value.
+
+    * `:wiring`, `:firmware` — an OpenROV board's motor wiring and firmware profile
+      (`NEPTUNUS_WIRING`, `NEPTUNUS_FIRMWARE`);
+    * `:bootloader` — a simulated board that reboots into its bootloader when its line opens
+      (`NEPTUNUS_SITL_BOOTLOADER`);
+    * `:mavlink_ids`, `:disarm_delay` — our ids on a MAVLink link, the disarm after pilot
+      loss (`NEPTUNUS_MAVLINK_IDS`, `NEPTUNUS_MAVLINK_DISARM_DELAY`);
+    * `:sim_sources` — the vehicle lives in the built-in simulator (`Neptunus.Sim`): the
+      simulated camera and position sources (`sim`, `sim-dvl`, `sim-usbl`) are its by
+      default, and only its.
+  """
+  @type setting ::
+          :wiring | :firmware | :bootloader | :mavlink_ids | :disarm_delay | :sim_sources
 
   @doc "Starts the board for vehicle `opts[:id]`; must register under `via/1`."
   @callback start_link(opts :: keyword()) :: GenServer.on_start()
@@ -166,7 +186,14 @@ defmodule Neptunus.Vehicle.Board do
   @callback parse_spec(spec :: String.t()) ::
               {:ok, map()} | {:error, expected :: String.t(), why :: String.t()}
 
+  @doc """
+  The per-vehicle settings this board's vehicles take (`t:setting/0`); boards without
+  `settings/0` take none of them.
+  """
+  @callback settings() :: [setting()]
+
   @optional_callbacks parse_spec: 1,
+                      settings: 0,
                       link_details: 0,
                       keepalive: 1,
                       link_status: 1,
@@ -217,6 +244,32 @@ defmodule Neptunus.Vehicle.Board do
   @doc "The board types, in order."
   @spec types() :: [atom()]
   def types, do: Keyword.keys(@registry)
+
+  @doc """
+  Whether a vehicle of board `board` (a type of `module/1`) takes `setting` (its board's
+  `c:settings/0`).
+
+      iex> Neptunus.Vehicle.Board.takes?(:sitl, :wiring)
+      true
+      iex> Neptunus.Vehicle.Board.takes?(:mavlink, :wiring)
+      false
+  """
+  @spec takes?(atom(), setting()) :: boolean()
+  def takes?(board, setting) do
+    module = module(board)
+
+    Code.ensure_loaded?(module) and function_exported?(module, :settings, 0) and
+      setting in module.settings()
+  end
+
+  @doc """
+  The board types whose vehicles take `setting`, in order.
+
+      iex> Neptunus.Vehicle.Board.taking(:sim_sources)
+      [:simulated, :sitl]
+  """
+  @spec taking(setting()) :: [atom()]
+  def taking(setting), do: Enum.filter(types(), &takes?(&1, setting))
 
   @doc """
   The board of a vehicle as `NEPTUNUS_VEHICLES` names it: a type alone (`simulated`) or

@@ -33,6 +33,17 @@ defmodule Neptunus.Vehicle.BoardSpecTest do
     end
   end
 
+  test "the per-vehicle settings each board takes, as it declares them" do
+    assert Board.taking(:wiring) == [:sitl, :uart]
+    assert Board.taking(:firmware) == [:sitl, :uart]
+    assert Board.taking(:bootloader) == [:sitl]
+    assert Board.taking(:mavlink_ids) == [:mavlink]
+    assert Board.taking(:disarm_delay) == [:mavlink]
+    assert Board.taking(:sim_sources) == [:simulated, :sitl]
+    # a board implemented outside the registry (tests) takes none
+    refute Board.takes?(Neptunus.Vehicle.Board.Test, :wiring)
+  end
+
   test "every board's spec as the boards parse it" do
     assert {:ok, %{board: :simulated}} == Board.parse("simulated")
 

@@ -174,6 +174,11 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   defp link(_), do: {:error, "the link must be udp, udpout, tcp or serial"}
 
+  @doc "Our ids on its link and the disarm after pilot loss (`NEPTUNUS_MAVLINK_*`)."
+  @impl Board
+  @spec settings() :: [Board.setting()]
+  def settings, do: [:mavlink_ids, :disarm_delay]
+
   @doc "The details `link_status/1` reports (telemetry's `link`): the round trip and the vehicle."
   @impl Board
   @spec link_details() :: [atom()]

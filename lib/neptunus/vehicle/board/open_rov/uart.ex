@@ -210,6 +210,11 @@ defmodule Neptunus.Vehicle.Board.UART do
     end
   end
 
+  @doc "Its motor wiring and firmware profile (`NEPTUNUS_WIRING`, `NEPTUNUS_FIRMWARE`)."
+  @impl Board
+  @spec settings() :: [Board.setting()]
+  def settings, do: [:wiring, :firmware]
+
   @impl Board
   @spec go(String.t(), Neptunus.Allocation.thrusters()) :: :ok
   def go(id, thrusters), do: GenServer.cast(Board.via(id), {:go, thrusters})
