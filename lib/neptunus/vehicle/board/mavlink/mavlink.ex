@@ -231,19 +231,6 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   def arm(id, arm?, notify) when is_boolean(arm?) and is_function(notify, 1),
     do: GenServer.call(Board.via(id), {:arm, arm?, notify})
 
-  @doc """
-  The autopilots as the vehicle's flight modes (`Core.autopilot/4`): `payload` is the
-  untrusted JSON of control's `autopilot` command; `notify` as for `arm/3`. `{:error, reason}`
-  for a bad payload.
-  """
-  @spec autopilot(String.t(), term(), (:ok | {:error, String.t()} -> term())) ::
-          :ok | {:error, String.t()}
-  def autopilot(id, payload, notify) when is_function(notify, 1) do
-    with {:ok, {:autopilot, setpoints}} <-
-           Neptunus.Control.Command.validate("autopilot", payload),
-         do: command(id, {:autopilot, setpoints}, notify)
-  end
-
   @doc "Refuses the control commands an ArduSub vehicle cannot fly (`Core.vet/1`)."
   @impl Board
   @spec vet(term()) :: :ok | {:error, String.t()}
