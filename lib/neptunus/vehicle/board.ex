@@ -263,6 +263,22 @@ defmodule Neptunus.Vehicle.Board do
   end
 
   @doc """
+  Whether a vehicle of board `board` (a type of `module/1`) has commands of its own — its
+  board implements `c:command/3`: its own arming, flight modes, autopilots (ArduSub) —;
+  the others are armed while a pilot holds the helm.
+
+      iex> Neptunus.Vehicle.Board.own_commands?(:mavlink)
+      true
+      iex> Neptunus.Vehicle.Board.own_commands?(:uart)
+      false
+  """
+  @spec own_commands?(atom()) :: boolean()
+  def own_commands?(board) do
+    module = module(board)
+    Code.ensure_loaded?(module) and function_exported?(module, :command, 3)
+  end
+
+  @doc """
   The board types whose vehicles take `setting`, in order.
 
       iex> Neptunus.Vehicle.Board.taking(:sim_sources)
