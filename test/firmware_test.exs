@@ -237,7 +237,13 @@ defmodule Neptunus.FirmwareTest do
       end)
 
       kill!(qemu)
-      Port.close(updater)
+
+      # its connection went with the board
+      receive do
+        {^updater, {:exit_status, _}} -> :ok
+      after
+        60_000 -> flunk("the update's ssh did not end with the board")
+      end
     end)
 
     assert boot_file!(disk, "neptunus-boot.txt") == "nep_slot=B\n"
@@ -360,15 +366,12 @@ defmodule Neptunus.FirmwareTest do
     |> Enum.map_join(&File.read!/1)
   end
 
-  # The power goes: qemu killed (its shell then exits).
+  # The power goes: qemu killed. Its shell waits for its input to close before it reaps qemu,
+  # so the port is closed too, and the card is only used again once qemu is gone.
   defp kill!({port, pid}) do
     System.cmd("kill", ["-9", pid])
-
-    receive do
-      {^port, {:exit_status, _}} -> :ok
-    after
-      30_000 -> flunk("qemu did not die")
-    end
+    Port.close(port)
+    until!(30_000, "qemu to die", fn -> not File.exists?("/proc/#{pid}") end)
   end
 
   # After an update the card reboots by itself; /api/health goes away first.
