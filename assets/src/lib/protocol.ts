@@ -220,6 +220,11 @@ export interface Telemetry {
   readonly camera_status: CameraStatus | null;
   /** the position estimate and its sources (absent from an older server) */
   readonly position?: PositionStatus;
+  /**
+   * the body-frame axes the pilot may command now (absent from an older server, or before
+   * control's first report): they follow the vehicle, e.g. an ArduSub's once its frame is known
+   */
+  readonly axes?: readonly string[];
   /** the payload as received (plots derive their series from it) */
   readonly raw: Readonly<Record<string, unknown>>;
 }
@@ -425,6 +430,7 @@ export function decodeTelemetry(value: unknown): Telemetry | null {
     recording: t.recording,
     camera_status: t.camera,
     ...(t.position ? { position: t.position } : {}),
+    ...(t.axes ? { axes: t.axes } : {}),
     raw: value,
   };
 }

@@ -7,7 +7,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   (re-arming a relative timer would drift). The payload — `t`, `sent_at`, the sample's
   `measurement`, `measurement_state`, `estimate`, `wild_points`, `position` and `sim` (from
   navigation), the
-  control state's `command`, `thrusters`, `control` and `autopilot`, the board's `link`, and the
+  control state's `command`, `thrusters`, `control`, `autopilot` and `axes`, the board's `link`, and the
   parts' reports (`recording`, `camera`) — is defined, field by field, by the wire schema
   (`NeptunusWeb.WireSchema`, type `telemetry`; docs/API.md): a field added here is added there,
   or the conformance test fails.
@@ -69,6 +69,7 @@ defmodule Neptunus.Vehicle.Telemetry do
             thrusters: map(),
             control: map() | nil,
             autopilot: map(),
+            axes: [Neptunus.Control.Demand.axis()] | nil,
             link: %{
               required(:up) => boolean(),
               required(:reason) => String.t(),
@@ -87,6 +88,7 @@ defmodule Neptunus.Vehicle.Telemetry do
       :thrusters,
       :control,
       :autopilot,
+      :axes,
       link: %{up: false, reason: "not known yet"},
       reports: %{}
     ]
@@ -244,7 +246,8 @@ defmodule Neptunus.Vehicle.Telemetry do
        | command: c.command,
          thrusters: Allocation.with_us(c.thrusters),
          control: c.control,
-         autopilot: c.autopilot
+         autopilot: c.autopilot,
+         axes: Map.get(c, :axes, state.axes)
      }}
   end
 
@@ -286,6 +289,7 @@ defmodule Neptunus.Vehicle.Telemetry do
       thrusters: state.thrusters,
       control: state.control,
       autopilot: state.autopilot,
+      axes: state.axes,
       link: state.link
     }
     |> Map.merge(state.reports)

@@ -102,8 +102,10 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   @doc """
   An ArduSub vehicle is commanded in surge, sway, heave and yaw (MANUAL_CONTROL `x`, `y`, `z`,
-  `r`) and mixes its thrusters itself (its frame's motor factors); its depth and heading hold
-  are its flight modes.
+  `r`) at most and mixes its thrusters itself (its frame's motor factors); its depth and
+  heading hold are its flight modes. Which of those axes this vehicle has, its frame tells:
+  the running board declares them (`Board.declare_axes/2`, `Core.axes/1`) — surge, heave and
+  yaw until the vehicle's `FRAME_CONFIG` is known, sway too for a frame that strafes.
   """
   @impl Board
   @spec capabilities(keyword()) :: Board.capabilities()
@@ -209,6 +211,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       program: Keyword.get(opts, :program) || SerialPort.program()
     }
 
+    # no sway until the vehicle's frame says it has it (Core.axes/1)
+    :ok = Board.declare_axes(id, Core.axes(state.core))
     subscribe(state.topic)
     send(self(), :report)
     {:ok, state, {:continue, :open}}
@@ -467,6 +471,11 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
     )
 
     Logger.log(level, "vehicle #{state.id}: #{Neptunus.Log.safe(text)}")
+    state
+  end
+
+  defp act({:axes, axes}, state) do
+    :ok = Board.declare_axes(state.id, axes)
     state
   end
 
