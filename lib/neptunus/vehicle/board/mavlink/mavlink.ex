@@ -33,7 +33,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       `Core.pilot/2`).
     * Samples (attitude, depth, battery) go to navigation (`Board.sample/3`) on every
       ATTITUDE; the link's state and the vehicle's (`mavlink`: armed, mode, system status,
-      servo outputs, …) go to `Telemetry.link/2` on every change and once a second; each
+      servo outputs, frame, …) go to `Telemetry.link/2` on every change of the link or the
+      frame and once a second; the axes the vehicle's frame gives are declared
+      (`Board.declare_axes/2`) as the board starts and on every change; each
       change of the link is broadcast as event `link` on `"vehicle:<id>"`; STATUSTEXT and the
       vehicle's arming and mode changes are `log` entries (category `vehicle`) on
       `"log:<id>"` with their severity.
@@ -418,7 +420,10 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   defp run(state, step) do
     {core, actions} = step.(state.core)
+    frame? = core.frame != state.core.frame
     state = Enum.reduce(actions, %{state | core: core}, &act/2)
+    # the vehicle's frame is news for telemetry at once (its axes follow it)
+    if frame?, do: report(state)
     arm_timer(state)
   end
 
