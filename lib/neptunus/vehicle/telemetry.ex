@@ -153,13 +153,15 @@ defmodule Neptunus.Vehicle.Telemetry do
 
   @doc """
   Reports the control state (called by `Neptunus.Vehicle.Control` after every change and
-  control-loop tick): `%{command, thrusters, control, autopilot}` (see the moduledoc).
+  control-loop tick): `%{command, thrusters, control, autopilot}` and the `axes` the pilot may
+  command (see the moduledoc).
   """
   @spec control(String.t(), %{
-          command: map(),
-          thrusters: Allocation.thrusters(),
-          control: map(),
-          autopilot: map()
+          required(:command) => map(),
+          required(:thrusters) => Allocation.thrusters(),
+          required(:control) => map(),
+          required(:autopilot) => map(),
+          optional(:axes) => [Neptunus.Control.Demand.axis()]
         }) :: :ok
   def control(id, %{command: _, thrusters: _, control: _, autopilot: _} = state),
     do: GenServer.cast(via(id), {:control, state})
