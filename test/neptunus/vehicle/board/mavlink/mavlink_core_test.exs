@@ -868,25 +868,19 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CorePropertiesTest do
 
     Properties.check(:proper_types.list(:proper_types.tuple([id, value])), fn answers ->
       core = Core.new(0)
-      {core, _} = Core.receive(core, heartbeat_message(), 100)
+      heartbeat = %{type: 12, autopilot: 3, base_mode: 81, custom_mode: 19, system_status: 4}
+      {core, _} = Core.receive(core, from_vehicle(:heartbeat, heartbeat), 100)
 
       {_core, ok?} =
         Enum.reduce(answers, {core, true}, fn {param_id, v}, {core, ok?} ->
-          m = %Message{
-            id: 22,
-            name: :param_value,
-            system: 1,
-            component: 1,
-            seq: 0,
-            version: 2,
-            fields: %{
+          m =
+            from_vehicle(:param_value, %{
               param_id: param_id,
               param_value: v * 1.0,
               param_type: 2,
               param_count: 1,
               param_index: 0
-            }
-          }
+            })
 
           before = Core.axes(core)
           {next, actions} = Core.receive(core, m, 200)
@@ -903,16 +897,18 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CorePropertiesTest do
     end)
   end
 
-  defp heartbeat_message,
-    do: %Message{
-      id: 0,
-      name: :heartbeat,
-      system: 1,
-      component: 1,
-      seq: 0,
-      version: 2,
-      fields: %{type: 12, autopilot: 3, base_mode: 81, custom_mode: 19, system_status: 4}
-    }
+  # a message from the vehicle (system 1, component 1)
+  defp from_vehicle(name, fields),
+    do:
+      struct!(Message,
+        id: 0,
+        name: name,
+        system: 1,
+        component: 1,
+        seq: 0,
+        version: 2,
+        fields: fields
+      )
 
   # whatever a vehicle sends, in any order, the core never crashes and its actions are of the
   # documented shapes
