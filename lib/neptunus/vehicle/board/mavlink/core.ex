@@ -41,8 +41,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
 
   ArduSub mixes its thrusters by its frame (its `FRAME_CONFIG` parameter), and not every frame
   can strafe: the board asks for it (**PARAM_REQUEST_READ** `FRAME_CONFIG`, `param_index` −1)
-  each time the link comes up and again about once a second (every 900 ms) until
-  the vehicle answers (PARAM_VALUE): nothing else waits for it. The answer gives the axes the vehicle can
+  each time the link comes up and again every 900 ms while the link is up until the vehicle
+  answers (PARAM_VALUE): nothing else waits for it. The answer gives the axes the vehicle can
   be commanded in (`axes/1`, `frames/0`): surge, heave and yaw always, sway only for a frame
   with lateral thrust. Until the frame is known, and for a frame value it does not know (the
   custom frame: its factors are the user's), sway is left out — a sway demand is never asked
@@ -107,7 +107,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     6 => {"SimpleROV-5", true}
   }
   @frame_param "FRAME_CONFIG"
-  # a frame request is repeated with our heartbeat, at most this often (ms)
+  # a frame request not answered is repeated this often (ms)
   @frame_retry_ms 900
   @system_status ~w(uninit boot calibrating standby active critical emergency poweroff
                     flight_termination)
