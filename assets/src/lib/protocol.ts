@@ -148,8 +148,11 @@ export interface LinkStatus {
   readonly mavlink?: MavlinkStatus;
 }
 
-/** A mavlink vehicle's armed state and modes (`wire.MavlinkStatus`, docs/MAVLINK.md). */
-export type MavlinkStatus = Pick<wire.MavlinkStatus, "armed" | "mode" | "system_status">;
+/**
+ * A mavlink vehicle's armed state and modes (`wire.MavlinkStatus`, docs/MAVLINK.md), and its
+ * frame once the vehicle told it (its `FRAME_CONFIG`: whether it sways).
+ */
+export type MavlinkStatus = Pick<wire.MavlinkStatus, "armed" | "mode" | "system_status"> & { readonly frame?: string };
 
 /** The board link's liveness fields (`wire.LinkStatus`), from a board on a serial link. */
 export interface BoardLinkDetails {
@@ -365,7 +368,7 @@ function linkStatus(l: wire.LinkStatus): LinkStatus {
 }
 
 function mavlinkStatus(m: wire.MavlinkStatus): MavlinkStatus {
-  return { armed: m.armed, mode: m.mode, system_status: m.system_status };
+  return { armed: m.armed, mode: m.mode, system_status: m.system_status, ...(m.frame !== null ? { frame: m.frame } : {}) };
 }
 
 /** Control settings (telemetry's `control`, or a control state); null unless it has a mode. */
