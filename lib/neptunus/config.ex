@@ -117,4 +117,43 @@ defmodule Neptunus.Config do
       _ -> bad!(variable, value, "#{what} in #{first}..#{last}, or #{word}")
     end
   end
+
+  @doc """
+  `HOST:PORT`, split at the last colon (an IPv6 address in brackets), the port in
+  1..65535; `{:error, why}` otherwise. Pure.
+
+      iex> Neptunus.Config.host_port("localhost:5760")
+      {:ok, "localhost", 5760}
+      iex> Neptunus.Config.host_port("[::1]:14550")
+      {:ok, "::1", 14550}
+      iex> Neptunus.Config.host_port("h:0")
+      {:error, "the port must be in 1..65535"}
+  """
+  @spec host_port(String.t()) :: {:ok, String.t(), 1..65_535} | {:error, String.t()}
+  def host_port(text) when is_binary(text) do
+    case Regex.run(~r/^\[?([^\[\]\s]+?)\]?:([0-9]+)$/, text) do
+      [_, host, port] ->
+        case Integer.parse(port) do
+          {port, ""} when port in 1..65_535 -> {:ok, host, port}
+          _ -> {:error, "the port must be in 1..65535"}
+        end
+
+      nil ->
+        {:error, "expected HOST:PORT (got #{inspect(text)})"}
+    end
+  end
+
+  @doc """
+  Words as alternatives in an error message.
+
+      iex> Neptunus.Config.alternatives(["sitl", "uart"])
+      "sitl or uart"
+      iex> Neptunus.Config.alternatives(["a", "b", "c"])
+      "a, b or c"
+  """
+  @spec alternatives([String.t()]) :: String.t()
+  def alternatives([one]), do: one
+
+  def alternatives([_ | _] = words),
+    do: Enum.join(Enum.drop(words, -1), ", ") <> " or " <> List.last(words)
 end

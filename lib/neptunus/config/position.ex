@@ -26,7 +26,6 @@ defmodule Neptunus.Config.Position do
   alias Neptunus.Config
 
   @var "NEPTUNUS_POSITION"
-  @simulators [:simulated, :sitl]
 
   @type source ::
           {:dvl, String.t(), 1..65_535}
@@ -59,7 +58,11 @@ defmodule Neptunus.Config.Position do
       |> Map.new(fn pair -> pair!(pair, spec, vehicles) end)
 
     Enum.map(vehicles, fn %{id: id, board: board} = vehicle ->
-      default = if board in @simulators, do: [{:sim_dvl, []}, {:sim_usbl, []}], else: []
+      default =
+        if Neptunus.Vehicle.Board.takes?(board, :sim_sources),
+          do: [{:sim_dvl, []}, {:sim_usbl, []}],
+          else: []
+
       Map.put(vehicle, :position, Map.get(configured, id, default))
     end)
   end
@@ -99,10 +102,14 @@ defmodule Neptunus.Config.Position do
       kinds != Enum.uniq(kinds) ->
         bad!(spec, "each kind of source once per vehicle in #{inspect(pair)}")
 
-      Enum.any?(kinds, &(&1 in [:sim_dvl, :sim_usbl])) and vehicle.board not in @simulators ->
+      Enum.any?(kinds, &(&1 in [:sim_dvl, :sim_usbl])) and
+          not Neptunus.Vehicle.Board.takes?(vehicle.board, :sim_sources) ->
+        boards = :sim_sources |> Neptunus.Vehicle.Board.taking() |> Enum.map(&Atom.to_string/1)
+
         bad!(
           spec,
-          "sim-dvl and sim-usbl on a simulated or sitl vehicle (#{vehicle.id} is #{vehicle.board})"
+          "sim-dvl and sim-usbl on a #{Config.alternatives(boards)} vehicle " <>
+            "(#{vehicle.id} is #{vehicle.board})"
         )
 
       true ->

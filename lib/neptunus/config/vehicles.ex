@@ -57,58 +57,24 @@ defmodule Neptunus.Config.Vehicles do
   """
 
   alias Neptunus.Config
-
-  @typedoc "A vehicle; `sim: [vehicle: name]` when `NEPTUNUS_MODELS` names its parameter set."
-  @type vehicle ::
-          %{
-            required(:id) => String.t(),
-            required(:board) => :simulated,
-            optional(:sim) => keyword(),
-            optional(:camera) => Neptunus.Camera.Source.t()
-          }
-          | %{
-              required(:id) => String.t(),
-              required(:board) => :sitl,
-              required(:wiring) => Neptunus.Wiring.t(),
-              required(:firmware) => Neptunus.Protocol.OpenROV.profile(),
-              optional(:reset_on_open) => boolean(),
-              optional(:bootloader_ms) => pos_integer(),
-              optional(:sim) => keyword(),
-              optional(:camera) => Neptunus.Camera.Source.t()
-            }
-          | %{
-              required(:id) => String.t(),
-              required(:board) => :mavlink,
-              required(:link) => mavlink_link(),
-              required(:system) => 1..255,
-              required(:component) => 1..255,
-              optional(:disarm_delay) => float(),
-              optional(:sim) => keyword(),
-              optional(:camera) => Neptunus.Camera.Source.t()
-            }
-          | %{
-              required(:id) => String.t(),
-              required(:board) => :uart,
-              required(:device) => String.t(),
-              required(:baud) => pos_integer(),
-              required(:wiring) => Neptunus.Wiring.t(),
-              required(:firmware) => Neptunus.Protocol.OpenROV.profile(),
-              optional(:sim) => keyword(),
-              optional(:camera) => Neptunus.Camera.Source.t()
-            }
+  alias Neptunus.Vehicle.Board
 
   @typedoc """
-  Where a `mavlink` vehicle is: `{:udp, address, port}` (listen on a local address),
-  `{:udpout, host, port}` (send to the vehicle), `{:tcp, host, port}` (connect to it) or
-  `{:serial, device, baud}` (through the `neptunus_uart` port program).
+  A vehicle: its `id`, its `board` (a type of `Neptunus.Vehicle.Board`), the options its
+  board's spec gives (`Neptunus.Vehicle.Board.parse/1`: `device` and `baud` for `uart`,
+  `link` for `mavlink`), the settings its board takes (`Neptunus.Vehicle.Board.takes?/2`:
+  `wiring`, `firmware`, `system` and `component`, …), `sim: [vehicle: name]` when
+  `NEPTUNUS_MODELS` names its parameter set, its `camera` and its `position` sources.
   """
-  @type mavlink_link ::
-          {:udp, :inet.ip_address(), :inet.port_number()}
-          | {:udpout | :tcp, String.t(), 1..65_535}
-          | {:serial, String.t(), pos_integer()}
+  @type vehicle :: %{
+          required(:id) => String.t(),
+          required(:board) => atom(),
+          optional(:sim) => keyword(),
+          optional(:camera) => Neptunus.Camera.Source.t(),
+          optional(atom()) => term()
+        }
 
   @default_vehicles "neptunus-1=simulated"
-  @bauds [1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 921_600]
 
   @doc """
   Vehicles from `NEPTUNUS_VEHICLES` (and their wiring from `NEPTUNUS_WIRING`).
@@ -159,9 +125,9 @@ defmodule Neptunus.Config.Vehicles do
     end
   end
 
-  # Every sitl/uart vehicle gets a wiring: the configured one or the default.
+  # Every vehicle whose board takes a wiring (sitl, uart) gets one: configured or the default.
   defp wiring!(vehicles, spec) do
-    serial_setting!(vehicles, spec, %{
+    board_setting!(vehicles, spec, %{
       var: "NEPTUNUS_WIRING",
       expected: "id=wiring pairs, e.g. rov=-port/vertical/starboard",
       key: :wiring,
@@ -170,9 +136,10 @@ defmodule Neptunus.Config.Vehicles do
     })
   end
 
-  # Every sitl/uart vehicle gets a firmware profile: the configured one or openrov-2.5.
+  # Every vehicle whose board takes a firmware profile (sitl, uart) gets one: configured or
+  # openrov-2.5.
   defp firmware!(vehicles, spec) do
-    serial_setting!(vehicles, spec, %{
+    board_setting!(vehicles, spec, %{
       var: "NEPTUNUS_FIRMWARE",
       expected: "id=firmware pairs, e.g. rov=openrov-30",
       key: :firmware,
@@ -181,14 +148,13 @@ defmodule Neptunus.Config.Vehicles do
     })
   end
 
-  # A setting of the vehicles on a serial line (sitl, uart): `id=value` pairs parsed with
-  # `parse`, the default for every such vehicle not named; refused for any other board.
-  defp serial_setting!(vehicles, spec, %{var: var} = setting) do
+  # A setting some boards take (Board.settings/0): `id=value` pairs parsed with `parse`, the
+  # default for every such vehicle not named; refused for any other board.
+  defp board_setting!(vehicles, spec, %{var: var} = setting) do
     configured =
       pairs!(var, spec, vehicles, setting.expected)
-      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
-        if board not in [:sitl, :uart],
-          do: Config.bad!(var, spec, "sitl or uart vehicles (#{id} is #{board})")
+      |> Map.new(fn {vehicle, pair, text} ->
+        id = taking!(vehicle, setting.key, var, spec)
 
         case setting.parse.(text) do
           {:ok, value} -> {id, value}
@@ -198,7 +164,7 @@ defmodule Neptunus.Config.Vehicles do
 
     defaults =
       for %{board: board, id: id} <- vehicles,
-          board in [:sitl, :uart],
+          Board.takes?(board, setting.key),
           into: %{},
           do: {id, setting.default}
 
@@ -227,7 +193,7 @@ defmodule Neptunus.Config.Vehicles do
   end
 
   # A vehicle's camera source (Neptunus.Camera.Source): the configured one, `none`, or by
-  # default the simulated camera for simulated and SITL vehicles.
+  # default the simulated camera for a vehicle in the simulator (simulated, sitl).
   defp cameras!(vehicles, spec) do
     configured =
       pairs!("NEPTUNUS_CAMERAS", spec, vehicles, "id=source pairs, e.g. rov=v4l2:/dev/video0")
@@ -251,7 +217,7 @@ defmodule Neptunus.Config.Vehicles do
 
     defaults =
       for %{id: id, board: board} <- vehicles,
-          board in [:simulated, :sitl],
+          Board.takes?(board, :sim_sources),
           into: %{},
           do: {id, sim}
 
@@ -270,8 +236,8 @@ defmodule Neptunus.Config.Vehicles do
 
     configured =
       pairs!(var, spec, vehicles, "id=SYSTEM/COMPONENT pairs, e.g. sub=255/190")
-      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
-        if board != :mavlink, do: Config.bad!(var, spec, "mavlink vehicles (#{id} is #{board})")
+      |> Map.new(fn {vehicle, pair, text} ->
+        id = taking!(vehicle, :mavlink_ids, var, spec)
 
         with [system, component] <- String.split(text, "/"),
              {system, ""} when system in 1..255 <- Integer.parse(system),
@@ -282,13 +248,13 @@ defmodule Neptunus.Config.Vehicles do
         end
       end)
 
-    Enum.map(vehicles, fn
-      %{board: :mavlink, id: id} = vehicle ->
+    Enum.map(vehicles, fn %{board: board, id: id} = vehicle ->
+      if Board.takes?(board, :mavlink_ids) do
         {system, component} = Map.get(configured, id, {255, 190})
         Map.merge(vehicle, %{system: system, component: component})
-
-      vehicle ->
+      else
         vehicle
+      end
     end)
   end
 
@@ -298,8 +264,8 @@ defmodule Neptunus.Config.Vehicles do
 
     configured =
       pairs!(var, spec, vehicles, "id=SECONDS pairs, e.g. sub=2")
-      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
-        if board != :mavlink, do: Config.bad!(var, spec, "mavlink vehicles (#{id} is #{board})")
+      |> Map.new(fn {vehicle, pair, text} ->
+        id = taking!(vehicle, :disarm_delay, var, spec)
 
         case Float.parse(text) do
           {s, ""} when s >= 0.1 and s <= 60 -> {id, s}
@@ -318,8 +284,8 @@ defmodule Neptunus.Config.Vehicles do
 
     configured =
       pairs!(var, spec, vehicles, "id=MS pairs, e.g. rov=500")
-      |> Map.new(fn {%{id: id, board: board}, pair, text} ->
-        if board != :sitl, do: Config.bad!(var, spec, "sitl vehicles (#{id} is #{board})")
+      |> Map.new(fn {vehicle, pair, text} ->
+        id = taking!(vehicle, :bootloader, var, spec)
 
         case Integer.parse(text) do
           {ms, ""} when ms in 1..10_000 -> {id, ms}
@@ -333,6 +299,17 @@ defmodule Neptunus.Config.Vehicles do
         :error -> vehicle
       end
     end)
+  end
+
+  # the id of a vehicle whose board takes `setting` (Board.settings/0); refused otherwise,
+  # naming the boards that do
+  defp taking!(%{id: id, board: board}, setting, var, spec) do
+    unless Board.takes?(board, setting) do
+      boards = setting |> Board.taking() |> Enum.map(&Atom.to_string/1)
+      Config.bad!(var, spec, "#{Config.alternatives(boards)} vehicles (#{id} is #{board})")
+    end
+
+    id
   end
 
   # each vehicle with a configured value (by id) gets it under `key`
@@ -384,32 +361,12 @@ defmodule Neptunus.Config.Vehicles do
           )
         end
 
-        case board(String.trim(board)) do
+        case Board.parse(String.trim(board)) do
           {:ok, board} ->
             Map.put(board, :id, id)
 
-          {:bad_mavlink, why} ->
-            Config.bad!(
-              "NEPTUNUS_VEHICLES",
-              spec,
-              "mavlink:udp:ADDRESS:PORT, mavlink:udpout:HOST:PORT, mavlink:tcp:HOST:PORT or " <>
-                "mavlink:serial:DEVICE[@BAUD] in #{inspect(pair)}: #{why}"
-            )
-
-          {:bad_uart, why} ->
-            Config.bad!(
-              "NEPTUNUS_VEHICLES",
-              spec,
-              "uart:DEVICE[@BAUD] in #{inspect(pair)}: #{why}"
-            )
-
-          :error ->
-            Config.bad!(
-              "NEPTUNUS_VEHICLES",
-              spec,
-              "a known board in #{inspect(pair)}: one of " <>
-                Enum.join(Neptunus.Vehicle.Board.syntaxes(), ", ")
-            )
+          {:error, expected, why} ->
+            Config.bad!("NEPTUNUS_VEHICLES", spec, "#{expected} in #{inspect(pair)}: #{why}")
         end
 
       _ ->
@@ -418,81 +375,6 @@ defmodule Neptunus.Config.Vehicles do
           spec,
           "id=board pairs separated by commas, e.g. rov=simulated"
         )
-    end
-  end
-
-  defp board("uart:" <> device_baud) do
-    case serial(device_baud) do
-      {:ok, device, baud} -> {:ok, %{board: :uart, device: device, baud: baud}}
-      {:error, why} -> {:bad_uart, why}
-    end
-  end
-
-  defp board("mavlink:" <> link) do
-    case mavlink_link(link) do
-      {:ok, link} -> {:ok, %{board: :mavlink, link: link}}
-      {:error, why} -> {:bad_mavlink, why}
-    end
-  end
-
-  defp board(name) do
-    with {:ok, board} <- Neptunus.Vehicle.Board.named(name), do: {:ok, %{board: board}}
-  end
-
-  defp serial(device_baud) do
-    {device, baud} =
-      case String.split(device_baud, "@") do
-        [device] -> {device, "115200"}
-        [device, baud] -> {device, baud}
-        _ -> {"", ""}
-      end
-
-    cond do
-      not String.starts_with?(device, "/") ->
-        {:error, "the device must be an absolute path such as /dev/ttyO1"}
-
-      not match?({_, ""}, Integer.parse(baud)) or elem(Integer.parse(baud), 0) not in @bauds ->
-        {:error, "the baud rate must be one of #{Enum.join(@bauds, ", ")}"}
-
-      true ->
-        {:ok, device, String.to_integer(baud)}
-    end
-  end
-
-  defp mavlink_link("serial:" <> device_baud) do
-    with {:ok, device, baud} <- serial(device_baud), do: {:ok, {:serial, device, baud}}
-  end
-
-  defp mavlink_link("udp:" <> address_port) do
-    with {:ok, host, port} <- host_port(address_port) do
-      case :inet.parse_address(String.to_charlist(host)) do
-        {:ok, address} -> {:ok, {:udp, address, port}}
-        {:error, _} -> {:error, "udp listens on a local IP address such as 0.0.0.0"}
-      end
-    end
-  end
-
-  defp mavlink_link("udpout:" <> host_port) do
-    with {:ok, host, port} <- host_port(host_port), do: {:ok, {:udpout, host, port}}
-  end
-
-  defp mavlink_link("tcp:" <> host_port) do
-    with {:ok, host, port} <- host_port(host_port), do: {:ok, {:tcp, host, port}}
-  end
-
-  defp mavlink_link(_), do: {:error, "the link must be udp, udpout, tcp or serial"}
-
-  # HOST:PORT; the host's last colon separates the port (an IPv6 address in brackets)
-  defp host_port(text) do
-    case Regex.run(~r/^\[?([^\[\]\s]+?)\]?:([0-9]+)$/, text) do
-      [_, host, port] ->
-        case Integer.parse(port) do
-          {port, ""} when port in 1..65_535 -> {:ok, host, port}
-          _ -> {:error, "the port must be in 1..65535"}
-        end
-
-      nil ->
-        {:error, "expected HOST:PORT (got #{inspect(text)})"}
     end
   end
 end

@@ -69,13 +69,27 @@ defmodule Neptunus.GCS.Intents do
 
   def run(:params, vehicle, _party), do: {:ok, param_sources(vehicle)}
 
-  # a control command from the pilot, as the operator page sends it; on an ArduSub vehicle
-  # the autopilots are its flight modes (the board sets them and answers)
-  defp command({"autopilot", payload}, %{id: id, board: :mavlink}, party),
-    do: board_request(id, party, &Board.MAVLink.autopilot(&1, payload, &2))
+  # a control command from the pilot, as the operator page sends it; on a vehicle whose
+  # autopilots are its own (its board's capabilities, e.g. ArduSub's flight modes) the
+  # `autopilot` command is the board's (Board.command/3), which answers
+  defp command({"autopilot", payload} = command, %{id: id} = vehicle, party) do
+    case Board.capabilities(id) do
+      %{autopilots: :vehicle} -> board_request(id, party, &vehicle_autopilot(&1, payload, &2))
+      _ -> control_command(command, vehicle, party)
+    end
+  end
 
-  defp command({event, payload}, %{id: id}, party),
+  defp command(command, vehicle, party), do: control_command(command, vehicle, party)
+
+  defp control_command({event, payload}, %{id: id}, party),
     do: Helm.command(id, party, :none, fn -> Control.command(id, event, payload) end)
+
+  # the validated autopilot command for the vehicle itself; a bad payload refused at once
+  defp vehicle_autopilot(id, payload, notify) do
+    with {:ok, {:autopilot, _} = command} <-
+           Neptunus.Control.Command.validate("autopilot", payload),
+         do: Board.command(id, command, notify)
+  end
 
   # a request to the board, after the helm's pilot check, answered when the vehicle answers
   defp board_request(id, party, request) do

@@ -127,6 +127,7 @@ defmodule Neptunus.GCS.Session do
   @type vehicle :: %{
           id: String.t(),
           board: atom(),
+          arms: boolean(),
           view: map() | nil,
           pilot: boolean(),
           epoch: integer() | nil,
@@ -189,6 +190,9 @@ defmodule Neptunus.GCS.Session do
          %{
            id: v.id,
            board: v.board,
+           # whether the vehicle arms itself (its board's own commands), or is armed while
+           # a pilot holds the helm
+           arms: Neptunus.Vehicle.Board.own_commands?(v.board),
            view: nil,
            pilot: false,
            epoch: nil,
@@ -461,7 +465,7 @@ defmodule Neptunus.GCS.Session do
       not v.pilot ->
         ack(s, sysid, @arm_disarm, @denied, @not_in_control)
 
-      v.board == :mavlink ->
+      v.arms ->
         intent(s, sysid, {:arm, arm?}, {:ack, @arm_disarm})
 
       arm? ->

@@ -33,7 +33,9 @@ defmodule Neptunus.Vehicle.Board do
   can go down), and `lights/2`, `laser/2` (0..255) and `tilt/2` (camera tilt, rad in
   [−π/4, π/4]; `tilt_us/1` gives the servo pulse width) — boards without them ignore those
   commands; `command/3` (vehicles with their own arming, flight modes or autopilots: one
-  entry point, `command/3` here refuses for the others); `vet/1`.
+  entry point, `command/3` here refuses for the others); `vet/1`; `parse_spec/1` (a board
+  that `NEPTUNUS_VEHICLES` names `type:SPEC` parses its spec: `parse/1`) and `settings/0`
+  (the per-vehicle settings its vehicles take: `takes?/2`).
 
   **Samples** go to navigation through `sample/3`, which passes on only the samples of the
   vehicle's current source: the board's, or — while `Vehicle.Control` runs in run mode
@@ -100,6 +102,24 @@ defmodule Neptunus.Vehicle.Board do
           | {:mode, String.t()}
           | {:autopilot, %{depth: term(), heading: term()}}
 
+  @typedoc """
+  A per-vehicle setting of `Neptunus.Config.Vehicles` that only some boards take, as each
+  board declares (`c:settings/0`): a vehicle whose board takes it gets its default, one
+  whose board does not refuses a configured value.
+
+    * `:wiring`, `:firmware` — an OpenROV board's motor wiring and firmware profile
+      (`NEPTUNUS_WIRING`, `NEPTUNUS_FIRMWARE`);
+    * `:bootloader` — a simulated board that reboots into its bootloader when its line opens
+      (`NEPTUNUS_SITL_BOOTLOADER`);
+    * `:mavlink_ids`, `:disarm_delay` — our ids on a MAVLink link, the disarm after pilot
+      loss (`NEPTUNUS_MAVLINK_IDS`, `NEPTUNUS_MAVLINK_DISARM_DELAY`);
+    * `:sim_sources` — the vehicle lives in the built-in simulator (`Neptunus.Sim`): the
+      simulated camera and position sources (`sim`, `sim-dvl`, `sim-usbl`) are its by
+      default, and only its.
+  """
+  @type setting ::
+          :wiring | :firmware | :bootloader | :mavlink_ids | :disarm_delay | :sim_sources
+
   @doc "Starts the board for vehicle `opts[:id]`; must register under `via/1`."
   @callback start_link(opts :: keyword()) :: GenServer.on_start()
 
@@ -155,7 +175,26 @@ defmodule Neptunus.Vehicle.Board do
   """
   @callback link_details() :: [atom()]
 
-  @optional_callbacks link_details: 0,
+  @doc """
+  The options of a vehicle whose board `NEPTUNUS_VEHICLES` names `type:SPEC` (e.g.
+  `uart:/dev/ttyO1@57600`), from SPEC: `{:ok, options}` (the vehicle's, as `start_link/1`
+  and `capabilities/1` get them), or `{:error, expected, why}` — the spec's syntax and what
+  is wrong with this one, which `Neptunus.Config.Vehicles` puts in its error. Pure, and
+  never raises. A board named by its type alone (`simulated`) has no spec and no
+  `parse_spec/1`.
+  """
+  @callback parse_spec(spec :: String.t()) ::
+              {:ok, map()} | {:error, expected :: String.t(), why :: String.t()}
+
+  @doc """
+  The per-vehicle settings this board's vehicles take (`t:setting/0`); boards without
+  `settings/0` take none of them.
+  """
+  @callback settings() :: [setting()]
+
+  @optional_callbacks parse_spec: 1,
+                      settings: 0,
+                      link_details: 0,
                       keepalive: 1,
                       link_status: 1,
                       lights: 2,
@@ -165,7 +204,7 @@ defmodule Neptunus.Vehicle.Board do
                       vet: 1
 
   # The boards, once: type => {module, how NEPTUNUS_VEHICLES names it (nil: by its type alone;
-  # else the syntax of its spec, which Neptunus.Config.Vehicles parses)}
+  # else `type:` and the syntax of its spec, which the module's parse_spec/1 parses)}
   @registry [
     simulated: {Neptunus.Vehicle.Board.Simulated, nil},
     sitl: {Neptunus.Vehicle.Board.SITL, nil},
@@ -199,6 +238,81 @@ defmodule Neptunus.Vehicle.Board do
          end) do
       {type, _} -> {:ok, type}
       nil -> :error
+    end
+  end
+
+  @doc "The board types, in order."
+  @spec types() :: [atom()]
+  def types, do: Keyword.keys(@registry)
+
+  @doc """
+  Whether a vehicle of board `board` (a type of `module/1`) takes `setting` (its board's
+  `c:settings/0`).
+
+      iex> Neptunus.Vehicle.Board.takes?(:sitl, :wiring)
+      true
+      iex> Neptunus.Vehicle.Board.takes?(:mavlink, :wiring)
+      false
+  """
+  @spec takes?(atom(), setting()) :: boolean()
+  def takes?(board, setting) do
+    module = module(board)
+
+    Code.ensure_loaded?(module) and function_exported?(module, :settings, 0) and
+      setting in module.settings()
+  end
+
+  @doc """
+  Whether a vehicle of board `board` (a type of `module/1`) has commands of its own — its
+  board implements `c:command/3`: its own arming, flight modes, autopilots (ArduSub) —;
+  the others are armed while a pilot holds the helm.
+
+      iex> Neptunus.Vehicle.Board.own_commands?(:mavlink)
+      true
+      iex> Neptunus.Vehicle.Board.own_commands?(:uart)
+      false
+  """
+  @spec own_commands?(atom()) :: boolean()
+  def own_commands?(board) do
+    module = module(board)
+    Code.ensure_loaded?(module) and function_exported?(module, :command, 3)
+  end
+
+  @doc """
+  The board types whose vehicles take `setting`, in order.
+
+      iex> Neptunus.Vehicle.Board.taking(:sim_sources)
+      [:simulated, :sitl]
+  """
+  @spec taking(setting()) :: [atom()]
+  def taking(setting), do: Enum.filter(types(), &takes?(&1, setting))
+
+  @doc """
+  The board of a vehicle as `NEPTUNUS_VEHICLES` names it: a type alone (`simulated`) or
+  `type:SPEC`, the spec parsed by the board (`c:parse_spec/1`). `{:ok, %{board: type, ...}}`
+  with the board's options, or `{:error, expected, why}`. Pure, and never raises.
+
+      iex> Neptunus.Vehicle.Board.parse("uart:/dev/ttyO1@57600")
+      {:ok, %{board: :uart, device: "/dev/ttyO1", baud: 57600}}
+      iex> Neptunus.Vehicle.Board.parse("sitl")
+      {:ok, %{board: :sitl}}
+      iex> Neptunus.Vehicle.Board.parse("uart:ttyO1")
+      {:error, "uart:DEVICE[@BAUD]", "the device must be an absolute path such as /dev/ttyO1"}
+      iex> Neptunus.Vehicle.Board.parse("warp")
+      {:error, "a known board", "one of simulated, sitl, uart:DEVICE[@BAUD], mavlink:…"}
+  """
+  @spec parse(String.t()) ::
+          {:ok, %{required(:board) => atom(), optional(atom()) => term()}}
+          | {:error, String.t(), String.t()}
+  def parse(text) when is_binary(text) do
+    with :error <- named(text),
+         [prefix, spec] <- String.split(text, ":", parts: 2),
+         {type, {module, syntax}} when syntax != nil <-
+           Enum.find(@registry, fn {type, _} -> Atom.to_string(type) == prefix end) do
+      with {:ok, options} <- module.parse_spec(spec), do: {:ok, Map.put(options, :board, type)}
+    else
+      {:ok, type} -> {:ok, %{board: type}}
+      _ -> {:error, "a known board", "one of " <> Enum.join(syntaxes(), ", ")}
     end
   end
 

@@ -55,6 +55,44 @@ defmodule Neptunus.Vehicle.Board.SerialPort do
   @type option ::
           {:program, String.t()} | {:env, [{charlist(), charlist()}]} | {:rx_stamps, boolean()}
 
+  # the rates the program sets (c_src/neptunus_uart.c), and the one a line has unless told
+  @bauds [1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 921_600]
+  @default_baud 115_200
+
+  @doc """
+  A serial line as a board's spec names it, `DEVICE[@BAUD]` (`uart:DEVICE[@BAUD]`,
+  `mavlink:serial:DEVICE[@BAUD]`): an absolute device path and a rate the program sets
+  (1200 … 921600, default 115200); `{:error, why}` otherwise. Pure.
+
+      iex> alias Neptunus.Vehicle.Board.SerialPort
+      iex> SerialPort.parse_line("/dev/ttyO1@57600")
+      {:ok, "/dev/ttyO1", 57600}
+      iex> SerialPort.parse_line("/dev/ttyACM0")
+      {:ok, "/dev/ttyACM0", 115200}
+      iex> SerialPort.parse_line("ttyO1")
+      {:error, "the device must be an absolute path such as /dev/ttyO1"}
+  """
+  @spec parse_line(String.t()) :: {:ok, String.t(), pos_integer()} | {:error, String.t()}
+  def parse_line(text) when is_binary(text) do
+    {device, baud} =
+      case String.split(text, "@") do
+        [device] -> {device, Integer.to_string(@default_baud)}
+        [device, baud] -> {device, baud}
+        _ -> {"", ""}
+      end
+
+    cond do
+      not String.starts_with?(device, "/") ->
+        {:error, "the device must be an absolute path such as /dev/ttyO1"}
+
+      match?({rate, ""} when rate in @bauds, Integer.parse(baud)) ->
+        {:ok, device, String.to_integer(baud)}
+
+      true ->
+        {:error, "the baud rate must be one of #{Enum.join(@bauds, ", ")}"}
+    end
+  end
+
   @doc "Path of the port program."
   @spec program() :: String.t()
   def program, do: Application.app_dir(:neptunus, "priv/neptunus_uart")

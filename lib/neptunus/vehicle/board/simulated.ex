@@ -99,6 +99,11 @@ defmodule Neptunus.Vehicle.Board.Simulated do
       else: capabilities
   end
 
+  @doc "The simulator's camera and position sources: its vehicle lives in `Neptunus.Sim`."
+  @impl Board
+  @spec settings() :: [Board.setting()]
+  def settings, do: [:sim_sources]
+
   # whether the simulated parameter set has a lateral thruster
   defp lateral?(opts) do
     sim = Keyword.get(opts, :sim, [])

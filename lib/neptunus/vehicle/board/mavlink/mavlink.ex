@@ -54,12 +54,23 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   @behaviour Board
 
+  @typedoc """
+  Where the vehicle is (`mavlink:LINK` in `NEPTUNUS_VEHICLES`, `parse_spec/1`):
+  `{:udp, address, port}` (listen on a local address), `{:udpout, host, port}` (send to the
+  vehicle), `{:tcp, host, port}` (connect to it) or `{:serial, device, baud}` (through the
+  `neptunus_uart` port program).
+  """
+  @type link ::
+          {:udp, :inet.ip_address(), :inet.port_number()}
+          | {:udpout | :tcp, String.t(), 1..65_535}
+          | {:serial, String.t(), pos_integer()}
+
   defmodule State do
     @moduledoc false
     @type t :: %__MODULE__{
             id: String.t(),
             topic: String.t(),
-            link: Neptunus.Config.Vehicles.mavlink_link(),
+            link: Neptunus.Vehicle.Board.MAVLink.link(),
             core: Neptunus.Vehicle.Board.MAVLink.Core.t(),
             decoder: Neptunus.Protocol.MAVLink.Decoder.t(),
             seq: byte(),
@@ -119,6 +130,59 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       autopilots: :vehicle
     }
 
+  @doc """
+  The vehicle's link from the spec of `mavlink:LINK` (`t:link/0`): `udp:ADDRESS:PORT`,
+  `udpout:HOST:PORT`, `tcp:HOST:PORT` or `serial:DEVICE[@BAUD]`.
+
+      iex> Neptunus.Vehicle.Board.MAVLink.parse_spec("udp:0.0.0.0:14550")
+      {:ok, %{link: {:udp, {0, 0, 0, 0}, 14550}}}
+      iex> {:error, _expected, why} = Neptunus.Vehicle.Board.MAVLink.parse_spec("udp:myhost:1")
+      iex> why
+      "udp listens on a local IP address such as 0.0.0.0"
+  """
+  @impl Board
+  @spec parse_spec(String.t()) :: {:ok, %{link: link()}} | {:error, String.t(), String.t()}
+  def parse_spec(spec) do
+    case link(spec) do
+      {:ok, link} ->
+        {:ok, %{link: link}}
+
+      {:error, why} ->
+        {:error,
+         "mavlink:udp:ADDRESS:PORT, mavlink:udpout:HOST:PORT, mavlink:tcp:HOST:PORT or " <>
+           "mavlink:serial:DEVICE[@BAUD]", why}
+    end
+  end
+
+  defp link("serial:" <> line) do
+    with {:ok, device, baud} <- SerialPort.parse_line(line), do: {:ok, {:serial, device, baud}}
+  end
+
+  defp link("udp:" <> address_port) do
+    with {:ok, host, port} <- Neptunus.Config.host_port(address_port) do
+      case :inet.parse_address(String.to_charlist(host)) do
+        {:ok, address} -> {:ok, {:udp, address, port}}
+        {:error, _} -> {:error, "udp listens on a local IP address such as 0.0.0.0"}
+      end
+    end
+  end
+
+  defp link("udpout:" <> host_port) do
+    with {:ok, host, port} <- Neptunus.Config.host_port(host_port),
+         do: {:ok, {:udpout, host, port}}
+  end
+
+  defp link("tcp:" <> host_port) do
+    with {:ok, host, port} <- Neptunus.Config.host_port(host_port), do: {:ok, {:tcp, host, port}}
+  end
+
+  defp link(_), do: {:error, "the link must be udp, udpout, tcp or serial"}
+
+  @doc "Our ids on its link and the disarm after pilot loss (`NEPTUNUS_MAVLINK_*`)."
+  @impl Board
+  @spec settings() :: [Board.setting()]
+  def settings, do: [:mavlink_ids, :disarm_delay]
+
   @doc "The details `link_status/1` reports (telemetry's `link`): the round trip and the vehicle."
   @impl Board
   @spec link_details() :: [atom()]
@@ -170,19 +234,6 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   @spec arm(String.t(), boolean(), (:ok | {:error, String.t()} -> term())) :: :ok
   def arm(id, arm?, notify) when is_boolean(arm?) and is_function(notify, 1),
     do: GenServer.call(Board.via(id), {:arm, arm?, notify})
-
-  @doc """
-  The autopilots as the vehicle's flight modes (`Core.autopilot/4`): `payload` is the
-  untrusted JSON of control's `autopilot` command; `notify` as for `arm/3`. `{:error, reason}`
-  for a bad payload.
-  """
-  @spec autopilot(String.t(), term(), (:ok | {:error, String.t()} -> term())) ::
-          :ok | {:error, String.t()}
-  def autopilot(id, payload, notify) when is_function(notify, 1) do
-    with {:ok, {:autopilot, setpoints}} <-
-           Neptunus.Control.Command.validate("autopilot", payload),
-         do: command(id, {:autopilot, setpoints}, notify)
-  end
 
   @doc "Refuses the control commands an ArduSub vehicle cannot fly (`Core.vet/1`)."
   @impl Board

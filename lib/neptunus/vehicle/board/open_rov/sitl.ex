@@ -63,6 +63,14 @@ defmodule Neptunus.Vehicle.Board.SITL do
   @spec capabilities(keyword()) :: Board.capabilities()
   def capabilities(opts), do: UART.capabilities(opts)
 
+  @doc """
+  Those of `Board.UART`, a bootloader (`NEPTUNUS_SITL_BOOTLOADER`), and the simulator's
+  camera and position sources: its vehicle lives in `Neptunus.Sim`.
+  """
+  @impl Board
+  @spec settings() :: [Board.setting()]
+  def settings, do: UART.settings() ++ [:bootloader, :sim_sources]
+
   @impl Board
   @spec go(String.t(), Neptunus.Allocation.thrusters()) :: :ok
   def go(id, thrusters), do: UART.go(id, thrusters)

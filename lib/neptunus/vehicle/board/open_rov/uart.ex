@@ -194,6 +194,27 @@ defmodule Neptunus.Vehicle.Board.UART do
   @spec capabilities(keyword()) :: Board.capabilities()
   def capabilities(_opts), do: Board.thesis_capabilities()
 
+  @doc """
+  The serial line from the spec of `uart:DEVICE[@BAUD]` (`Board.SerialPort.parse_line/1`).
+
+      iex> Neptunus.Vehicle.Board.UART.parse_spec("/dev/ttyO1@57600")
+      {:ok, %{device: "/dev/ttyO1", baud: 57600}}
+  """
+  @impl Board
+  @spec parse_spec(String.t()) ::
+          {:ok, %{device: String.t(), baud: pos_integer()}} | {:error, String.t(), String.t()}
+  def parse_spec(spec) do
+    case SerialPort.parse_line(spec) do
+      {:ok, device, baud} -> {:ok, %{device: device, baud: baud}}
+      {:error, why} -> {:error, "uart:DEVICE[@BAUD]", why}
+    end
+  end
+
+  @doc "Its motor wiring and firmware profile (`NEPTUNUS_WIRING`, `NEPTUNUS_FIRMWARE`)."
+  @impl Board
+  @spec settings() :: [Board.setting()]
+  def settings, do: [:wiring, :firmware]
+
   @impl Board
   @spec go(String.t(), Neptunus.Allocation.thrusters()) :: :ok
   def go(id, thrusters), do: GenServer.cast(Board.via(id), {:go, thrusters})
