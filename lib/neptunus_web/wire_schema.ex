@@ -148,6 +148,11 @@ defmodule NeptunusWeb.WireSchema do
             doc:
               "the control state without command and thrusters (null before control's first report)"},
          autopilot: {:autopilot_status, doc: "each engaged autopilot's state"},
+         axes:
+           {{:list, :axis},
+            null: true,
+            doc:
+              "the body-frame axes the pilot may command now, which the pages offer: the vehicle's as its board declares them (an ArduSub vehicle's once its frame is known: docs/MAVLINK.md), surge, heave and yaw in run mode simulator; null before control's first report"},
          link: {:link_status, doc: "the board link's state, as in the `link` event"},
          recording:
            {:recording_status,
@@ -543,6 +548,11 @@ defmodule NeptunusWeb.WireSchema do
             null: true,
             doc:
               "ArduSub's joystick gain (its `PilotGain`), divided out of MANUAL_CONTROL so that only ours applies; null until the vehicle sends it"},
+         frame:
+           {:string,
+            null: true,
+            doc:
+              "the vehicle's frame, from its `FRAME_CONFIG` (`Vectored`, `SimpleROV-3`, …; `FRAME_CONFIG n` for one Neptunus does not know): it decides whether the vehicle has sway; null until the vehicle answered"},
          frames_received: :integer,
          frames_lost: {:integer, doc: "from the vehicle's sequence numbers"},
          loss: {:number, doc: "frames lost / (received + lost)"}
@@ -667,7 +677,7 @@ defmodule NeptunusWeb.WireSchema do
          axes:
            {{:list, :axis},
             doc:
-              "the body-frame axes the vehicle can be commanded in (its board's): the pilot's inputs offer these; the three-thruster vehicle has `surge`, `heave`, `yaw`; an ArduSub vehicle and a simulated `neptunus-sway` (a lateral thruster) `sway` too"},
+              "the body-frame axes the vehicle can be commanded in (its board's, when the page joined): the pilot's inputs offer these; the three-thruster vehicle has `surge`, `heave`, `yaw`; a simulated `neptunus-sway` (a lateral thruster) and an ArduSub vehicle whose frame strafes `sway` too (an ArduSub's are known once its frame is: telemetry's `axes` follow them)"},
          autopilots:
            {{:enum, ~w(neptunus vehicle)},
             doc:

@@ -31,6 +31,8 @@ test("a mavlink vehicle: link, mode, arm, drive, stop, disarm from the operator 
     // the vehicle's own state, from its heartbeat
     await page.locator("#vehicle-link", { hasText: "up" }).waitFor();
     await page.locator("#vehicle-mode", { hasText: "MANUAL" }).waitFor();
+    // its frame (FRAME_CONFIG), which decides whether it sways: the fake is a vectored one
+    await page.locator("#vehicle-frame", { hasText: "Vectored" }).waitFor();
     assert.equal(await armed(page), "false");
     // telemetry from ATTITUDE / VFR_HUD
     await page.waitForFunction(() => /^\d+\.\d$/.test(document.querySelector("#heading")?.textContent ?? ""), null, { timeout: WAIT_MS });

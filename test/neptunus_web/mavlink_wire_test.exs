@@ -12,8 +12,16 @@ defmodule NeptunusWeb.MAVLinkWireTest do
 
   @refusal "PreArm: Must assign a disarm or arm_toggle button or disarm aux function"
 
-  setup do
-    fake = FakeArduSub.start!(:udp)
+  # the fake's frame: `@tag frame: n` (its FRAME_CONFIG; vectored by default); with
+  # `@tag answer_params: false` it does not answer the board's frame request
+  setup ctx do
+    fake = FakeArduSub.start!(:udp, frame: Map.get(ctx, :frame, 1))
+
+    if ctx[:answer_params] == false do
+      FakeArduSub.tell(fake, %{answer_params: false})
+      FakeArduSub.expect!(fake, &(&1["event"] == "answer_params"))
+    end
+
     id = "mav-#{System.unique_integer([:positive])}"
 
     # The pilots here are the test's connections, which send no heartbeat between their
@@ -35,6 +43,8 @@ defmodule NeptunusWeb.MAVLinkWireTest do
     # the board is a ground station to the vehicle from the start
     FakeArduSub.expect!(fake, &(&1["event"] == "heartbeat" and &1["sysid"] == 255))
     link_up!(id)
+    # its axes are known once its frame is (the board asks as the link comes up)
+    if ctx[:answer_params] != false, do: frame_known!(id)
     %{fake: fake, id: id, topic: "vehicle:" <> id}
   end
 
@@ -129,6 +139,90 @@ defmodule NeptunusWeb.MAVLinkWireTest do
     # ArduSub's gain stepped up to 1 (its gain buttons): the command follows, same thrust
     FakeArduSub.tell(fake, %{gain: 1.0})
     beating!(ada, fake, &manual_control?(&1, x: 500, r: 500))
+  end
+
+  describe "the vehicle's frame (FRAME_CONFIG) decides whether it sways" do
+    @axes ["surge", "sway", "heave", "yaw"]
+    @no_sway ["surge", "heave", "yaw"]
+
+    # the first telemetry with these axes and this frame (control reports the axes, the board
+    # the frame: either may come first)
+    defp frame_telemetry!(c, axes, frame),
+      do:
+        event!(
+          c.ws,
+          "telemetry",
+          &(&1["axes"] == axes and get_in(&1, ["link", "mavlink", "frame"]) == frame)
+        )
+
+    defp sway(c, sway),
+      do:
+        push(c, "thrust", %{
+          "mode" => "motion",
+          "surge" => 0.6,
+          "sway" => sway,
+          "heave" => 0.0,
+          "yaw" => 0.0,
+          "epoch" => c.epoch
+        })
+
+    test "a vectored frame (a BlueROV2) strafes: the page, a ground station and control have sway",
+         %{id: id, topic: topic} do
+      ada = pilot(topic)
+      assert ada.snapshot["vehicle"]["axes"] == @axes
+      frame_telemetry!(ada, @axes, "Vectored")
+      # what the ground station endpoint gives a stick's lateral to
+      assert Neptunus.Vehicle.Board.capabilities(id).axes == [:surge, :sway, :heave, :yaw]
+      assert {"ok", %{"command" => %{"sway" => 0.5}}} = sway(ada, 0.5)
+    end
+
+    @tag frame: 4
+    test "a SimpleROV-3 has no lateral thruster: no sway on the page, for a ground station, nor to the vehicle",
+         %{fake: fake, id: id, topic: topic} = ctx do
+      gain_heard!(ctx.id, 0.5)
+      ada = pilot(topic)
+      assert ada.snapshot["vehicle"]["axes"] == @no_sway
+      frame_telemetry!(ada, @no_sway, "SimpleROV-3")
+
+      # a ground station's stick: its lateral is left out (Neptunus.GCS.Intents reads these)
+      vehicle_axes = Neptunus.Vehicle.Board.capabilities(id).axes
+      assert vehicle_axes == [:surge, :heave, :yaw]
+      stick = Neptunus.GCS.Manual.axes(%{x: 600, y: 800, z: 500, r: 0})
+      refute Map.has_key?(Neptunus.GCS.Manual.thrust_payload(stick, vehicle_axes, 1), "sway")
+
+      # the page's sway is refused; the vehicle never gets a lateral command
+      arm!(ada, fake)
+
+      assert {"error", %{"reason" => "this vehicle has no sway" <> _}} = sway(ada, 0.5)
+      assert {"ok", _} = sway(ada, 0.0)
+      # our gain 0.5 and ArduSub's 0.5: surge 0.6 → x 600
+      mc = beating!(ada, fake, &manual_control?(&1, x: 600))
+      assert mc["y"] == 0
+    end
+
+    @tag answer_params: false
+    test "no sway until the vehicle tells its frame, asked again until it does; then the page is offered sway",
+         %{fake: fake, topic: topic} do
+      ada = pilot(topic)
+      assert ada.snapshot["vehicle"]["axes"] == @no_sway
+      frame_telemetry!(ada, @no_sway, nil)
+      assert {"error", %{"reason" => "this vehicle has no sway" <> _}} = sway(ada, 0.5)
+
+      # asked, and asked again
+      unanswered? =
+        &(&1["event"] == "param_request_read" and &1["param_id"] == "FRAME_CONFIG" and
+            &1["answered"] == false and &1["sysid"] == 255)
+
+      FakeArduSub.expect!(fake, unanswered?)
+      FakeArduSub.expect!(fake, unanswered?)
+
+      FakeArduSub.tell(fake, %{answer_params: true})
+      FakeArduSub.expect!(fake, &(&1["event"] == "param_request_read" and &1["answered"]))
+
+      # the page follows (telemetry's axes), and so does control
+      frame_telemetry!(ada, @axes, "Vectored")
+      assert {"ok", %{"command" => %{"sway" => 0.5}}} = sway(ada, 0.5)
+    end
   end
 
   defp manual_control?(report, values),
@@ -425,6 +519,13 @@ defmodule NeptunusWeb.MAVLinkWireTest do
 
   defp link_up!(id),
     do: Pty.wait_until(fn -> Neptunus.Vehicle.Board.link_status(id).up end, "the mavlink link up")
+
+  defp frame_known!(id),
+    do:
+      Pty.wait_until(
+        fn -> Neptunus.Vehicle.Board.link_status(id).mavlink.frame != nil end,
+        "the vehicle's frame known"
+      )
 
   defp refute_armed_change(%{port: port}) do
     receive do

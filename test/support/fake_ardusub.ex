@@ -16,11 +16,13 @@ defmodule Neptunus.Test.FakeArduSub do
 
   @doc """
   Starts the fake: `kind` `:udp` (an ephemeral UDP port) or `:tcp` (an ephemeral TCP port).
-  Returns `%{port, udp | tcp}` once it listens.
+  Options: `frame:` its `FRAME_CONFIG` (default 1, vectored; 4 is a SimpleROV-3). Returns
+  `%{port, udp | tcp}` once it listens.
   """
-  @spec start!(:udp | :tcp) :: t()
-  def start!(kind \\ :udp) do
+  @spec start!(:udp | :tcp, keyword()) :: t()
+  def start!(kind \\ :udp, opts \\ []) do
     args = if kind == :tcp, do: [@script, "--tcp", "0"], else: [@script]
+    args = args ++ ["--frame", Integer.to_string(Keyword.get(opts, :frame, 1))]
 
     port =
       Port.open({:spawn_executable, PyMAVLink.python!()}, [
@@ -47,7 +49,10 @@ defmodule Neptunus.Test.FakeArduSub do
     :error, _ -> :ok
   end
 
-  @doc "Tells the fake `order` (a JSON object: `%{refuse_arm: text | nil}`)."
+  @doc """
+  Tells the fake `order` (a JSON object: `%{refuse_arm: text | nil}`, `%{frame: n}`,
+  `%{answer_params: boolean}`, …; see fake_ardusub.py).
+  """
   @spec tell(t(), map()) :: :ok
   def tell(%{port: port}, order) do
     true = Port.command(port, [:jiffy.encode(order), "\n"])

@@ -2,7 +2,7 @@
 
 Run with the project's virtualenv (`make setup`):
 
-  .venv/bin/python test/support/fake_ardusub.py [--udp PORT] [--tcp PORT]
+  .venv/bin/python test/support/fake_ardusub.py [--udp PORT] [--tcp PORT] [--frame N]
 
 It listens on UDP (default: an ephemeral port on 127.0.0.1; it answers whoever sent the last
 datagram, as ArduSub's UDP server does) or, with --tcp, accepts one TCP connection at a time
@@ -27,6 +27,10 @@ datagram, as ArduSub's UDP server does) or, with --tcp, accepts one TCP connecti
   joystick gain (JS_GAIN_DEFAULT 0.5 unless told otherwise; SERVO_OUTPUT_RAW, neutral 1500,
   ±400 µs at gain 1) and a toy motion (depth, heading). The gain is reported as
   NAMED_VALUE_FLOAT `PilotGain` with SYS_STATUS (the EXTENDED_STATUS stream), as ArduSub does.
+* PARAM_REQUEST_READ of `FRAME_CONFIG` (by name, or by its index 7) answers PARAM_VALUE with
+  the frame (`--frame N`, default 1: vectored; ArduSub's FRAME_CONFIG values), as an INT8
+  parameter; other parameters are not answered (as ArduSub ignores a name it does not have).
+  A frame without lateral thrust (SimpleROV-3 and -4, FRAME_CONFIG 4 and 5) ignores `y`.
 * Failsafes: 3 s without pilot input (MANUAL_CONTROL) while armed → STATUSTEXT "Lost manual
   control", neutral, disarm (FS_PILOT_INPUT=2); once it has heard system 255, 5 s without its
   HEARTBEAT → "MYGCS: 255, heartbeat lost", disarm (FS_GCS_ENABLE=2).
@@ -34,9 +38,11 @@ datagram, as ArduSub's UDP server does) or, with --tcp, accepts one TCP connecti
 What it receives and does is reported on stdout as JSON lines (`{"event": ...}`): `listening`
 (with `port`), `manual_control` (x y z r buttons, sysid, target, armed), `command` (command,
 params, result), `heartbeat` (the GCS's), `armed` (true/false, why), `failsafe` (what),
-`request_data_stream`, `mode`, `gain`. Lines on stdin are JSON commands: `{"refuse_arm": TEXT}`
+`request_data_stream`, `mode`, `gain`, `param_request_read` (param_id, param_index,
+answered). Lines on stdin are JSON commands: `{"refuse_arm": TEXT}`
 (or null to accept again), `{"gain": G}` (the joystick gain, as ArduSub's gain buttons set it),
-`{"position": {"north": N, "east": E}}` (m; null: no position again), `{"origin": {"lat": DEG,
+`{"frame": N}` (FRAME_CONFIG from now on), `{"answer_params": false}` (PARAM_REQUEST_READ
+unanswered until `true` again), `{"position": {"north": N, "east": E}}` (m; null: no position again), `{"origin": {"lat": DEG,
 "lon": DEG}}` (its EKF origin), `{"quit": true}`.
 """
 
@@ -66,6 +72,12 @@ FACTORS = [(1, 0, -1, 1), (-1, 0, -1, -1), (-1, 0, 1, 1), (1, 0, 1, -1), (0, -1,
 STREAMS = {1: (["scaled_pressure"], 2), 2: (["sys_status"], 2), 3: (["servo_output_raw"], 2),
            6: (["global_position_int", "local_position_ned"], 3), 10: (["attitude"], 10),
            11: (["vfr_hud"], 10)}
+
+# ArduSub's FRAME_CONFIG: the frames without lateral thrust (SimpleROV-3, SimpleROV-4)
+NO_LATERAL_FRAMES = (4, 5)
+FRAME_CONFIG_INDEX = 7
+MAV_PARAM_TYPE_INT8 = 2
+PARAM_COUNT = 1391
 
 PREARM_NO_DISARM_BUTTON = "PreArm: Must assign a disarm or arm_toggle button or disarm aux function"
 
@@ -131,8 +143,10 @@ class Link:
 
 
 class FakeSub:
-    def __init__(self, link):
+    def __init__(self, link, frame=1):
         self.link = link
+        self.frame = frame
+        self.answer_params = True
         self.mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
         self.start = time.monotonic()
         self.armed = False
@@ -197,6 +211,16 @@ class FakeSub:
             if msg.req_stream_id in STREAMS:
                 for k in STREAMS[msg.req_stream_id][0]:
                     self.rates[k] = msg.req_message_rate if msg.start_stop else 0
+        elif kind == "PARAM_REQUEST_READ":
+            frame = msg.param_id == "FRAME_CONFIG" or (msg.param_id == "" and
+                                                       msg.param_index == FRAME_CONFIG_INDEX)
+            answered = frame and self.answer_params
+            report("param_request_read", param_id=msg.param_id, param_index=msg.param_index,
+                   answered=answered, sysid=src)
+            if answered:
+                self.send(mavlink.MAVLink_param_value_message(
+                    b"FRAME_CONFIG", float(self.frame), MAV_PARAM_TYPE_INT8, PARAM_COUNT,
+                    FRAME_CONFIG_INDEX))
         elif kind == "TIMESYNC" and msg.tc1 == 0:
             self.send(mavlink.MAVLink_timesync_message(time.monotonic_ns(), msg.ts1))
 
@@ -267,8 +291,9 @@ class FakeSub:
             c = {"x": 0, "y": 0, "z": 500, "r": 0}
         throttle = (c["z"] - 500) * 2
         outs = []
+        lateral = 0 if self.frame in NO_LATERAL_FRAMES else c["y"]
         for yaw, thr, fwd, lat in FACTORS:
-            v = yaw * c["r"] + thr * throttle + fwd * c["x"] + lat * c["y"]
+            v = yaw * c["r"] + thr * throttle + fwd * c["x"] + lat * lateral
             outs.append(int(max(1100, min(1900, 1500 + 400 * self.gain * v / 1000))))
         return outs, c
 
@@ -281,7 +306,7 @@ class FakeSub:
         self.heading = (self.heading + 0.5 * self.gain * c["r"] / 1000 * dt) % (2 * math.pi)
         if self.position is not None:
             forward = 0.5 * self.gain * c["x"] / 1000
-            lateral = 0.5 * self.gain * c["y"] / 1000
+            lateral = 0.0 if self.frame in NO_LATERAL_FRAMES else 0.5 * self.gain * c["y"] / 1000
             cos, sin = math.cos(self.heading), math.sin(self.heading)
             self.position = (self.position[0] + (forward * cos - lateral * sin) * dt,
                              self.position[1] + (forward * sin + lateral * cos) * dt)
@@ -343,9 +368,10 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--udp", type=int, default=0)
     parser.add_argument("--tcp", type=int, default=None)
+    parser.add_argument("--frame", type=int, default=1)
     args = parser.parse_args()
     link = Link(args.udp, args.tcp)
-    sub = FakeSub(link)
+    sub = FakeSub(link, args.frame)
     report("listening", port=link.port, kind=link.kind)
     stdin = sys.stdin.buffer
     pending = b""
@@ -375,6 +401,12 @@ def main():
                             sub.origin = (float(order["origin"]["lat"]),
                                           float(order["origin"]["lon"]))
                             report("origin", origin=order["origin"])
+                        if "frame" in order:
+                            sub.frame = int(order["frame"])
+                            report("frame", frame=sub.frame)
+                        if "answer_params" in order:
+                            sub.answer_params = bool(order["answer_params"])
+                            report("answer_params", answer=sub.answer_params)
                         if "gain" in order:
                             sub.gain = max(0.1, min(1.0, float(order["gain"])))
                             report("gain", gain=sub.gain)

@@ -10,7 +10,7 @@
  *   D  + yaw                 E  starboard thruster forward
  *   A  − yaw                 D  starboard thruster backward
  *   C  + sway (starboard)
- *   Z  − sway (port)         — sway only on a vehicle that has it (an ArduSub vehicle)
+ *   Z  − sway (port)         — sway only on a vehicle that has it (an ArduSub that strafes)
  *
  * An axis is the sum of its held keys, so opposing keys held together cancel to 0.
  */

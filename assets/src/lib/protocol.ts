@@ -148,8 +148,11 @@ export interface LinkStatus {
   readonly mavlink?: MavlinkStatus;
 }
 
-/** A mavlink vehicle's armed state and modes (`wire.MavlinkStatus`, docs/MAVLINK.md). */
-export type MavlinkStatus = Pick<wire.MavlinkStatus, "armed" | "mode" | "system_status">;
+/**
+ * A mavlink vehicle's armed state and modes (`wire.MavlinkStatus`, docs/MAVLINK.md), and its
+ * frame once the vehicle told it (its `FRAME_CONFIG`: whether it sways).
+ */
+export type MavlinkStatus = Pick<wire.MavlinkStatus, "armed" | "mode" | "system_status"> & { readonly frame?: string };
 
 /** The board link's liveness fields (`wire.LinkStatus`), from a board on a serial link. */
 export interface BoardLinkDetails {
@@ -220,6 +223,11 @@ export interface Telemetry {
   readonly camera_status: CameraStatus | null;
   /** the position estimate and its sources (absent from an older server) */
   readonly position?: PositionStatus;
+  /**
+   * the body-frame axes the pilot may command now (absent from an older server, or before
+   * control's first report): they follow the vehicle, e.g. an ArduSub's once its frame is known
+   */
+  readonly axes?: readonly string[];
   /** the payload as received (plots derive their series from it) */
   readonly raw: Readonly<Record<string, unknown>>;
 }
@@ -360,7 +368,7 @@ function linkStatus(l: wire.LinkStatus): LinkStatus {
 }
 
 function mavlinkStatus(m: wire.MavlinkStatus): MavlinkStatus {
-  return { armed: m.armed, mode: m.mode, system_status: m.system_status };
+  return { armed: m.armed, mode: m.mode, system_status: m.system_status, ...(m.frame !== null ? { frame: m.frame } : {}) };
 }
 
 /** Control settings (telemetry's `control`, or a control state); null unless it has a mode. */
@@ -425,6 +433,7 @@ export function decodeTelemetry(value: unknown): Telemetry | null {
     recording: t.recording,
     camera_status: t.camera,
     ...(t.position ? { position: t.position } : {}),
+    ...(t.axes ? { axes: t.axes } : {}),
     raw: value,
   };
 }

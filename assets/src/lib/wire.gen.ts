@@ -44,6 +44,12 @@ export interface Telemetry {
   readonly control: ControlSettings | null;
   /** each engaged autopilot's state */
   readonly autopilot: AutopilotStatus | null;
+  /**
+   * the body-frame axes the pilot may command now, which the pages offer: the vehicle's as its
+   * board declares them (an ArduSub vehicle's once its frame is known: docs/MAVLINK.md), surge,
+   * heave and yaw in run mode simulator; null before control's first report
+   */
+  readonly axes: readonly Axis[] | null;
   /** the board link's state, as in the `link` event */
   readonly link: LinkStatus | null;
   /** the vehicle's recorder (absent until it reported); absent from some payloads */
@@ -82,6 +88,7 @@ function readTelemetry(json: unknown): Telemetry | undefined {
     thrusters,
     control: readControlSettings(json["control"]) ?? null,
     autopilot: readAutopilotStatus(json["autopilot"]) ?? null,
+    axes: readList(json["axes"], readAxis) ?? null,
     link: readLinkStatus(json["link"]) ?? null,
     recording: readRecordingStatus(json["recording"]) ?? null,
     camera: readCameraStatus(json["camera"]) ?? null,
@@ -1098,6 +1105,12 @@ export interface MavlinkStatus {
    * applies; null until the vehicle sends it
    */
   readonly pilot_gain: number | null;
+  /**
+   * the vehicle's frame, from its `FRAME_CONFIG` (`Vectored`, `SimpleROV-3`, …; `FRAME_CONFIG n`
+   * for one Neptunus does not know): it decides whether the vehicle has sway; null until the
+   * vehicle answered
+   */
+  readonly frame: string | null;
   readonly frames_received: number | null;
   /** from the vehicle's sequence numbers */
   readonly frames_lost: number | null;
@@ -1119,6 +1132,7 @@ function readMavlinkStatus(json: unknown): MavlinkStatus | undefined {
     control: readManualControl(json["control"]) ?? null,
     disarm_pending: readBoolean(json["disarm_pending"]) ?? null,
     pilot_gain: readNumber(json["pilot_gain"]) ?? null,
+    frame: readString(json["frame"]) ?? null,
     frames_received: readInteger(json["frames_received"]) ?? null,
     frames_lost: readInteger(json["frames_lost"]) ?? null,
     loss: readNumber(json["loss"]) ?? null,
@@ -1506,9 +1520,10 @@ export interface VehicleInfo {
   /** the node of the fleet it runs on */
   readonly node: string | null;
   /**
-   * the body-frame axes the vehicle can be commanded in (its board's): the pilot's inputs offer
-   * these; the three-thruster vehicle has `surge`, `heave`, `yaw`; an ArduSub vehicle and a
-   * simulated `neptunus-sway` (a lateral thruster) `sway` too
+   * the body-frame axes the vehicle can be commanded in (its board's, when the page joined): the
+   * pilot's inputs offer these; the three-thruster vehicle has `surge`, `heave`, `yaw`; a
+   * simulated `neptunus-sway` (a lateral thruster) and an ArduSub vehicle whose frame strafes
+   * `sway` too (an ArduSub's are known once its frame is: telemetry's `axes` follow them)
    */
   readonly axes: readonly Axis[] | null;
   /**

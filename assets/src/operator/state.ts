@@ -62,8 +62,9 @@ export interface OperatorState {
   readonly disconnectedAt: number | null;
   readonly vehicleId: string | null;
   /**
-   * the body-frame axes the vehicle can be commanded in (its snapshot's): the inputs offer
-   * these and the page shows them; null until joined (then: surge, heave, yaw)
+   * the body-frame axes the vehicle can be commanded in (its snapshot's, then telemetry's
+   * `axes`): the inputs offer these and the page shows them; null until joined (then: surge,
+   * heave, yaw)
    */
   readonly axes: readonly string[] | null;
   /** every vehicle of the fleet, for the picker (empty until listed) */
@@ -179,8 +180,10 @@ export function withoutMessage(s: Pick<OperatorState, "message">, source: string
 }
 
 /**
- * A telemetry frame and its freshness: the control settings and the board link it carries
- * replace the page's (an older server's frame without them leaves those as they were).
+ * A telemetry frame and its freshness: the control settings, the board link and the axes the
+ * pilot may command (they change once an ArduSub vehicle's frame is known, and in run mode
+ * simulator) it carries replace the page's (an older server's frame without them leaves those
+ * as they were).
  */
 export function withTelemetry(t: Telemetry, fresh: { readonly telemetryState: TelemetryState; readonly telemetryAgeMs: number }): Partial<OperatorState> {
   return {
@@ -188,5 +191,6 @@ export function withTelemetry(t: Telemetry, fresh: { readonly telemetryState: Te
     ...fresh,
     ...(t.control ? { control: t.control } : {}),
     ...(t.link ? { link: t.link } : {}),
+    ...(t.axes ? { axes: t.axes } : {}),
   };
 }

@@ -12,6 +12,11 @@ describe("a mavlink vehicle's state in telemetry link", () => {
     expect(link).toEqual({ up: true, reason: "heartbeat", mavlink: { armed: true, mode: "ALT_HOLD", system_status: "active" } });
   });
 
+  it("carries the vehicle's frame once it is known (it decides whether the vehicle sways)", () => {
+    expect(decodeMavlinkStatus({ armed: false, mode: "MANUAL", frame: "SimpleROV-3" })?.frame).toBe("SimpleROV-3");
+    expect(decodeMavlinkStatus({ armed: false, mode: "MANUAL", frame: null })).toEqual({ armed: false, mode: "MANUAL", system_status: null });
+  });
+
   it("a mode not yet known is null; a malformed state is absent", () => {
     expect(decodeMavlinkStatus({ armed: false, mode: null })).toEqual({ armed: false, mode: null, system_status: null });
     expect(decodeMavlinkStatus({ armed: "yes" })).toBeNull();

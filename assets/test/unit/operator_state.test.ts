@@ -86,4 +86,10 @@ describe("withTelemetry", () => {
     expect("control" in patch).toBe(false);
     expect("link" in patch).toBe(false);
   });
+
+  it("the axes it carries replace the snapshot's (an ArduSub's frame became known); none leave them", () => {
+    expect(withTelemetry(telemetry({ axes: ["surge", "sway", "heave", "yaw"] }), fresh).axes).toEqual(["surge", "sway", "heave", "yaw"]);
+    expect(withTelemetry(telemetry({ axes: ["surge", "heave", "yaw"] }), fresh).axes).toEqual(["surge", "heave", "yaw"]);
+    expect("axes" in withTelemetry(telemetry({ axes: null }), fresh)).toBe(false);
+  });
 });

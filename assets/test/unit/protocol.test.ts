@@ -61,6 +61,13 @@ describe("decodeTelemetry", () => {
     expect(decodeTelemetry(telemetry)).toEqual(plain(telemetry));
   });
 
+  it("keeps the axes the pilot may command when the server sends them (not when null or malformed)", () => {
+    const input = { ...telemetry, axes: ["surge", "sway", "heave", "yaw"] };
+    expect(decodeTelemetry(input)).toEqual(plain(input, { axes: ["surge", "sway", "heave", "yaw"] }));
+    expect(decodeTelemetry({ ...telemetry, axes: null })?.axes).toBeUndefined();
+    expect(decodeTelemetry({ ...telemetry, axes: ["sideways"] })?.axes).toBeUndefined();
+  });
+
   it("accepts sim: null (a real board)", () => {
     const input = { ...telemetry, sim: null };
     expect(decodeTelemetry(input)).toEqual(plain(input, { sim: null }));

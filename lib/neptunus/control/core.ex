@@ -861,6 +861,30 @@ defmodule Neptunus.Control.Core do
   end
 
   @doc """
+  The vehicle's axes changed (its board declared others once its vehicle told them, e.g. an
+  ArduSub's frame, `Neptunus.Vehicle.Board.declare_axes/2`). The pilot's motion command keeps
+  only the axes the vehicle still has: a value in one it lost is dropped and the output mixed
+  again at once (a sway in force stops when the vehicle turns out not to sway); an axis gained
+  changes no output. DP's actuation follows (`:full` with sway) from its next engagement.
+  """
+  @spec set_axes(t(), [Demand.axis()]) :: {t(), [action()]}
+  def set_axes(%__MODULE__{axes: axes} = core, axes), do: {core, []}
+
+  def set_axes(core, axes) do
+    lost = core.axes -- axes
+    actuation = if :sway in axes, do: :full, else: :surge
+    core = %{core | axes: axes, actuation: actuation}
+    pilot = if core.mode == :motion, do: Map.drop(core.pilot, lost), else: core.pilot
+
+    if pilot == core.pilot do
+      {core, []}
+    else
+      {:ok, core, actions} = remix({:ok, %{core | pilot: pilot}, []})
+      {core, actions}
+    end
+  end
+
+  @doc """
   The body-frame axes the pilot may command now: the vehicle's (`axes` of `new/1`), or the
   three-thruster vehicle's surge, heave and yaw in run mode simulator.
   """

@@ -14,8 +14,8 @@ defmodule Neptunus.GCS.Manual do
 
   Our heave is positive *down*, so `heave = (500 − z) / 500`. Lateral (`y`, channel 6) is
   sway, to starboard: the thrust carries it only to a vehicle that can sway (`sway` in its
-  board's axes, `Neptunus.Vehicle.Board.capabilities/1`: an ArduSub vehicle, a simulated
-  `neptunus-sway`), as a browser's does; for any other vehicle it is left out — ignored,
+  board's axes, `Neptunus.Vehicle.Board.capabilities/1`: an ArduSub vehicle whose frame
+  strafes, a simulated `neptunus-sway`), as a browser's does; for any other vehicle it is left out — ignored,
   never refused (a stick's lateral axis is never exactly centred).
   """
 

@@ -380,15 +380,45 @@ defmodule Neptunus.Vehicle.Board do
   def capabilities(board, opts), do: module(board).capabilities(opts)
 
   @doc """
-  What vehicle `id` can do (`t:capabilities/0`), as its supervisor registered it at start;
-  nil for a vehicle not running here.
+  What vehicle `id` can do (`t:capabilities/0`), as its supervisor registered it at start,
+  with the axes its board declared since (`declare_axes/2`) if it did; nil for a vehicle not
+  running here.
   """
   @spec capabilities(String.t()) :: capabilities() | nil
   def capabilities(id) do
     case Registry.lookup(Neptunus.Fleet.Registry, {__MODULE__.Capabilities, id}) do
-      [{_pid, capabilities}] -> capabilities
-      [] -> nil
+      [{_pid, capabilities}] ->
+        case Registry.lookup(Neptunus.Fleet.Registry, {__MODULE__.Axes, id}) do
+          [{_pid, axes}] -> %{capabilities | axes: axes}
+          [] -> capabilities
+        end
+
+      [] ->
+        nil
     end
+  end
+
+  @doc """
+  Declares the axes vehicle `id` can be commanded in now — called by its board's process, for
+  a vehicle that tells them only once the board runs (an ArduSub's frame,
+  `Neptunus.Vehicle.Board.MAVLink`), at start and on every change. While that process lives,
+  `capabilities/1` gives these axes (the ground station endpoint and the join snapshot read
+  them there); `Neptunus.Vehicle.Control` is told (it refuses thrust in another axis and
+  telemetry carries its `axes`, which the pages follow).
+  """
+  @spec declare_axes(String.t(), [Demand.axis()]) :: :ok
+  def declare_axes(id, axes) when is_list(axes) do
+    key = {__MODULE__.Axes, id}
+
+    case Registry.register(Neptunus.Fleet.Registry, key, axes) do
+      {:ok, _owner} ->
+        :ok
+
+      {:error, {:already_registered, _pid}} ->
+        Registry.update_value(Neptunus.Fleet.Registry, key, fn _ -> axes end)
+    end
+
+    Neptunus.Vehicle.Control.axes(id, axes)
   end
 
   @doc """

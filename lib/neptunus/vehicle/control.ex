@@ -216,6 +216,14 @@ defmodule Neptunus.Vehicle.Control do
   @spec mission(String.t()) :: map() | nil
   def mission(id), do: GenServer.call(via(id), :mission)
 
+  @doc """
+  The vehicle's axes changed (asynchronous; its board declared them,
+  `Neptunus.Vehicle.Board.declare_axes/2`): thrust in an axis it no longer has is refused,
+  one in force is dropped (`Neptunus.Control.Core.set_axes/2`), and telemetry's `axes` follow.
+  """
+  @spec axes(String.t(), [Neptunus.Control.Demand.axis()]) :: :ok
+  def axes(id, axes) when is_list(axes), do: GenServer.cast(via(id), {:axes, axes})
+
   @doc "The run-mode simulator's pid, or nil (for tests and diagnostics)."
   @spec simulator(String.t()) :: pid() | nil
   def simulator(id), do: GenServer.call(via(id), :simulator)
@@ -322,6 +330,11 @@ defmodule Neptunus.Vehicle.Control do
   def handle_call(:simulator, _from, state), do: {:reply, state.simulator, state}
 
   @impl true
+  def handle_cast({:axes, axes}, state) do
+    {core, actions} = Core.set_axes(state.core, axes)
+    {:noreply, %{state | core: core} |> perform(actions) |> publish()}
+  end
+
   def handle_cast({:estimate, estimate}, state),
     do: {:noreply, %{state | core: Core.estimate(state.core, estimate, now_s())}}
 
@@ -471,6 +484,7 @@ defmodule Neptunus.Vehicle.Control do
 
   defp publish(%State{core: core} = state) do
     Telemetry.control(state.id, %{
+      axes: Core.axes(core),
       command: core.pilot,
       thrusters: core.thrusters,
       control: Core.control(core),

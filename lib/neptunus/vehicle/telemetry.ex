@@ -7,7 +7,7 @@ defmodule Neptunus.Vehicle.Telemetry do
   (re-arming a relative timer would drift). The payload — `t`, `sent_at`, the sample's
   `measurement`, `measurement_state`, `estimate`, `wild_points`, `position` and `sim` (from
   navigation), the
-  control state's `command`, `thrusters`, `control` and `autopilot`, the board's `link`, and the
+  control state's `command`, `thrusters`, `control`, `autopilot` and `axes`, the board's `link`, and the
   parts' reports (`recording`, `camera`) — is defined, field by field, by the wire schema
   (`NeptunusWeb.WireSchema`, type `telemetry`; docs/API.md): a field added here is added there,
   or the conformance test fails.
@@ -69,6 +69,7 @@ defmodule Neptunus.Vehicle.Telemetry do
             thrusters: map(),
             control: map() | nil,
             autopilot: map(),
+            axes: [Neptunus.Control.Demand.axis()] | nil,
             link: %{
               required(:up) => boolean(),
               required(:reason) => String.t(),
@@ -87,6 +88,7 @@ defmodule Neptunus.Vehicle.Telemetry do
       :thrusters,
       :control,
       :autopilot,
+      :axes,
       link: %{up: false, reason: "not known yet"},
       reports: %{}
     ]
@@ -151,13 +153,15 @@ defmodule Neptunus.Vehicle.Telemetry do
 
   @doc """
   Reports the control state (called by `Neptunus.Vehicle.Control` after every change and
-  control-loop tick): `%{command, thrusters, control, autopilot}` (see the moduledoc).
+  control-loop tick): `%{command, thrusters, control, autopilot}` and the `axes` the pilot may
+  command (see the moduledoc).
   """
   @spec control(String.t(), %{
-          command: map(),
-          thrusters: Allocation.thrusters(),
-          control: map(),
-          autopilot: map()
+          required(:command) => map(),
+          required(:thrusters) => Allocation.thrusters(),
+          required(:control) => map(),
+          required(:autopilot) => map(),
+          optional(:axes) => [Neptunus.Control.Demand.axis()]
         }) :: :ok
   def control(id, %{command: _, thrusters: _, control: _, autopilot: _} = state),
     do: GenServer.cast(via(id), {:control, state})
@@ -244,7 +248,8 @@ defmodule Neptunus.Vehicle.Telemetry do
        | command: c.command,
          thrusters: Allocation.with_us(c.thrusters),
          control: c.control,
-         autopilot: c.autopilot
+         autopilot: c.autopilot,
+         axes: Map.get(c, :axes, state.axes)
      }}
   end
 
@@ -286,6 +291,7 @@ defmodule Neptunus.Vehicle.Telemetry do
       thrusters: state.thrusters,
       control: state.control,
       autopilot: state.autopilot,
+      axes: state.axes,
       link: state.link
     }
     |> Map.merge(state.reports)

@@ -678,5 +678,42 @@ defmodule Neptunus.Control.CoreTest do
       assert_in_delta abs(surge) + abs(yaw), 1.0, 1.0e-9
       assert sway == 0.25
     end
+
+    test "the vehicle's axes change (an ArduSub's frame became known): sway offered, or taken away at once" do
+      three = [axes: [:surge, :heave, :yaw], allocation: :vehicle]
+      core = core(three)
+
+      # until the frame is known there is no sway
+      assert {:error, "this vehicle has no sway" <> _} =
+               Core.command(core, strafe(0.0, 0.5, 0.0, 0.0), 10.0)
+
+      {core, _} = ok!(core, motion(0.4, 0.0, 0.0))
+      # a vectored frame: sway gained, the output as it was
+      {core, actions} = Core.set_axes(core, [:surge, :sway, :heave, :yaw])
+      assert actions == []
+      assert Core.axes(core) == [:surge, :sway, :heave, :yaw]
+      assert core.actuation == :full
+      assert {core, []} == Core.set_axes(core, [:surge, :sway, :heave, :yaw])
+      {core, actions} = ok!(core, strafe(0.4, 0.6, 0.0, 0.0))
+      assert gos(actions) == [%{@zero | surge: 0.2, sway: 0.3}]
+
+      # then a frame without lateral thrust: the sway in force goes at once, the rest flies on
+      {core, actions} = Core.set_axes(core, [:surge, :heave, :yaw])
+      assert gos(actions) == [%{@zero | surge: 0.2}]
+      assert Core.status(core).command == %{surge: 0.4, heave: 0.0, yaw: 0.0}
+      assert core.actuation == :surge
+
+      assert {:error, "this vehicle has no sway" <> _} =
+               Core.command(core, strafe(0.0, 0.5, 0.0, 0.0), 10.0)
+    end
+
+    test "the axes changing in manual mode leave the thruster command alone" do
+      core = core(axes: [:surge, :sway, :heave, :yaw])
+      {core, _} = ok!(core, {:set_control_mode, :manual})
+      {core, _} = ok!(core, {:thrust, :manual, %{port: 0.5, vertical: 0.0, starboard: 0.5}})
+      {core2, actions} = Core.set_axes(core, [:surge, :heave, :yaw])
+      assert actions == []
+      assert core2.pilot == core.pilot
+    end
   end
 end

@@ -50,4 +50,38 @@ defmodule Neptunus.Vehicle.BoardRegistryTest do
 
     assert {:error, _} = Board.command(id, {:mode, "MANUAL"}, notify)
   end
+
+  test "the axes a running board declares are the vehicle's while it lives; then the configured ones" do
+    id = "axes-#{System.unique_integer([:positive])}"
+    :ok = Board.register_capabilities(id, Board.capabilities(:mavlink, []))
+    assert Board.capabilities(id).axes == [:surge, :sway, :heave, :yaw]
+
+    me = self()
+
+    board =
+      spawn_link(fn ->
+        :ok = Board.declare_axes(id, [:surge, :heave, :yaw])
+        send(me, :declared)
+        receive(do: (:vectored -> :ok = Board.declare_axes(id, [:surge, :sway, :heave, :yaw])))
+        send(me, :declared)
+        receive(do: (:stop -> :ok))
+      end)
+
+    assert_receive :declared
+    assert %{axes: [:surge, :heave, :yaw], allocation: :vehicle} = Board.capabilities(id)
+    send(board, :vectored)
+    assert_receive :declared
+    assert Board.capabilities(id).axes == [:surge, :sway, :heave, :yaw]
+
+    ref = Process.monitor(board)
+    send(board, :stop)
+    assert_receive {:DOWN, ^ref, :process, _, _}
+    # the registry forgets a process that is gone (its partition hears the exit)
+    Neptunus.Test.Pty.wait_until(
+      fn -> Registry.lookup(Neptunus.Fleet.Registry, {Board.Axes, id}) == [] end,
+      "the declaration gone with its board"
+    )
+
+    assert Board.capabilities(id).axes == [:surge, :sway, :heave, :yaw]
+  end
 end

@@ -1,4 +1,4 @@
-/** The ArduSub panel: a mavlink vehicle's own state — link, armed, flight mode — and, for the pilot, Arm / Disarm. */
+/** The ArduSub panel: a mavlink vehicle's own state — link, armed, flight mode, frame — and, for the pilot, Arm / Disarm. */
 
 import { PLACEHOLDER } from "../../lib/units";
 import type { PanelProps } from "./panel";
@@ -21,6 +21,7 @@ export function ArduSubPanel({ s, c }: PanelProps): preact.JSX.Element | null {
           </dd>
         </div>
         <Readout label="Mode" id="vehicle-mode" value={m.mode ?? PLACEHOLDER} />
+        <Readout label="Frame" id="vehicle-frame" value={m.frame ?? PLACEHOLDER} />
       </dl>
       <div class="helm-actions" hidden={!pilot}>
         <button type="button" id="arm" data-testid="arm" disabled={m.armed || !s.link.up} onClick={() => c.helm.arm(true)}>

@@ -37,6 +37,19 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
       (176) for `set_mode/4` and `autopilot/4`, `MAV_CMD_DO_SET_SERVO` (183) for the lights and
       `MAV_CMD_DO_MOUNT_CONTROL` (205) for the camera tilt.
 
+  ## The vehicle's frame and its axes
+
+  ArduSub mixes its thrusters by its frame (its `FRAME_CONFIG` parameter), and not every frame
+  can strafe: the board asks for it (**PARAM_REQUEST_READ** `FRAME_CONFIG`, `param_index` −1)
+  each time the link comes up and again every 900 ms while the link is up until the vehicle
+  answers (PARAM_VALUE): nothing else waits for it. The answer gives the axes the vehicle can
+  be commanded in (`axes/1`, `frames/0`): surge, heave and yaw always, sway only for a frame
+  with lateral thrust. Until the frame is known, and for a frame value it does not know (the
+  custom frame: its factors are the user's), sway is left out — a sway demand is never asked
+  of a vehicle that may not have it — and the latter is said in a `log` entry. Each change of
+  the axes is an action `{:axes, axes}`; a known frame is kept while the link is down and
+  checked again when it comes back (a rebooted vehicle may have another).
+
   ## The link
 
   Up from the first HEARTBEAT of a vehicle (an autopilot: any type but a ground station, and
@@ -83,6 +96,19 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     5 => "in progress",
     6 => "cancelled"
   }
+  # ArduSub's FRAME_CONFIG values: name, and whether the frame has lateral thrust (sway)
+  @frames %{
+    0 => {"BlueROV1", true},
+    1 => {"Vectored", true},
+    2 => {"Vectored_6DOF", true},
+    3 => {"Vectored_6DOF_90", true},
+    4 => {"SimpleROV-3", false},
+    5 => {"SimpleROV-4", false},
+    6 => {"SimpleROV-5", true}
+  }
+  @frame_param "FRAME_CONFIG"
+  # a frame request not answered is repeated this often (ms)
+  @frame_retry_ms 900
   @system_status ~w(uninit boot calibrating standby active critical emergency poweroff
                     flight_termination)
 
@@ -121,6 +147,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
           | {:link, %{up: boolean(), reason: String.t()}}
           | {:log, :info | :warning | :error, String.t(), map()}
           | {:sample, Neptunus.Vehicle.Board.sample()}
+          | {:axes, [Neptunus.Control.Demand.axis()]}
 
   @type control :: %{x: integer(), y: integer(), z: integer(), r: integer(), buttons: 0}
 
@@ -150,6 +177,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
           control: control(),
           demand: Neptunus.Control.Demand.t(),
           pilot_gain: float() | nil,
+          frame: integer() | nil,
+          frame_asked_ms: integer() | nil,
           next_heartbeat_ms: integer(),
           next_manual_ms: integer(),
           next_timesync_ms: integer(),
@@ -178,6 +207,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     :started_ms,
     :rtt_ms,
     :pilot_gain,
+    :frame,
+    :frame_asked_ms,
     system: 255,
     component: 190,
     seq: 0,
@@ -228,6 +259,35 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     )
   end
 
+  @doc """
+  ArduSub's frames by `FRAME_CONFIG` value: `{name, sway?}` — sway where the frame has lateral
+  thrust (ArduSub's frame table: BlueROV1, the vectored frames and SimpleROV-5 strafe;
+  SimpleROV-3 and -4 do not). Value 7, the custom frame, is not here: its motor factors are
+  the user's, so whether it strafes is not known.
+  """
+  @spec frames() :: %{non_neg_integer() => {String.t(), boolean()}}
+  def frames, do: @frames
+
+  @doc """
+  The body-frame axes the vehicle can be commanded in, by its frame (see the moduledoc):
+  surge, heave and yaw; sway too once its frame is known to have lateral thrust.
+
+      iex> alias Neptunus.Vehicle.Board.MAVLink.Core
+      iex> Core.axes(Core.new(0))
+      [:surge, :heave, :yaw]
+      iex> Core.axes(%{Core.new(0) | frame: 1})
+      [:surge, :sway, :heave, :yaw]
+      iex> Core.axes(%{Core.new(0) | frame: 4})
+      [:surge, :heave, :yaw]
+  """
+  @spec axes(t()) :: [Neptunus.Control.Demand.axis()]
+  def axes(%__MODULE__{frame: frame}) do
+    case Map.get(@frames, frame) do
+      {_name, true} -> [:surge, :sway, :heave, :yaw]
+      _ -> [:surge, :heave, :yaw]
+    end
+  end
+
   @doc "The stop reasons that lose the pilot (a disarm follows unless a new pilot comes)."
   @spec pilot_loss_reasons() :: [String.t()]
   def pilot_loss_reasons, do: @pilot_loss_reasons
@@ -269,6 +329,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   def tick(%__MODULE__{} = core, now) do
     {core, []}
     |> heartbeat_due(now)
+    |> frame_due(now)
     |> manual_due(now)
     |> timesync_due(now)
     |> link_timeout(now)
@@ -292,6 +353,25 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     else
       {core, actions}
     end
+  end
+
+  # the frame asked again until the vehicle answers
+  defp frame_due({%__MODULE__{frame_asked_ms: at, up: true} = core, actions}, now)
+       when is_integer(at) and now - at >= @frame_retry_ms,
+       do: {%{core | frame_asked_ms: now}, [frame_request(core) | actions]}
+
+  defp frame_due(acc, _now), do: acc
+
+  defp frame_request(core) do
+    {system, component} = core.target
+
+    {:send, :param_request_read,
+     %{
+       target_system: system,
+       target_component: component,
+       param_id: @frame_param,
+       param_index: -1
+     }}
   end
 
   defp manual_due({core, actions}, now) do
@@ -627,10 +707,12 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     before = core.vehicle
     core = %{core | target: {m.system, m.component}, heard_at_ms: now, vehicle: vehicle}
 
-    link =
+    {core, link} =
       if core.up,
-        do: [],
-        else: [{:link, %{up: true, reason: "heartbeat"}}] ++ streams(core)
+        do: {core, []},
+        else:
+          {%{core | frame_asked_ms: now},
+           [{:link, %{up: true, reason: "heartbeat"}}] ++ streams(core) ++ [frame_request(core)]}
 
     # what changed (everything when the link comes up) goes to the logger
     logs =
@@ -763,6 +845,21 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
     end
   end
 
+  # the answer to our frame request (see "The vehicle's frame" in the moduledoc)
+  defp from_vehicle(
+         core,
+         %Message{name: :param_value, fields: %{param_id: @frame_param, param_value: v}},
+         _now
+       )
+       when is_float(v) do
+    value = round(v)
+    before = axes(core)
+    logs = if value != core.frame, do: [frame_log(value)], else: []
+    core = %{core | frame: value, frame_asked_ms: nil}
+    changed = if axes(core) != before, do: [{:axes, axes(core)}], else: []
+    {core, logs ++ changed}
+  end
+
   defp from_vehicle(core, %Message{name: :servo_output_raw, fields: f}, _now) do
     servos = for i <- 1..8, do: Map.get(f, String.to_atom("servo#{i}_raw"), 0)
     {%{core | servo_us: servos}, []}
@@ -778,6 +875,24 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   end
 
   defp from_vehicle(core, _message, _now), do: {core, []}
+
+  defp frame_log(value) do
+    case Map.get(@frames, value) do
+      {name, true} ->
+        {:log, :info,
+         "vehicle frame: #{name} (FRAME_CONFIG #{value}), it can strafe: sway offered", %{}}
+
+      {name, false} ->
+        {:log, :info,
+         "vehicle frame: #{name} (FRAME_CONFIG #{value}), no lateral thrust: sway not offered",
+         %{}}
+
+      nil ->
+        {:log, :warning,
+         "vehicle frame FRAME_CONFIG #{value} is not one Neptunus knows (a custom frame?): " <>
+           "sway not offered, only surge, heave and yaw", %{}}
+    end
+  end
 
   defp gain_text(gain) when gain >= 0.999,
     do: "ArduSub's joystick gain is 100%: our gain is the only one"
@@ -847,6 +962,15 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
   defp thruster(0), do: nil
   defp thruster(us), do: ((us - 1500) / 400) |> max(-1.0) |> min(1.0) |> Float.round(3)
 
+  defp frame_name(nil), do: nil
+
+  defp frame_name(value) do
+    case Map.get(@frames, value) do
+      {name, _sway?} -> name
+      nil -> "FRAME_CONFIG #{value}"
+    end
+  end
+
   # ── status ───────────────────────────────────────────────────────────────────────────
 
   @doc "The link's state and the vehicle's as the board reports them (`link_status`)."
@@ -865,7 +989,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink.Core do
         thrusters: Enum.map(core.servo_us, &thruster/1),
         control: core.control,
         disarm_pending: core.disarm_at_ms != nil,
-        pilot_gain: core.pilot_gain
+        pilot_gain: core.pilot_gain,
+        frame: frame_name(core.frame)
       }
     }
   end

@@ -33,7 +33,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       `Core.pilot/2`).
     * Samples (attitude, depth, battery) go to navigation (`Board.sample/3`) on every
       ATTITUDE; the link's state and the vehicle's (`mavlink`: armed, mode, system status,
-      servo outputs, …) go to `Telemetry.link/2` on every change and once a second; each
+      servo outputs, frame, …) go to `Telemetry.link/2` on every change of the link or the
+      frame and once a second; the axes the vehicle's frame gives are declared
+      (`Board.declare_axes/2`) as the board starts and on every change; each
       change of the link is broadcast as event `link` on `"vehicle:<id>"`; STATUSTEXT and the
       vehicle's arming and mode changes are `log` entries (category `vehicle`) on
       `"log:<id>"` with their severity.
@@ -113,8 +115,10 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   @doc """
   An ArduSub vehicle is commanded in surge, sway, heave and yaw (MANUAL_CONTROL `x`, `y`, `z`,
-  `r`) and mixes its thrusters itself (its frame's motor factors); its depth and heading hold
-  are its flight modes.
+  `r`) at most and mixes its thrusters itself (its frame's motor factors); its depth and
+  heading hold are its flight modes. Which of those axes this vehicle has, its frame tells:
+  the running board declares them (`Board.declare_axes/2`, `Core.axes/1`) — surge, heave and
+  yaw until the vehicle's `FRAME_CONFIG` is known, sway too for a frame that strafes.
   """
   @impl Board
   @spec capabilities(keyword()) :: Board.capabilities()
@@ -260,6 +264,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
       program: Keyword.get(opts, :program) || SerialPort.program()
     }
 
+    # no sway until the vehicle's frame says it has it (Core.axes/1)
+    :ok = Board.declare_axes(id, Core.axes(state.core))
     subscribe(state.topic)
     send(self(), :report)
     {:ok, state, {:continue, :open}}
@@ -465,7 +471,10 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   defp run(state, step) do
     {core, actions} = step.(state.core)
+    frame? = core.frame != state.core.frame
     state = Enum.reduce(actions, %{state | core: core}, &act/2)
+    # the vehicle's frame is news for telemetry at once (its axes follow it)
+    if frame?, do: report(state)
     arm_timer(state)
   end
 
@@ -518,6 +527,11 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
     )
 
     Logger.log(level, "vehicle #{state.id}: #{Neptunus.Log.safe(text)}")
+    state
+  end
+
+  defp act({:axes, axes}, state) do
+    :ok = Board.declare_axes(state.id, axes)
     state
   end
 

@@ -560,6 +560,127 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CoreTest do
       assert {_, []} = Core.tilt(Core.new(0), 0.1)
     end
   end
+
+  describe "the frame: which axes the vehicle has" do
+    defp frame_value(value, system \\ 1),
+      do:
+        msg(
+          :param_value,
+          %{
+            param_id: "FRAME_CONFIG",
+            param_value: value * 1.0,
+            param_type: 2,
+            param_count: 1391,
+            param_index: 7
+          },
+          system
+        )
+
+    defp frame_request?(f),
+      do:
+        match?(
+          %{target_system: 1, target_component: 1, param_id: "FRAME_CONFIG", param_index: -1},
+          f
+        )
+
+    test "asked as the link comes up; no sway until the vehicle answers" do
+      core = Core.new(0)
+      assert Core.axes(core) == [:surge, :heave, :yaw]
+      {core, actions} = Core.receive(core, heartbeat(), 100)
+      assert [request] = sends(actions, :param_request_read)
+      assert frame_request?(request)
+      assert Core.axes(core) == [:surge, :heave, :yaw]
+      refute Enum.any?(actions, &match?({:axes, _}, &1))
+      assert %{mavlink: %{frame: nil}} = Core.status(core)
+    end
+
+    test "asked again about once a second until answered, only while the link is up" do
+      core = linked()
+      {core, actions} = Core.tick(core, 1000)
+      assert sends(actions, :param_request_read) == []
+      {core, actions} = Core.tick(core, 1400)
+      assert [request] = sends(actions, :param_request_read)
+      assert frame_request?(request)
+      {core, actions} = Core.tick(core, 1500)
+      assert sends(actions, :param_request_read) == []
+
+      # the link goes down: nobody to ask
+      {core, _} = Core.tick(core, 4000)
+      refute core.up
+      {_core, actions} = Core.tick(core, 6000)
+      assert sends(actions, :param_request_read) == []
+    end
+
+    test "a vectored frame strafes: sway declared, said once, not asked again" do
+      core = linked()
+      {core, actions} = Core.receive(core, frame_value(1), 600)
+      assert {:axes, [:surge, :sway, :heave, :yaw]} in actions
+      assert [{:log, :info, text, %{}}] = for({:log, _, _, _} = l <- actions, do: l)
+      assert text =~ "Vectored (FRAME_CONFIG 1)"
+      assert %{mavlink: %{frame: "Vectored"}} = Core.status(core)
+      {core, actions} = Core.tick(core, 3000)
+      assert sends(actions, :param_request_read) == []
+
+      # the same answer again changes nothing
+      assert {^core, []} = Core.receive(core, frame_value(1), 3100)
+    end
+
+    test "a SimpleROV-3 has no lateral thrust: no sway (the axes do not change), and it says so" do
+      core = linked()
+      {core, actions} = Core.receive(core, frame_value(4), 600)
+      refute Enum.any?(actions, &match?({:axes, _}, &1))
+      assert [{:log, :info, text, %{}}] = actions
+      assert text =~ "SimpleROV-3 (FRAME_CONFIG 4), no lateral thrust"
+      assert Core.axes(core) == [:surge, :heave, :yaw]
+      assert %{mavlink: %{frame: "SimpleROV-3"}} = Core.status(core)
+    end
+
+    test "every frame of ArduSub's table: sway exactly where it has lateral thrust" do
+      for {value, sway?} <-
+            [{0, true}, {1, true}, {2, true}, {3, true}] ++
+              [{4, false}, {5, false}, {6, true}] do
+        {core, _} = Core.receive(linked(), frame_value(value), 600)
+        assert :sway in Core.axes(core) == sway?, "FRAME_CONFIG #{value}"
+      end
+    end
+
+    test "a frame it does not know (the custom frame, or any other value): no sway, a warning" do
+      for value <- [7, 8, 255, -1] do
+        {core, actions} = Core.receive(linked(), frame_value(value), 600)
+        assert [{:log, :warning, text, %{}}] = actions
+        assert text =~ "FRAME_CONFIG #{value} is not one Neptunus knows"
+        assert Core.axes(core) == [:surge, :heave, :yaw]
+        assert %{mavlink: %{frame: "FRAME_CONFIG " <> _}} = Core.status(core)
+      end
+    end
+
+    test "kept while the link is down, asked again when it is back; a new frame changes the axes" do
+      core = linked()
+      {core, _} = Core.receive(core, frame_value(1), 600)
+      {core, _} = Core.tick(core, 4000)
+      refute core.up
+      assert :sway in Core.axes(core)
+      {core, actions} = Core.receive(core, heartbeat(), 5000)
+      assert [_request] = sends(actions, :param_request_read)
+      assert :sway in Core.axes(core)
+
+      # the vehicle came back as a SimpleROV-3: sway goes
+      {core, actions} = Core.receive(core, frame_value(4), 5100)
+      assert {:axes, [:surge, :heave, :yaw]} in actions
+      assert Core.axes(core) == [:surge, :heave, :yaw]
+    end
+
+    test "other parameters, other systems' answers and a value that is no number are not the frame" do
+      core = linked()
+      frame = frame_value(1)
+      other = %{frame | fields: %{frame.fields | param_id: "FRAME_TYPE"}}
+      assert {^core, []} = Core.receive(core, other, 600)
+      assert {^core, []} = Core.receive(core, frame_value(1, 2), 600)
+      nan = %{frame | fields: %{frame.fields | param_value: :nan}}
+      assert {^core, []} = Core.receive(core, nan, 600)
+      assert Core.axes(core) == [:surge, :heave, :yaw]
+    end
+  end
 end
 
 defmodule Neptunus.Vehicle.Board.MAVLink.CoreModesTest do
@@ -735,6 +856,59 @@ defmodule Neptunus.Vehicle.Board.MAVLink.CorePropertiesTest do
           (small?.(x, 1000) and small?.(y, 1000) and small?.(z, 500) and small?.(r, 1000))
     end)
   end
+
+  test "any PARAM_VALUE: sway exactly for a known frame with lateral thrust; axes told on change" do
+    frames = Core.frames()
+    value = :proper_types.oneof([:proper_types.integer(-10, 300), :proper_types.float()])
+
+    id =
+      :proper_types.oneof(
+        Enum.map(["FRAME_CONFIG", "FRAME_TYPE", "SYSID"], &:proper_types.exactly/1)
+      )
+
+    Properties.check(:proper_types.list(:proper_types.tuple([id, value])), fn answers ->
+      core = Core.new(0)
+      heartbeat = %{type: 12, autopilot: 3, base_mode: 81, custom_mode: 19, system_status: 4}
+      {core, _} = Core.receive(core, from_vehicle(:heartbeat, heartbeat), 100)
+
+      {_core, ok?} =
+        Enum.reduce(answers, {core, true}, fn {param_id, v}, {core, ok?} ->
+          m =
+            from_vehicle(:param_value, %{
+              param_id: param_id,
+              param_value: v * 1.0,
+              param_type: 2,
+              param_count: 1,
+              param_index: 0
+            })
+
+          before = Core.axes(core)
+          {next, actions} = Core.receive(core, m, 200)
+          told = for {:axes, axes} <- actions, do: axes
+          sway? = match?({_, true}, Map.get(frames, next.frame))
+
+          {next,
+           ok? and :sway in Core.axes(next) == sway? and
+             told == if(Core.axes(next) == before, do: [], else: [Core.axes(next)]) and
+             (param_id == "FRAME_CONFIG" or next == core)}
+        end)
+
+      ok?
+    end)
+  end
+
+  # a message from the vehicle (system 1, component 1)
+  defp from_vehicle(name, fields),
+    do:
+      struct!(Message,
+        id: 0,
+        name: name,
+        system: 1,
+        component: 1,
+        seq: 0,
+        version: 2,
+        fields: fields
+      )
 
   # whatever a vehicle sends, in any order, the core never crashes and its actions are of the
   # documented shapes
