@@ -6,9 +6,9 @@
 # board's own clock (its bootloader, then its millis). Prints figures, never asserts. Run through bench/open_reset.
 
 defmodule Bench.OpenReset do
-  alias Neptunus.{Fleet, PubSub, Wiring}
+  alias Neptunus.{Fleet, PubSub}
+  alias Neptunus.Vehicle.Board.OpenROV.{SITL, Wiring}
   alias Neptunus.Vehicle.{Control, Telemetry}
-  alias Neptunus.Vehicle.Board.SITL
 
   @windows [200, 500, 1_000]
   @profiles [:openrov_25, :openrov_30]

@@ -1,7 +1,8 @@
 # Fuzz run of the board-telemetry pipeline: 10⁶ lines (by default) of valid, mutated, wild,
 # random and overlong telemetry, cut into random chunks and fed through
-# Neptunus.Vehicle.Board.Readings (line framing + Neptunus.Protocol.OpenROV parsing + wild-point
-# rejection + sample assembly), exactly as Board.UART does with what the serial line delivers.
+# Neptunus.Vehicle.Board.OpenROV.Readings (line framing + Neptunus.Vehicle.Board.OpenROV.Protocol
+# parsing + wild-point rejection + sample assembly), exactly as Board.OpenROV.UART does with what
+# the serial line delivers.
 #
 #   bench/protocol_fuzz [LINES] [SEED]
 #
@@ -9,8 +10,8 @@
 # outside its physical range ever reaches a sample, every line is accounted for — and exits 1
 # if one is violated (that is a bug, not a slow result). Generation is not timed.
 
-alias Neptunus.Protocol.OpenROV
-alias Neptunus.Vehicle.Board.Readings
+alias Neptunus.Vehicle.Board.OpenROV
+alias Neptunus.Vehicle.Board.OpenROV.Readings
 
 {total, seed} =
   case System.argv() do
@@ -22,7 +23,7 @@ alias Neptunus.Vehicle.Board.Readings
 :rand.seed(:exsss, {seed, seed * 7 + 1, seed * 13 + 2})
 
 defmodule Fuzz do
-  @known OpenROV.known()
+  @known OpenROV.Protocol.known()
   @keys Map.keys(@known)
   @max_line 512
 
@@ -115,7 +116,8 @@ defmodule Fuzz do
   def check_sample!(%{measurement: m, board: board}) do
     for {field, value} <- Map.merge(m, board) do
       # the controller board's own supply current comes from iout, the field :current parses
-      {min, max} = OpenROV.si_range(if field == :board_current, do: :current, else: field)
+      {min, max} =
+        OpenROV.Protocol.si_range(if field == :board_current, do: :current, else: field)
 
       unless is_float(value) and value >= min and value <= max do
         raise "out-of-range value reached a sample: #{field} = #{inspect(value)}"
@@ -152,7 +154,7 @@ IO.puts("# protocol fuzz: #{total} lines, seed #{seed}, line cap #{Fuzz.max_line
 
       chunks = Fuzz.chunks(stream)
 
-      # framing + parsing + samples, as Board.UART runs it
+      # framing + parsing + samples, as Board.OpenROV.UART runs it
       {us, {readings, samples}} =
         :timer.tc(fn ->
           Enum.reduce(chunks, {readings, []}, fn chunk, {r, acc} ->
@@ -166,7 +168,7 @@ IO.puts("# protocol fuzz: #{total} lines, seed #{seed}, line cap #{Fuzz.max_line
 
       # the parser alone, on the same lines
       lines = for {kind, line} <- generated, kind != :overlong, do: line
-      {parse_us, _} = :timer.tc(fn -> Enum.each(lines, &OpenROV.parse_line/1) end)
+      {parse_us, _} = :timer.tc(fn -> Enum.each(lines, &OpenROV.Protocol.parse_line/1) end)
 
       {readings,
        %{

@@ -94,7 +94,7 @@ defmodule Neptunus.ReleaseArmhfTest do
           rel,
           """
           IO.write(inspect({:erlang.system_info(:system_architecture),
-            Neptunus.Vehicle.Board.UART.program(), Neptunus.Dynamics.Native.available?()}))
+            Neptunus.Vehicle.Board.OpenROV.UART.program(), Neptunus.Dynamics.Native.available?()}))
           """,
           env
         )
@@ -123,7 +123,7 @@ defmodule Neptunus.ReleaseArmhfTest do
 
       watch_board = """
       IO.write(inspect(Enum.find_value(1..600, :neutral, fn _ ->
-        case Neptunus.Vehicle.Board.SITL.Device.state("#{@vehicle}").firmware.target_us do
+        case Neptunus.Vehicle.Board.OpenROV.SITL.Device.state("#{@vehicle}").firmware.target_us do
           {1500, 1500, 1500} -> Process.sleep(50); nil
           pulses -> pulses
         end

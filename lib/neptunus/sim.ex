@@ -89,7 +89,7 @@ defmodule Neptunus.Sim do
 
   @doc """
   The default integration rate (Hz) of a simulation, and of the simulators the vehicles
-  run (`Board.Simulated`, `Board.SITL.Device`; `config :neptunus, :sim_hz` overrides it).
+  run (`Board.Simulated`, `Board.OpenROV.SITL.Device`; `config :neptunus, :sim_hz` overrides it).
   """
   @spec default_hz() :: pos_integer()
   def default_hz, do: @default_hz

@@ -53,9 +53,9 @@ defmodule Neptunus.ChaosTest do
   # Tag :chaos (`mix test --only chaos`); it runs in `mix test` and so in `make test`.
   use ExUnit.Case, async: false
 
-  alias Neptunus.{Fleet, PubSub, Recording, Wiring}
+  alias Neptunus.{Fleet, PubSub, Recording}
+  alias Neptunus.Vehicle.Board.OpenROV.{SITL, Wiring}
   alias Neptunus.Test.{ChaosClient, Patience, Starvation}
-  alias Neptunus.Vehicle.Board.SITL
 
   @moduletag :chaos
   @moduletag :capture_log
@@ -342,8 +342,9 @@ defmodule Neptunus.ChaosTest do
   # the processes of a vehicle whose loss restarts Control or the Helm (rest_for_one), or
   # cuts the board off
   @control_children ~w(Neptunus.Vehicle.Supervisor.Control
-                       Neptunus.Vehicle.Board.SITL Neptunus.Vehicle.Board.Simulated
-                       Neptunus.Vehicle.Board.SITL.Device Neptunus.Vehicle.Board.UART
+                       Neptunus.Vehicle.Board.OpenROV.SITL Neptunus.Vehicle.Board.Simulated
+                       Neptunus.Vehicle.Board.OpenROV.SITL.Device
+                       Neptunus.Vehicle.Board.OpenROV.UART
                        Neptunus.Vehicle.Navigation Neptunus.Vehicle.Telemetry
                        Neptunus.Vehicle.Control Neptunus.Vehicle.Helm)
 
@@ -352,8 +353,8 @@ defmodule Neptunus.ChaosTest do
   # board itself dies and boots again (a board reset: the board starts neutral, clients see
   # the link go down); `:link` — the board link dies and opens again; `:none` — nothing
   # that moves a vehicle.
-  @board_children ~w(Neptunus.Vehicle.Board.SITL.Device)
-  @link_children ~w(Neptunus.Vehicle.Board.UART)
+  @board_children ~w(Neptunus.Vehicle.Board.OpenROV.SITL.Device)
+  @link_children ~w(Neptunus.Vehicle.Board.OpenROV.UART)
 
   defp effect(target, ctx) do
     case target do
@@ -716,7 +717,7 @@ defmodule Neptunus.ChaosTest do
   defp telling?({{:link, false, reason}, _}, kind, _what),
     do: kind in [:board, :link] and is_binary(reason)
 
-  defp telling?({{:link, true, "open"}, _}, _kind, what), do: what =~ "Board.UART of"
+  defp telling?({{:link, true, "open"}, _}, _kind, what), do: what =~ "Board.OpenROV.UART of"
   defp telling?(_report, _kind, _what), do: false
 
   # How long what `id`'s path runs on was kept from a core between `from` and `to`: the VM,
@@ -781,7 +782,7 @@ defmodule Neptunus.ChaosTest do
   # restarts the vehicle's Telemetry process (its first payload waits for a new sample: on
   # the SITL board its sensors' first readings, about a second after boot) or resets or
   # cuts off its board (telemetry pauses until the board's readings are back).
-  @restarts_telemetry ~w(Neptunus.Vehicle.Supervisor.Control Neptunus.Vehicle.Board.SITL
+  @restarts_telemetry ~w(Neptunus.Vehicle.Supervisor.Control Neptunus.Vehicle.Board.OpenROV.SITL
                          Neptunus.Vehicle.Board.Simulated Neptunus.Vehicle.Navigation
                          Neptunus.Vehicle.Telemetry)
 

@@ -67,7 +67,7 @@ defmodule Neptunus.ConfigTest do
   end
 
   describe "vehicles!/1 boards: sitl and uart, with wiring" do
-    alias Neptunus.Wiring
+    alias Neptunus.Vehicle.Board.OpenROV.Wiring
 
     test "sitl and uart vehicles get the thesis wiring and the openrov-2.5 firmware by default" do
       assert Config.Vehicles.vehicles!(%{

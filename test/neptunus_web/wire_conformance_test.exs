@@ -198,7 +198,7 @@ defmodule NeptunusWeb.WireConformanceTest do
     id =
       start_vehicle!("wire-sitl", %{
         board: :sitl,
-        wiring: Neptunus.Wiring.default(),
+        wiring: Neptunus.Vehicle.Board.OpenROV.Wiring.default(),
         sim: [noise: false]
       })
 

@@ -14,7 +14,7 @@ defmodule Neptunus.Test.Pty do
   import ExUnit.Assertions
 
   alias Neptunus.Test.Patience
-  alias Neptunus.Vehicle.Board.UART
+  alias Neptunus.Vehicle.Board.OpenROV.UART
 
   @type pair :: %{dir: String.t(), a: String.t(), b: String.t(), port: port(), os_pid: integer()}
 

@@ -4,7 +4,7 @@ defmodule Neptunus.Camera.Pose do
   devices, as a simulator knows them.
 
   The simulators (`Neptunus.Vehicle.Board.Simulated`, the SITL board's
-  `Neptunus.Vehicle.Board.SITL.Device`) publish it at every step on `topic/1` — a
+  `Neptunus.Vehicle.Board.OpenROV.SITL.Device`) publish it at every step on `topic/1` — a
   broadcast that costs them three table lookups when nobody listens — and the vehicle's camera
   process subscribes while it renders. So the picture follows the simulator at its own
   rate and no video work ever runs in the board, control or helm processes.

@@ -27,11 +27,11 @@ defmodule Neptunus.Config.Vehicles do
   bootloader loses what arrives for MS milliseconds (see docs/OPENROV.md, Settings). Without
   it the simulated board is already running when the line opens.
 
-  Wiring (`sitl` and `uart` vehicles, see `Neptunus.Wiring`): the motors in `go()` order
-  separated by `/`, `-` before a reversed one, optionally `:FORWARD:REVERSE` motor modifiers
-  after a motor (percent, multiples of 100, default 100 and 100; sent as `mtrmod1`/`mtrmod2`),
-  optionally `/direct` or `/ramp` (`go()`'s 4th argument 1 or 0; no effect on OpenROV 2.5.x
-  and 30.x firmware, whose values apply at its next 50 ms tick either way); default
+  Wiring (`sitl` and `uart` vehicles, see `Neptunus.Vehicle.Board.OpenROV.Wiring`): the motors in
+  `go()` order separated by `/`, `-` before a reversed one, optionally `:FORWARD:REVERSE` motor
+  modifiers after a motor (percent, multiples of 100, default 100 and 100; sent as
+  `mtrmod1`/`mtrmod2`), optionally `/direct` or `/ramp` (`go()`'s 4th argument 1 or 0; no effect on
+  OpenROV 2.5.x and 30.x firmware, whose values apply at its next 50 ms tick either way); default
   `-port/vertical/starboard/direct` (the thesis' Neptunus). Example:
   `NEPTUNUS_WIRING=rov=port/vertical/-starboard:100:200`.
 
@@ -131,8 +131,8 @@ defmodule Neptunus.Config.Vehicles do
       var: "NEPTUNUS_WIRING",
       expected: "id=wiring pairs, e.g. rov=-port/vertical/starboard",
       key: :wiring,
-      parse: &Neptunus.Wiring.parse/1,
-      default: Neptunus.Wiring.default()
+      parse: &Neptunus.Vehicle.Board.OpenROV.Wiring.parse/1,
+      default: Neptunus.Vehicle.Board.OpenROV.Wiring.default()
     })
   end
 
@@ -143,7 +143,7 @@ defmodule Neptunus.Config.Vehicles do
       var: "NEPTUNUS_FIRMWARE",
       expected: "id=firmware pairs, e.g. rov=openrov-30",
       key: :firmware,
-      parse: &Neptunus.Protocol.BoardLink.parse_profile/1,
+      parse: &Neptunus.Vehicle.Board.OpenROV.BoardLink.parse_profile/1,
       default: :openrov_25
     })
   end
@@ -277,7 +277,7 @@ defmodule Neptunus.Config.Vehicles do
   end
 
   # A SITL board that reboots into its bootloader whenever its line is opened, as a USB
-  # Arduino does, losing what arrives for `id=MS` milliseconds (Board.SITL's `reset_on_open`
+  # Arduino does, losing what arrives for `id=MS` milliseconds (Board.OpenROV.SITL's `reset_on_open`
   # and `bootloader_ms`); without it the simulated board is up before the line opens.
   defp sitl_bootloader!(vehicles, spec) do
     var = "NEPTUNUS_SITL_BOOTLOADER"

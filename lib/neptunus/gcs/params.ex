@@ -51,7 +51,7 @@ defmodule Neptunus.GCS.Params do
           gains: map() | nil,
           limits: map() | nil,
           helm: map() | nil,
-          wiring: Neptunus.Wiring.t() | nil
+          wiring: Neptunus.Vehicle.Board.OpenROV.Wiring.t() | nil
         }
 
   @doc "The MAV_PARAM_TYPE of every parameter (REAL32)."
@@ -102,7 +102,7 @@ defmodule Neptunus.GCS.Params do
   defp degrees(nil), do: nil
   defp degrees(rad), do: rad * 180 / :math.pi()
 
-  defp wiring(%Neptunus.Wiring{order: order, reversed: reversed}) do
+  defp wiring(%Neptunus.Vehicle.Board.OpenROV.Wiring{order: order, reversed: reversed}) do
     for {motor, short} <- [port: "PORT", vertical: "VERT", starboard: "STBD"],
         position = Enum.find_index(order, &(&1 == motor)),
         position != nil,

@@ -16,8 +16,8 @@ defmodule Neptunus.Navigation.WildPoints do
   | `voltage` | 5 .. 20 V    | 2 V/s    | 2 V       | the battery sags ~1.5 V under thrust   |
   | `current` | 0 .. 10 A    | 20 A/s   | 6.5 A     | all thrusters on at once draw ~6 A     |
 
-  The ranges are those of the OpenROV parser (`Neptunus.Protocol.OpenROV.si_range/1`), so a
-  simulated board's readings are held to the same limits as a real board's. A reading `v`
+  The ranges are those of the OpenROV parser (`Neptunus.Vehicle.Board.OpenROV.Protocol.si_range/1`),
+  so a simulated board's readings are held to the same limits as a real board's. A reading `v`
   at `t` is *plausible* after the accepted `(t₀, v₀)` when
 
       |v − v₀| ≤ max_rate · (t − t₀) + tolerance
@@ -83,7 +83,7 @@ defmodule Neptunus.Navigation.WildPoints do
   end
 
   defp limit(field, max_rate, tolerance, angle) do
-    {min, max} = Neptunus.Protocol.OpenROV.si_range(field)
+    {min, max} = Neptunus.Vehicle.Board.OpenROV.Protocol.si_range(field)
     %{min: min, max: max, max_rate: max_rate, tolerance: tolerance, angle: angle}
   end
 

@@ -21,10 +21,10 @@ defmodule Neptunus.Vehicle.Board do
   Implementations, by configured board type (`module/1`):
 
     * `:simulated` — `Neptunus.Vehicle.Board.Simulated`, the built-in simulator;
-    * `:uart` — `Neptunus.Vehicle.Board.UART`, a real board on a serial port (OpenROV
+    * `:uart` — `Neptunus.Vehicle.Board.OpenROV.UART`, a real board on a serial port (OpenROV
       protocol through the `neptunus_uart` port program);
-    * `:sitl` — `Neptunus.Vehicle.Board.SITL`, the simulator behind a pseudo-terminal speaking
-      the OpenROV protocol, driven through `Board.UART`;
+    * `:sitl` — `Neptunus.Vehicle.Board.OpenROV.SITL`, the simulator behind a pseudo-terminal
+      speaking the OpenROV protocol, driven through `Board.OpenROV.UART`;
     * `:mavlink` — `Neptunus.Vehicle.Board.MAVLink`, an ArduSub vehicle over MAVLink;
     * any module implementing this behaviour (`Neptunus.Vehicle.Board.Test` in tests).
 
@@ -57,8 +57,8 @@ defmodule Neptunus.Vehicle.Board do
 
   @typedoc """
   A board sample: time (s, vehicle clock), measurements, and the simulator's truth if any.
-  A real board (`Board.UART`) adds its other fields under `board` (e.g. `yaw`, `temperature`,
-  `pressure`, `board_time`, see `Neptunus.Protocol.OpenROV`).
+  A real board (`Board.OpenROV.UART`) adds its other fields under `board` (e.g. `yaw`,
+  `temperature`, `pressure`, `board_time`, see `Neptunus.Vehicle.Board.OpenROV.Protocol`).
   """
   @type sample :: %{
           required(:t) => float(),
@@ -207,8 +207,8 @@ defmodule Neptunus.Vehicle.Board do
   # else `type:` and the syntax of its spec, which the module's parse_spec/1 parses)}
   @registry [
     simulated: {Neptunus.Vehicle.Board.Simulated, nil},
-    sitl: {Neptunus.Vehicle.Board.SITL, nil},
-    uart: {Neptunus.Vehicle.Board.UART, "uart:DEVICE[@BAUD]"},
+    sitl: {Neptunus.Vehicle.Board.OpenROV.SITL, nil},
+    uart: {Neptunus.Vehicle.Board.OpenROV.UART, "uart:DEVICE[@BAUD]"},
     mavlink: {Neptunus.Vehicle.Board.MAVLink, "mavlink:…"}
   ]
   @boards Map.new(@registry, fn {type, {module, _spec}} -> {type, module} end)
@@ -319,8 +319,8 @@ defmodule Neptunus.Vehicle.Board do
   @doc """
   The board link's details every board with a link reports with its state (`up`, `reason`)
   and telemetry carries under `link`: the union of the boards' `link_details/0` (see
-  `Neptunus.Vehicle.Board.UART.link_status/1`, `Neptunus.Vehicle.Board.MAVLink.link_status/1`
-  and docs/API.md).
+  `Neptunus.Vehicle.Board.OpenROV.UART.link_status/1`,
+  `Neptunus.Vehicle.Board.MAVLink.link_status/1` and docs/API.md).
   """
   @spec link_details() :: [atom()]
   def link_details do
@@ -549,7 +549,7 @@ defmodule Neptunus.Vehicle.Board do
 
   @doc """
   Tells vehicle `id`'s board that its control is alive (asynchronous). A board with a deadman
-  (`Board.UART`) feeds it only while this keeps coming; boards without the optional
+  (`Board.OpenROV.UART`) feeds it only while this keeps coming; boards without the optional
   `keepalive/1` callback ignore it.
   """
   @spec keepalive(String.t()) :: :ok

@@ -44,9 +44,9 @@ defmodule Neptunus.Vehicle.Helm do
   ## Priority
 
   The vehicle's control path runs at process priority `:high`: this process,
-  `Neptunus.Vehicle.Control` and the board link `Neptunus.Vehicle.Board.UART`. Each broadcast
-  of telemetry makes every observer's connection process runnable at once (1 000 of them for
-  a few milliseconds of both cores); a command must not wait behind them. Their work is
+  `Neptunus.Vehicle.Control` and the board link `Neptunus.Vehicle.Board.OpenROV.UART`. Each
+  broadcast of telemetry makes every observer's connection process runnable at once (1 000 of them
+  for a few milliseconds of both cores); a command must not wait behind them. Their work is
   bounded — commands come only through the pilot's connection (which runs at `:high` too,
   within a frame budget, see `NeptunusWeb.Socket` and `NeptunusWeb.Socket.FlowControl`), the rest
   on fixed-rate timers and the board's serial line — so they cannot starve `:normal` and

@@ -168,8 +168,8 @@ defmodule Neptunus.Vehicle.Telemetry do
 
   @doc """
   Reports the board link's state (called by boards with a link when it changes, and by
-  `Board.UART` once a second with its liveness fields, see the moduledoc): `up`, `reason` and
-  any of the boards' `Neptunus.Vehicle.Board.link_details/0`.
+  `Board.OpenROV.UART` once a second with its liveness fields, see the moduledoc): `up`, `reason`
+  and any of the boards' `Neptunus.Vehicle.Board.link_details/0`.
   """
   @spec link(String.t(), %{
           required(:up) => boolean(),

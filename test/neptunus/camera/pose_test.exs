@@ -5,7 +5,8 @@ defmodule Neptunus.Camera.PoseTest do
 
   @moduletag :capture_log
 
-  alias Neptunus.{Fleet, PubSub, Wiring}
+  alias Neptunus.{Fleet, PubSub}
+  alias Neptunus.Vehicle.Board.OpenROV.Wiring
   alias Neptunus.Camera.Pose
   alias Neptunus.Vehicle.Board
 

@@ -29,7 +29,7 @@ defmodule Neptunus.GCS.ParamsTest do
   end
 
   test "a uart or sitl vehicle's wiring, read-only" do
-    params = Params.list(%{@sources | wiring: Neptunus.Wiring.default()})
+    params = Params.list(%{@sources | wiring: Neptunus.Vehicle.Board.OpenROV.Wiring.default()})
     values = Map.new(params, &{&1.name, &1.value})
 
     assert %{

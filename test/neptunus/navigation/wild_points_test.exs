@@ -2,7 +2,7 @@ defmodule Neptunus.Navigation.WildPointsTest do
   use ExUnit.Case, async: true
 
   alias Neptunus.Navigation.WildPoints
-  alias Neptunus.Protocol.OpenROV
+  alias Neptunus.Vehicle.Board.OpenROV
 
   doctest WildPoints
 
@@ -10,12 +10,12 @@ defmodule Neptunus.Navigation.WildPointsTest do
 
   test "the ranges are the OpenROV parser's (a simulated board meets the same limits)" do
     for field <- [:depth, :voltage, :current] do
-      assert {@limits[field].min, @limits[field].max} == OpenROV.si_range(field)
+      assert {@limits[field].min, @limits[field].max} == OpenROV.Protocol.si_range(field)
     end
 
-    assert {@limits.heading.min, @limits.heading.max} == OpenROV.si_range(:heading)
-    assert {@limits.pitch.min, @limits.pitch.max} == OpenROV.si_range(:pitch)
-    assert {@limits.roll.min, @limits.roll.max} == OpenROV.si_range(:roll)
+    assert {@limits.heading.min, @limits.heading.max} == OpenROV.Protocol.si_range(:heading)
+    assert {@limits.pitch.min, @limits.pitch.max} == OpenROV.Protocol.si_range(:pitch)
+    assert {@limits.roll.min, @limits.roll.max} == OpenROV.Protocol.si_range(:roll)
   end
 
   test "range: bounds included, a heading of 2π is 0, integers are floats, non-numbers refused" do

@@ -8,7 +8,7 @@ defmodule Neptunus.Vehicle.BoardSpecTest do
   alias Neptunus.Vehicle.Board
   alias Neptunus.Vehicle.Board.SerialPort
 
-  doctest Neptunus.Vehicle.Board.UART, only: [parse_spec: 1]
+  doctest Neptunus.Vehicle.Board.OpenROV.UART, only: [parse_spec: 1]
   doctest Neptunus.Vehicle.Board.MAVLink, only: [parse_spec: 1]
 
   # pieces of boards' specs, good and bad, so generated text reaches every branch

@@ -19,8 +19,8 @@ defmodule Neptunus.Vehicle.BoardTest do
 
   test "board types map to modules; a module stands for itself" do
     assert Board.module(:simulated) == Board.Simulated
-    assert Board.module(:uart) == Board.UART
-    assert Board.module(:sitl) == Board.SITL
+    assert Board.module(:uart) == Board.OpenROV.UART
+    assert Board.module(:sitl) == Board.OpenROV.SITL
     assert Board.module(Board.Test) == Board.Test
   end
 

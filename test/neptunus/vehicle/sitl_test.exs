@@ -11,9 +11,9 @@ defmodule Neptunus.Vehicle.SITLTest do
 
   alias Neptunus.Test.{Patience, Starvation}
 
-  alias Neptunus.{Allocation, Fleet, PubSub, Wiring}
+  alias Neptunus.{Allocation, Fleet, PubSub}
+  alias Neptunus.Vehicle.Board.OpenROV.{SITL, Wiring}
   alias Neptunus.Vehicle.{Board, Control, Telemetry}
-  alias Neptunus.Vehicle.Board.SITL
 
   defp start_sitl(extra \\ %{}) do
     id = "sitl-#{System.unique_integer([:positive])}"

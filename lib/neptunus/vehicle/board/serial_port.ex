@@ -3,11 +3,12 @@ defmodule Neptunus.Vehicle.Board.SerialPort do
   The one Elixir owner of our serial port program, `priv/neptunus_uart`
   (`c_src/neptunus_uart.c`): how it is started, its tag protocol both ways and its exit.
   The program owns the line's file descriptor and its `poll()` loop, so nothing in the VM
-  ever blocks on a tty. Its users — the OpenROV board link (`Neptunus.Vehicle.Board.UART`),
-  the SITL board (`Neptunus.Vehicle.Board.SITL.Device`, on a pty) and the MAVLink board's
-  serial link (`Neptunus.Vehicle.Board.MAVLink`) — open it here, write with `write/2` and
-  hand every message of the port to `decode/1`, which turns it into a plain term
-  (`t:event/0`); none of them knows a tag byte.
+  ever blocks on a tty. Its users — the OpenROV board link
+  (`Neptunus.Vehicle.Board.OpenROV.UART`), the SITL board
+  (`Neptunus.Vehicle.Board.OpenROV.SITL.Device`, on a pty) and the MAVLink board's serial link
+  (`Neptunus.Vehicle.Board.MAVLink`) — open it here, write with `write/2` and hand every
+  message of the port to `decode/1`, which turns it into a plain term (`t:event/0`); none of
+  them knows a tag byte.
 
   The port belongs to the process that opens it (it is linked to it, and gets its messages):
   this module holds no state and starts no process.

@@ -17,8 +17,8 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
     * `{:tcp, host, port}` — connects (ArduPilot SITL listens on TCP 5760); reconnects
       `reconnect_ms` (1 s) after a failure or a close;
     * `{:serial, device, baud}` — the `neptunus_uart` port program
-      (`Neptunus.Vehicle.Board.SerialPort`, as `Neptunus.Vehicle.Board.UART` uses it); reopened
-      `reconnect_ms` after it exits.
+      (`Neptunus.Vehicle.Board.SerialPort`, as `Neptunus.Vehicle.Board.OpenROV.UART` uses it);
+      reopened `reconnect_ms` after it exits.
 
   Bytes from the link go through one decoder; frames lost, garbage and unknown messages are
   counted in `link_status/1`.

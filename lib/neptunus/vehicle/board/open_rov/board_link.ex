@@ -1,8 +1,8 @@
-defmodule Neptunus.Protocol.BoardLink do
+defmodule Neptunus.Vehicle.Board.OpenROV.BoardLink do
   @moduledoc """
   What the board's replies say about the link to an OpenROV board, as a pure value: the board
-  link (`Neptunus.Vehicle.Board.UART`) tells it what it sent and what the board said
-  (`Neptunus.Vehicle.Board.Readings` events), and it decides when the board's state must be
+  link (`Neptunus.Vehicle.Board.OpenROV.UART`) tells it what it sent and what the board said
+  (`Neptunus.Vehicle.Board.OpenROV.Readings` events), and it decides when the board's state must be
   sent again and what the link status shows.
 
   ## Ping, liveness, round trip
@@ -55,13 +55,13 @@ defmodule Neptunus.Protocol.BoardLink do
 
   The settings are not left to chance: the motor modifiers (`mtrmod1`, `mtrmod2`, from the
   wiring, given to `new/2`), the lights, the laser and the tilt (`set/4`) are each *pending*
-  until the board echoes that very command — name and arguments as written (`OpenROV.call/1`).
-  A pending setting is written again every `retry_ms` (250); after `attempts` (8) writes it is
-  *failed*, with a reason, and still written every `slow_retry_ms` (1000) until the board
-  confirms it. A board that restarts has lost them all: every (re)open, board reset and
-  deadman recovery makes them pending again and writes them, after a neutral `go()` (actions
-  `:neutral` and `{:send, key, command}`, in that order). `{:settings, summary}` says when the
-  summary (`settings/1`: `:confirmed`, `:pending` or `:failed`, what is not confirmed, why)
+  until the board echoes that very command — name and arguments as written
+  (`OpenROV.Protocol.call/1`). A pending setting is written again every `retry_ms` (250); after
+  `attempts` (8) writes it is *failed*, with a reason, and still written every `slow_retry_ms`
+  (1000) until the board confirms it. A board that restarts has lost them all: every (re)open, board
+  reset and deadman recovery makes them pending again and writes them, after a neutral `go()`
+  (actions `:neutral` and `{:send, key, command}`, in that order). `{:settings, summary}` says when
+  the summary (`settings/1`: `:confirmed`, `:pending` or `:failed`, what is not confirmed, why)
   changes. The shell runs `tick/2` at `next_tick_at/1`.
 
   ## Thrust held until the motors are set
@@ -79,7 +79,7 @@ defmodule Neptunus.Protocol.BoardLink do
   reason.
   """
 
-  alias Neptunus.Protocol.OpenROV
+  alias Neptunus.Vehicle.Board.OpenROV
 
   @armed_after_ms 180_000
   @deadman_timeout_ms 2_000
@@ -121,7 +121,7 @@ defmodule Neptunus.Protocol.BoardLink do
 
   @typedoc """
   One setting: the `command` that sets it (unframed), the `echo` that confirms it (name and
-  arguments, `OpenROV.call/1`), its `state`; `sends` — writes since it became pending,
+  arguments, `OpenROV.Protocol.call/1`), its `state`; `sends` — writes since it became pending,
   `first_sent_at`/`sent_at` — the first and the last of them (our clock), nil before any;
   `reason` — why it failed.
   """
@@ -161,8 +161,8 @@ defmodule Neptunus.Protocol.BoardLink do
   * counters: `sent`, `confirmed`, `crc_failures`, `resets`, `deadman_recoveries`
   """
   @type t :: %__MODULE__{
-          profile: OpenROV.profile(),
-          detected: OpenROV.profile() | nil,
+          profile: OpenROV.Protocol.profile(),
+          detected: OpenROV.Protocol.profile() | nil,
           mismatch_reported: boolean(),
           up: boolean(),
           outstanding: [{non_neg_integer(), integer()}],
@@ -194,7 +194,7 @@ defmodule Neptunus.Protocol.BoardLink do
   @type action ::
           {:board_reset, String.t()}
           | {:deadman_recovery, String.t()}
-          | {:firmware_mismatch, OpenROV.profile()}
+          | {:firmware_mismatch, OpenROV.Protocol.profile()}
           | :neutral
           | {:send, setting_key(), binary()}
           | {:settings, summary()}
@@ -206,7 +206,7 @@ defmodule Neptunus.Protocol.BoardLink do
   the board must have from the start, `[{key, command}]` (the motor modifiers from the
   wiring); `:retry_ms` (250), `:attempts` (8), `:slow_retry_ms` (1000) — see the moduledoc.
   """
-  @spec new(OpenROV.profile(), keyword()) :: t()
+  @spec new(OpenROV.Protocol.profile(), keyword()) :: t()
   def new(profile, opts \\ []) when profile in [:openrov_25, :openrov_30] do
     l = %__MODULE__{
       profile: profile,
@@ -260,10 +260,11 @@ defmodule Neptunus.Protocol.BoardLink do
     do: %{l | outstanding: Enum.take(l.outstanding ++ [{n, now}], -@max_outstanding)}
 
   @doc """
-  An event from the board (see `Neptunus.Vehicle.Board.Readings`) seen at `now` (ms): the link
-  and the actions it calls for, in order.
+  An event from the board (see `Neptunus.Vehicle.Board.OpenROV.Readings`) seen at `now` (ms): the
+  link and the actions it calls for, in order.
   """
-  @spec event(t(), Neptunus.Vehicle.Board.Readings.event(), integer()) :: {t(), [action()]}
+  @spec event(t(), Neptunus.Vehicle.Board.OpenROV.Readings.event(), integer()) ::
+          {t(), [action()]}
   def event(%__MODULE__{} = l, :rawcmd, _now), do: detected(l, :openrov_30)
 
   def event(%__MODULE__{} = l, {:crc, :pass}, _now), do: detected(l, :openrov_30)
@@ -418,7 +419,7 @@ defmodule Neptunus.Protocol.BoardLink do
   defp put_setting(l, key, command) when key in @setting_keys do
     setting = %{
       command: command,
-      echo: OpenROV.call(command),
+      echo: OpenROV.Protocol.call(command),
       state: :pending,
       sends: 0,
       first_sent_at: nil,
@@ -530,7 +531,7 @@ defmodule Neptunus.Protocol.BoardLink do
   @doc """
   The settings' summary (see `t:summary/0`).
 
-      iex> alias Neptunus.Protocol.BoardLink
+      iex> alias Neptunus.Vehicle.Board.OpenROV.BoardLink
       iex> l = BoardLink.new(:openrov_25, settings: [mtrmod1: "mtrmod1(100,100,100);"])
       iex> BoardLink.settings(l)
       %{state: :pending, pending: [:mtrmod1], reason: nil}
@@ -673,22 +674,22 @@ defmodule Neptunus.Protocol.BoardLink do
   @doc """
   The configuration name of a profile.
 
-      iex> Neptunus.Protocol.BoardLink.profile_name(:openrov_30)
+      iex> Neptunus.Vehicle.Board.OpenROV.BoardLink.profile_name(:openrov_30)
       "openrov-30"
   """
-  @spec profile_name(OpenROV.profile()) :: String.t()
+  @spec profile_name(OpenROV.Protocol.profile()) :: String.t()
   def profile_name(:openrov_25), do: "openrov-2.5"
   def profile_name(:openrov_30), do: "openrov-30"
 
   @doc """
   The profile of a configuration name.
 
-      iex> Neptunus.Protocol.BoardLink.parse_profile("openrov-2.5")
+      iex> Neptunus.Vehicle.Board.OpenROV.BoardLink.parse_profile("openrov-2.5")
       {:ok, :openrov_25}
-      iex> Neptunus.Protocol.BoardLink.parse_profile("openrov-3")
+      iex> Neptunus.Vehicle.Board.OpenROV.BoardLink.parse_profile("openrov-3")
       {:error, "openrov-2.5 or openrov-30, not \\"openrov-3\\""}
   """
-  @spec parse_profile(String.t()) :: {:ok, OpenROV.profile()} | {:error, String.t()}
+  @spec parse_profile(String.t()) :: {:ok, OpenROV.Protocol.profile()} | {:error, String.t()}
   def parse_profile("openrov-2.5"), do: {:ok, :openrov_25}
   def parse_profile("openrov-30"), do: {:ok, :openrov_30}
   def parse_profile(other), do: {:error, "openrov-2.5 or openrov-30, not #{inspect(other)}"}

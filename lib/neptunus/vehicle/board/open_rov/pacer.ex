@@ -1,7 +1,7 @@
-defmodule Neptunus.Protocol.Pacer do
+defmodule Neptunus.Vehicle.Board.OpenROV.Pacer do
   @moduledoc """
   Paces the commands written to an OpenROV board so its 64-byte receive buffer never
-  overflows. Pure: the board link (`Neptunus.Vehicle.Board.UART`) pushes commands and asks
+  overflows. Pure: the board link (`Neptunus.Vehicle.Board.OpenROV.UART`) pushes commands and asks
   which may go out now; a timer is needed only while something is queued (`next_at/2`).
 
   The board's firmware reads its serial receive buffer (64 bytes; what does not fit is
@@ -49,7 +49,7 @@ defmodule Neptunus.Protocol.Pacer do
   @doc """
   A pacer; options `:window_ms` (30), `:window_bytes` (60), `:spacing_ms` (3).
 
-      iex> p = Neptunus.Protocol.Pacer.new()
+      iex> p = Neptunus.Vehicle.Board.OpenROV.Pacer.new()
       iex> {p.window_ms, p.window_bytes, p.spacing_ms}
       {30, 60, 3}
   """

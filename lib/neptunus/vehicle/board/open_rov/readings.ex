@@ -1,8 +1,8 @@
-defmodule Neptunus.Vehicle.Board.Readings do
+defmodule Neptunus.Vehicle.Board.OpenROV.Readings do
   @moduledoc """
   From the bytes a board sends to board samples: line framing (`Neptunus.Protocol.Lines`),
-  parsing and wild-point rejection (`Neptunus.Protocol.OpenROV`), the latest value of every
-  field, and counters. Pure; `Neptunus.Vehicle.Board.UART` feeds it.
+  parsing and wild-point rejection (`Neptunus.Vehicle.Board.OpenROV.Protocol`), the latest value of
+  every field, and counters. Pure; `Neptunus.Vehicle.Board.OpenROV.UART` feeds it.
 
   An OpenROV board reports its fields on several lines at different rates (navigation data
   `hdgd deap pitc roll yaw fthr` often, `vout iout time pres temp` less often), so a sample
@@ -30,19 +30,20 @@ defmodule Neptunus.Vehicle.Board.Readings do
       sample either: the value nobody measured since the board booted is not a depth.
 
   Lines the firmware prints besides fields — the depth driver's plain text
-  (`OpenROV.text_line?/1`) — are counted as `text`, `log` fields as `debug`; neither is
+  (`OpenROV.Protocol.text_line?/1`) — are counted as `text`, `log` fields as `debug`; neither is
   malformed. The board's replies the link needs (`pong`, the `cmd:`/`icmd:` echoes — a
   `cmd:` echo with the command's name and arguments as printed —, 30.x `crc:` and `rawcmd:`
   lines, the board's millis from `time`, and `boot:1;`, which the firmware prints when its
   setup is done) are collected as events, oldest first, for `take_events/1` (see
-  `Neptunus.Protocol.BoardLink`).
+  `Neptunus.Vehicle.Board.OpenROV.BoardLink`).
 
   Counters: `lines`, `samples`, `overlong` (lines over the length cap), `text`, `debug`,
   `placeholder`, `malformed`, and the wild points by reason `out_of_range`, `not_a_number`,
   `key_as_value` (see `OpenROV`).
   """
 
-  alias Neptunus.Protocol.{Lines, OpenROV}
+  alias Neptunus.Protocol.Lines
+  alias Neptunus.Vehicle.Board.OpenROV
 
   @measurements [:depth, :heading, :roll, :pitch, :voltage, :current]
   @direct_measurements @measurements -- [:current]
@@ -69,14 +70,14 @@ defmodule Neptunus.Vehicle.Board.Readings do
     }
   ]
 
-  @typedoc "See `Neptunus.Protocol.BoardLink.event/3`."
+  @typedoc "See `Neptunus.Vehicle.Board.OpenROV.BoardLink.event/3`."
   @type event ::
           :rawcmd
           | {:crc, :pass | {:fail, byte(), byte()}}
           | {:echo, String.t(), [String.t()] | nil, boolean()}
           | {:echo_prefixed, String.t()}
           | {:icmd, String.t()}
-          | {:pong, OpenROV.pong()}
+          | {:pong, OpenROV.Protocol.pong()}
           | {:board_time, non_neg_integer()}
           | :boot
 
@@ -134,7 +135,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
   end
 
   defp line(text, {r, samples}, t) do
-    if OpenROV.text_line?(text) do
+    if OpenROV.Protocol.text_line?(text) do
       {bump(%{r | counters: %{r.counters | lines: r.counters.lines + 1}}, :text, 1), samples}
     else
       fields_line(text, {r, samples}, t)
@@ -142,7 +143,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
   end
 
   defp fields_line(text, {r, samples}, t) do
-    {fields, rejects} = OpenROV.parse_line(text)
+    {fields, rejects} = OpenROV.Protocol.parse_line(text)
 
     counters =
       Enum.reduce(rejects, %{r.counters | lines: r.counters.lines + 1}, fn {reason, _, _}, c ->
@@ -199,10 +200,10 @@ defmodule Neptunus.Vehicle.Board.Readings do
   end
 
   # The vehicle's current on the 2.5 controller board: both batteries together, a wild point
-  # when the sum is beyond what a current can be (OpenROV.si_range(:current)).
+  # when the sum is beyond what a current can be (OpenROV.Protocol.si_range(:current)).
   defp battery_current(board) do
     current = Map.get(board, :battery1_current, 0.0) + Map.get(board, :battery2_current, 0.0)
-    {_min, max} = OpenROV.si_range(:current)
+    {_min, max} = OpenROV.Protocol.si_range(:current)
     if current <= max, do: {:ok, current}, else: :out_of_range
   end
 
@@ -229,21 +230,25 @@ defmodule Neptunus.Vehicle.Board.Readings do
   defp placeholder({fields, r}), do: {fields, r}
 
   # What the link needs to know from a line, newest first: the board's replies, its echoes and
-  # its uptime (see Neptunus.Protocol.BoardLink.event/3).
+  # its uptime (see Neptunus.Vehicle.Board.OpenROV.BoardLink.event/3).
   defp events(fields, acc) do
     acc
     |> event(fields, "rawcmd", fn _ -> {:ok, :rawcmd} end)
-    |> event(fields, "crc", &with({:ok, c} <- OpenROV.parse_crc(&1), do: {:ok, {:crc, c}}))
+    |> event(
+      fields,
+      "crc",
+      &with({:ok, c} <- OpenROV.Protocol.parse_crc(&1), do: {:ok, {:crc, c}})
+    )
     |> event(fields, "cmd", &echo(&1, Map.has_key?(fields, "crc")))
     |> event(
       fields,
       "icmd",
-      &with({:ok, name} <- OpenROV.parse_echo(&1), do: {:ok, {:icmd, name}})
+      &with({:ok, name} <- OpenROV.Protocol.parse_echo(&1), do: {:ok, {:icmd, name}})
     )
     |> event(
       fields,
       "pong",
-      &with({:ok, pong} <- OpenROV.parse_pong(&1), do: {:ok, {:pong, pong}})
+      &with({:ok, pong} <- OpenROV.Protocol.parse_pong(&1), do: {:ok, {:pong, pong}})
     )
     |> event(fields, :board_time, fn s -> {:ok, {:board_time, round(s * 1000)}} end)
     |> event(fields, "boot", fn _ -> {:ok, :boot} end)
@@ -253,8 +258,8 @@ defmodule Neptunus.Vehicle.Board.Readings do
   # An echo; a 2.5 board given a CRC-prefixed command echoes it with the CRC byte before the
   # name (and does not recognise it).
   defp echo(value, crc?) do
-    with :error <- OpenROV.parse_call(value),
-         {:ok, name} <- OpenROV.parse_echo(value) do
+    with :error <- OpenROV.Protocol.parse_call(value),
+         {:ok, name} <- OpenROV.Protocol.parse_echo(value) do
       # cut short: counted, but it confirms no setting
       {:ok, {:echo, name, nil, crc?}}
     else
@@ -264,7 +269,7 @@ defmodule Neptunus.Vehicle.Board.Readings do
       :error ->
         with false <- crc?,
              <<_crc, rest::binary>> <- value,
-             {:ok, name} <- OpenROV.parse_echo(rest),
+             {:ok, name} <- OpenROV.Protocol.parse_echo(rest),
              do: {:ok, {:echo_prefixed, name}},
              else: (_ -> :error)
     end

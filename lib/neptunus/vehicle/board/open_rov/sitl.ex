@@ -1,15 +1,15 @@
-defmodule Neptunus.Vehicle.Board.SITL do
+defmodule Neptunus.Vehicle.Board.OpenROV.SITL do
   @moduledoc """
   Software in the loop: the simulator behind a pseudo-terminal speaking the OpenROV serial
   protocol, driven by the real board link. `NEPTUNUS_VEHICLES=rov=sitl`.
 
   This is the board of a SITL vehicle — a supervisor (`:one_for_one`) with
 
-    1. `Neptunus.Vehicle.Board.SITL.Device` — the simulated board: a `Neptunus.Sim`, the
+    1. `Neptunus.Vehicle.Board.OpenROV.SITL.Device` — the simulated board: a `Neptunus.Sim`, the
        OpenROV firmware behaviour, and the master end of a pty pair (created by the port
        program, `neptunus_uart pty LINK`);
-    2. `Neptunus.Vehicle.Board.UART` — the same board link a real vehicle uses, on the pty's
-       slave end (`LINK`), registered as the vehicle's board (`Board.via(id)`).
+    2. `Neptunus.Vehicle.Board.OpenROV.UART` — the same board link a real vehicle uses, on the
+       pty's slave end (`LINK`), registered as the vehicle's board (`Board.via(id)`).
 
   So everything from `Vehicle.Control` down — wiring, `go()` bytes, the port program, line
   framing, parsing, wild-point rejection, link handling, deadman pings — runs exactly as with
@@ -19,7 +19,7 @@ defmodule Neptunus.Vehicle.Board.SITL do
   `LINK` is `<tmp>/neptunus-<os pid>/sitl-<id>.tty` unless given as `:link` (per OS process,
   so several nodes or test runs on one machine never share a pty).
 
-  Options: those of `Board.UART` (`:wiring`, `:firmware`, `:ping_interval`, …) and of
+  Options: those of `Board.OpenROV.UART` (`:wiring`, `:firmware`, `:ping_interval`, …) and of
   `SITL.Device` (`:wiring`, `:firmware`, `:sim_hz` as its `:hz`, `:deadman_ms`, `:arm_ms`,
   `:loop_ms`, `:stall_ms`, `:setup_ms`, `:bootloader_ms`, `:reset_on_open` — a board that
   reboots into its bootloader whenever the line opens, as a USB Arduino —, `:initial`,
@@ -31,7 +31,7 @@ defmodule Neptunus.Vehicle.Board.SITL do
   use Supervisor
 
   alias Neptunus.Vehicle.Board
-  alias Neptunus.Vehicle.Board.UART
+  alias Neptunus.Vehicle.Board.OpenROV.UART
 
   @behaviour Board
 
@@ -64,7 +64,7 @@ defmodule Neptunus.Vehicle.Board.SITL do
   def capabilities(opts), do: UART.capabilities(opts)
 
   @doc """
-  Those of `Board.UART`, a bootloader (`NEPTUNUS_SITL_BOOTLOADER`), and the simulator's
+  Those of `Board.OpenROV.UART`, a bootloader (`NEPTUNUS_SITL_BOOTLOADER`), and the simulator's
   camera and position sources: its vehicle lives in `Neptunus.Sim`.
   """
   @impl Board
@@ -105,7 +105,7 @@ defmodule Neptunus.Vehicle.Board.SITL do
     link = Keyword.get(opts, :link) || link_path(id)
 
     children = [
-      {Board.SITL.Device,
+      {Board.OpenROV.SITL.Device,
        [id: id, link: link] ++ device_hz(opts) ++ Keyword.take(opts, @device_opts)},
       {UART, [id: id, device: link, baud: 115_200] ++ Keyword.take(opts, @uart_opts)}
     ]

@@ -1,9 +1,9 @@
-defmodule Neptunus.Vehicle.Board.UART do
+defmodule Neptunus.Vehicle.Board.OpenROV.UART do
   @moduledoc """
-  A real board on a serial port, speaking the OpenROV protocol (`Neptunus.Protocol.OpenROV`)
-  through our port program `priv/neptunus_uart` (`Neptunus.Vehicle.Board.SerialPort`): the
-  program owns the file descriptor and its `poll()` loop, so nothing in the VM ever blocks on
-  the tty.
+  A real board on a serial port, speaking the OpenROV protocol
+  (`Neptunus.Vehicle.Board.OpenROV.Protocol`) through our port program `priv/neptunus_uart`
+  (`Neptunus.Vehicle.Board.SerialPort`): the program owns the file descriptor and its `poll()`
+  loop, so nothing in the VM ever blocks on the tty.
 
   ## What it does
 
@@ -18,32 +18,33 @@ defmodule Neptunus.Vehicle.Board.UART do
       `%{up: boolean, reason: String.t()}` on `"vehicle:<id>"` and logged; `link_status/1`
       returns it with the counters.
     * **Firmware profile** (`:firmware`, `:openrov_25` default or `:openrov_30`): every
-      command is written in the profile's wire form (`Neptunus.Protocol.OpenROV.frame/2`: 30.x
-      wants a CRC byte before each command). What the board's output says about its firmware
-      line is in the link status; a mismatch is logged once and broadcast (event `firmware`
-      `%{configured, detected}`), never acted on (`Neptunus.Protocol.BoardLink`).
+      command is written in the profile's wire form
+      (`Neptunus.Vehicle.Board.OpenROV.Protocol.frame/2`: 30.x wants a CRC byte before each
+      command). What the board's output says about its firmware line is in the link status; a
+      mismatch is logged once and broadcast (event `firmware` `%{configured, detected}`), never
+      acted on (`Neptunus.Vehicle.Board.OpenROV.BoardLink`).
     * **The board's state on every (re)open, board reset and deadman recovery**: a neutral
       `go()` first, then the motor modifiers (`mtrmod1`/`mtrmod2` from the wiring, see
-      `Neptunus.Wiring`), lights, laser and tilt. A board reset (its uptime going backwards,
-      or its start-up line `boot:1;`) and every (re)open are also told to navigation
-      (`Navigation.board_reset/2`): its measurements start afresh.
-    * **Settings confirmed, thrust held until they are** (`Neptunus.Protocol.BoardLink`
-      decides): every setting is written again until the board echoes it, with a bound
-      after which it is shown as failed with a reason (and still written, slower); a thrust
-      demand other than neutral is held — a neutral `go()` written instead — until the board
-      has confirmed the motor modifiers, then written. A hold is logged, broadcast as event
-      `board` `%{event: "thrust_held", reason}` and put in the developer logger; the link
-      status and telemetry show `board_settings` (`confirmed`, `pending`, `failed`), what is
-      pending, why one failed, and `thrust_held`. A timer runs only while a setting is not
-      confirmed.
-    * **Commands.** `go` casts become `go(...)` with the vehicle's `Neptunus.Wiring` (order,
-      reversed motors, flag). Commands while the link is down are dropped (counted), never
-      queued: the next link starts neutral. Writes are paced (`Neptunus.Protocol.Pacer`: at
-      most 60 bytes in any 30 ms, commands ≥ 3 ms apart, so the board's 64-byte receive
-      buffer never overflows), a newer `go()` or device value replacing a queued one (never a
-      queued neutral `go()`: a newer `go()` waits behind it); a timer runs only while
-      something is queued. Writes never block: when the program's input is
-      busy the command is dropped and counted.
+      `Neptunus.Vehicle.Board.OpenROV.Wiring`), lights, laser and tilt. A board reset (its
+      uptime going backwards, or its start-up line `boot:1;`) and every (re)open are also told
+      to navigation (`Navigation.board_reset/2`): its measurements start afresh.
+    * **Settings confirmed, thrust held until they are**
+      (`Neptunus.Vehicle.Board.OpenROV.BoardLink` decides): every setting is written again until
+      the board echoes it, with a bound after which it is shown as failed with a reason (and
+      still written, slower); a thrust demand other than neutral is held — a neutral `go()`
+      written instead — until the board has confirmed the motor modifiers, then written. A hold
+      is logged, broadcast as event `board` `%{event: "thrust_held", reason}` and put in the
+      developer logger; the link status and telemetry show `board_settings` (`confirmed`,
+      `pending`, `failed`), what is pending, why one failed, and `thrust_held`. A timer runs
+      only while a setting is not confirmed.
+    * **Commands.** `go` casts become `go(...)` with the vehicle's
+      `Neptunus.Vehicle.Board.OpenROV.Wiring` (order, reversed motors, flag). Commands while the
+      link is down are dropped (counted), never queued: the next link starts neutral. Writes are
+      paced (`Neptunus.Vehicle.Board.OpenROV.Pacer`: at most 60 bytes in any 30 ms, commands
+      ≥ 3 ms apart, so the board's 64-byte receive buffer never overflows), a newer `go()` or
+      device value replacing a queued one (never a queued neutral `go()`: a newer `go()` waits
+      behind it); a timer runs only while something is queued. Writes never block: when the
+      program's input is busy the command is dropped and counted.
     * **Deadman.** Every `ping_interval` (1 s) it sends `ping(n);` — but only while the link is
       up *and* the vehicle's control was heard (`go` or `keepalive/1`, which
       `Neptunus.Vehicle.Control` calls every second) within `keepalive_timeout` (2 s). If
@@ -51,12 +52,12 @@ defmodule Neptunus.Vehicle.Board.UART do
       armed: 180 s after the board's boot; before that only the server's deadman protects,
       shown as `board_deadman_armed: false`). Pongs give the round-trip time and the link's
       liveness (`rtt_ms`, `pong_age_ms`).
-    * **Telemetry.** Lines are framed, parsed and checked in `Neptunus.Vehicle.Board.Readings`;
-      samples (`sim: nil`, plus the board's other fields under `board`) go to
-      navigation (`Neptunus.Vehicle.Board.sample/3`). Garbage and wild points are counted, never
-      passed on. The board's echoes (`cmd:…;`) count the commands it confirmed. The link's
-      state (`up`, `reason` and the liveness fields) goes to `Telemetry.link/2` on every
-      change and every ping tick.
+    * **Telemetry.** Lines are framed, parsed and checked in
+      `Neptunus.Vehicle.Board.OpenROV.Readings`; samples (`sim: nil`, plus the board's other
+      fields under `board`) go to navigation (`Neptunus.Vehicle.Board.sample/3`). Garbage and
+      wild points are counted, never passed on. The board's echoes (`cmd:…;`) count the
+      commands it confirmed. The link's state (`up`, `reason` and the liveness fields) goes to
+      `Telemetry.link/2` on every change and every ping tick.
     * **Shutdown.** It traps exits; on an orderly shutdown it writes a neutral `go()` before the
       port closes (the program flushes it before exiting). After a brutal kill the port
       program sees stdin close and exits; the board's deadman covers the rest.
@@ -70,10 +71,10 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   require Logger
 
-  alias Neptunus.{Allocation, PubSub, Wiring}
-  alias Neptunus.Protocol.{BoardLink, OpenROV, Pacer}
+  alias Neptunus.{Allocation, PubSub}
   alias Neptunus.Vehicle.{Board, Navigation, Telemetry}
-  alias Neptunus.Vehicle.Board.{Backoff, Readings, SerialPort}
+  alias Neptunus.Vehicle.Board.{Backoff, OpenROV, SerialPort}
+  alias Neptunus.Vehicle.Board.OpenROV.{BoardLink, Pacer, Readings, Wiring}
 
   @behaviour Board
 
@@ -86,11 +87,11 @@ defmodule Neptunus.Vehicle.Board.UART do
             topic: String.t(),
             device: String.t(),
             baud: pos_integer(),
-            wiring: Neptunus.Wiring.t(),
-            profile: Neptunus.Protocol.OpenROV.profile(),
-            pacer: Neptunus.Protocol.Pacer.t(),
+            wiring: Neptunus.Vehicle.Board.OpenROV.Wiring.t(),
+            profile: Neptunus.Vehicle.Board.OpenROV.Protocol.profile(),
+            pacer: Neptunus.Vehicle.Board.OpenROV.Pacer.t(),
             pace_timer: reference() | nil,
-            board_link: Neptunus.Protocol.BoardLink.t(),
+            board_link: Neptunus.Vehicle.Board.OpenROV.BoardLink.t(),
             program: String.t(),
             port_env: [{charlist(), charlist()}],
             port: port() | nil,
@@ -100,7 +101,7 @@ defmodule Neptunus.Vehicle.Board.UART do
             since_ms: integer(),
             program_error: String.t() | nil,
             backoff: Neptunus.Vehicle.Board.Backoff.t(),
-            readings: Neptunus.Vehicle.Board.Readings.t(),
+            readings: Neptunus.Vehicle.Board.OpenROV.Readings.t(),
             started_at_ms: integer(),
             heard_at_ms: integer() | nil,
             ping_interval_ms: pos_integer(),
@@ -169,13 +170,14 @@ defmodule Neptunus.Vehicle.Board.UART do
     * `:id` (required)
     * `:device` (required) — e.g. `"/dev/ttyO1"`
     * `:baud` — #{@default_baud} (1200 … 921600, standard rates)
-    * `:wiring` — a `Neptunus.Wiring`, default `Neptunus.Wiring.default/0`
+    * `:wiring` — a `Neptunus.Vehicle.Board.OpenROV.Wiring`, default
+      `Neptunus.Vehicle.Board.OpenROV.Wiring.default/0`
     * `:firmware` — `:openrov_25` (default) or `:openrov_30`
     * `:ping_interval` — ms between deadman pings, default 1000
     * `:keepalive_timeout` — ms since control was last heard after which pings stop, default 2000
     * `:confirm_retry`, `:confirm_attempts` — a setting the board has not echoed is written
       again every `confirm_retry` ms (250), and shown as failed after `confirm_attempts` (8)
-      writes (`Neptunus.Protocol.BoardLink`)
+      writes (`Neptunus.Vehicle.Board.OpenROV.BoardLink`)
     * `:reopen_min`, `:reopen_max` — reopen backoff in ms, default 100 and 5000
     * `:max_line` — longest telemetry line kept, bytes, default 512
     * `:program` — path of the port program, default `priv/neptunus_uart`
@@ -197,7 +199,7 @@ defmodule Neptunus.Vehicle.Board.UART do
   @doc """
   The serial line from the spec of `uart:DEVICE[@BAUD]` (`Board.SerialPort.parse_line/1`).
 
-      iex> Neptunus.Vehicle.Board.UART.parse_spec("/dev/ttyO1@57600")
+      iex> Neptunus.Vehicle.Board.OpenROV.UART.parse_spec("/dev/ttyO1@57600")
       {:ok, %{device: "/dev/ttyO1", baud: 57600}}
   """
   @impl Board
@@ -226,14 +228,15 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   @doc """
   The link's state: `%{up, reason, device, baud, since_ms, queued, counters}` and the fields
-  of `Neptunus.Protocol.BoardLink.status/2` (`firmware detected_firmware firmware_mismatch
-  rtt_ms pong_age_ms board_uptime_ms board_deadman_armed board_deadman_tripped commands_sent
-  commands_confirmed crc_failures board_resets deadman_recoveries board_settings
-  board_settings_pending board_settings_reason thrust_held`), where `since_ms` is how
-  long the link has been in its current state, `queued` the commands waiting for the pacer
-  and `counters` merges the link's counters (`opens downs commands dropped_commands
-  dropped_bytes pings pings_withheld`) with the readings' (`lines samples overlong text debug
-  placeholder malformed out_of_range not_a_number key_as_value`).
+  of `Neptunus.Vehicle.Board.OpenROV.BoardLink.status/2` (`firmware detected_firmware
+  firmware_mismatch rtt_ms pong_age_ms board_uptime_ms board_deadman_armed
+  board_deadman_tripped commands_sent commands_confirmed crc_failures board_resets
+  deadman_recoveries board_settings board_settings_pending board_settings_reason
+  thrust_held`), where `since_ms` is how long the link has been in its current state,
+  `queued` the commands waiting for the pacer and `counters` merges the link's counters
+  (`opens downs commands dropped_commands dropped_bytes pings pings_withheld`) with the
+  readings' (`lines samples overlong text debug placeholder malformed out_of_range
+  not_a_number key_as_value`).
   """
   @impl Board
   @spec link_status(String.t()) :: map()
@@ -413,7 +416,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     # Orderly shutdown: neutral first; the program writes it before it exits on stdin close.
     write(
       state,
-      OpenROV.frame(Wiring.go_command(state.wiring, Allocation.neutral()), state.profile)
+      OpenROV.Protocol.frame(Wiring.go_command(state.wiring, Allocation.neutral()), state.profile)
     )
 
     SerialPort.close(state.port)
@@ -425,9 +428,9 @@ defmodule Neptunus.Vehicle.Board.UART do
 
   # Link ----------------------------------------------------------------------------------
 
-  defp device_command(:lights, n), do: OpenROV.lights(n)
-  defp device_command(:laser, n), do: OpenROV.laser(n)
-  defp device_command(:tilt, rad), do: OpenROV.tilt(Board.tilt_us(rad))
+  defp device_command(:lights, n), do: OpenROV.Protocol.lights(n)
+  defp device_command(:laser, n), do: OpenROV.Protocol.laser(n)
+  defp device_command(:tilt, rad), do: OpenROV.Protocol.tilt(Board.tilt_us(rad))
 
   defp open(state) do
     case SerialPort.open_tty(state.device, state.baud,
@@ -534,7 +537,7 @@ defmodule Neptunus.Vehicle.Board.UART do
     if state.heard_at_ms != nil and now_ms() - state.heard_at_ms <= state.keepalive_timeout_ms do
       n = state.ping_n
       state = %{state | ping_n: rem(n + 1, 2_147_483_647)}
-      state |> bump(:pings) |> queue({:ping, n}, OpenROV.ping(n))
+      state |> bump(:pings) |> queue({:ping, n}, OpenROV.Protocol.ping(n))
     else
       bump(state, :pings_withheld)
     end
@@ -684,13 +687,16 @@ defmodule Neptunus.Vehicle.Board.UART do
   defp write_go(state, thrusters), do: go_us(state, Wiring.to_us(state.wiring, thrusters))
 
   defp go_us(state, us),
-    do: queue(state, :go, OpenROV.go(us, state.wiring.direct), sticky: us == {1500, 1500, 1500})
+    do:
+      queue(state, :go, OpenROV.Protocol.go(us, state.wiring.direct),
+        sticky: us == {1500, 1500, 1500}
+      )
 
   # Queues a command (framed for the firmware) and writes what the pacer allows now.
   defp queue(state, key, text, opts \\ [])
 
   defp queue(%State{link: :up} = state, key, text, opts) do
-    case Pacer.push(state.pacer, key, OpenROV.frame(text, state.profile), opts) do
+    case Pacer.push(state.pacer, key, OpenROV.Protocol.frame(text, state.profile), opts) do
       {:ok, pacer} -> drain(%{state | pacer: pacer})
       {:error, _} -> bump(state, :dropped_commands)
     end

@@ -1,4 +1,4 @@
-defmodule Neptunus.Wiring do
+defmodule Neptunus.Vehicle.Board.OpenROV.Wiring do
   @moduledoc """
   How a vehicle's thrusters are wired to the board: which motor is in which position of the
   `go(m1,m2,m3,flag);` command, which motors turn the opposite way, and the flag.
@@ -33,14 +33,16 @@ defmodule Neptunus.Wiring do
   `nosmooth` are refused: the thesis' word for the flag meant the opposite of what the old
   firmware did with it.
 
-      iex> w = Neptunus.Wiring.default()
-      iex> Neptunus.Wiring.to_us(w, %{port: 0.5, vertical: 0.0, starboard: 0.5})
+      iex> alias Neptunus.Vehicle.Board.OpenROV.Wiring
+      iex> w = Wiring.default()
+      iex> Wiring.to_us(w, %{port: 0.5, vertical: 0.0, starboard: 0.5})
       {1250, 1500, 1750}
-      iex> Neptunus.Wiring.go_command(w, %{port: 0.5, vertical: 0.0, starboard: 0.5})
+      iex> Wiring.go_command(w, %{port: 0.5, vertical: 0.0, starboard: 0.5})
       "go(1250,1500,1750,1);"
   """
 
-  alias Neptunus.{Allocation, Protocol.OpenROV}
+  alias Neptunus.Allocation
+  alias Neptunus.Vehicle.Board.OpenROV
 
   @motors [:port, :vertical, :starboard]
 
@@ -70,7 +72,8 @@ defmodule Neptunus.Wiring do
   @doc """
   The motor modifiers in `go()` order: `{forward, reverse}` with three percentages each.
 
-      iex> Neptunus.Wiring.modifiers(Neptunus.Wiring.default())
+      iex> alias Neptunus.Vehicle.Board.OpenROV.Wiring
+      iex> Wiring.modifiers(Wiring.default())
       {{100, 100, 100}, {100, 100, 100}}
   """
   @spec modifiers(t()) ::
@@ -86,13 +89,14 @@ defmodule Neptunus.Wiring do
   The commands that set the board's motor modifiers: `mtrmod1` (forward) and `mtrmod2`
   (reverse).
 
-      iex> Neptunus.Wiring.modifier_commands(Neptunus.Wiring.default())
+      iex> alias Neptunus.Vehicle.Board.OpenROV.Wiring
+      iex> Wiring.modifier_commands(Wiring.default())
       ["mtrmod1(100,100,100);", "mtrmod2(100,100,100);"]
   """
   @spec modifier_commands(t()) :: [binary()]
   def modifier_commands(%__MODULE__{} = wiring) do
     {forward, reverse} = modifiers(wiring)
-    [OpenROV.mtrmod1(forward), OpenROV.mtrmod2(reverse)]
+    [OpenROV.Protocol.mtrmod1(forward), OpenROV.Protocol.mtrmod2(reverse)]
   end
 
   @doc "The thesis' Neptunus: `-port/vertical/starboard/direct`."
@@ -102,11 +106,13 @@ defmodule Neptunus.Wiring do
   @doc """
   The motors' pulse widths in `go()` order for physical thruster values in [-1, 1].
 
-      iex> w = %Neptunus.Wiring{order: [:starboard, :port, :vertical], reversed: [], direct: false}
-      iex> Neptunus.Wiring.to_us(w, %{port: 1.0, vertical: -1.0, starboard: 0.0})
+      iex> alias Neptunus.Vehicle.Board.OpenROV.Wiring
+      iex> w = %Wiring{order: [:starboard, :port, :vertical], reversed: [], direct: false}
+      iex> Wiring.to_us(w, %{port: 1.0, vertical: -1.0, starboard: 0.0})
       {1500, 2000, 1000}
   """
-  @spec to_us(t(), Allocation.thrusters()) :: {OpenROV.us(), OpenROV.us(), OpenROV.us()}
+  @spec to_us(t(), Allocation.thrusters()) ::
+          {OpenROV.Protocol.us(), OpenROV.Protocol.us(), OpenROV.Protocol.us()}
   def to_us(%__MODULE__{order: [a, b, c]} = wiring, thrusters) do
     {motor_us(wiring, thrusters, a), motor_us(wiring, thrusters, b),
      motor_us(wiring, thrusters, c)}
@@ -120,13 +126,14 @@ defmodule Neptunus.Wiring do
   @doc "The `go()` command for physical thruster values."
   @spec go_command(t(), Allocation.thrusters()) :: binary()
   def go_command(%__MODULE__{} = wiring, thrusters),
-    do: OpenROV.go(to_us(wiring, thrusters), wiring.direct)
+    do: OpenROV.Protocol.go(to_us(wiring, thrusters), wiring.direct)
 
   @doc """
   The board's side: physical thruster values from the pulse widths of a `go()` (the SITL
   board uses this; quantised to 1/500).
 
-      iex> Neptunus.Wiring.from_us(Neptunus.Wiring.default(), {1250, 1500, 1750})
+      iex> alias Neptunus.Vehicle.Board.OpenROV.Wiring
+      iex> Wiring.from_us(Wiring.default(), {1250, 1500, 1750})
       %{port: 0.5, vertical: 0.0, starboard: 0.5}
   """
   @spec from_us(t(), {integer(), integer(), integer()}) :: Allocation.thrusters()
@@ -144,16 +151,17 @@ defmodule Neptunus.Wiring do
   optionally prefixed with `-` when reversed and followed by `:FORWARD:REVERSE` modifiers
   (see above), then optionally `/direct` or `/ramp` (default direct; see the flag above).
 
-      iex> Neptunus.Wiring.parse("-port/vertical/starboard")
-      {:ok, Neptunus.Wiring.default()}
-      iex> Neptunus.Wiring.parse("starboard/-vertical/port/ramp")
-      {:ok, %Neptunus.Wiring{order: [:starboard, :vertical, :port], reversed: [:vertical], direct: false}}
-      iex> {:ok, w} = Neptunus.Wiring.parse("-port:100:200/vertical/starboard")
-      iex> Neptunus.Wiring.modifiers(w)
+      iex> alias Neptunus.Vehicle.Board.OpenROV.Wiring
+      iex> Wiring.parse("-port/vertical/starboard")
+      {:ok, Wiring.default()}
+      iex> Wiring.parse("starboard/-vertical/port/ramp")
+      {:ok, %Wiring{order: [:starboard, :vertical, :port], reversed: [:vertical], direct: false}}
+      iex> {:ok, w} = Wiring.parse("-port:100:200/vertical/starboard")
+      iex> Wiring.modifiers(w)
       {{100, 100, 100}, {200, 100, 100}}
       iex> {:error, "motor modifiers are percentages 100..1000 in steps of 100" <> _} =
-      ...>   Neptunus.Wiring.parse("port:150:100/vertical/starboard")
-      iex> Neptunus.Wiring.parse("port/port/starboard")
+      ...>   Wiring.parse("port:150:100/vertical/starboard")
+      iex> Wiring.parse("port/port/starboard")
       {:error, "each of port, vertical, starboard exactly once (got \\"port/port/starboard\\")"}
   """
   @spec parse(String.t()) :: {:ok, t()} | {:error, String.t()}
@@ -241,7 +249,8 @@ defmodule Neptunus.Wiring do
   @doc """
   The configuration syntax of a wiring (the inverse of `parse/1`).
 
-      iex> Neptunus.Wiring.to_string(Neptunus.Wiring.default())
+      iex> alias Neptunus.Vehicle.Board.OpenROV.Wiring
+      iex> Wiring.to_string(Wiring.default())
       "-port/vertical/starboard/direct"
   """
   @spec to_string(t()) :: String.t()

@@ -1,9 +1,9 @@
-defmodule Neptunus.Protocol.BoardLinkTest do
+defmodule Neptunus.Vehicle.Board.OpenROV.BoardLinkTest do
   use ExUnit.Case, async: true
 
   import Neptunus.Test.Properties, only: [check: 3]
 
-  alias Neptunus.Protocol.BoardLink
+  alias Neptunus.Vehicle.Board.OpenROV.BoardLink
 
   doctest BoardLink
 
@@ -132,7 +132,7 @@ defmodule Neptunus.Protocol.BoardLinkTest do
     defp link(opts \\ []), do: BoardLink.new(:openrov_25, [settings: @mods] ++ opts)
 
     defp echo(command, crc? \\ false) do
-      {name, args} = Neptunus.Protocol.OpenROV.call(command)
+      {name, args} = Neptunus.Vehicle.Board.OpenROV.Protocol.call(command)
       {:echo, name, args, crc?}
     end
 

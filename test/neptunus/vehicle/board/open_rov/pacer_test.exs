@@ -1,9 +1,10 @@
-defmodule Neptunus.Protocol.PacerTest do
+defmodule Neptunus.Vehicle.Board.OpenROV.PacerTest do
   use ExUnit.Case, async: true
 
   import Neptunus.Test.Properties
 
-  alias Neptunus.Protocol.{OpenROV, Pacer}
+  alias Neptunus.Vehicle.Board.OpenROV
+  alias Neptunus.Vehicle.Board.OpenROV.Pacer
 
   doctest Pacer
 
@@ -52,15 +53,15 @@ defmodule Neptunus.Protocol.PacerTest do
   test "a burst (lights + tilt + go + ping, framed for 30.x) never puts more than 60 bytes in any 30 ms and spaces commands ≥ 3 ms" do
     burst =
       [
-        {{:device, :lights}, OpenROV.lights(255)},
-        {{:device, :tilt}, OpenROV.tilt(1750)},
-        {:go, OpenROV.go({2000, 1500, 2000}, true)},
-        {:ping, OpenROV.ping(123_456)},
-        {:mtrmod1, OpenROV.mtrmod1({100, 100, 100})},
-        {:mtrmod2, OpenROV.mtrmod2({100, 100, 100})},
-        {{:device, :laser}, OpenROV.laser(255)}
+        {{:device, :lights}, OpenROV.Protocol.lights(255)},
+        {{:device, :tilt}, OpenROV.Protocol.tilt(1750)},
+        {:go, OpenROV.Protocol.go({2000, 1500, 2000}, true)},
+        {:ping, OpenROV.Protocol.ping(123_456)},
+        {:mtrmod1, OpenROV.Protocol.mtrmod1({100, 100, 100})},
+        {:mtrmod2, OpenROV.Protocol.mtrmod2({100, 100, 100})},
+        {{:device, :laser}, OpenROV.Protocol.laser(255)}
       ]
-      |> Enum.map(fn {k, b} -> {0, k, OpenROV.frame(b, :openrov_30)} end)
+      |> Enum.map(fn {k, b} -> {0, k, OpenROV.Protocol.frame(b, :openrov_30)} end)
 
     writes = run(burst, 500)
     assert length(writes) == 7

@@ -1,8 +1,8 @@
-defmodule Neptunus.Vehicle.Board.ReadingsTest do
+defmodule Neptunus.Vehicle.Board.OpenROV.ReadingsTest do
   use ExUnit.Case, async: true
   doctest Neptunus.Vehicle.Board.Backoff
 
-  alias Neptunus.Vehicle.Board.Readings
+  alias Neptunus.Vehicle.Board.OpenROV.Readings
 
   @nav "hdgd:90;deap:1.5;pitc:0;roll:0;yaw:90;fthr:0;\r\n"
   @status "vout:12.1;iout:0.5;time:1000;pres:1100;temp:10;\r\n"
@@ -67,11 +67,11 @@ defmodule Neptunus.Vehicle.Board.ReadingsTest do
   end
 end
 
-defmodule Neptunus.Vehicle.Board.ReadingsFirmwareTest do
+defmodule Neptunus.Vehicle.Board.OpenROV.ReadingsFirmwareTest do
   # Telemetry exactly as the OpenROV firmware writes it (CRLF, glued fields, echoes, plain text).
   use ExUnit.Case, async: true
 
-  alias Neptunus.Vehicle.Board.Readings
+  alias Neptunus.Vehicle.Board.OpenROV.Readings
 
   @nav "hdgd:90.00;deap:1.50;pitc:0.00;roll:0.00;yaw:90.00;fthr:0.00;\r\n"
   @status "vout:12.10;iout:0.50;time:181000;pres:1165.00;temp:10.00;\r\n"

@@ -1,4 +1,4 @@
-defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
+defmodule Neptunus.Vehicle.Board.OpenROV.SITL.DeviceTest do
   # The simulated board alone, over its pseudo-terminal: the test writes command bytes and
   # reads the firmware's output as a board link would.
   use ExUnit.Case, async: true
@@ -8,8 +8,8 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
 
   import Neptunus.Test.Pty, only: [open!: 1, write: 2, recv_until: 2, drain: 2, wait_until: 2]
 
-  alias Neptunus.Protocol.OpenROV
-  alias Neptunus.Vehicle.Board.SITL.Device
+  alias Neptunus.Vehicle.Board.OpenROV
+  alias Neptunus.Vehicle.Board.OpenROV.SITL.Device
 
   defp start_device(opts \\ []) do
     id = "sitl-dev-#{System.unique_integer([:positive])}"
@@ -99,7 +99,7 @@ defmodule Neptunus.Vehicle.Board.SITL.DeviceTest do
 
   test "30.x: framed commands pass, plain ones fail their CRC" do
     {id, port} = start_device(firmware: :openrov_30)
-    write(port, OpenROV.frame("ping(3);", :openrov_30))
+    write(port, OpenROV.Protocol.frame("ping(3);", :openrov_30))
     out = recv_until(port, &(&1 =~ ~r/pong:1,\d+;/))
     assert out =~ ~r/rawcmd:[0-9A-F,]+;\r\ncrc:pass;cmd:ping\(3\);\r\npong:1,\d+;/
     write(port, "ping(4);")

@@ -1,12 +1,13 @@
-defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
+defmodule Neptunus.Vehicle.Board.OpenROV.SITL.FirmwareTest do
   use ExUnit.Case, async: true
-  doctest Neptunus.Vehicle.Board.SITL.Firmware
+  doctest Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
 
   import Neptunus.Test.Properties, only: [check: 3, bind: 2]
 
-  alias Neptunus.{Sim, Wiring}
-  alias Neptunus.Protocol.OpenROV
-  alias Neptunus.Vehicle.Board.SITL.Firmware
+  alias Neptunus.Sim
+  alias Neptunus.Vehicle.Board.OpenROV.Wiring
+  alias Neptunus.Vehicle.Board.OpenROV
+  alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
 
   @reading %{heading: 2.0, depth: 1.2, pitch: 0.01, roll: -0.02, voltage: 12.1, current: 3.0}
   @profiles [:openrov_25, :openrov_30]
@@ -23,8 +24,8 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
   defp wire(command, :openrov_25), do: command
 
   defp wire(commands, :openrov_30) do
-    {commands, ""} = OpenROV.split_commands(commands)
-    Enum.map_join(commands, &OpenROV.frame(&1 <> ";", :openrov_30))
+    {commands, ""} = OpenROV.Protocol.split_commands(commands)
+    Enum.map_join(commands, &OpenROV.Protocol.frame(&1 <> ";", :openrov_30))
   end
 
   # sends `commands` (framed for the profile) at `at`, runs the loop to `until`
@@ -162,7 +163,7 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
   describe "30.x CRC" do
     test "a command passes with its CRC byte: rawcmd, crc:pass, then the echo" do
       fw = boot(firmware: :openrov_30)
-      framed = OpenROV.frame("ping(1);", :openrov_30)
+      framed = OpenROV.Protocol.frame("ping(1);", :openrov_30)
       {_fw, out} = send_cmd(fw, "ping(1);", 1, 10)
       hex = for <<b <- framed>>, into: "", do: Integer.to_string(b, 16) <> ","
       assert out == "rawcmd:" <> hex <> ";\r\ncrc:pass;cmd:ping(1);\r\npong:1,10;"
@@ -172,7 +173,7 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
       fw = boot(firmware: :openrov_30, wiring: @plain)
       {fw, _} = Firmware.receive(fw, <<0, "go(2000,2000,2000);">>, 1)
       {fw, out} = Firmware.tick(fw, 200)
-      computed = Integer.to_string(OpenROV.crc8("go(2000,2000,2000);"), 16)
+      computed = Integer.to_string(OpenROV.Protocol.crc8("go(2000,2000,2000);"), 16)
       assert out =~ "\r\ncrc:fail," <> computed <> "/0;hdgd:"
       refute out =~ ~r/(?<!raw)cmd:/
       assert fw.target_us == {1500, 1500, 1500} and fw.bad_commands == 1
@@ -408,7 +409,7 @@ defmodule Neptunus.Vehicle.Board.SITL.FirmwareTest do
     test "the server's parser reads the navigation and shared lines back to the reading" do
       {_fw, out} = Firmware.tick(boot(), 1_111)
       nav = List.last(navlines(out))
-      {fields, []} = OpenROV.parse_line(nav)
+      {fields, []} = OpenROV.Protocol.parse_line(nav)
       assert_in_delta fields.depth, 1.2, 0.01
       assert_in_delta fields.heading, 2.0, 0.001
       assert_in_delta fields.pitch, 0.01, 0.001

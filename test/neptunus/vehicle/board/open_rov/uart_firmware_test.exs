@@ -1,7 +1,7 @@
-defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
-  # Board.UART against a fake board scripted to answer like the OpenROV 2.5.x / 30.x firmware
-  # (CRLF lines, glued pong, echoes, crc lines), on the other end of a socat pty pair. The test
-  # process is the fake board and stands in for the vehicle's navigation and telemetry.
+defmodule Neptunus.Vehicle.Board.OpenROV.UARTFirmwareTest do
+  # Board.OpenROV.UART against a fake board scripted to answer like the OpenROV 2.5.x / 30.x
+  # firmware (CRLF lines, glued pong, echoes, crc lines), on the other end of a socat pty pair. The
+  # test process is the fake board and stands in for the vehicle's navigation and telemetry.
   use ExUnit.Case, async: true
 
   @moduletag :uart
@@ -10,9 +10,9 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
   import Neptunus.Test.Pty
 
   alias Neptunus.PubSub
-  alias Neptunus.Protocol.OpenROV
+  alias Neptunus.Vehicle.Board.OpenROV
   alias Neptunus.Vehicle.{Board, Telemetry}
-  alias Neptunus.Vehicle.Board.UART
+  alias Neptunus.Vehicle.Board.OpenROV.UART
 
   # the test process stands in for the vehicle's navigation and telemetry
   setup do
@@ -43,11 +43,11 @@ defmodule Neptunus.Vehicle.Board.UARTFirmwareTest do
   end
 
   defp split_framed(bytes) do
-    # not OpenROV.split_commands/1: it trims whitespace, and a CRC byte may be one
+    # not OpenROV.Protocol.split_commands/1: it trims whitespace, and a CRC byte may be one
     {commands, [_rest]} = bytes |> :binary.split(";", [:global]) |> Enum.split(-1)
 
     Enum.map(commands, fn framed ->
-      case OpenROV.unframe(framed <> ";") do
+      case OpenROV.Protocol.unframe(framed <> ";") do
         {:ok, text} -> {true, text}
         {:error, _} -> {false, framed}
       end

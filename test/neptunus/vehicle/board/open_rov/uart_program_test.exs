@@ -1,4 +1,4 @@
-defmodule Neptunus.Vehicle.Board.UARTProgramTest do
+defmodule Neptunus.Vehicle.Board.OpenROV.UARTProgramTest do
   # The C port program (c_src/neptunus_uart.c) over socat pseudo-terminal pairs.
   use ExUnit.Case, async: true
 
@@ -7,7 +7,7 @@ defmodule Neptunus.Vehicle.Board.UARTProgramTest do
   import Neptunus.Test.Pty
 
   alias Neptunus.Test.Patience
-  alias Neptunus.Vehicle.Board.UART
+  alias Neptunus.Vehicle.Board.OpenROV.UART
 
   defp spawn_program(args, env \\ []) do
     Port.open({:spawn_executable, UART.program()}, [

@@ -1,4 +1,4 @@
-defmodule Neptunus.Vehicle.Board.UARTReopenTest do
+defmodule Neptunus.Vehicle.Board.OpenROV.UARTReopenTest do
   # The board link's port program dies while the vehicle moves: the link opens again at once
   # and writes neutral, instead of leaving the board on its last go() for the backoff.
   use ExUnit.Case, async: true
@@ -8,9 +8,9 @@ defmodule Neptunus.Vehicle.Board.UARTReopenTest do
 
   import Neptunus.Test.Pty, only: [wait_until: 2]
 
-  alias Neptunus.{Fleet, PubSub, Wiring}
+  alias Neptunus.{Fleet, PubSub}
+  alias Neptunus.Vehicle.Board.OpenROV.{SITL, Wiring}
   alias Neptunus.Vehicle.{Board, Control, Telemetry}
-  alias Neptunus.Vehicle.Board.SITL
 
   test "a killed port program: the board is at neutral long before the backoff's 5 s" do
     id = "reopen-#{System.unique_integer([:positive])}"

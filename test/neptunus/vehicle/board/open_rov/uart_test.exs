@@ -1,6 +1,6 @@
-defmodule Neptunus.Vehicle.Board.UARTTest do
-  # Board.UART against a fake board on the other end of a socat pty pair. The test process is
-  # the fake board (its end opened with the port program) and stands in for the vehicle's
+defmodule Neptunus.Vehicle.Board.OpenROV.UARTTest do
+  # Board.OpenROV.UART against a fake board on the other end of a socat pty pair. The test process
+  # is the fake board (its end opened with the port program) and stands in for the vehicle's
   # navigation process (registered under its name), so it sees exactly what the board link
   # reports. Intervals are shortened through options; nothing here measures performance.
   use ExUnit.Case, async: true
@@ -10,9 +10,8 @@ defmodule Neptunus.Vehicle.Board.UARTTest do
 
   import Neptunus.Test.Pty
 
-  alias Neptunus.Wiring
+  alias Neptunus.Vehicle.Board.OpenROV.{UART, Wiring}
   alias Neptunus.Vehicle.Board
-  alias Neptunus.Vehicle.Board.UART
 
   @neutral "go(1500,1500,1500,1);"
   @modifiers "mtrmod1(100,100,100);mtrmod2(100,100,100);"

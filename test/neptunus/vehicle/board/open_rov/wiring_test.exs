@@ -1,10 +1,10 @@
-defmodule Neptunus.WiringTest do
+defmodule Neptunus.Vehicle.Board.OpenROV.WiringTest do
   use ExUnit.Case, async: true
-  doctest Neptunus.Wiring
+  doctest Neptunus.Vehicle.Board.OpenROV.Wiring
 
   import Neptunus.Test.Properties
 
-  alias Neptunus.Wiring
+  alias Neptunus.Vehicle.Board.OpenROV.Wiring
 
   test "the thesis' Neptunus: go(1700,1700,1700) pushed port backwards, so port is reversed" do
     w = Wiring.default()
@@ -85,7 +85,9 @@ defmodule Neptunus.WiringTest do
 
       esc =
         Enum.zip([Tuple.to_list(us), Tuple.to_list(forward), Tuple.to_list(reverse)])
-        |> Enum.map(fn {u, f, r} -> Neptunus.Protocol.OpenROV.goms(u, f, r) - 1500 end)
+        |> Enum.map(fn {u, f, r} ->
+          Neptunus.Vehicle.Board.OpenROV.Protocol.goms(u, f, r) - 1500
+        end)
 
       positions = Enum.zip(wiring.order, esc) |> Map.new()
       {positions.port, positions.starboard}

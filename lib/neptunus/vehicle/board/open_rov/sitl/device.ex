@@ -1,10 +1,10 @@
-defmodule Neptunus.Vehicle.Board.SITL.Device do
+defmodule Neptunus.Vehicle.Board.OpenROV.SITL.Device do
   @moduledoc """
   The simulated OpenROV board of a SITL vehicle: owns a `Neptunus.Sim` and the firmware
-  (`Neptunus.Vehicle.Board.SITL.Firmware`, which decides every byte and timing), and speaks on
-  the master end of a pseudo-terminal pair created by the port program (`neptunus_uart pty
+  (`Neptunus.Vehicle.Board.OpenROV.SITL.Firmware`, which decides every byte and timing), and speaks
+  on the master end of a pseudo-terminal pair created by the port program (`neptunus_uart pty
   LINK`, `Neptunus.Vehicle.Board.SerialPort.open_pty/2`), whose slave end is symlinked at
-  `link` for `Neptunus.Vehicle.Board.UART` to open.
+  `link` for `Neptunus.Vehicle.Board.OpenROV.UART` to open.
 
   It steps the simulation at `hz` (default `Neptunus.Sim.default_hz/0`, 100 Hz) on absolute deadlines
   (`Neptunus.Periodic`, at most #{20} catch-up steps per tick); at each step it gives the
@@ -22,7 +22,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   `reset_on_open: true` it reboots the same way whenever the line is opened (the port program
   reports every open of the pty's slave end), as a USB Arduino does when its DTR line drops;
   with `:bootloader_ms` every reboot first runs a bootloader that loses what arrives (see
-  `Neptunus.Vehicle.Board.SITL.Firmware`). If the port program exits, this process stops and
+  `Neptunus.Vehicle.Board.OpenROV.SITL.Firmware`). If the port program exits, this process stops and
   is restarted with a new pair at the same link path: to the board link that is a hangup
   followed by a board that comes back.
   """
@@ -31,7 +31,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   alias Neptunus.{Periodic, Sim}
   alias Neptunus.Camera.Pose
   alias Neptunus.Vehicle.Board.SerialPort
-  alias Neptunus.Vehicle.Board.SITL.Firmware
+  alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
 
   @max_catch_up 20
   @open_timeout 5_000
@@ -43,7 +43,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
             port: port(),
             pty: String.t(),
             sim: Neptunus.Sim.t(),
-            firmware: Neptunus.Vehicle.Board.SITL.Firmware.t(),
+            firmware: Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.t(),
             periodic: Neptunus.Periodic.t(),
             skipped_steps: non_neg_integer(),
             rx_dropped: non_neg_integer(),
@@ -76,12 +76,12 @@ defmodule Neptunus.Vehicle.Board.SITL.Device do
   Options: `:id` and `:link` (path for the pty's slave end) required; `:hz` (default
   `Neptunus.Sim.default_hz/0`); `:os_time_slice_ns` (the slice its port program asks for,
   `Neptunus.OS`); the firmware's
-  (`Neptunus.Vehicle.Board.SITL.Firmware.new/2`): `:firmware` (`:openrov_25` default or
-  `:openrov_30`), `:wiring` (`Neptunus.Wiring`, default the thesis'), `:deadman_ms` (2000),
-  `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20), `:bootloader_ms`
-  (0); `:reset_on_open` (false: the board reboots whenever the line is opened); `:initial` and
-  `:sim` (options of `Neptunus.Sim.new/1`, over the default `noise: true` — realistic sensors
-  with wild points — and a fresh seed).
+  (`Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.new/2`): `:firmware` (`:openrov_25` default or
+  `:openrov_30`), `:wiring` (`Neptunus.Vehicle.Board.OpenROV.Wiring`, default the thesis'),
+  `:deadman_ms` (2000), `:arm_ms` (180 000), `:loop_ms` (10), `:stall_ms` (20), `:setup_ms` (20),
+  `:bootloader_ms` (0); `:reset_on_open` (false: the board reboots whenever the line is opened);
+  `:initial` and `:sim` (options of `Neptunus.Sim.new/1`, over the default `noise: true` —
+  realistic sensors with wild points — and a fresh seed).
   """
   @spec start_link(keyword()) :: GenServer.on_start()
   def start_link(opts) do

@@ -1,9 +1,9 @@
-defmodule Neptunus.Vehicle.Board.SITL.Firmware do
+defmodule Neptunus.Vehicle.Board.OpenROV.SITL.Firmware do
   @moduledoc """
   The SITL board's firmware as a pure value: what the published OpenROV Arduino firmware does
   with the bytes it receives and what it writes back, byte for byte, in two profiles —
   `:openrov_25` (2.5.2, plain commands) and `:openrov_30` (30.0.2, each command prefixed with a
-  CRC byte). `Neptunus.Vehicle.Board.SITL.Device` runs it next to a `Neptunus.Sim`: it feeds
+  CRC byte). `Neptunus.Vehicle.Board.OpenROV.SITL.Device` runs it next to a `Neptunus.Sim`: it feeds
   the simulator's readings in with `sense/2`, the received bytes with `receive/3`, and calls
   `tick/2`; both return the bytes the board writes. Times are ms of one monotonic clock; the
   board's own `millis()` is that clock minus the time of the last (re)boot (`reset/2`).
@@ -20,12 +20,12 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   start when that setup ends (`:setup_ms`, default 20: the depth sensor's two 10 ms waits).
 
   The firmware's parts, as its own files are: the serial input
-  (`Neptunus.Vehicle.Board.SITL.Firmware.Commands`: the receive buffer, commands, their CRC
+  (`Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.Commands`: the receive buffer, commands, their CRC
   and echo, the internal command ring), the devices and their timers
-  (`Neptunus.Vehicle.Board.SITL.Firmware.Devices`: motors, deadman, lights, laser, camera
+  (`Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.Devices`: motors, deadman, lights, laser, camera
   servo, IMU, depth sensor, controller board) and the lines it prints
-  (`Neptunus.Vehicle.Board.SITL.Firmware.Output`: boot, navigation, shared data). This module
-  is the firmware's state and its loop.
+  (`Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.Output`: boot, navigation, shared data). This
+  module is the firmware's state and its loop.
 
   **Boot.** `reset/2` reboots the board: millis back to 0 and every state lost (targets,
   modifiers, lights, laser, tilt, deadman, buffers).
@@ -42,8 +42,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   thrust was never unbalanced.
   """
 
-  alias Neptunus.{Allocation, Wiring}
-  alias Neptunus.Vehicle.Board.SITL.Firmware.{Commands, Devices, Output}
+  alias Neptunus.Allocation
+  alias Neptunus.Vehicle.Board.OpenROV.Wiring
+  alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.{Commands, Devices, Output}
 
   @neutral 1500
 
@@ -210,7 +211,11 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
     wiring = Keyword.get(opts, :wiring) || Wiring.default()
 
     unless is_struct(wiring, Wiring),
-      do: raise(ArgumentError, "wiring must be a Neptunus.Wiring, got #{inspect(wiring)}")
+      do:
+        raise(
+          ArgumentError,
+          "wiring must be a Neptunus.Vehicle.Board.OpenROV.Wiring, got #{inspect(wiring)}"
+        )
 
     loop_ms = positive!(opts, :loop_ms, 10)
     setup_ms = non_negative!(opts, :setup_ms, 20)
@@ -308,7 +313,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   firmware and the bytes the board wrote meanwhile. Commands take effect when the loop next
   empties the buffer (at most `loop_ms` later, or `loop_ms + stall_ms` once a second).
 
-      iex> alias Neptunus.Vehicle.Board.SITL.Firmware
+      iex> alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
       iex> {fw, _boot} = Firmware.tick(Firmware.new(0), 20)
       iex> {fw, ""} = Firmware.receive(fw, "ping(7);", 23)
       iex> Firmware.tick(fw, 30) |> elem(1)
@@ -328,7 +333,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   Runs the loop up to `now` (ms): every timer and buffer read due by then, in order. Returns
   the firmware and the bytes the board wrote.
 
-      iex> alias Neptunus.Vehicle.Board.SITL.Firmware
+      iex> alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
       iex> {_fw, out} = Firmware.tick(Firmware.new(0), 101)
       iex> out |> String.split("\\r\\n") |> Enum.at(-2)
       "hdgd:0.00;deap:0.00;pitc:0.00;roll:0.00;yaw:0.00;fthr:0.00;"
@@ -392,13 +397,14 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
 
   @doc """
   The firmware's split of a command (`strtok` at spaces, commas, parentheses and `;`): the
-  name and the argument tokens as received (`Neptunus.Protocol.OpenROV.call/1`, which the
-  board link uses to know the echo a command gets). The SITL board's own parser (the server's
-  `Neptunus.Protocol.OpenROV.parse_command/1` knows only the commands the server sends).
+  name and the argument tokens as received (`Neptunus.Vehicle.Board.OpenROV.Protocol.call/1`, which
+  the board link uses to know the echo a command gets). The SITL board's own parser (the server's
+  `Neptunus.Vehicle.Board.OpenROV.Protocol.parse_command/1` knows only the commands the server
+  sends).
 
-      iex> Neptunus.Vehicle.Board.SITL.Firmware.tokens("mtrmod1(100, 100,150);")
+      iex> Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.tokens("mtrmod1(100, 100,150);")
       {"mtrmod1", ["100", "100", "150"]}
-      iex> Neptunus.Vehicle.Board.SITL.Firmware.tokens(";;")
+      iex> Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.tokens(";;")
       {"", []}
   """
   @spec tokens(binary()) :: {binary(), [binary()]}
@@ -408,7 +414,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   C's `atoi` into the AVR's 16-bit `int`: leading spaces, a sign, digits; anything else
   ends it (no digits: 0); the result wraps to -32768..32767.
 
-      iex> alias Neptunus.Vehicle.Board.SITL.Firmware
+      iex> alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
       iex> {Firmware.atoi("1500"), Firmware.atoi("-20x"), Firmware.atoi("abc"), Firmware.atoi("40000")}
       {1500, -20, 0, -25536}
   """
@@ -419,7 +425,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   `Motor::goms`: the ESC pulse for a target pulse `us` with the forward and reverse
   modifiers (integers), around the ±50 µs dead zone.
 
-      iex> alias Neptunus.Vehicle.Board.SITL.Firmware
+      iex> alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
       iex> Enum.map([1300, 1500, 1700, 1250, 1000, 2000, 1501], &Firmware.goms(&1, 1, 2))
       [1090, 1500, 1730, 1000, 1000, 2000, 1550]
       iex> {Firmware.goms(1300, 1, 1), Firmware.goms(1700, 1, 1)}
@@ -431,7 +437,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware do
   @doc """
   A number as the Arduino prints a float: 2 decimals (no `-` on zero).
 
-      iex> alias Neptunus.Vehicle.Board.SITL.Firmware
+      iex> alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
       iex> {Firmware.float2(1.005), Firmware.float2(-0.0), Firmware.float2(12), Firmware.float2(-3.14159)}
       {"1.00", "0.00", "12.00", "-3.14"}
   """

@@ -1,9 +1,9 @@
-defmodule Neptunus.Vehicle.Board.SITL.Firmware.Commands do
+defmodule Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.Commands do
   @moduledoc """
-  The SITL firmware's serial input (`Neptunus.Vehicle.Board.SITL.Firmware`; the firmware's
+  The SITL firmware's serial input (`Neptunus.Vehicle.Board.OpenROV.SITL.Firmware`; the firmware's
   `Command.cpp`): the receive buffer, the command buffer, a command's CRC, echo, split and
   arguments, and the ring of internal commands. Each command goes to the devices
-  (`Neptunus.Vehicle.Board.SITL.Firmware.Devices.handle/5`).
+  (`Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.Devices.handle/5`).
 
   **Receive buffer** (`:loop_ms`, `:stall_ms`). Bytes land in the serial receive buffer
   (64 bytes); what arrives while it is full is lost and counted in `rx_dropped`. The loop
@@ -28,9 +28,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware.Commands do
 
   import Bitwise, only: [&&&: 2]
 
-  alias Neptunus.Protocol.OpenROV
-  alias Neptunus.Vehicle.Board.SITL.Firmware
-  alias Neptunus.Vehicle.Board.SITL.Firmware.Devices
+  alias Neptunus.Vehicle.Board.OpenROV
+  alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
+  alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.Devices
 
   @rx_size 64
   @cmd_size 80
@@ -92,7 +92,7 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware.Commands do
   defp serial_command(%{profile: :openrov_30} = fw, raw, m) do
     rawcmd = ["rawcmd:", for(<<b <- raw>>, do: [hex(b), ?,]), ";\r\n"]
 
-    case OpenROV.unframe(raw) do
+    case OpenROV.Protocol.unframe(raw) do
       {:ok, text} ->
         accept(fw, text, [rawcmd, "crc:pass;"], m)
 
@@ -111,11 +111,13 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware.Commands do
     {fw, [prefix, echo, out]}
   end
 
-  @doc "The firmware's split of a command: `Neptunus.Vehicle.Board.SITL.Firmware.tokens/1`."
+  @doc "The firmware's split of a command: `Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.tokens/1`."
   @spec tokens(binary()) :: {binary(), [binary()]}
-  def tokens(text) when is_binary(text), do: OpenROV.call(text)
+  def tokens(text) when is_binary(text), do: OpenROV.Protocol.call(text)
 
-  @doc "C's `atoi` into the AVR's 16-bit `int`: `Neptunus.Vehicle.Board.SITL.Firmware.atoi/1`."
+  @doc """
+  C's `atoi` into the AVR's 16-bit `int`: `Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.atoi/1`.
+  """
   @spec atoi(binary()) :: integer()
   def atoi(text) when is_binary(text) do
     n =

@@ -1,6 +1,6 @@
-defmodule Neptunus.Vehicle.Board.SITL.Firmware.Devices do
+defmodule Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.Devices do
   @moduledoc """
-  The SITL firmware's devices and their timers (`Neptunus.Vehicle.Board.SITL.Firmware`; the
+  The SITL firmware's devices and their timers (`Neptunus.Vehicle.Board.OpenROV.SITL.Firmware`; the
   firmware's device files): the commands each device takes (`handle/5`) and what it does on
   its timers (`timers/2`) — motors, deadman, lights, laser, camera servo, IMU, depth sensor
   and the controller board. A timer fires when *more than* its period has passed since it
@@ -15,8 +15,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware.Devices do
   `go(1300,1500,1700)` gives 1090/1500/1730 µs; 1000..1250 give 1000. `mtrmod1(p,v,s)` /
   `mtrmod2(p,v,s)` set the forward / reverse modifiers in percent, integer-divided by 100
   (`150` → 1). The ESC pulses drive the simulated thrusters through the vehicle's
-  `Neptunus.Wiring` (a reversed motor turns the other way). `stop()` sets the targets to
-  1500 and does not detach the motors. A change prints `motors:p,v,s;\\r\\n` (the ESC
+  `Neptunus.Vehicle.Board.OpenROV.Wiring` (a reversed motor turns the other way). `stop()` sets the
+  targets to 1500 and does not detach the motors. A change prints `motors:p,v,s;\\r\\n` (the ESC
   pulses); once a second `mtarg:p,v,s;\\r\\n` and `mtrmod:` with the six modifiers.
 
   **Deadman** (`DeadManSwitch.cpp`). `ping(...)` answers `pong:<argument count>,<millis>;`
@@ -44,9 +44,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware.Devices do
   on a 0..10 A ADC, battery currents likewise, the board's own supply current on 0..2 A).
   """
 
-  alias Neptunus.Wiring
-  alias Neptunus.Vehicle.Board.SITL.Firmware
-  alias Neptunus.Vehicle.Board.SITL.Firmware.{Commands, Output}
+  alias Neptunus.Vehicle.Board.OpenROV.Wiring
+  alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
+  alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.{Commands, Output}
 
   @neutral 1500
   @esc_log 32
@@ -219,7 +219,10 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware.Devices do
   defp esc_us(%{target_us: {p, v, s}, positive_mod: {pp, pv, ps}, negative_mod: {np, nv, ns}}),
     do: {goms(p, pp, np), goms(v, pv, nv), goms(s, ps, ns)}
 
-  @doc "`Motor::goms`, the ESC pulse for a target pulse: `Neptunus.Vehicle.Board.SITL.Firmware.goms/3`."
+  @doc """
+  `Motor::goms`, the ESC pulse for a target pulse:
+  `Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.goms/3`.
+  """
   @spec goms(integer(), integer(), integer()) :: integer()
   def goms(us, positive, negative) do
     modifier =

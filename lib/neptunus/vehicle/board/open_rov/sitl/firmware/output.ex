@@ -1,9 +1,9 @@
-defmodule Neptunus.Vehicle.Board.SITL.Firmware.Output do
+defmodule Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.Output do
   @moduledoc """
-  The lines the SITL firmware prints on its own (`Neptunus.Vehicle.Board.SITL.Firmware`; the
+  The lines the SITL firmware prints on its own (`Neptunus.Vehicle.Board.OpenROV.SITL.Firmware`; the
   firmware's main loop, `OpenROV.ino`): its boot lines, the navigation line and the shared
   data, and how it prints a number. Each device's own replies are its own
-  (`Neptunus.Vehicle.Board.SITL.Firmware.Devices`).
+  (`Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.Devices`).
 
   **Telemetry** (2 decimals, `\\r\\n` line ends, fields glued as printed):
 
@@ -25,8 +25,8 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware.Output do
   `setup()` ends with it).
   """
 
-  alias Neptunus.Vehicle.Board.SITL.Firmware
-  alias Neptunus.Vehicle.Board.SITL.Firmware.Devices
+  alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware
+  alias Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.Devices
 
   @compiled "Dec 10 2014, 10:42:17, 4.3.2"
   # the devices as the firmware registers them (their loop times print in `dlms:`)
@@ -146,7 +146,9 @@ defmodule Neptunus.Vehicle.Board.SITL.Firmware.Output do
   @spec join3(Firmware.us3()) :: String.t()
   def join3({a, b, c}), do: Enum.map_join([a, b, c], ",", &Integer.to_string/1)
 
-  @doc "A number as the Arduino prints a float: `Neptunus.Vehicle.Board.SITL.Firmware.float2/1`."
+  @doc """
+  A number as the Arduino prints a float: `Neptunus.Vehicle.Board.OpenROV.SITL.Firmware.float2/1`.
+  """
   @spec float2(number()) :: binary()
   def float2(x) when x == 0, do: "0.00"
   def float2(x), do: :erlang.float_to_binary(x * 1.0, decimals: 2)

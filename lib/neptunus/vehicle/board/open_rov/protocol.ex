@@ -1,4 +1,4 @@
-defmodule Neptunus.Protocol.OpenROV do
+defmodule Neptunus.Vehicle.Board.OpenROV.Protocol do
   @moduledoc """
   The OpenROV serial protocol between the server and the vehicle's board (115200 8N1), as the
   OpenROV Arduino firmware 2.5.x and 30.x speak it (docs/OPENROV.md). Pure: no I/O, never
@@ -7,13 +7,13 @@ defmodule Neptunus.Protocol.OpenROV do
   ## Commands (server → board)
 
   `;`-terminated, no newline: `go(port,vertical,starboard,flag);` with each motor in
-  1000..2000 µs (1500 neutral) in the order the motors are wired (see `Neptunus.Wiring`),
-  `ligt(0..255);`, `claser(0..255);`, `tilt(µs);`, `ping(n);`, `stop();`, and the motor
-  modifiers `mtrmod1(a,b,c);` (forward) / `mtrmod2(a,b,c);` (reverse) in percent. The encoders
-  take values already in range and raise `FunctionClauseError` otherwise: validating a
-  pilot's input is the caller's job, a bad value here is a bug. `frame/2` puts a command in the
-  wire form of a firmware line (30.x: a CRC byte first). `parse_command/1`, `unframe/1` and
-  `goms/3` are the board's side (used by the SITL board and the tests).
+  1000..2000 µs (1500 neutral) in the order the motors are wired (see
+  `Neptunus.Vehicle.Board.OpenROV.Wiring`), `ligt(0..255);`, `claser(0..255);`, `tilt(µs);`,
+  `ping(n);`, `stop();`, and the motor modifiers `mtrmod1(a,b,c);` (forward) / `mtrmod2(a,b,c);`
+  (reverse) in percent. The encoders take values already in range and raise `FunctionClauseError`
+  otherwise: validating a pilot's input is the caller's job, a bad value here is a bug. `frame/2`
+  puts a command in the wire form of a firmware line (30.x: a CRC byte first). `parse_command/1`,
+  `unframe/1` and `goms/3` are the board's side (used by the SITL board and the tests).
 
   ## Telemetry (board → server)
 
@@ -43,8 +43,8 @@ defmodule Neptunus.Protocol.OpenROV do
   | `SC1I`..`SC3I` | `:esc1_current`..`:esc3_current` | A | 0 .. 30       | A                  |
 
   What the fields mean (which `iout` is the vehicle's current, `fthr`, the depth's reference)
-  differs between the boards: `Neptunus.Vehicle.Board.Readings` maps them. The ranges are what
-  the sensors can physically report (the IMU's Euler angles, the depth sensor's 0..14 bar plus
+  differs between the boards: `Neptunus.Vehicle.Board.OpenROV.Readings` maps them. The ranges are
+  what the sensors can physically report (the IMU's Euler angles, the depth sensor's 0..14 bar plus
   margin down to the thesis' 200 m, the 20 V ADC scale, the cape's 0..5.4 A and the controller
   board's 0..2 A `iout` with margin, the controller board's battery and ESC current channels; a
   board that reports its own supply below 5 V would not be running). The rate-of-change check
@@ -141,7 +141,7 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   The SI range of each known field: what `parse_line/1` can return for it.
 
-      iex> Neptunus.Protocol.OpenROV.si_range(:depth)
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.si_range(:depth)
       {-10.0, 200.0}
   """
   @spec si_range(atom()) :: {float(), float()}
@@ -152,9 +152,10 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   `go(port,vertical,starboard,flag);` with the motors' pulse widths in `go()` order; the
   flag is 1 for `direct`, 0 for `ramp` (the 2.5.x and 30.x firmware store it and never read
-  it: the values take effect at its next 50 ms tick either way; see `Neptunus.Wiring`).
+  it: the values take effect at its next 50 ms tick either way; see
+  `Neptunus.Vehicle.Board.OpenROV.Wiring`).
 
-      iex> Neptunus.Protocol.OpenROV.go({1500, 1750, 1000}, true)
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.go({1500, 1750, 1000}, true)
       "go(1500,1750,1000,1);"
   """
   @spec go({us(), us(), us()}, boolean()) :: binary()
@@ -166,7 +167,7 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   Lights, 0..255.
 
-      iex> Neptunus.Protocol.OpenROV.lights(255)
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.lights(255)
       "ligt(255);"
   """
   @spec lights(0..255) :: binary()
@@ -175,7 +176,7 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   Laser, 0..255.
 
-      iex> Neptunus.Protocol.OpenROV.laser(0)
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.laser(0)
       "claser(0);"
   """
   @spec laser(0..255) :: binary()
@@ -184,7 +185,7 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   Camera tilt servo pulse width, 1000..2000 µs.
 
-      iex> Neptunus.Protocol.OpenROV.tilt(1500)
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.tilt(1500)
       "tilt(1500);"
   """
   @spec tilt(us()) :: binary()
@@ -193,7 +194,7 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   Deadman ping number `n` (0..2³¹ − 1; the board answers `pong:n;`).
 
-      iex> Neptunus.Protocol.OpenROV.ping(7)
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.ping(7)
       "ping(7);"
   """
   @spec ping(non_neg_integer()) :: binary()
@@ -202,7 +203,7 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   Stops the motors: the 2.5.x/30.x firmware drives them to neutral (it does not detach them).
 
-      iex> Neptunus.Protocol.OpenROV.stop()
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.stop()
       "stop();"
   """
   @spec stop() :: binary()
@@ -216,7 +217,7 @@ defmodule Neptunus.Protocol.OpenROV do
   (`Motor::goms`) multiplies a motor's offset from neutral by `modifier div 100` (an integer
   division: only multiples of 100 change anything; 100 is ×1), for commands above neutral.
 
-      iex> Neptunus.Protocol.OpenROV.mtrmod1({100, 100, 100})
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.mtrmod1({100, 100, 100})
       "mtrmod1(100,100,100);"
   """
   @spec mtrmod1({modifier(), modifier(), modifier()}) :: binary()
@@ -227,7 +228,7 @@ defmodule Neptunus.Protocol.OpenROV do
   The motors' reverse modifiers (commands below neutral), in percent, in `go()` order:
   `mtrmod2(a,b,c);`. The firmware's default is 200 (reverse doubled).
 
-      iex> Neptunus.Protocol.OpenROV.mtrmod2({100, 100, 100})
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.mtrmod2({100, 100, 100})
       "mtrmod2(100,100,100);"
   """
   @spec mtrmod2({modifier(), modifier(), modifier()}) :: binary()
@@ -242,8 +243,8 @@ defmodule Neptunus.Protocol.OpenROV do
   1500..2000 onto 1550..2000 (integer arithmetic, truncating like the Arduino's `map()`).
   A model of the board, for tests and the SITL board.
 
-      iex> alias Neptunus.Protocol.OpenROV
-      iex> Enum.map([1300, 1500, 1700], &OpenROV.goms(&1, 100, 200))
+      iex> alias Neptunus.Vehicle.Board.OpenROV
+      iex> Enum.map([1300, 1500, 1700], &OpenROV.Protocol.goms(&1, 100, 200))
       [1090, 1500, 1730]
   """
   @spec goms(integer(), integer(), integer()) :: integer()
@@ -284,7 +285,7 @@ defmodule Neptunus.Protocol.OpenROV do
   The Dallas/Maxim CRC-8 (reflected polynomial 0x8C, initial value 0) of `bytes`: what the
   OpenROV 30.x firmware computes over a received command, `;` included.
 
-      iex> Neptunus.Protocol.OpenROV.crc8("123456789")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.crc8("123456789")
       0xA1
   """
   @spec crc8(binary()) :: byte()
@@ -309,10 +310,11 @@ defmodule Neptunus.Protocol.OpenROV do
   space after its `(` instead (the firmware splits arguments on spaces as on commas, so the
   meaning is the same), as many as needed for a CRC that is not `;`.
 
-      iex> Neptunus.Protocol.OpenROV.frame("ping(0);", :openrov_25)
+      iex> alias Neptunus.Vehicle.Board.OpenROV
+      iex> OpenROV.Protocol.frame("ping(0);", :openrov_25)
       "ping(0);"
-      iex> <<crc, "ping(0);">> = Neptunus.Protocol.OpenROV.frame("ping(0);", :openrov_30)
-      iex> crc == Neptunus.Protocol.OpenROV.crc8("ping(0);")
+      iex> <<crc, "ping(0);">> = OpenROV.Protocol.frame("ping(0);", :openrov_30)
+      iex> crc == OpenROV.Protocol.crc8("ping(0);")
       true
   """
   @spec frame(binary(), profile()) :: binary()
@@ -331,11 +333,11 @@ defmodule Neptunus.Protocol.OpenROV do
   or the CRC the firmware computed and the one it received (it prints them as
   `crc:fail,COMPUTED/RECEIVED;` and drops the command).
 
-      iex> alias Neptunus.Protocol.OpenROV
-      iex> OpenROV.unframe(OpenROV.frame("stop();", :openrov_30))
+      iex> alias Neptunus.Vehicle.Board.OpenROV
+      iex> OpenROV.Protocol.unframe(OpenROV.Protocol.frame("stop();", :openrov_30))
       {:ok, "stop();"}
-      iex> OpenROV.unframe(<<0, "stop();">>)
-      {:error, {OpenROV.crc8("stop();"), 0}}
+      iex> OpenROV.Protocol.unframe(<<0, "stop();">>)
+      {:error, {OpenROV.Protocol.crc8("stop();"), 0}}
   """
   @spec unframe(binary()) :: {:ok, binary()} | {:error, {byte(), byte()} | :empty}
   def unframe(<<received, command::binary>>) do
@@ -351,9 +353,9 @@ defmodule Neptunus.Protocol.OpenROV do
   The board's side: parses one command (with or without its `;`) into a term, checking every
   argument's range like the firmware does ("ignore corrupt data").
 
-      iex> Neptunus.Protocol.OpenROV.parse_command("go(1500,1600,1400,1);")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_command("go(1500,1600,1400,1);")
       {:ok, {:go, 1500, 1600, 1400, 1}}
-      iex> Neptunus.Protocol.OpenROV.parse_command("go(900,1500,1500,0)")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_command("go(900,1500,1500,0)")
       {:error, "go: motor values must be 1000..2000 and the flag 0 or 1"}
   """
   @spec parse_command(binary()) :: {:ok, command()} | {:error, String.t()}
@@ -370,7 +372,8 @@ defmodule Neptunus.Protocol.OpenROV do
   Splits a stream of command bytes into complete `;`-terminated commands and the incomplete
   rest (to prepend to the next chunk). Whitespace (a stray newline) around commands is removed.
 
-      iex> Neptunus.Protocol.OpenROV.split_commands("ping(1);go(1500,1500,1500,1);sto")
+      iex> alias Neptunus.Vehicle.Board.OpenROV
+      iex> OpenROV.Protocol.split_commands("ping(1);go(1500,1500,1500,1);sto")
       {["ping(1)", "go(1500,1500,1500,1)"], "sto"}
   """
   @spec split_commands(binary()) :: {[binary()], binary()}
@@ -428,11 +431,12 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   Parses one telemetry line (without its newline) into `{fields, rejects}`; never raises.
 
-      iex> Neptunus.Protocol.OpenROV.parse_line("deap:1.5;vout:12.1;hdgd:pitc;fmem:1234;x")
+      iex> alias Neptunus.Vehicle.Board.OpenROV
+      iex> OpenROV.Protocol.parse_line("deap:1.5;vout:12.1;hdgd:pitc;fmem:1234;x")
       {%{:depth => 1.5, :voltage => 12.1, "fmem" => "1234"},
        [{:key_as_value, "hdgd", "pitc"}, {:malformed, nil, "x"}]}
 
-      iex> Neptunus.Protocol.OpenROV.parse_line("iout:40;temp:nan")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_line("iout:40;temp:nan")
       {%{}, [{:out_of_range, "iout", "40"}, {:not_a_number, "temp", "nan"}]}
   """
   @spec parse_line(binary()) :: {fields(), [reject()]}
@@ -459,9 +463,10 @@ defmodule Neptunus.Protocol.OpenROV do
   fields (the 2.5.2 depth driver's setup lines and its temperature lines every second): such
   a line is counted as `text`, not parsed, and never counted as malformed.
 
-      iex> Neptunus.Protocol.OpenROV.text_line?("First-Order Temperature in Degrees C is 11.52")
+      iex> alias Neptunus.Vehicle.Board.OpenROV
+      iex> OpenROV.Protocol.text_line?("First-Order Temperature in Degrees C is 11.52")
       true
-      iex> Neptunus.Protocol.OpenROV.text_line?("deap:1.00;")
+      iex> OpenROV.Protocol.text_line?("deap:1.00;")
       false
   """
   @spec text_line?(binary()) :: boolean()
@@ -479,11 +484,11 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   Parses the value of a `pong` field.
 
-      iex> Neptunus.Protocol.OpenROV.parse_pong("1,183422")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_pong("1,183422")
       {:ok, %{args: 1, millis: 183422}}
-      iex> Neptunus.Protocol.OpenROV.parse_pong("7")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_pong("7")
       {:ok, %{args: nil, millis: nil}}
-      iex> Neptunus.Protocol.OpenROV.parse_pong("x")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_pong("x")
       :error
   """
   @spec parse_pong(binary()) :: {:ok, pong()} | :error
@@ -510,9 +515,9 @@ defmodule Neptunus.Protocol.OpenROV do
   Parses a command echo (the value of a `cmd` or `icmd` field, `name(args)`) into the
   command's name.
 
-      iex> Neptunus.Protocol.OpenROV.parse_echo("go(1500,1500,1500,0)")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_echo("go(1500,1500,1500,0)")
       {:ok, "go"}
-      iex> Neptunus.Protocol.OpenROV.parse_echo("1500")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_echo("1500")
       :error
   """
   @spec parse_echo(binary()) :: {:ok, String.t()} | :error
@@ -530,11 +535,11 @@ defmodule Neptunus.Protocol.OpenROV do
   the same pair (see `call/1`). A piece of an argument after a stray `(` or a missing `)`
   makes it no echo.
 
-      iex> Neptunus.Protocol.OpenROV.parse_call("mtrmod1(100,100,100)")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_call("mtrmod1(100,100,100)")
       {:ok, "mtrmod1", ["100", "100", "100"]}
-      iex> Neptunus.Protocol.OpenROV.parse_call("stop()")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_call("stop()")
       {:ok, "stop", []}
-      iex> Neptunus.Protocol.OpenROV.parse_call("ligt(1")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_call("ligt(1")
       :error
   """
   @spec parse_call(binary()) :: {:ok, String.t(), [String.t()]} | :error
@@ -550,9 +555,9 @@ defmodule Neptunus.Protocol.OpenROV do
   What the board echoes for a command we write (as `parse_call/1` reads it): the name and
   the argument pieces, split as the firmware splits (spaces, commas, parentheses, `;`).
 
-      iex> Neptunus.Protocol.OpenROV.call("mtrmod2(100,200,100);")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.call("mtrmod2(100,200,100);")
       {"mtrmod2", ["100", "200", "100"]}
-      iex> Neptunus.Protocol.OpenROV.call("ligt( 80);")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.call("ligt( 80);")
       {"ligt", ["80"]}
   """
   @spec call(binary()) :: {String.t(), [String.t()]}
@@ -567,9 +572,9 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   Parses the value of a 30.x `crc` field: `pass`, or `fail,COMPUTED/RECEIVED` (hex).
 
-      iex> Neptunus.Protocol.OpenROV.parse_crc("pass")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_crc("pass")
       {:ok, :pass}
-      iex> Neptunus.Protocol.OpenROV.parse_crc("fail,A1/3B")
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.parse_crc("fail,A1/3B")
       {:ok, {:fail, 0xA1, 0x3B}}
   """
   @spec parse_crc(binary()) :: {:ok, :pass | {:fail, byte(), byte()}} | :error
@@ -590,7 +595,7 @@ defmodule Neptunus.Protocol.OpenROV do
   @doc """
   Whether a rejected field is a wild point (counted as such) rather than a malformed field.
 
-      iex> Neptunus.Protocol.OpenROV.wild_point?({:out_of_range, "deap", "2000"})
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.wild_point?({:out_of_range, "deap", "2000"})
       true
   """
   @spec wild_point?(reject()) :: boolean()
@@ -600,7 +605,7 @@ defmodule Neptunus.Protocol.OpenROV do
   Formats fields as a telemetry line (no newline) in board units: the inverse of
   `parse_line/1` for known fields, used by the SITL board. Numbers get `decimals` decimals.
 
-      iex> Neptunus.Protocol.OpenROV.format_line([depth: 1.5, heading: :math.pi()], 2)
+      iex> Neptunus.Vehicle.Board.OpenROV.Protocol.format_line([depth: 1.5, heading: :math.pi()], 2)
       "deap:1.50;hdgd:180.00;"
   """
   @spec format_line([{atom(), number()}], non_neg_integer()) :: binary()

@@ -1,59 +1,59 @@
-defmodule Neptunus.Protocol.OpenROVTest do
+defmodule Neptunus.Vehicle.Board.OpenROV.ProtocolTest do
   use ExUnit.Case, async: true
-  doctest Neptunus.Protocol.OpenROV
+  doctest Neptunus.Vehicle.Board.OpenROV.Protocol
 
   import Neptunus.Test.Properties
 
-  alias Neptunus.Protocol.OpenROV
+  alias Neptunus.Vehicle.Board.OpenROV
 
   @deg :math.pi() / 180
 
   describe "commands" do
     test "go with smoothing on and off, every corner" do
       for a <- [1000, 1500, 2000], b <- [1000, 1500, 2000], c <- [1000, 1500, 2000] do
-        assert OpenROV.go({a, b, c}, true) == "go(#{a},#{b},#{c},1);"
-        assert OpenROV.go({a, b, c}, false) == "go(#{a},#{b},#{c},0);"
+        assert OpenROV.Protocol.go({a, b, c}, true) == "go(#{a},#{b},#{c},1);"
+        assert OpenROV.Protocol.go({a, b, c}, false) == "go(#{a},#{b},#{c},0);"
       end
     end
 
     test "encoders refuse out-of-range values (a bug in the caller, not a pilot error)" do
       for bad <- [{999, 1500, 1500}, {1500, 2001, 1500}, {1500, 1500, 1500.0}, {1500, 1500}] do
-        assert_raise FunctionClauseError, fn -> OpenROV.go(bad, true) end
+        assert_raise FunctionClauseError, fn -> OpenROV.Protocol.go(bad, true) end
       end
 
-      assert_raise FunctionClauseError, fn -> OpenROV.go({1500, 1500, 1500}, 1) end
-      assert_raise FunctionClauseError, fn -> OpenROV.lights(256) end
-      assert_raise FunctionClauseError, fn -> OpenROV.laser(-1) end
-      assert_raise FunctionClauseError, fn -> OpenROV.tilt(999) end
-      assert_raise FunctionClauseError, fn -> OpenROV.ping(-1) end
-      assert_raise FunctionClauseError, fn -> OpenROV.ping(2_147_483_648) end
+      assert_raise FunctionClauseError, fn -> OpenROV.Protocol.go({1500, 1500, 1500}, 1) end
+      assert_raise FunctionClauseError, fn -> OpenROV.Protocol.lights(256) end
+      assert_raise FunctionClauseError, fn -> OpenROV.Protocol.laser(-1) end
+      assert_raise FunctionClauseError, fn -> OpenROV.Protocol.tilt(999) end
+      assert_raise FunctionClauseError, fn -> OpenROV.Protocol.ping(-1) end
+      assert_raise FunctionClauseError, fn -> OpenROV.Protocol.ping(2_147_483_648) end
     end
 
     test "lights, laser, tilt, ping, stop" do
-      assert OpenROV.lights(0) == "ligt(0);"
-      assert OpenROV.laser(255) == "claser(255);"
-      assert OpenROV.tilt(2000) == "tilt(2000);"
-      assert OpenROV.ping(0) == "ping(0);"
-      assert OpenROV.ping(2_147_483_647) == "ping(2147483647);"
-      assert OpenROV.stop() == "stop();"
+      assert OpenROV.Protocol.lights(0) == "ligt(0);"
+      assert OpenROV.Protocol.laser(255) == "claser(255);"
+      assert OpenROV.Protocol.tilt(2000) == "tilt(2000);"
+      assert OpenROV.Protocol.ping(0) == "ping(0);"
+      assert OpenROV.Protocol.ping(2_147_483_647) == "ping(2147483647);"
+      assert OpenROV.Protocol.stop() == "stop();"
     end
 
     test "the board's parser reads every command back" do
       for cmd <- [
-            OpenROV.lights(12),
-            OpenROV.laser(200),
-            OpenROV.tilt(1234),
-            OpenROV.ping(99),
-            OpenROV.stop()
+            OpenROV.Protocol.lights(12),
+            OpenROV.Protocol.laser(200),
+            OpenROV.Protocol.tilt(1234),
+            OpenROV.Protocol.ping(99),
+            OpenROV.Protocol.stop()
           ] do
-        assert {:ok, _} = OpenROV.parse_command(cmd)
+        assert {:ok, _} = OpenROV.Protocol.parse_command(cmd)
       end
 
-      assert OpenROV.parse_command("ligt(12);") == {:ok, {:ligt, 12}}
-      assert OpenROV.parse_command("claser(200)") == {:ok, {:claser, 200}}
-      assert OpenROV.parse_command(" tilt(1234) ") == {:ok, {:tilt, 1234}}
-      assert OpenROV.parse_command("ping(99)") == {:ok, {:ping, 99}}
-      assert OpenROV.parse_command("stop()") == {:ok, :stop}
+      assert OpenROV.Protocol.parse_command("ligt(12);") == {:ok, {:ligt, 12}}
+      assert OpenROV.Protocol.parse_command("claser(200)") == {:ok, {:claser, 200}}
+      assert OpenROV.Protocol.parse_command(" tilt(1234) ") == {:ok, {:tilt, 1234}}
+      assert OpenROV.Protocol.parse_command("ping(99)") == {:ok, {:ping, 99}}
+      assert OpenROV.Protocol.parse_command("stop()") == {:ok, :stop}
     end
 
     test "the board's parser refuses corrupt commands" do
@@ -73,15 +73,15 @@ defmodule Neptunus.Protocol.OpenROVTest do
             "GO(1500,1500,1500,1)",
             <<0xFF, 0xFE>>
           ] do
-        assert {:error, reason} = OpenROV.parse_command(bad), inspect(bad)
+        assert {:error, reason} = OpenROV.Protocol.parse_command(bad), inspect(bad)
         assert is_binary(reason)
       end
     end
 
     test "split_commands keeps the incomplete tail" do
-      assert OpenROV.split_commands("") == {[], ""}
-      assert OpenROV.split_commands("stop();") == {["stop()"], ""}
-      assert OpenROV.split_commands(";;ping(1);\n") == {["ping(1)"], "\n"}
+      assert OpenROV.Protocol.split_commands("") == {[], ""}
+      assert OpenROV.Protocol.split_commands("stop();") == {["stop()"], ""}
+      assert OpenROV.Protocol.split_commands(";;ping(1);\n") == {["ping(1)"], "\n"}
     end
   end
 
@@ -91,7 +91,7 @@ defmodule Neptunus.Protocol.OpenROVTest do
         "hdgd:90;deap:1.25;pitc:-10;roll:45.5;yaw:-90;fthr:50;vout:12.1;iout:0.75;" <>
           "temp:11.5;pres:1113.8;time:12345"
 
-      assert {fields, []} = OpenROV.parse_line(line)
+      assert {fields, []} = OpenROV.Protocol.parse_line(line)
       assert_in_delta fields.heading, 90 * @deg, 1.0e-12
       assert fields.depth == 1.25
       assert_in_delta fields.pitch, -10 * @deg, 1.0e-12
@@ -107,27 +107,29 @@ defmodule Neptunus.Protocol.OpenROVTest do
     end
 
     test "heading 360° wraps to 0, and both ends of every range are accepted" do
-      assert {%{heading: +0.0}, []} = OpenROV.parse_line("hdgd:360")
+      assert {%{heading: +0.0}, []} = OpenROV.Protocol.parse_line("hdgd:360")
 
-      for {key, {field, min, max, _}} <- OpenROV.known() do
+      for {key, {field, min, max, _}} <- OpenROV.Protocol.known() do
         for value <- [min, max] do
-          assert {%{^field => _}, []} = OpenROV.parse_line("#{key}:#{value}"), "#{key}:#{value}"
+          assert {%{^field => _}, []} = OpenROV.Protocol.parse_line("#{key}:#{value}"),
+                 "#{key}:#{value}"
         end
       end
     end
 
     test "just outside every range is a wild point" do
-      for {key, {_field, min, max, _}} <- OpenROV.known(), value <- [min - 0.01, max + 0.01] do
+      for {key, {_field, min, max, _}} <- OpenROV.Protocol.known(),
+          value <- [min - 0.01, max + 0.01] do
         raw = :erlang.float_to_binary(value * 1.0, decimals: 2)
 
-        assert OpenROV.parse_line("#{key}:#{raw}") == {%{}, [{:out_of_range, key, raw}]},
+        assert OpenROV.Protocol.parse_line("#{key}:#{raw}") == {%{}, [{:out_of_range, key, raw}]},
                "#{key}:#{raw}"
       end
     end
 
     test "the thesis' wild points: decades off, angles out of range, a key as a value" do
       {fields, rejects} =
-        OpenROV.parse_line("vout:121.0;iout:40;pitc:200;roll:-300;hdgd:pitc;deap:2000")
+        OpenROV.Protocol.parse_line("vout:121.0;iout:40;pitc:200;roll:-300;hdgd:pitc;deap:2000")
 
       assert fields == %{}
 
@@ -140,11 +142,12 @@ defmodule Neptunus.Protocol.OpenROVTest do
                {:out_of_range, "deap", "2000"}
              ]
 
-      assert Enum.all?(rejects, &OpenROV.wild_point?/1)
+      assert Enum.all?(rejects, &OpenROV.Protocol.wild_point?/1)
     end
 
     test "a key's name as the value of an unknown key is a wild point as well" do
-      assert OpenROV.parse_line("motors:deap") == {%{}, [{:key_as_value, "motors", "deap"}]}
+      assert OpenROV.Protocol.parse_line("motors:deap") ==
+               {%{}, [{:key_as_value, "motors", "deap"}]}
     end
 
     test "numbers the Arduino can print, and things that are not numbers" do
@@ -157,7 +160,7 @@ defmodule Neptunus.Protocol.OpenROVTest do
             {"1e1", 10.0},
             {"1.5E-1", 0.15}
           ] do
-        assert {%{depth: ^value}, []} = OpenROV.parse_line("deap:" <> raw), raw
+        assert {%{depth: ^value}, []} = OpenROV.Protocol.parse_line("deap:" <> raw), raw
       end
 
       for raw <- [
@@ -175,14 +178,16 @@ defmodule Neptunus.Protocol.OpenROVTest do
             "1 2",
             "1e999"
           ] do
-        assert {%{}, [{:not_a_number, "deap", ^raw}]} = OpenROV.parse_line("deap:" <> raw), raw
+        assert {%{}, [{:not_a_number, "deap", ^raw}]} =
+                 OpenROV.Protocol.parse_line("deap:" <> raw),
+               raw
       end
     end
 
     test "unknown keys are kept raw, including values with colons and commas" do
       line = "cmd:go(1500,1500,1500,1);motors:1500,1500,1500;cmpd:Jan  1 2015, 12:00:00;fmem:1234"
 
-      assert OpenROV.parse_line(line) ==
+      assert OpenROV.Protocol.parse_line(line) ==
                {%{
                   "cmd" => "go(1500,1500,1500,1)",
                   "motors" => "1500,1500,1500",
@@ -192,11 +197,11 @@ defmodule Neptunus.Protocol.OpenROVTest do
     end
 
     test "malformed fields are dropped; empty fields and spaces are ignored" do
-      assert OpenROV.parse_line("") == {%{}, []}
-      assert OpenROV.parse_line(";;; ;") == {%{}, []}
-      assert OpenROV.parse_line(" deap : 1.5 ;") == {%{depth: 1.5}, []}
+      assert OpenROV.Protocol.parse_line("") == {%{}, []}
+      assert OpenROV.Protocol.parse_line(";;; ;") == {%{}, []}
+      assert OpenROV.Protocol.parse_line(" deap : 1.5 ;") == {%{depth: 1.5}, []}
 
-      assert OpenROV.parse_line("deap1.5;:3;1x:2;é:1;deap:2") ==
+      assert OpenROV.Protocol.parse_line("deap1.5;:3;1x:2;é:1;deap:2") ==
                {%{depth: 2.0},
                 [
                   {:malformed, nil, "deap1.5"},
@@ -205,17 +210,19 @@ defmodule Neptunus.Protocol.OpenROVTest do
                   {:malformed, nil, "é:1"}
                 ]}
 
-      assert [{:malformed, nil, raw}] = elem(OpenROV.parse_line(String.duplicate("x", 100)), 1)
+      assert [{:malformed, nil, raw}] =
+               elem(OpenROV.Protocol.parse_line(String.duplicate("x", 100)), 1)
+
       assert byte_size(raw) == 32
     end
 
     test "a repeated key: the last accepted value wins" do
-      assert OpenROV.parse_line("deap:1;deap:2;deap:9999") ==
+      assert OpenROV.Protocol.parse_line("deap:1;deap:2;deap:9999") ==
                {%{depth: 2.0}, [{:out_of_range, "deap", "9999"}]}
     end
 
     test "keys are case-sensitive: HDGD is an unknown key" do
-      assert OpenROV.parse_line("HDGD:400") == {%{"HDGD" => "400"}, []}
+      assert OpenROV.Protocol.parse_line("HDGD:400") == {%{"HDGD" => "400"}, []}
     end
 
     test "format_line is parse_line's inverse for known fields" do
@@ -233,7 +240,7 @@ defmodule Neptunus.Protocol.OpenROVTest do
         board_time: 12.0
       ]
 
-      {parsed, []} = OpenROV.parse_line(OpenROV.format_line(fields, 6))
+      {parsed, []} = OpenROV.Protocol.parse_line(OpenROV.Protocol.format_line(fields, 6))
 
       for {field, value} <- fields do
         assert_in_delta parsed[field], value, 1.0e-5, "#{field}"
@@ -244,39 +251,46 @@ defmodule Neptunus.Protocol.OpenROVTest do
   describe "30.x framing (CRC-8 prefix)" do
     test "crc8 is the Dallas/Maxim CRC-8: published check value and known bytes" do
       # CRC-8/MAXIM check value over "123456789"
-      assert OpenROV.crc8("123456789") == 0xA1
-      assert OpenROV.crc8("") == 0
-      assert OpenROV.crc8(<<0>>) == 0
-      assert OpenROV.crc8(<<1>>) == 0x5E
+      assert OpenROV.Protocol.crc8("123456789") == 0xA1
+      assert OpenROV.Protocol.crc8("") == 0
+      assert OpenROV.Protocol.crc8(<<0>>) == 0
+      assert OpenROV.Protocol.crc8(<<1>>) == 0x5E
     end
 
     test "2.5 sends plain text, 30 prefixes the CRC of the command, ; included" do
-      assert OpenROV.frame("go(1500,1500,1500,1);", :openrov_25) == "go(1500,1500,1500,1);"
-      <<crc, rest::binary>> = OpenROV.frame("go(1500,1500,1500,1);", :openrov_30)
+      assert OpenROV.Protocol.frame("go(1500,1500,1500,1);", :openrov_25) ==
+               "go(1500,1500,1500,1);"
+
+      <<crc, rest::binary>> = OpenROV.Protocol.frame("go(1500,1500,1500,1);", :openrov_30)
       assert rest == "go(1500,1500,1500,1);"
-      assert crc == OpenROV.crc8("go(1500,1500,1500,1);")
+      assert crc == OpenROV.Protocol.crc8("go(1500,1500,1500,1);")
     end
 
     test "a command whose CRC would be ';' is re-spaced, never sent with that byte" do
       # find real commands whose CRC is ';' (about 1 in 256)
-      hits = for n <- 0..3000, OpenROV.crc8(OpenROV.ping(n)) == ?;, do: OpenROV.ping(n)
+      hits =
+        for n <- 0..3000,
+            OpenROV.Protocol.crc8(OpenROV.Protocol.ping(n)) == ?;,
+            do: OpenROV.Protocol.ping(n)
 
       assert hits != []
 
       for command <- hits do
-        <<crc, text::binary>> = framed = OpenROV.frame(command, :openrov_30)
+        <<crc, text::binary>> = framed = OpenROV.Protocol.frame(command, :openrov_30)
         assert crc != ?;
         assert text != command
         assert String.replace(text, " ", "") == command
-        assert {:ok, ^text} = OpenROV.unframe(framed)
+        assert {:ok, ^text} = OpenROV.Protocol.unframe(framed)
         # the board's parser reads the same command
-        assert OpenROV.parse_command(text) == OpenROV.parse_command(command)
+        assert OpenROV.Protocol.parse_command(text) == OpenROV.Protocol.parse_command(command)
       end
     end
 
     test "unframe reports the computed and received CRC on a mismatch" do
-      assert OpenROV.unframe(<<0x12, "ping(1);">>) == {:error, {OpenROV.crc8("ping(1);"), 0x12}}
-      assert OpenROV.unframe("") == {:error, :empty}
+      assert OpenROV.Protocol.unframe(<<0x12, "ping(1);">>) ==
+               {:error, {OpenROV.Protocol.crc8("ping(1);"), 0x12}}
+
+      assert OpenROV.Protocol.unframe("") == {:error, :empty}
     end
 
     test "property: every go() frames to a CRC that is never ';' and checks on the board" do
@@ -285,10 +299,12 @@ defmodule Neptunus.Protocol.OpenROVTest do
       check(
         {us, us, us, :proper_types.bool()},
         fn {a, b, c, s} ->
-          command = OpenROV.go({a, b, c}, s)
-          <<crc, _::binary>> = framed = OpenROV.frame(command, :openrov_30)
-          {:ok, text} = OpenROV.unframe(framed)
-          crc != ?; and OpenROV.parse_command(text) == OpenROV.parse_command(command)
+          command = OpenROV.Protocol.go({a, b, c}, s)
+          <<crc, _::binary>> = framed = OpenROV.Protocol.frame(command, :openrov_30)
+          {:ok, text} = OpenROV.Protocol.unframe(framed)
+
+          crc != ?; and
+            OpenROV.Protocol.parse_command(text) == OpenROV.Protocol.parse_command(command)
         end,
         3_000
       )
@@ -297,53 +313,55 @@ defmodule Neptunus.Protocol.OpenROVTest do
 
   describe "firmware lines: mtrmod, goms, pong, echo, crc, dotted keys, text lines" do
     test "mtrmod1/2 encode and parse back; out-of-range modifiers are refused by the encoder" do
-      assert OpenROV.parse_command(OpenROV.mtrmod1({100, 200, 300})) ==
+      assert OpenROV.Protocol.parse_command(OpenROV.Protocol.mtrmod1({100, 200, 300})) ==
                {:ok, {:mtrmod1, 100, 200, 300}}
 
-      assert OpenROV.parse_command("mtrmod2(100,-100,100);") == {:ok, {:mtrmod2, 100, -100, 100}}
-      assert {:error, _} = OpenROV.parse_command("mtrmod1(100,100);")
-      assert {:error, _} = OpenROV.parse_command("mtrmod1(100,100,40000);")
-      assert_raise FunctionClauseError, fn -> OpenROV.mtrmod1({100, 100, 1100}) end
+      assert OpenROV.Protocol.parse_command("mtrmod2(100,-100,100);") ==
+               {:ok, {:mtrmod2, 100, -100, 100}}
+
+      assert {:error, _} = OpenROV.Protocol.parse_command("mtrmod1(100,100);")
+      assert {:error, _} = OpenROV.Protocol.parse_command("mtrmod1(100,100,40000);")
+      assert_raise FunctionClauseError, fn -> OpenROV.Protocol.mtrmod1({100, 100, 1100}) end
     end
 
     test "goms: the firmware defaults double reverse and step out of the dead zone" do
       assert Enum.map(
                [1000, 1250, 1300, 1499, 1500, 1501, 1700, 2000],
-               &OpenROV.goms(&1, 100, 200)
+               &OpenROV.Protocol.goms(&1, 100, 200)
              ) ==
                [1000, 1000, 1090, 1448, 1500, 1550, 1730, 2000]
 
       # modifiers 100/100: symmetric about neutral (within the map()'s integer truncation)
       for d <- 1..500 do
-        up = OpenROV.goms(1500 + d, 100, 100) - 1500
-        down = 1500 - OpenROV.goms(1500 - d, 100, 100)
+        up = OpenROV.Protocol.goms(1500 + d, 100, 100) - 1500
+        down = 1500 - OpenROV.Protocol.goms(1500 - d, 100, 100)
         assert abs(up - down) <= 1
       end
 
       # only multiples of 100 count (integer division)
-      assert OpenROV.goms(1300, 100, 150) == OpenROV.goms(1300, 100, 100)
+      assert OpenROV.Protocol.goms(1300, 100, 150) == OpenROV.Protocol.goms(1300, 100, 100)
     end
 
     test "a glued pong, dotted keys and a line starting with ';' parse without rejects" do
       assert {%{"pong" => "1,183422", heading: _}, []} =
-               OpenROV.parse_line("pong:1,183422;hdgd:1.00;")
+               OpenROV.Protocol.parse_line("pong:1,183422;hdgd:1.00;")
 
       assert {%{"BNO055.status" => "1", "Depth.C0" => "4000"}, []} =
-               OpenROV.parse_line("BNO055.status:1;Depth.C0:4000;")
+               OpenROV.Protocol.parse_line("BNO055.status:1;Depth.C0:4000;")
 
-      assert {%{board_time: 181.0}, []} = OpenROV.parse_line(";time:181000;")
+      assert {%{board_time: 181.0}, []} = OpenROV.Protocol.parse_line(";time:181000;")
 
       assert {%{"crc" => "pass", "cmd" => "go(1500,1500,1500,0)"}, []} =
-               OpenROV.parse_line("crc:pass;cmd:go(1500,1500,1500,0);")
+               OpenROV.Protocol.parse_line("crc:pass;cmd:go(1500,1500,1500,0);")
 
-      assert {%{"rawcmd" => "A3,70,69,"}, []} = OpenROV.parse_line("rawcmd:A3,70,69,;")
+      assert {%{"rawcmd" => "A3,70,69,"}, []} = OpenROV.Protocol.parse_line("rawcmd:A3,70,69,;")
     end
 
     test "property: parse_pong reads every pong the firmware prints" do
       check(
         {:proper_types.integer(0, 10), :proper_types.integer(0, 4_294_967_295)},
         fn {args, ms} ->
-          OpenROV.parse_pong("#{args},#{ms}") == {:ok, %{args: args, millis: ms}}
+          OpenROV.Protocol.parse_pong("#{args},#{ms}") == {:ok, %{args: args, millis: ms}}
         end,
         1_000
       )
@@ -356,7 +374,7 @@ defmodule Neptunus.Protocol.OpenROVTest do
         {byte, byte},
         fn {c, r} ->
           text = "fail," <> Integer.to_string(c, 16) <> "/" <> Integer.to_string(r, 16)
-          OpenROV.parse_crc(text) == {:ok, {:fail, c, r}}
+          OpenROV.Protocol.parse_crc(text) == {:ok, {:fail, c, r}}
         end,
         1_000
       )
@@ -370,12 +388,12 @@ defmodule Neptunus.Protocol.OpenROVTest do
         fn {a, b, c, s, n} ->
           Enum.all?(
             [
-              {OpenROV.go({a, b, c}, s), "go"},
-              {OpenROV.lights(n), "ligt"},
-              {OpenROV.mtrmod1({100, 100, 100}), "mtrmod1"}
+              {OpenROV.Protocol.go({a, b, c}, s), "go"},
+              {OpenROV.Protocol.lights(n), "ligt"},
+              {OpenROV.Protocol.mtrmod1({100, 100, 100}), "mtrmod1"}
             ],
             fn {command, name} ->
-              OpenROV.parse_echo(String.trim_trailing(command, ";")) == {:ok, name}
+              OpenROV.Protocol.parse_echo(String.trim_trailing(command, ";")) == {:ok, name}
             end
           )
         end,
@@ -392,23 +410,23 @@ defmodule Neptunus.Protocol.OpenROVTest do
         fn {a, b, c, s, n, m, k} ->
           Enum.all?(
             [
-              OpenROV.go({a, b, c}, s),
-              OpenROV.lights(n),
-              OpenROV.laser(m),
-              OpenROV.tilt(a),
-              OpenROV.mtrmod1({n * 3, m, k}),
-              OpenROV.mtrmod2({k, n, m})
+              OpenROV.Protocol.go({a, b, c}, s),
+              OpenROV.Protocol.lights(n),
+              OpenROV.Protocol.laser(m),
+              OpenROV.Protocol.tilt(a),
+              OpenROV.Protocol.mtrmod1({n * 3, m, k}),
+              OpenROV.Protocol.mtrmod2({k, n, m})
             ],
             fn command ->
               # what the firmware prints: the pieces it split the command into, joined by
               # commas (the 30.x frame may add a space after '(': it is split away)
-              {name, args} = OpenROV.call(command)
+              {name, args} = OpenROV.Protocol.call(command)
               echo = name <> "(" <> Enum.join(args, ",") <> ")"
-              framed = OpenROV.frame(command, :openrov_30)
+              framed = OpenROV.Protocol.frame(command, :openrov_30)
               <<_crc, text::binary>> = framed
 
-              OpenROV.parse_call(echo) == {:ok, name, args} and
-                OpenROV.call(text) == {name, args}
+              OpenROV.Protocol.parse_call(echo) == {:ok, name, args} and
+                OpenROV.Protocol.call(text) == {name, args}
             end
           )
         end,
@@ -420,52 +438,56 @@ defmodule Neptunus.Protocol.OpenROVTest do
       check(
         :proper_types.binary(),
         fn bytes ->
-          (OpenROV.parse_pong(bytes) == :error or match?({:ok, %{}}, OpenROV.parse_pong(bytes))) and
-            (match?({:ok, _}, OpenROV.parse_echo(bytes)) or OpenROV.parse_echo(bytes) == :error) and
-            (match?({:ok, _, _}, OpenROV.parse_call(bytes)) or OpenROV.parse_call(bytes) == :error) and
-            (match?({:ok, _}, OpenROV.parse_crc(bytes)) or OpenROV.parse_crc(bytes) == :error) and
-            is_boolean(OpenROV.text_line?(bytes))
+          (OpenROV.Protocol.parse_pong(bytes) == :error or
+             match?({:ok, %{}}, OpenROV.Protocol.parse_pong(bytes))) and
+            (match?({:ok, _}, OpenROV.Protocol.parse_echo(bytes)) or
+               OpenROV.Protocol.parse_echo(bytes) == :error) and
+            (match?({:ok, _, _}, OpenROV.Protocol.parse_call(bytes)) or
+               OpenROV.Protocol.parse_call(bytes) == :error) and
+            (match?({:ok, _}, OpenROV.Protocol.parse_crc(bytes)) or
+               OpenROV.Protocol.parse_crc(bytes) == :error) and
+            is_boolean(OpenROV.Protocol.text_line?(bytes))
         end,
         2_000
       )
     end
 
     test "text lines: the 2.5.2 depth driver's, and nothing with fields" do
-      assert OpenROV.text_line?("Second-Order Temperature in Degrees C is -1.25")
-      assert OpenROV.text_line?("Depth Sensor: initialized I2C")
-      refute OpenROV.text_line?("Depth Sensor: initialized I2C;deap:1.0")
-      refute OpenROV.text_line?("hello world")
+      assert OpenROV.Protocol.text_line?("Second-Order Temperature in Degrees C is -1.25")
+      assert OpenROV.Protocol.text_line?("Depth Sensor: initialized I2C")
+      refute OpenROV.Protocol.text_line?("Depth Sensor: initialized I2C;deap:1.0")
+      refute OpenROV.Protocol.text_line?("hello world")
     end
   end
 
   describe "properties" do
     test "parse_line never crashes on random bytes and returns the documented shape" do
-      check(:proper_types.binary(), &shape?(OpenROV.parse_line(&1)), 2_000)
+      check(:proper_types.binary(), &shape?(OpenROV.Protocol.parse_line(&1)), 2_000)
     end
 
     test "parse_line never crashes on random UTF-8" do
-      check(:proper_unicode.utf8(), &shape?(OpenROV.parse_line(&1)), 1_000)
+      check(:proper_unicode.utf8(), &shape?(OpenROV.Protocol.parse_line(&1)), 1_000)
     end
 
     test "no out-of-range value ever gets through, whatever the line" do
-      check(line_gen(), &all_in_range?(OpenROV.parse_line(&1)), 3_000)
+      check(line_gen(), &all_in_range?(OpenROV.Protocol.parse_line(&1)), 3_000)
     end
 
     test "mutated valid lines: never a crash, never an out-of-range value" do
-      check(mutated_line_gen(), &all_in_range?(OpenROV.parse_line(&1)), 3_000)
+      check(mutated_line_gen(), &all_in_range?(OpenROV.Protocol.parse_line(&1)), 3_000)
     end
 
     test "a known field is accepted exactly when its value is a number within range" do
       gen =
-        bind({:proper_types.elements(Map.keys(OpenROV.known())), number_gen()}, fn {k, n} ->
+        bind({:proper_types.elements(Map.keys(OpenROV.Protocol.known())), number_gen()}, fn {k, n} ->
           {k, n}
         end)
 
       check(
         gen,
         fn {key, raw} ->
-          {field, min, max, _} = OpenROV.known()[key]
-          {fields, rejects} = OpenROV.parse_line("#{key}:#{raw}")
+          {field, min, max, _} = OpenROV.Protocol.known()[key]
+          {fields, rejects} = OpenROV.Protocol.parse_line("#{key}:#{raw}")
           {value, ""} = Float.parse(raw)
 
           if value >= min and value <= max,
@@ -482,7 +504,7 @@ defmodule Neptunus.Protocol.OpenROVTest do
       check(
         {us, us, us, :proper_types.bool()},
         fn {a, b, c, s} ->
-          OpenROV.parse_command(OpenROV.go({a, b, c}, s)) ==
+          OpenROV.Protocol.parse_command(OpenROV.Protocol.go({a, b, c}, s)) ==
             {:ok, {:go, a, b, c, if(s, do: 1, else: 0)}}
         end,
         1_000
@@ -494,10 +516,10 @@ defmodule Neptunus.Protocol.OpenROVTest do
         {:proper_types.integer(0, 2_147_483_647), :proper_types.integer(0, 255),
          :proper_types.integer(1000, 2000)},
         fn {n, byte, us} ->
-          OpenROV.parse_command(OpenROV.ping(n)) == {:ok, {:ping, n}} and
-            OpenROV.parse_command(OpenROV.lights(byte)) == {:ok, {:ligt, byte}} and
-            OpenROV.parse_command(OpenROV.laser(byte)) == {:ok, {:claser, byte}} and
-            OpenROV.parse_command(OpenROV.tilt(us)) == {:ok, {:tilt, us}}
+          OpenROV.Protocol.parse_command(OpenROV.Protocol.ping(n)) == {:ok, {:ping, n}} and
+            OpenROV.Protocol.parse_command(OpenROV.Protocol.lights(byte)) == {:ok, {:ligt, byte}} and
+            OpenROV.Protocol.parse_command(OpenROV.Protocol.laser(byte)) == {:ok, {:claser, byte}} and
+            OpenROV.Protocol.parse_command(OpenROV.Protocol.tilt(us)) == {:ok, {:tilt, us}}
         end,
         500
       )
@@ -507,8 +529,8 @@ defmodule Neptunus.Protocol.OpenROVTest do
       check(
         :proper_types.binary(),
         fn bytes ->
-          {commands, _rest} = OpenROV.split_commands(bytes)
-          Enum.all?([bytes | commands], &match?({_, _}, OpenROV.parse_command(&1)))
+          {commands, _rest} = OpenROV.Protocol.split_commands(bytes)
+          Enum.all?([bytes | commands], &match?({_, _}, OpenROV.Protocol.parse_command(&1)))
         end,
         1_000
       )
@@ -517,7 +539,7 @@ defmodule Neptunus.Protocol.OpenROVTest do
 
   # Generators ------------------------------------------------------------------------------
 
-  @keys Map.keys(OpenROV.known())
+  @keys Map.keys(OpenROV.Protocol.known())
 
   # numbers as the board prints them, inside and outside every range
   defp number_gen do
@@ -608,7 +630,7 @@ defmodule Neptunus.Protocol.OpenROVTest do
     shape?(result) and
       Enum.all?(fields, fn
         {field, value} when is_atom(field) ->
-          {min, max} = OpenROV.si_range(field)
+          {min, max} = OpenROV.Protocol.si_range(field)
           value >= min and value <= max and (field != :heading or value < max)
 
         {_key, value} ->
