@@ -121,6 +121,27 @@ defmodule Neptunus.PubSub do
   end
 
   @doc """
+  Watches the scope and subscribes the calling process to `topics` (term subscribers), in
+  that order (see "When the scope restarts"): `{:ok, ref}`, the scope's monitor, whose
+  `{:DOWN, ref, :process, pid, reason}` says the subscriptions are gone; or
+  `{:error, :not_running}` while the scope is down or restarting, with no monitor left. One
+  attempt: a long-lived process keeps a `Neptunus.PubSub.Follow`, which tries again.
+  """
+  @spec follow([topic()]) :: {:ok, reference()} | {:error, :not_running}
+  def follow(topics) when is_list(topics) do
+    with {:ok, ref} <- monitor() do
+      case Enum.find(topics, &(subscribe(&1) != :ok)) do
+        nil ->
+          {:ok, ref}
+
+        _topic ->
+          Process.demonitor(ref, [:flush])
+          {:error, :not_running}
+      end
+    end
+  end
+
+  @doc """
   Subscribes the calling process to `topic` as a term subscriber (once: subscribing again
   changes nothing). `{:error, :not_running}` while the scope is down or restarting.
   """

@@ -5,6 +5,7 @@ defmodule NeptunusWeb.RestartTest do
   use ExUnit.Case, async: false
 
   alias Neptunus.{PubSub, Recording}
+  alias Neptunus.PubSub.Follow
   alias Neptunus.Vehicle.{Recorder, Telemetry}
   alias NeptunusWeb.Presence
   alias NeptunusWeb.Test.{Wire, WSClient}
@@ -116,6 +117,60 @@ defmodule NeptunusWeb.RestartTest do
 
       ws = rejoin!(topic, "early")
       assert %{"t" => _} = Wire.event!(ws, "telemetry")
+    end
+  end
+
+  describe "PubSub restart under a follower" do
+    # A long-lived process holding a Follow: it reports what the follow says, and the
+    # broadcasts it gets.
+    defp follower(topics) do
+      test = self()
+
+      spawn_link(fn ->
+        {event, follow} = Follow.subscribe(Follow.new(topics))
+        send(test, {:follow, self(), event})
+        follow_loop(test, follow)
+      end)
+    end
+
+    defp follow_loop(test, follow) do
+      receive do
+        {:pubsub, _topic, _event, _payload} = broadcast ->
+          send(test, {:got, self(), broadcast})
+          follow_loop(test, follow)
+
+        message ->
+          {event, follow} = Follow.handle(follow, message)
+          send(test, {:follow, self(), event})
+          follow_loop(test, follow)
+      end
+    end
+
+    test "it is told its subscriptions are gone, waits for the scope, and subscribes again" do
+      t = "resub-follow-#{System.unique_integer([:positive])}"
+      pid = follower([t])
+      assert_receive {:follow, ^pid, :subscribed}
+
+      with_restart_held(fn ->
+        kill!(Neptunus.PubSub)
+        assert_receive {:follow, ^pid, :lost}
+        # the scope is held down: the retry finds nothing, and tries again
+        assert_receive {:follow, ^pid, :waiting}
+        assert_receive {:follow, ^pid, :waiting}
+      end)
+
+      assert_receive {:follow, ^pid, :subscribed}
+      assert PubSub.subscriber_count(t) == 1
+      PubSub.broadcast(t, "ev", %{n: 1})
+      assert_receive {:got, ^pid, {:pubsub, ^t, "ev", %{n: 1}}}
+
+      # killed and restarted at once: the retry may find the new scope at the first try
+      kill!(Neptunus.PubSub)
+      assert_receive {:follow, ^pid, :lost}
+      assert_receive {:follow, ^pid, :subscribed}
+      assert PubSub.subscriber_count(t) == 1
+      PubSub.broadcast(t, "ev", %{n: 2})
+      assert_receive {:got, ^pid, {:pubsub, ^t, "ev", %{n: 2}}}
     end
   end
 
