@@ -234,6 +234,40 @@ defmodule NeptunusWeb.RestartTest do
     end
   end
 
+  describe "PubSub restart while recording video" do
+    @describetag :tmp_dir
+
+    test "the video writer subscribes again: the camera's frames after it are written",
+         %{tmp_dir: dir} do
+      id = "resub-video-#{System.unique_integer([:positive])}"
+      start_supervised!({Recorder, id: id, recording: [dir: dir]})
+      topic = Neptunus.Vehicle.Camera.record_topic(id)
+      # the writer has subscribed (its handle_continue)
+      eventually(fn -> PubSub.subscriber_count(topic) == 1 end)
+      video_frame(topic, 0, true)
+      eventually(fn -> match?(%{video: %{frames: 1}}, Recorder.status(id)) end)
+
+      kill!(Neptunus.PubSub)
+
+      eventually(fn -> PubSub.subscriber_count(topic) == 1 end)
+      video_frame(topic, 1, false)
+      eventually(fn -> match?(%{video: %{frames: 2}}, Recorder.status(id)) end)
+    end
+  end
+
+  defp video_frame(topic, seq, key) do
+    frame =
+      Neptunus.Camera.Frame.new(:h264, "picture #{seq}",
+        keyframe: key,
+        generation: 1,
+        seq: seq,
+        arrival_us: Neptunus.Clock.wall_us(),
+        capture_us: 7
+      )
+
+    PubSub.broadcast(topic, "frame", %{frame: frame})
+  end
+
   describe "Presence restart" do
     setup do
       Wire.start_vehicle!("resub-presence")
