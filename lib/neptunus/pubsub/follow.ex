@@ -37,14 +37,20 @@ defmodule Neptunus.PubSub.Follow do
     * `:other`: not this follow's message (another monitor's `:DOWN`), or a retry it no
       longer needs; the follow is unchanged.
 
-  At any time a follow has either the scope's monitor or one retry on its way, never both,
-  and a process may hold several follows (of different topics).
+  A process that subscribes only for a while (a camera while it renders) ends its follow
+  with `unsubscribe/1`, and may subscribe it again later.
+
+  While it follows, a follow has either the scope's monitor or a retry on its way, never
+  both; a process may hold several follows (of different topics).
   """
 
   alias Neptunus.PubSub
 
-  @typedoc "The topics followed, and the scope's monitor while subscribed (nil meanwhile)."
-  @type t :: %__MODULE__{topics: [PubSub.topic()], scope: reference() | nil}
+  @typedoc """
+  The topics followed, and where the follow is: subscribed (the scope's monitor), `:waiting`
+  (a retry on its way) or not following (nil: new, or unsubscribed).
+  """
+  @type t :: %__MODULE__{topics: [PubSub.topic()], scope: reference() | :waiting | nil}
   @enforce_keys [:topics]
   defstruct [:topics, scope: nil]
 
@@ -65,23 +71,37 @@ defmodule Neptunus.PubSub.Follow do
 
   @doc "Whether the follow is subscribed (it has the scope's monitor)."
   @spec subscribed?(t()) :: boolean()
-  def subscribed?(%__MODULE__{scope: scope}), do: scope != nil
+  def subscribed?(%__MODULE__{scope: scope}), do: is_reference(scope)
 
   @doc """
-  Subscribes the calling process with a follow not subscribed yet (`new/1`; after that
-  `handle/2` subscribes again), through `Neptunus.PubSub.follow/1`: `{:subscribed, follow}`,
-  or `{:waiting, follow}` with a retry in #{@retry_ms} ms.
+  Subscribes the calling process with a follow that is not following (`new/1`,
+  `unsubscribe/1`; while it follows, `handle/2` subscribes again), through
+  `Neptunus.PubSub.follow/1`: `{:subscribed, follow}`, or `{:waiting, follow}` with a retry
+  in #{@retry_ms} ms.
   """
   @spec subscribe(t()) :: {:subscribed | :waiting, t()}
-  def subscribe(%__MODULE__{scope: nil} = follow) do
+  def subscribe(%__MODULE__{scope: nil} = follow), do: attempt(follow)
+
+  defp attempt(follow) do
     case PubSub.follow(follow.topics) do
       {:ok, ref} ->
         {:subscribed, %{follow | scope: ref}}
 
       {:error, :not_running} ->
         Process.send_after(self(), retry(follow), @retry_ms)
-        {:waiting, follow}
+        {:waiting, %{follow | scope: :waiting}}
     end
+  end
+
+  @doc """
+  Ends the follow: the calling process unsubscribes from its topics and no longer watches the
+  scope; a retry on its way will change nothing.
+  """
+  @spec unsubscribe(t()) :: t()
+  def unsubscribe(%__MODULE__{} = follow) do
+    if is_reference(follow.scope), do: Process.demonitor(follow.scope, [:flush])
+    Enum.each(follow.topics, &PubSub.unsubscribe/1)
+    %{follow | scope: nil}
   end
 
   @doc """
@@ -91,13 +111,13 @@ defmodule Neptunus.PubSub.Follow do
   @spec handle(t(), term()) :: {event(), t()}
   def handle(%__MODULE__{scope: ref} = follow, {:DOWN, ref, :process, _pid, _reason})
       when is_reference(ref) do
-    follow = %{follow | scope: nil}
+    follow = %{follow | scope: :waiting}
     send(self(), retry(follow))
     {:lost, follow}
   end
 
-  def handle(%__MODULE__{scope: nil, topics: topics} = follow, {__MODULE__, :retry, topics}),
-    do: subscribe(follow)
+  def handle(%__MODULE__{scope: :waiting, topics: topics} = follow, {__MODULE__, :retry, topics}),
+    do: attempt(follow)
 
   def handle(%__MODULE__{} = follow, _message), do: {:other, follow}
 

@@ -94,6 +94,30 @@ defmodule Neptunus.PubSub.FollowTest do
       refute Follow.subscribed?(lost)
     end
 
+    test "unsubscribed: no topic, no watch, and a retry on its way changes nothing",
+         %{topic: t, follow: follow} do
+      {:lost, lost} = Follow.handle(follow, {:DOWN, follow.scope, :process, self(), :killed})
+      assert_receive {Follow, :retry, [^t]} = retry
+      Process.demonitor(follow.scope, [:flush])
+
+      ended = Follow.unsubscribe(lost)
+      refute Follow.subscribed?(ended)
+      assert PubSub.subscriber_count(t) == 0
+      assert {:other, ^ended} = Follow.handle(ended, retry)
+      assert PubSub.subscriber_count(t) == 0
+
+      # and it may follow again
+      assert {:subscribed, again} = Follow.subscribe(ended)
+      assert PubSub.subscriber_count(t) == 1
+      _ended = Follow.unsubscribe(again)
+      assert PubSub.subscriber_count(t) == 0
+      refute self() in scope_watchers()
+    end
+
+    test "a new follow ignores retries: it follows once subscribed", %{topic: t} do
+      assert {:other, _} = Follow.handle(Follow.new([t]), {Follow, :retry, [t]})
+    end
+
     test "any other message is not the follow's", %{follow: follow} do
       assert {:other, ^follow} = Follow.handle(follow, {:pubsub, "t", "ev", %{}})
       assert {:other, ^follow} = Follow.handle(follow, :subscribe)
