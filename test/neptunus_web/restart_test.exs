@@ -6,7 +6,7 @@ defmodule NeptunusWeb.RestartTest do
 
   alias Neptunus.{PubSub, Recording}
   alias Neptunus.PubSub.Follow
-  alias Neptunus.Vehicle.{Recorder, Telemetry}
+  alias Neptunus.Vehicle.{Camera, Recorder, Telemetry}
   alias NeptunusWeb.Presence
   alias NeptunusWeb.Test.{Wire, WSClient}
 
@@ -186,13 +186,32 @@ defmodule NeptunusWeb.RestartTest do
 
     test "the viewer's stream subscribes again", %{id: id} do
       {200, _headers, _body, socket} = Wire.raw_get("/camera/#{id}.mjpg")
-      topic = Neptunus.Vehicle.Camera.topic(id)
+      topic = Camera.topic(id)
       eventually(fn -> PubSub.subscriber_count(topic) == 1 end)
 
       kill!(Neptunus.PubSub)
 
       eventually(fn -> PubSub.subscriber_count(topic) == 1 end)
       :gen_tcp.close(socket)
+    end
+  end
+
+  describe "PubSub restart under a rendering simulated camera" do
+    test "the camera follows the simulator's pose again" do
+      id = "resub-sim-#{System.unique_integer([:positive])}"
+      {:ok, source} = Neptunus.Camera.Source.parse("sim@384x216@10")
+      start_supervised!({Camera, id: id, camera: source})
+      # watched: it renders, and follows the pose
+      :ok = PubSub.subscribe(Camera.topic(id))
+      _ = Camera.view(id)
+      pose = Neptunus.Camera.Pose.topic(id)
+      eventually(fn -> PubSub.subscriber_count(pose) == 1 end)
+
+      kill!(Neptunus.PubSub)
+
+      # still watched (its viewer subscribes again too)
+      eventually(fn -> PubSub.subscribe(Camera.topic(id)) == :ok end)
+      eventually(fn -> PubSub.subscriber_count(pose) == 1 end)
     end
   end
 
@@ -241,8 +260,9 @@ defmodule NeptunusWeb.RestartTest do
          %{tmp_dir: dir} do
       id = "resub-video-#{System.unique_integer([:positive])}"
       start_supervised!({Recorder, id: id, recording: [dir: dir]})
-      topic = Neptunus.Vehicle.Camera.record_topic(id)
-      # the writer has subscribed (its handle_continue)
+      topic = Camera.record_topic(id)
+      # the dive is open and its writer told where to write once a call is answered
+      assert %{recording: true} = Recorder.status(id)
       eventually(fn -> PubSub.subscriber_count(topic) == 1 end)
       video_frame(topic, 0, true)
       eventually(fn -> match?(%{video: %{frames: 1}}, Recorder.status(id)) end)
