@@ -50,7 +50,8 @@ defmodule Neptunus.PubSub do
       gives it the whole state again (the phoenix client reconnects and rejoins by itself).
       It ends instead of following (`NeptunusWeb.Socket.Watch`);
     * the recorder (`Neptunus.Vehicle.Recorder`) says it is not recording, with the reason,
-      subscribes again and says how long it was not;
+      subscribes again and says how long it was not; its video writer
+      (`Neptunus.Vehicle.Recorder.Video`) subscribes again;
     * a ground station's vehicle (`Neptunus.GCS.Source`) subscribes again and reads the helm
       and the latest telemetry again; the MAVLink board subscribes again;
     * a camera viewer (`NeptunusWeb.CameraStream`, `NeptunusWeb.VideoSocket`) watches again
@@ -60,7 +61,8 @@ defmodule Neptunus.PubSub do
       again; this node's relay (`Neptunus.PubSub.Relay`) watches the new scope (a follow of
       no topic);
     * the simulated position devices (`Neptunus.Sim.UGPSServer`, `Neptunus.Sim.DVLServer`)
-      follow the simulator's pose again.
+      and a rendering simulated camera (`Neptunus.Vehicle.Camera`) follow the simulator's
+      pose again.
 
   Subscribing is idempotent (a process subscribed to a topic stays subscribed once), so a
   subscriber that raced a restart and joined the new scope before its `:DOWN` arrived can
