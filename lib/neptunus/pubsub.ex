@@ -36,16 +36,33 @@ defmodule Neptunus.PubSub do
   watches the scope it subscribed with (`monitor/0`, taken **before** subscribing) and acts
   on the `:DOWN`: it subscribes again once the scope is back (`monitor/0` answers
   `{:error, :not_running}` until then), or, when what it missed cannot be made good, ends
-  and lets its client start afresh. The node's subscribers:
+  and lets its client start afresh.
+
+  **The recipe for subscribing again** is `Neptunus.PubSub.Follow`: a process keeps a
+  follow of its topics in its state, subscribes with `Follow.subscribe/1` and passes it
+  every `:DOWN` and every `t:Neptunus.PubSub.Follow.retry/0` it receives (`Follow.handle/2`),
+  which says `:lost`, `:waiting` (retrying every 20 ms while the scope is down) or
+  `:subscribed`, and does the retrying; the process adds only what is its own. One attempt,
+  for a process that waits by itself, is `follow/1`. The node's subscribers:
 
     * a WebSocket connection (`NeptunusWeb.Socket`) closes with 1012 "service restart": its
       browser may have missed a `stopped`, a `helm` or a presence diff, and only a rejoin
-      gives it the whole state again (the phoenix client reconnects and rejoins by itself);
+      gives it the whole state again (the phoenix client reconnects and rejoins by itself).
+      It ends instead of following (`NeptunusWeb.Socket.Watch`);
     * the recorder (`Neptunus.Vehicle.Recorder`) says it is not recording, with the reason,
-      subscribes again and says so;
-    * a camera viewer (`NeptunusWeb.CameraStream`) subscribes again (frames only replace
-      each other);
-    * the presence server (`NeptunusWeb.Presence`) joins its group again.
+      subscribes again and says how long it was not; its video writer
+      (`Neptunus.Vehicle.Recorder.Video`) subscribes again;
+    * a ground station's vehicle (`Neptunus.GCS.Source`) subscribes again and reads the helm
+      and the latest telemetry again; the MAVLink board subscribes again;
+    * a camera viewer (`NeptunusWeb.CameraStream`, `NeptunusWeb.VideoSocket`) watches again
+      (`follow/1` through `NeptunusWeb.CameraRelay.watch/1`; frames only replace each
+      other), and a node's camera relay subscribes again;
+    * the presence server (`NeptunusWeb.Presence`) subscribes again and joins its group
+      again; this node's relay (`Neptunus.PubSub.Relay`) watches the new scope (a follow of
+      no topic);
+    * the simulated position devices (`Neptunus.Sim.UGPSServer`, `Neptunus.Sim.DVLServer`)
+      and a rendering simulated camera (`Neptunus.Vehicle.Camera`) follow the simulator's
+      pose again.
 
   Subscribing is idempotent (a process subscribed to a topic stays subscribed once), so a
   subscriber that raced a restart and joined the new scope before its `:DOWN` arrived can
@@ -117,6 +134,27 @@ defmodule Neptunus.PubSub do
     case Process.whereis(@scope) do
       nil -> {:error, :not_running}
       pid -> {:ok, Process.monitor(pid)}
+    end
+  end
+
+  @doc """
+  Watches the scope and subscribes the calling process to `topics` (term subscribers), in
+  that order (see "When the scope restarts"): `{:ok, ref}`, the scope's monitor, whose
+  `{:DOWN, ref, :process, pid, reason}` says the subscriptions are gone; or
+  `{:error, :not_running}` while the scope is down or restarting, with no monitor left. One
+  attempt: a long-lived process keeps a `Neptunus.PubSub.Follow`, which tries again.
+  """
+  @spec follow([topic()]) :: {:ok, reference()} | {:error, :not_running}
+  def follow(topics) when is_list(topics) do
+    with {:ok, ref} <- monitor() do
+      case Enum.find(topics, &(subscribe(&1) != :ok)) do
+        nil ->
+          {:ok, ref}
+
+        _topic ->
+          Process.demonitor(ref, [:flush])
+          {:error, :not_running}
+      end
     end
   end
 

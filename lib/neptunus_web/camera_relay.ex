@@ -18,6 +18,7 @@ defmodule NeptunusWeb.CameraRelay do
   use GenServer
 
   alias Neptunus.{Fleet, PubSub}
+  alias Neptunus.PubSub.Follow
   alias Neptunus.Vehicle.Camera
 
   @supervisor Neptunus.Fleet.Relays
@@ -26,12 +27,11 @@ defmodule NeptunusWeb.CameraRelay do
     @moduledoc false
     @type t :: %__MODULE__{
             id: String.t(),
-            topic: String.t(),
             viewers: %{optional(pid()) => reference()},
-            pubsub: reference() | nil
+            follow: Neptunus.PubSub.Follow.t()
           }
-    @enforce_keys [:id, :topic]
-    defstruct [:id, :topic, :pubsub, viewers: %{}]
+    @enforce_keys [:id, :follow]
+    defstruct [:id, :follow, viewers: %{}]
   end
 
   @doc false
@@ -57,12 +57,13 @@ defmodule NeptunusWeb.CameraRelay do
     end
   end
 
-  # Subscribes to the camera's topic, watching the PubSub scope (waits while it restarts).
+  # Subscribes to the camera's topic, watching the PubSub scope (waits while it restarts:
+  # the caller is a viewer with nothing else to do, not a long-lived server's loop).
   defp watch_here(id) do
-    with {:ok, ref} <- PubSub.monitor(),
-         :ok <- subscribe_or_demonitor(Camera.topic(id), ref) do
-      ref
-    else
+    case PubSub.follow([Camera.topic(id)]) do
+      {:ok, ref} ->
+        ref
+
       {:error, :not_running} ->
         Process.sleep(20)
         watch(id)
@@ -103,7 +104,8 @@ defmodule NeptunusWeb.CameraRelay do
 
   @impl true
   def init(id) do
-    {:ok, subscribe_pubsub(%State{id: id, topic: Camera.topic(id)})}
+    {_subscribed_or_waiting, follow} = Follow.subscribe(Follow.new([Camera.topic(id)]))
+    {:ok, %State{id: id, follow: follow}}
   end
 
   @impl true
@@ -118,40 +120,26 @@ defmodule NeptunusWeb.CameraRelay do
     {:noreply, state}
   end
 
-  def handle_info({:DOWN, ref, :process, _pid, _reason}, %State{pubsub: ref} = state),
-    do: {:noreply, subscribe_pubsub(%{state | pubsub: nil})}
+  # the PubSub scope's (Follow), or a viewer's: the last one gone, the relay stops
+  def handle_info({:DOWN, _ref, :process, pid, _reason} = msg, state) do
+    case Follow.handle(state.follow, msg) do
+      {:other, _} -> viewer_gone(state, pid)
+      {_lost, follow} -> {:noreply, %{state | follow: follow}}
+    end
+  end
 
-  def handle_info({:DOWN, _ref, :process, pid, _reason}, state) do
+  def handle_info({Follow, :retry, _} = msg, state) do
+    {_event, follow} = Follow.handle(state.follow, msg)
+    {:noreply, %{state | follow: follow}}
+  end
+
+  def handle_info(_msg, state), do: {:noreply, state}
+
+  defp viewer_gone(state, pid) do
     viewers = Map.delete(state.viewers, pid)
 
     if viewers == %{},
       do: {:stop, :normal, %{state | viewers: viewers}},
       else: {:noreply, %{state | viewers: viewers}}
-  end
-
-  def handle_info(:subscribe, state), do: {:noreply, subscribe_pubsub(state)}
-
-  def handle_info(_msg, state), do: {:noreply, state}
-
-  defp subscribe_pubsub(state) do
-    with {:ok, ref} <- PubSub.monitor(),
-         :ok <- subscribe_or_demonitor(state.topic, ref) do
-      %{state | pubsub: ref}
-    else
-      {:error, :not_running} ->
-        Process.send_after(self(), :subscribe, 20)
-        state
-    end
-  end
-
-  defp subscribe_or_demonitor(topic, ref) do
-    case PubSub.subscribe(topic) do
-      :ok ->
-        :ok
-
-      {:error, :not_running} = error ->
-        Process.demonitor(ref, [:flush])
-        error
-    end
   end
 end

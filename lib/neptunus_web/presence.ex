@@ -29,6 +29,7 @@ defmodule NeptunusWeb.Presence do
   use GenServer
 
   alias Neptunus.PubSub
+  alias Neptunus.PubSub.Follow
 
   @table __MODULE__
   @group {__MODULE__, :servers}
@@ -41,13 +42,11 @@ defmodule NeptunusWeb.Presence do
             monitors: %{optional(pid()) => reference()},
             pending: %{optional(String.t()) => [{:join | :leave, String.t(), map()}]},
             flush: reference() | nil,
-            pubsub: reference() | nil
+            follow: Neptunus.PubSub.Follow.t()
           }
-    defstruct monitors: %{}, pending: %{}, flush: nil, pubsub: nil
+    @enforce_keys [:follow]
+    defstruct [:follow, monitors: %{}, pending: %{}, flush: nil]
   end
-
-  # how often to look for the PubSub scope while it restarts
-  @rejoin_ms 20
 
   @type key :: String.t()
   @type meta :: map()
@@ -122,27 +121,21 @@ defmodule NeptunusWeb.Presence do
   def init(nil) do
     :ets.new(@table, [:named_table, :set, :protected, read_concurrency: true])
     # pending: topic => [{:join | :leave, key, meta}], newest first, flushed every @batch_ms
-    {:ok, join_group(%State{})}
+    state = %State{follow: Follow.new([@fleet_topic])}
+    {:ok, follow(state, Follow.subscribe(state.follow))}
   end
 
-  # Joins the group the other nodes find this server by, watching the scope (see "Restarts").
-  defp join_group(state) do
-    with {:ok, ref} <- PubSub.monitor(),
-         :ok <- safe_join(),
-         :ok <- PubSub.subscribe(@fleet_topic) do
-      %{state | pubsub: ref}
-    else
-      _ ->
-        Process.send_after(self(), :join_group, @rejoin_ms)
-        %{state | pubsub: nil}
-    end
-  end
-
-  defp safe_join do
-    :pg.join(PubSub, @group, self())
+  # Subscribed to "fleet" (again, see "Restarts"): joins the group the other nodes find this
+  # server by. A scope that stops meanwhile takes the join with it, and the follow's :DOWN
+  # brings both again.
+  defp follow(state, {:subscribed, follow}) do
+    :pg.join(PubSub.scope(), @group, self())
+    %{state | follow: follow}
   catch
-    :exit, _ -> :not_running
+    :exit, _ -> %{state | follow: follow}
   end
+
+  defp follow(state, {_waiting_or_lost, follow}), do: %{state | follow: follow}
 
   @impl true
   def handle_call({:track, pid, topic, key, meta}, _from, state) do
@@ -161,20 +154,16 @@ defmodule NeptunusWeb.Presence do
   end
 
   @impl true
-  def handle_info({:DOWN, ref, :process, _pid, _reason}, %State{pubsub: ref} = state),
-    do: {:noreply, join_group(%{state | pubsub: nil})}
-
-  def handle_info(:join_group, %State{pubsub: nil} = state), do: {:noreply, join_group(state)}
-  def handle_info(:join_group, state), do: {:noreply, state}
-
-  def handle_info({:DOWN, _ref, :process, pid, _reason}, state) do
-    state =
-      Enum.reduce(:ets.match(@table, {{:"$1", pid}, :_, :_}), state, fn [topic], state ->
-        leave(state, topic, pid)
-      end)
-
-    {:noreply, %{state | monitors: Map.delete(state.monitors, pid)}}
+  # the PubSub scope's (Follow), or a tracked process'
+  def handle_info({:DOWN, _ref, :process, pid, _reason} = msg, state) do
+    case Follow.handle(state.follow, msg) do
+      {:other, _} -> {:noreply, gone(state, pid)}
+      event -> {:noreply, follow(state, event)}
+    end
   end
+
+  def handle_info({Follow, :retry, _} = msg, state),
+    do: {:noreply, follow(state, Follow.handle(state.follow, msg))}
 
   # A vehicle of another node is cut off from this one (Neptunus.Fleet.Directory): its helm
   # has freed a pilot connected here (`pilot_unreachable`) but cannot tell it; this node can.
@@ -243,6 +232,16 @@ defmodule NeptunusWeb.Presence do
     else
       state
     end
+  end
+
+  # a tracked process is gone: it leaves every topic
+  defp gone(state, pid) do
+    state =
+      Enum.reduce(:ets.match(@table, {{:"$1", pid}, :_, :_}), state, fn [topic], state ->
+        leave(state, topic, pid)
+      end)
+
+    %{state | monitors: Map.delete(state.monitors, pid)}
   end
 
   defp leave(state, topic, pid) do

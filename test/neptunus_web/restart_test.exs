@@ -5,7 +5,8 @@ defmodule NeptunusWeb.RestartTest do
   use ExUnit.Case, async: false
 
   alias Neptunus.{PubSub, Recording}
-  alias Neptunus.Vehicle.{Recorder, Telemetry}
+  alias Neptunus.PubSub.Follow
+  alias Neptunus.Vehicle.{Camera, Recorder, Telemetry}
   alias NeptunusWeb.Presence
   alias NeptunusWeb.Test.{Wire, WSClient}
 
@@ -119,6 +120,60 @@ defmodule NeptunusWeb.RestartTest do
     end
   end
 
+  describe "PubSub restart under a follower" do
+    # A long-lived process holding a Follow: it reports what the follow says, and the
+    # broadcasts it gets.
+    defp follower(topics) do
+      test = self()
+
+      spawn_link(fn ->
+        {event, follow} = Follow.subscribe(Follow.new(topics))
+        send(test, {:follow, self(), event})
+        follow_loop(test, follow)
+      end)
+    end
+
+    defp follow_loop(test, follow) do
+      receive do
+        {:pubsub, _topic, _event, _payload} = broadcast ->
+          send(test, {:got, self(), broadcast})
+          follow_loop(test, follow)
+
+        message ->
+          {event, follow} = Follow.handle(follow, message)
+          send(test, {:follow, self(), event})
+          follow_loop(test, follow)
+      end
+    end
+
+    test "it is told its subscriptions are gone, waits for the scope, and subscribes again" do
+      t = "resub-follow-#{System.unique_integer([:positive])}"
+      pid = follower([t])
+      assert_receive {:follow, ^pid, :subscribed}
+
+      with_restart_held(fn ->
+        kill!(Neptunus.PubSub)
+        assert_receive {:follow, ^pid, :lost}
+        # the scope is held down: the retry finds nothing, and tries again
+        assert_receive {:follow, ^pid, :waiting}
+        assert_receive {:follow, ^pid, :waiting}
+      end)
+
+      assert_receive {:follow, ^pid, :subscribed}
+      assert PubSub.subscriber_count(t) == 1
+      PubSub.broadcast(t, "ev", %{n: 1})
+      assert_receive {:got, ^pid, {:pubsub, ^t, "ev", %{n: 1}}}
+
+      # killed and restarted at once: the retry may find the new scope at the first try
+      kill!(Neptunus.PubSub)
+      assert_receive {:follow, ^pid, :lost}
+      assert_receive {:follow, ^pid, :subscribed}
+      assert PubSub.subscriber_count(t) == 1
+      PubSub.broadcast(t, "ev", %{n: 2})
+      assert_receive {:got, ^pid, {:pubsub, ^t, "ev", %{n: 2}}}
+    end
+  end
+
   describe "PubSub restart under a camera viewer" do
     setup do
       id = "resub-cam-#{System.unique_integer([:positive])}"
@@ -131,13 +186,32 @@ defmodule NeptunusWeb.RestartTest do
 
     test "the viewer's stream subscribes again", %{id: id} do
       {200, _headers, _body, socket} = Wire.raw_get("/camera/#{id}.mjpg")
-      topic = Neptunus.Vehicle.Camera.topic(id)
+      topic = Camera.topic(id)
       eventually(fn -> PubSub.subscriber_count(topic) == 1 end)
 
       kill!(Neptunus.PubSub)
 
       eventually(fn -> PubSub.subscriber_count(topic) == 1 end)
       :gen_tcp.close(socket)
+    end
+  end
+
+  describe "PubSub restart under a rendering simulated camera" do
+    test "the camera follows the simulator's pose again" do
+      id = "resub-sim-#{System.unique_integer([:positive])}"
+      {:ok, source} = Neptunus.Camera.Source.parse("sim@384x216@10")
+      start_supervised!({Camera, id: id, camera: source})
+      # watched: it renders, and follows the pose
+      :ok = PubSub.subscribe(Camera.topic(id))
+      _ = Camera.view(id)
+      pose = Neptunus.Camera.Pose.topic(id)
+      eventually(fn -> PubSub.subscriber_count(pose) == 1 end)
+
+      kill!(Neptunus.PubSub)
+
+      # still watched (its viewer subscribes again too)
+      eventually(fn -> PubSub.subscribe(Camera.topic(id)) == :ok end)
+      eventually(fn -> PubSub.subscriber_count(pose) == 1 end)
     end
   end
 
@@ -177,6 +251,41 @@ defmodule NeptunusWeb.RestartTest do
                {_, "stopped", _}
              ] = recorded
     end
+  end
+
+  describe "PubSub restart while recording video" do
+    @describetag :tmp_dir
+
+    test "the video writer subscribes again: the camera's frames after it are written",
+         %{tmp_dir: dir} do
+      id = "resub-video-#{System.unique_integer([:positive])}"
+      start_supervised!({Recorder, id: id, recording: [dir: dir]})
+      topic = Camera.record_topic(id)
+      # the dive is open and its writer told where to write once a call is answered
+      assert %{recording: true} = Recorder.status(id)
+      eventually(fn -> PubSub.subscriber_count(topic) == 1 end)
+      video_frame(topic, 0, true)
+      eventually(fn -> match?(%{video: %{frames: 1}}, Recorder.status(id)) end)
+
+      kill!(Neptunus.PubSub)
+
+      eventually(fn -> PubSub.subscriber_count(topic) == 1 end)
+      video_frame(topic, 1, false)
+      eventually(fn -> match?(%{video: %{frames: 2}}, Recorder.status(id)) end)
+    end
+  end
+
+  defp video_frame(topic, seq, key) do
+    frame =
+      Neptunus.Camera.Frame.new(:h264, "picture #{seq}",
+        keyframe: key,
+        generation: 1,
+        seq: seq,
+        arrival_us: Neptunus.Clock.wall_us(),
+        capture_us: 7
+      )
+
+    PubSub.broadcast(topic, "frame", %{frame: frame})
   end
 
   describe "Presence restart" do

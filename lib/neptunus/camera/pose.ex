@@ -7,7 +7,9 @@ defmodule Neptunus.Camera.Pose do
   `Neptunus.Vehicle.Board.OpenROV.SITL.Device`) publish it at every step on `topic/1` — a
   broadcast that costs them three table lookups when nobody listens — and the vehicle's camera
   process subscribes while it renders. So the picture follows the simulator at its own
-  rate and no video work ever runs in the board, control or helm processes.
+  rate and no video work ever runs in the board, control or helm processes. The simulated
+  position devices (`Neptunus.Sim.UGPSServer`, `Neptunus.Sim.DVLServer`) follow it too
+  (`Neptunus.PubSub.Follow`, again after a PubSub restart).
 
   A pose: `x, y, z` (m, NED), `phi, theta, psi` (rad), `u, v, w` (m/s, body), `p, q, r`
   (rad/s), `lights`, `laser` (0..1) and `tilt` (rad, up > 0).
@@ -35,40 +37,10 @@ defmodule Neptunus.Camera.Pose do
 
   @dyn_fields [:x, :y, :z, :phi, :theta, :psi, :u, :v, :w, :p, :q, :r]
   @fields @dyn_fields ++ [:lights, :laser, :tilt]
-  @follow_again_ms 100
 
   @doc "The topic a vehicle's simulator publishes its pose on (event `\"pose\"`)."
   @spec topic(String.t()) :: String.t()
   def topic(id), do: "sim_pose:" <> id
-
-  @doc """
-  Follows vehicle `id`'s pose from the calling process (a simulated device): subscribes to
-  `topic/1` and monitors PubSub, whose restart then arrives as `{:DOWN, ref, …}` — then
-  `follow_later/0`. Returns the monitor's reference, or nil while PubSub is not up: the
-  caller then receives `:resubscribe` 100 ms later and follows again.
-  """
-  @spec follow(String.t()) :: reference() | nil
-  def follow(id) do
-    case PubSub.monitor() do
-      {:ok, ref} ->
-        :ok = PubSub.subscribe(topic(id))
-        ref
-
-      {:error, _} ->
-        follow_later()
-    end
-  end
-
-  @doc """
-  Asks the calling process to follow the pose again in 100 ms (it receives `:resubscribe`):
-  after PubSub went down, which gives it time to restart. Returns nil, the monitor it has
-  until then.
-  """
-  @spec follow_later() :: nil
-  def follow_later do
-    Process.send_after(self(), :resubscribe, @follow_again_ms)
-    nil
-  end
 
   @doc """
   Publishes the pose of `dyn` (a `Neptunus.Dynamics.State` or its map) with the devices

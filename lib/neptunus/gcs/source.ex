@@ -24,7 +24,8 @@ defmodule Neptunus.GCS.Source do
 
   require Logger
 
-  alias Neptunus.{Periodic, PubSub}
+  alias Neptunus.Periodic
+  alias Neptunus.PubSub.Follow
   alias Neptunus.GCS.Vehicle
   alias Neptunus.Protocol.MAVLink
   alias Neptunus.Vehicle.{Helm, Telemetry}
@@ -41,6 +42,7 @@ defmodule Neptunus.GCS.Source do
     @moduledoc false
     @type t :: %__MODULE__{
             vehicle: Neptunus.GCS.Vehicle.t(),
+            follow: Neptunus.PubSub.Follow.t(),
             periodic: Neptunus.Periodic.t(),
             autopilot_version: binary(),
             pilot: term(),
@@ -48,7 +50,7 @@ defmodule Neptunus.GCS.Source do
             text_id: pos_integer(),
             dropped_texts: non_neg_integer()
           }
-    @enforce_keys [:vehicle, :periodic, :autopilot_version]
+    @enforce_keys [:vehicle, :follow, :periodic, :autopilot_version]
     defstruct @enforce_keys ++ [pilot: nil, texts: {0, 0}, text_id: 1, dropped_texts: 0]
   end
 
@@ -92,6 +94,7 @@ defmodule Neptunus.GCS.Source do
 
     state = %State{
       vehicle: vehicle,
+      follow: Follow.new([Telemetry.topic(id), Telemetry.log_topic(id)]),
       periodic: Periodic.new(Keyword.get(opts, :hz, @hz)),
       autopilot_version: version
     }
@@ -101,7 +104,7 @@ defmodule Neptunus.GCS.Source do
 
   @impl true
   def handle_continue(:subscribe, state) do
-    state = subscribe(state)
+    state = follow(state, Follow.subscribe(state.follow))
     Periodic.arm(state.periodic, :tick)
     {:noreply, state}
   end
@@ -188,12 +191,11 @@ defmodule Neptunus.GCS.Source do
   def handle_info({:pubsub, _topic, _event, _payload}, state), do: {:noreply, state}
 
   # the PubSub scope restarted: subscribe again (what was missed is the next tick's)
-  def handle_info({:DOWN, _ref, :process, _pid, _reason}, state) do
-    Process.send_after(self(), :subscribe, 100)
-    {:noreply, state}
-  end
+  def handle_info({:DOWN, _ref, :process, _pid, _reason} = msg, state),
+    do: {:noreply, follow(state, Follow.handle(state.follow, msg))}
 
-  def handle_info(:subscribe, state), do: {:noreply, subscribe(state)}
+  def handle_info({Follow, :retry, _} = msg, state),
+    do: {:noreply, follow(state, Follow.handle(state.follow, msg))}
 
   def handle_info(msg, state) do
     Logger.debug("gcs source #{state.vehicle.id} ignored #{inspect(msg)}")
@@ -272,26 +274,21 @@ defmodule Neptunus.GCS.Source do
     end)
   end
 
-  defp subscribe(state) do
+  # Subscribed (again): what was broadcast before, the helm as it stands and the latest
+  # telemetry. Otherwise the follow tries again.
+  defp follow(state, {:subscribed, follow}) do
     id = state.vehicle.id
+    vehicle = %{state.vehicle | helm: helm_status(id), telemetry: latest(id)}
 
-    with {:ok, _ref} <- PubSub.monitor(),
-         :ok <- PubSub.subscribe(Telemetry.topic(id)),
-         :ok <- PubSub.subscribe(Telemetry.log_topic(id)) do
-      # what was broadcast before: the helm as it stands, the latest telemetry
-      vehicle = %{state.vehicle | helm: helm_status(id), telemetry: latest(id)}
-
-      %{
-        state
-        | vehicle: vehicle,
-          pilot: vehicle.helm && vehicle.helm[:pilot] && vehicle.helm.pilot[:id]
-      }
-    else
-      {:error, :not_running} ->
-        Process.send_after(self(), :subscribe, 100)
-        state
-    end
+    %{
+      state
+      | follow: follow,
+        vehicle: vehicle,
+        pilot: vehicle.helm && vehicle.helm[:pilot] && vehicle.helm.pilot[:id]
+    }
   end
+
+  defp follow(state, {_waiting_lost_or_other, follow}), do: %{state | follow: follow}
 
   defp helm_status(id) do
     Helm.status(id)

@@ -13,13 +13,14 @@ defmodule Neptunus.PubSub.Relay do
   use GenServer
 
   alias Neptunus.PubSub
-
-  @rejoin_ms 20
+  alias Neptunus.PubSub.Follow
 
   defmodule State do
     @moduledoc false
-    @type t :: %__MODULE__{scope: reference() | nil}
-    defstruct scope: nil
+    # the scope watched (a follow of no topic: the relay's groups are joined on demand)
+    @type t :: %__MODULE__{follow: Neptunus.PubSub.Follow.t()}
+    @enforce_keys [:follow]
+    defstruct [:follow]
   end
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -38,24 +39,17 @@ defmodule Neptunus.PubSub.Relay do
   end
 
   @impl true
-  def init(nil), do: {:ok, monitor_scope(%State{})}
-
-  defp monitor_scope(state) do
-    case PubSub.monitor() do
-      {:ok, ref} ->
-        %{state | scope: ref}
-
-      {:error, :not_running} ->
-        Process.send_after(self(), :monitor_scope, @rejoin_ms)
-        %{state | scope: nil}
-    end
+  def init(nil) do
+    {_watched_or_waiting, follow} = Follow.subscribe(Follow.new([]))
+    {:ok, %State{follow: follow}}
   end
 
   @impl true
   def handle_cast({:watch, topic}, state) do
     group = {:relay, topic}
 
-    if state.scope != nil and self() not in :pg.get_local_members(PubSub.scope(), group) do
+    if Follow.subscribed?(state.follow) and
+         self() not in :pg.get_local_members(PubSub.scope(), group) do
       join(group)
     end
 
@@ -71,13 +65,16 @@ defmodule Neptunus.PubSub.Relay do
     {:noreply, state}
   end
 
-  def handle_info({:DOWN, ref, :process, _pid, _reason}, %State{scope: ref} = state),
-    do: {:noreply, monitor_scope(%{state | scope: nil})}
-
-  def handle_info(:monitor_scope, %State{scope: nil} = state),
-    do: {:noreply, monitor_scope(state)}
+  # the scope restarted: its memberships are gone; watch the new one
+  def handle_info({:DOWN, _, :process, _, _} = msg, state), do: follow(state, msg)
+  def handle_info({Follow, :retry, _} = msg, state), do: follow(state, msg)
 
   def handle_info(_msg, state), do: {:noreply, state}
+
+  defp follow(state, msg) do
+    {_event, follow} = Follow.handle(state.follow, msg)
+    {:noreply, %{state | follow: follow}}
+  end
 
   # the scope may stop between the check and the call: its memberships went with it
   defp join(group) do

@@ -19,13 +19,14 @@ defmodule Neptunus.Sim.DVLServer do
   require Logger
 
   alias Neptunus.Camera.Pose
+  alias Neptunus.PubSub.Follow
   alias Neptunus.Protocol.{Lines, WaterLinkedDVL}
   alias Neptunus.Sim.DVL
 
   defmodule State do
     @moduledoc false
     @type t :: %__MODULE__{}
-    defstruct [:id, :listen, :port, :dvl, :monitor, clients: %{}]
+    defstruct [:id, :listen, :port, :dvl, :follow, clients: %{}]
   end
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -61,8 +62,10 @@ defmodule Neptunus.Sim.DVLServer do
   end
 
   @impl true
-  def handle_continue(:subscribe, state),
-    do: {:noreply, %{state | monitor: Pose.follow(state.id)}}
+  def handle_continue(:subscribe, state) do
+    {_subscribed_or_waiting, follow} = Follow.subscribe(Follow.new([Pose.topic(state.id)]))
+    {:noreply, %{state | follow: follow}}
+  end
 
   @impl true
   def handle_call(:port, _from, state), do: {:reply, state.port, state}
@@ -104,11 +107,14 @@ defmodule Neptunus.Sim.DVLServer do
   end
 
   # PubSub restarted: subscribe to the simulator's pose again
-  def handle_info({:DOWN, ref, :process, _, _}, %State{monitor: ref} = state),
-    do: {:noreply, %{state | monitor: Pose.follow_later()}}
-
-  def handle_info(:resubscribe, state), do: {:noreply, %{state | monitor: Pose.follow(state.id)}}
+  def handle_info({:DOWN, _, :process, _, _} = msg, state), do: follow(state, msg)
+  def handle_info({Follow, :retry, _} = msg, state), do: follow(state, msg)
   def handle_info(_other, state), do: {:noreply, state}
+
+  defp follow(state, msg) do
+    {_event, follow} = Follow.handle(state.follow, msg)
+    {:noreply, %{state | follow: follow}}
+  end
 
   defp encode({:velocity, v}), do: WaterLinkedDVL.encode_velocity(v)
   defp encode({:position_local, p}), do: WaterLinkedDVL.encode_position_local(p)

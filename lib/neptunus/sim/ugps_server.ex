@@ -22,6 +22,7 @@ defmodule Neptunus.Sim.UGPSServer do
   use GenServer
 
   alias Neptunus.Camera.Pose
+  alias Neptunus.PubSub.Follow
   alias Neptunus.Protocol.UnderwaterGPS
   alias Neptunus.Sim.USBL
 
@@ -31,7 +32,7 @@ defmodule Neptunus.Sim.UGPSServer do
   defmodule State do
     @moduledoc false
     @type t :: %__MODULE__{}
-    defstruct [:id, :listen, :port, :usbl, :fix, :pose_at, :monitor]
+    defstruct [:id, :listen, :port, :usbl, :fix, :pose_at, :follow]
   end
 
   @spec start_link(keyword()) :: GenServer.on_start()
@@ -63,8 +64,10 @@ defmodule Neptunus.Sim.UGPSServer do
   end
 
   @impl true
-  def handle_continue(:subscribe, state),
-    do: {:noreply, %{state | monitor: Pose.follow(state.id)}}
+  def handle_continue(:subscribe, state) do
+    {_subscribed_or_waiting, follow} = Follow.subscribe(Follow.new([Pose.topic(state.id)]))
+    {:noreply, %{state | follow: follow}}
+  end
 
   @impl true
   def handle_call(:port, _from, state), do: {:reply, state.port, state}
@@ -95,11 +98,15 @@ defmodule Neptunus.Sim.UGPSServer do
     {:noreply, %{state | usbl: usbl, fix: List.last(fixes) || state.fix, pose_at: t}}
   end
 
-  def handle_info({:DOWN, ref, :process, _, _}, %State{monitor: ref} = state),
-    do: {:noreply, %{state | monitor: Pose.follow_later()}}
-
-  def handle_info(:resubscribe, state), do: {:noreply, %{state | monitor: Pose.follow(state.id)}}
+  # PubSub restarted: subscribe to the simulator's pose again
+  def handle_info({:DOWN, _, :process, _, _} = msg, state), do: follow(state, msg)
+  def handle_info({Follow, :retry, _} = msg, state), do: follow(state, msg)
   def handle_info(_other, state), do: {:noreply, state}
+
+  defp follow(state, msg) do
+    {_event, follow} = Follow.handle(state.follow, msg)
+    {:noreply, %{state | follow: follow}}
+  end
 
   defp invalid, do: %{x: 0.0, y: 0.0, z: 0.0, std: 0.0, valid: false, receivers: []}
 

@@ -30,7 +30,8 @@ defmodule Neptunus.Vehicle.Camera do
 
   A V4L2 source without `@h264`/`@mjpeg` is probed (`Neptunus.Camera.V4L2`) before each
   start. The simulated camera gets the vehicle's pose from its simulator
-  (`Neptunus.Camera.Pose`) while it renders.
+  (`Neptunus.Camera.Pose`) while it renders (again after a PubSub restart,
+  `Neptunus.PubSub.Follow`).
 
   Telemetry carries the state once a second as `camera: %{running, fps, error, state,
   restarts, codec, width, height}`.
@@ -45,6 +46,7 @@ defmodule Neptunus.Vehicle.Camera do
 
   alias Neptunus.{Fleet, PubSub}
   alias Neptunus.Camera.{Frame, Pose, Program, Source, Stream, V4L2}
+  alias Neptunus.PubSub.Follow
   alias Neptunus.Vehicle.Telemetry
 
   @max_backoff_ms 30_000
@@ -60,6 +62,7 @@ defmodule Neptunus.Vehicle.Camera do
     @type t :: %__MODULE__{
             id: String.t(),
             source: Neptunus.Camera.Source.t() | nil,
+            pose: Neptunus.PubSub.Follow.t(),
             phase: :none | :idle | :probing | :starting | :running | :restarting | :failed,
             port: port() | nil,
             exit_code: non_neg_integer() | nil,
@@ -85,10 +88,11 @@ defmodule Neptunus.Vehicle.Camera do
             linger_ms: non_neg_integer(),
             timer: reference() | nil
           }
-    @enforce_keys [:id, :source]
+    @enforce_keys [:id, :source, :pose]
     defstruct [
       :id,
       :source,
+      :pose,
       :port,
       :exit_code,
       :stream,
@@ -215,6 +219,8 @@ defmodule Neptunus.Vehicle.Camera do
     state = %State{
       id: id,
       source: nil,
+      # the simulator's pose, followed while a sim camera renders
+      pose: Follow.new([Pose.topic(id)]),
       ffmpeg: Keyword.get_lazy(opts, :ffmpeg, fn -> System.find_executable("ffmpeg") end),
       stall_ms: Keyword.get(opts, :stall_ms, 5_000),
       start_ms: Keyword.get(opts, :start_ms, 20_000),
@@ -311,6 +317,10 @@ defmodule Neptunus.Vehicle.Camera do
 
   def handle_info({:pubsub, _topic, "pose", _pose}, state), do: {:noreply, state}
 
+  # the PubSub scope restarted while rendering: follow the pose again
+  def handle_info({:DOWN, _, :process, _, _} = msg, state), do: {:noreply, pose(state, msg)}
+  def handle_info({Follow, :retry, _} = msg, state), do: {:noreply, pose(state, msg)}
+
   # the port is linked to us; its exit_status message (or, for the current port, its exit
   # signal: above) does the work
   def handle_info({:EXIT, port, _reason}, state) when is_port(port), do: {:noreply, state}
@@ -392,7 +402,7 @@ defmodule Neptunus.Vehicle.Camera do
             generation: next_generation(state)
           )
 
-        if source.kind == :sim, do: PubSub.subscribe(Pose.topic(state.id))
+        state = if source.kind == :sim, do: follow_pose(state), else: state
 
         %{state | stream: stream, info: nil, started_ms: now(), last_frame_ms: nil}
         |> open(command)
@@ -466,7 +476,7 @@ defmodule Neptunus.Vehicle.Camera do
       })
     end
 
-    PubSub.unsubscribe(Pose.topic(state.id))
+    state = %{state | pose: Follow.unsubscribe(state.pose)}
     if state.timer, do: Process.cancel_timer(state.timer)
     timer = Process.send_after(self(), :restart, state.backoff_ms)
 
@@ -479,6 +489,17 @@ defmodule Neptunus.Vehicle.Camera do
         gop_bytes: 0
     }
     |> set_phase(phase, reason)
+  end
+
+  # (again: a stream started while one was followed)
+  defp follow_pose(state) do
+    {_subscribed_or_waiting, pose} = state.pose |> Follow.unsubscribe() |> Follow.subscribe()
+    %{state | pose: pose}
+  end
+
+  defp pose(state, msg) do
+    {_event, pose} = Follow.handle(state.pose, msg)
+    %{state | pose: pose}
   end
 
   # A `sim` camera renders only while watched.
@@ -501,8 +522,10 @@ defmodule Neptunus.Vehicle.Camera do
 
     cond do
       on_demand?(state) and now - (state.watched_ms || state.started_ms) > state.linger_ms ->
-        PubSub.unsubscribe(Pose.topic(state.id))
-        state |> stop_program() |> set_phase(:idle, nil) |> report()
+        %{state | pose: Follow.unsubscribe(state.pose)}
+        |> stop_program()
+        |> set_phase(:idle, nil)
+        |> report()
 
       phase == :running and now - state.last_frame_ms > state.stall_ms ->
         state

@@ -77,6 +77,7 @@ defmodule Neptunus.Vehicle.Recorder do
 
   alias Neptunus.{Dive, Fleet, PubSub, Recording}
   alias Neptunus.Dive.{Boundary, Summary}
+  alias Neptunus.PubSub.Follow
   alias Neptunus.Vehicle.Recorder.Video
   alias Neptunus.Vehicle.Telemetry
 
@@ -89,7 +90,6 @@ defmodule Neptunus.Vehicle.Recorder do
   @default_sync_ms 50
   # messages waiting beyond which the recorder is behind (see "Durability")
   @behind 10
-  @resubscribe_ms 20
   @not_subscribed "not receiving the vehicle's events: the PubSub restarted (subscribing again)"
 
   defmodule State do
@@ -123,10 +123,10 @@ defmodule Neptunus.Vehicle.Recorder do
             unsynced: boolean(),
             tick: reference() | nil,
             sync: (term() -> :ok | {:error, term()}),
-            pubsub: reference() | nil,
+            follow: Neptunus.PubSub.Follow.t(),
             unsubscribed_at_ms: integer() | nil
           }
-    @enforce_keys [:id, :dir, :max_bytes, :min_free_bytes, :free_bytes, :wall_ms, :rm]
+    @enforce_keys [:id, :dir, :max_bytes, :min_free_bytes, :free_bytes, :wall_ms, :rm, :follow]
     defstruct [
       :id,
       :dir,
@@ -147,7 +147,7 @@ defmodule Neptunus.Vehicle.Recorder do
       :sync_ms,
       :sync,
       :tick,
-      :pubsub,
+      :follow,
       :unsubscribed_at_ms,
       video_opts: [],
       files: [],
@@ -231,6 +231,9 @@ defmodule Neptunus.Vehicle.Recorder do
 
     state = %State{
       id: id,
+      # the vehicle's topic and its log topic (safety, link, errors, autopilot notices: the
+      # recording's logger is complete)
+      follow: Follow.new([Telemetry.topic(id), Telemetry.log_topic(id)]),
       dir: Map.get(config, :dir),
       max_bytes: Map.get(config, :max_bytes, @default_max_bytes),
       min_free_bytes: Map.get(config, :min_free_bytes, @default_min_free_bytes),
@@ -256,7 +259,7 @@ defmodule Neptunus.Vehicle.Recorder do
   def handle_continue(:open, state) do
     Process.flag(:trap_exit, true)
     state = start_video(state)
-    state = subscribe(state)
+    state = follow(state, Follow.subscribe(state.follow))
     :timer.send_interval(@disk_check_ms, :check_disk)
     :timer.send_interval(@expire_ms, :expire)
     :timer.send_interval(@summary_ms, :save_summary)
@@ -281,19 +284,12 @@ defmodule Neptunus.Vehicle.Recorder do
 
   def handle_info(:save_summary, state), do: {:noreply, state}
 
-  # The PubSub scope stopped: the subscription is gone (see "PubSub restarts").
-  def handle_info({:DOWN, ref, :process, _pid, _reason}, %State{pubsub: ref} = state) do
-    Logger.warning("vehicle #{state.id}: recording paused: #{@not_subscribed}")
-    state = %{state | pubsub: nil, unsubscribed_at_ms: Neptunus.Clock.monotonic_ms()}
-    report(state)
-    {:noreply, subscribe(state)}
-  end
+  # The PubSub scope stopped, or is back (see "PubSub restarts").
+  def handle_info({:DOWN, _ref, :process, _pid, _reason} = msg, state),
+    do: {:noreply, follow(state, Follow.handle(state.follow, msg))}
 
-  # a scope watched before the one the recorder subscribed with
-  def handle_info({:DOWN, _ref, :process, _pid, _reason}, state), do: {:noreply, state}
-
-  def handle_info(:subscribe, %State{pubsub: nil} = state), do: {:noreply, subscribe(state)}
-  def handle_info(:subscribe, state), do: {:noreply, state}
+  def handle_info({Follow, :retry, _} = msg, state),
+    do: {:noreply, follow(state, Follow.handle(state.follow, msg))}
 
   # disk_log's notifications (notify: true)
 
@@ -409,31 +405,26 @@ defmodule Neptunus.Vehicle.Recorder do
     if bytes >= state.max_bytes, do: next_part(state), else: state
   end
 
-  # Subscribes to the vehicle's topic, watching the scope first; retries while it restarts.
-  defp subscribe(state) do
-    with {:ok, ref} <- PubSub.monitor(),
-         :ok <- subscribe_or_demonitor(state.id, ref) do
-      state = %{state | pubsub: ref}
-      if state.unsubscribed_at_ms, do: resubscribed(state), else: state
-    else
-      {:error, :not_running} ->
-        Process.send_after(self(), :subscribe, @resubscribe_ms)
-        %{state | unsubscribed_at_ms: state.unsubscribed_at_ms || Neptunus.Clock.monotonic_ms()}
-    end
+  # What the follow of the vehicle's topics says (its retries are its own): the subscription
+  # gone, the gap then said once subscribed again.
+  defp follow(state, {:lost, follow}) do
+    Logger.warning("vehicle #{state.id}: recording paused: #{@not_subscribed}")
+    state = %{state | follow: follow, unsubscribed_at_ms: Neptunus.Clock.monotonic_ms()}
+    report(state)
+    state
   end
 
-  # the vehicle's topic and its log topic (safety, link, errors, autopilot notices: the
-  # recording's logger is complete)
-  defp subscribe_or_demonitor(id, ref) do
-    with :ok <- PubSub.subscribe(Telemetry.topic(id)),
-         :ok <- PubSub.subscribe(Telemetry.log_topic(id)) do
-      :ok
-    else
-      {:error, :not_running} = error ->
-        Process.demonitor(ref, [:flush])
-        error
-    end
-  end
+  defp follow(%State{unsubscribed_at_ms: at} = state, {:subscribed, follow}) when at != nil,
+    do: resubscribed(%{state | follow: follow})
+
+  defp follow(state, {:waiting, follow}),
+    do: %{
+      state
+      | follow: follow,
+        unsubscribed_at_ms: state.unsubscribed_at_ms || Neptunus.Clock.monotonic_ms()
+    }
+
+  defp follow(state, {_subscribed_or_other, follow}), do: %{state | follow: follow}
 
   defp resubscribed(state) do
     ms = Neptunus.Clock.monotonic_ms() - state.unsubscribed_at_ms
@@ -451,9 +442,14 @@ defmodule Neptunus.Vehicle.Recorder do
   # writes, that is, with a file open and the vehicle's events reaching it.
   defp recording_state(%State{dir: nil}), do: %{on: false, error: nil}
   defp recording_state(%State{error: error}) when error != nil, do: %{on: false, error: error}
-  defp recording_state(%State{pubsub: nil}), do: %{on: false, error: @not_subscribed}
-  defp recording_state(%State{log: nil}), do: %{on: false, error: nil}
-  defp recording_state(_state), do: %{on: true, error: nil}
+
+  defp recording_state(state) do
+    cond do
+      not Follow.subscribed?(state.follow) -> %{on: false, error: @not_subscribed}
+      state.log == nil -> %{on: false, error: nil}
+      true -> %{on: true, error: nil}
+    end
+  end
 
   defp report(state), do: Telemetry.report(state.id, :recording, recording_state(state))
 

@@ -6,7 +6,8 @@ defmodule Neptunus.Vehicle.Recorder.Video do
   to write (`record/2`: a dive's video folder, or nil to stop).
 
   Frames come as messages: it subscribes to the camera's recording topic
-  (`Neptunus.Vehicle.Camera.record_topic/1`, the same shared binary every viewer gets), so
+  (`Neptunus.Vehicle.Camera.record_topic/1`, the same shared binary every viewer gets; again
+  after a PubSub restart, `Neptunus.PubSub.Follow`), so
   the camera never waits for it and a slow disk holds up only this process. The recording
   topic is not the viewers' topic, so recording does not count as watching: a simulated
   camera renders (and is recorded) while someone watches it.
@@ -29,7 +30,7 @@ defmodule Neptunus.Vehicle.Recorder.Video do
 
   alias Neptunus.Camera.Frame
   alias Neptunus.Dive.Video
-  alias Neptunus.PubSub
+  alias Neptunus.PubSub.Follow
   alias Neptunus.Vehicle.Camera
 
   @default_sync_ms 500
@@ -57,6 +58,7 @@ defmodule Neptunus.Vehicle.Recorder.Video do
     @type t :: %__MODULE__{
             id: String.t(),
             recorder: pid(),
+            follow: Neptunus.PubSub.Follow.t(),
             folder: Path.t() | nil,
             segment: Neptunus.Vehicle.Recorder.Video.Segment.t() | nil,
             info: map() | nil,
@@ -72,10 +74,11 @@ defmodule Neptunus.Vehicle.Recorder.Video do
             codec: String.t() | nil,
             error: String.t() | nil
           }
-    @enforce_keys [:id, :recorder, :stream_info, :sync_ms, :segment_us, :segment_bytes]
+    @enforce_keys [:id, :recorder, :follow, :stream_info, :sync_ms, :segment_us, :segment_bytes]
     defstruct [
       :id,
       :recorder,
+      :follow,
       :folder,
       :segment,
       :info,
@@ -154,6 +157,7 @@ defmodule Neptunus.Vehicle.Recorder.Video do
     state = %State{
       id: id,
       recorder: Keyword.fetch!(opts, :recorder),
+      follow: Follow.new([Camera.record_topic(id)]),
       stream_info: Keyword.get(opts, :stream_info, &camera_stream/1),
       sync_ms: Keyword.get(opts, :sync_ms, @default_sync_ms),
       segment_us: Keyword.get(opts, :segment_us, @default_segment_us),
@@ -165,9 +169,10 @@ defmodule Neptunus.Vehicle.Recorder.Video do
 
   @impl true
   def handle_continue(:subscribe, state) do
-    # a PubSub that is not running: the recorder is told by its own subscription
-    _ = PubSub.subscribe(Camera.record_topic(state.id))
-    {:noreply, state}
+    # a PubSub that is not running: the recorder is told by its own subscription (the
+    # frames meanwhile are lost with the vehicle's events)
+    {_subscribed_or_waiting, follow} = Follow.subscribe(state.follow)
+    {:noreply, %{state | follow: follow}}
   end
 
   @impl true
@@ -222,7 +227,16 @@ defmodule Neptunus.Vehicle.Recorder.Video do
 
   def handle_info({:pubsub, _topic, _event, _payload}, state), do: {:noreply, state}
   def handle_info(:sync_tick, state), do: {:noreply, sync(%{state | tick: nil})}
+
+  # the PubSub scope restarted: subscribe again (Follow)
+  def handle_info({:DOWN, _, :process, _, _} = msg, state), do: follow(state, msg)
+  def handle_info({Follow, :retry, _} = msg, state), do: follow(state, msg)
   def handle_info(_other, state), do: {:noreply, state}
+
+  defp follow(state, msg) do
+    {_event, follow} = Follow.handle(state.follow, msg)
+    {:noreply, %{state | follow: follow}}
+  end
 
   @impl true
   def terminate(_reason, state) do

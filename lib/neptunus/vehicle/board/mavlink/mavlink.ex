@@ -47,6 +47,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
   require Logger
 
   alias Neptunus.PubSub
+  alias Neptunus.PubSub.Follow
   alias Neptunus.Protocol.MAVLink, as: Codec
   alias Neptunus.Vehicle.{Board, Telemetry}
   alias Neptunus.Vehicle.Board.MAVLink.Core
@@ -70,6 +71,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
     @type t :: %__MODULE__{
             id: String.t(),
             topic: String.t(),
+            follow: Neptunus.PubSub.Follow.t(),
             link: Neptunus.Vehicle.Board.MAVLink.link(),
             core: Neptunus.Vehicle.Board.MAVLink.Core.t(),
             decoder: Neptunus.Protocol.MAVLink.Decoder.t(),
@@ -82,10 +84,11 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
             transport: String.t(),
             counters: %{atom() => non_neg_integer()}
           }
-    @enforce_keys [:id, :topic, :link, :core, :decoder, :program]
+    @enforce_keys [:id, :topic, :follow, :link, :core, :decoder, :program]
     defstruct [
       :id,
       :topic,
+      :follow,
       :link,
       :core,
       :decoder,
@@ -257,6 +260,7 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
     state = %State{
       id: id,
       topic: Telemetry.topic(id),
+      follow: Follow.new([Telemetry.topic(id)]),
       link: Keyword.fetch!(opts, :link),
       core: Core.new(now_ms(), core_options(opts)),
       decoder: Codec.new(),
@@ -266,9 +270,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
     # no sway until the vehicle's frame says it has it (Core.axes/1)
     :ok = Board.declare_axes(id, Core.axes(state.core))
-    subscribe(state.topic)
+    {_subscribed_or_waiting, follow} = Follow.subscribe(state.follow)
     send(self(), :report)
-    {:ok, state, {:continue, :open}}
+    {:ok, %{state | follow: follow}, {:continue, :open}}
   end
 
   @impl true
@@ -363,16 +367,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
 
   def handle_info({:pubsub, _topic, _event, _payload}, state), do: {:noreply, state}
 
-  # the PubSub scope restarted: subscribe again
-  def handle_info({:DOWN, _ref, :process, _pid, _reason}, state) do
-    Process.send_after(self(), :subscribe, 100)
-    {:noreply, state}
-  end
-
-  def handle_info(:subscribe, state) do
-    subscribe(state.topic)
-    {:noreply, state}
-  end
+  # the PubSub scope restarted: subscribe again (Follow)
+  def handle_info({:DOWN, _ref, :process, _pid, _reason} = msg, state), do: follow(state, msg)
+  def handle_info({Follow, :retry, _} = msg, state), do: follow(state, msg)
 
   def handle_info(msg, state) do
     Logger.debug("mavlink board #{state.id} ignored #{inspect(msg)}")
@@ -587,15 +584,9 @@ defmodule Neptunus.Vehicle.Board.MAVLink do
     Telemetry.link(state.id, %{status | mavlink: mavlink})
   end
 
-  # the scope's DOWN (or its absence) brings a retry
-  defp subscribe(topic) do
-    with :ok <- PubSub.subscribe(topic), {:ok, _ref} <- PubSub.monitor() do
-      :ok
-    else
-      {:error, :not_running} -> Process.send_after(self(), :subscribe, 100)
-    end
-
-    :ok
+  defp follow(state, msg) do
+    {_event, follow} = Follow.handle(state.follow, msg)
+    {:noreply, %{state | follow: follow}}
   end
 
   # the configured disarm delay is in seconds; the core's durations are in ms
