@@ -249,6 +249,13 @@ defmodule NeptunusWeb.SocketTest do
     {jr, _} = join!(ws, topic)
     join!(ws, "fleet")
     :ok = Neptunus.Fleet.stop_vehicle(id)
+    # gone from the fleet's directory too (it hears of the stop a moment later): until then a
+    # request finds the vehicle, is told "vehicle restarting: try again", and the channel lives
+    Neptunus.Test.Pty.wait_until(
+      fn -> not Neptunus.Fleet.exists?(id) end,
+      "the stopped vehicle to be gone"
+    )
+
     WSClient.push(ws, jr, "x", topic, "thrust", thrust(0))
 
     assert [^jr, ^jr, ^topic, "phx_error", %{}] =

@@ -200,8 +200,11 @@ defmodule Neptunus.Vehicle.SITLTest do
         arm_ms: 0
       })
 
-    {:ok, _} = Control.thrust(id, motion(0, 1, 0))
-    wait_until(fn -> SITL.Device.state(id).firmware.thrusters.vertical > 0 end, "thrust")
+    # as a page does, again until the board runs it: the board link does not resume a demand
+    # from before a new link or a deadman recovery (a busy machine's pause can trip one)
+    drive_until(id, motion(0, 1, 0), fn ->
+      SITL.Device.state(id).firmware.thrusters.vertical > 0
+    end)
 
     # healthy: the board's own clock well past its deadman time, the motors still run
     since = SITL.Device.state(id).firmware.at
