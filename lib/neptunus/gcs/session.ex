@@ -394,10 +394,18 @@ defmodule Neptunus.GCS.Session do
     end)
   end
 
-  defp message(s, %{name: :mission_request_list, fields: f}, _now) do
-    # no missions here: an empty list of the type asked for
+  defp message(s, %{name: :mission_request_list, fields: f} = m, _now) do
+    # no missions here: an empty list of the type asked for, to the station that asked
     with_vehicle(s, f.target_system, fn sysid, _v ->
-      {s, [send(s, sysid, :mission_count, %{count: 0, mission_type: f.mission_type})]}
+      {s,
+       [
+         send(s, sysid, :mission_count, %{
+           target_system: m.system,
+           target_component: m.component,
+           count: 0,
+           mission_type: f.mission_type
+         })
+       ]}
     end)
   end
 

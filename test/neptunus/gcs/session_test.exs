@@ -612,6 +612,19 @@ defmodule Neptunus.GCS.SessionTest do
       assert [{:send, 1, :mission_count, %{count: 0, mission_type: 2}}] = actions
     end
 
+    test "the mission count goes to the station that asked, and encodes" do
+      # msg/3 sends as system 255, component 190 (a ground station's ids)
+      {_s, [{:send, 1, :mission_count, fields}]} =
+        receive_msg(
+          spoken(),
+          msg(:mission_request_list, %{target_system: 1, target_component: 1, mission_type: 0})
+        )
+
+      assert %{target_system: 255, target_component: 190} = fields
+
+      assert {:ok, _} = MAVLink.encode(:mission_count, fields, %{system: 1, component: 1, seq: 0})
+    end
+
     test "TIMESYNC requests are answered with the vehicle's clock" do
       {_s, actions} = receive_msg(spoken(), msg(:timesync, %{tc1: 0, ts1: 123}), 2_000)
       assert [{:send, 1, :timesync, %{tc1: 2_000_000_000, ts1: 123}}] = actions
