@@ -468,7 +468,7 @@ defmodule Neptunus.GCS.Session do
 
     cond do
       not v.pilot and arm? and s.identity.trusted and free?(v) ->
-        intent(s, sysid, :request_control, {:take_then_arm, v.board})
+        intent(s, sysid, :request_control, :take_then_arm)
 
       not v.pilot ->
         ack(s, sysid, @arm_disarm, @denied, @not_in_control)
@@ -790,12 +790,12 @@ defmodule Neptunus.GCS.Session do
     end
   end
 
-  defp result(s, {:take_then_arm, _board}, {:ok, %{status: "granted", grant: grant}}, sysid) do
+  defp result(s, :take_then_arm, {:ok, %{status: "granted", grant: grant}}, sysid) do
     s = granted(s, sysid, grant)
     run_command(s, sysid, s.vehicles[sysid], @arm_disarm, [1.0])
   end
 
-  defp result(s, {:take_then_arm, _board}, result, sysid) do
+  defp result(s, :take_then_arm, result, sysid) do
     reason =
       case result do
         {:error, reason} -> reason
