@@ -394,18 +394,11 @@ defmodule Neptunus.GCS.Session do
     end)
   end
 
-  defp message(s, %{name: :mission_request_list, fields: f} = m, _now) do
+  defp message(s, %{name: :mission_request_list, fields: f}, _now) do
     # no missions here: an empty list of the type asked for, to the station that asked
     with_vehicle(s, f.target_system, fn sysid, _v ->
-      {s,
-       [
-         send(s, sysid, :mission_count, %{
-           target_system: m.system,
-           target_component: m.component,
-           count: 0,
-           mission_type: f.mission_type
-         })
-       ]}
+      fields = Map.merge(to_station(s), %{count: 0, mission_type: f.mission_type})
+      {s, [send(s, sysid, :mission_count, fields)]}
     end)
   end
 
@@ -688,22 +681,19 @@ defmodule Neptunus.GCS.Session do
         timeout_s = helm_timeout_s(v)
         s = put_vehicle(s, sysid, %{v | asked: true})
 
-        {gcs_sys, gcs_comp} = s.gcs || {0, 0}
+        fields = %{
+          command: @request_operator_control,
+          confirmation: 0,
+          param1: requester * 1.0,
+          param2: 1.0,
+          param3: 0.0,
+          param4: timeout_s * 1.0,
+          param5: 0.0,
+          param6: 0.0,
+          param7: 0.0
+        }
 
-        notify =
-          send(s, sysid, :command_long, %{
-            target_system: gcs_sys,
-            target_component: gcs_comp,
-            command: @request_operator_control,
-            confirmation: 0,
-            param1: requester * 1.0,
-            param2: 1.0,
-            param3: 0.0,
-            param4: timeout_s * 1.0,
-            param5: 0.0,
-            param6: 0.0,
-            param7: 0.0
-          })
+        notify = send(s, sysid, :command_long, Map.merge(fields, to_station(s)))
 
         text =
           "#{v.id}: #{from[:name] || "someone"} asks for the helm; allow: command 32100 " <>
@@ -955,17 +945,8 @@ defmodule Neptunus.GCS.Session do
   def slow?(_intent), do: true
 
   defp ack(s, sysid, command, result, reason) do
-    {gcs_sys, gcs_comp} = s.gcs || {0, 0}
-
-    ack =
-      send(s, sysid, :command_ack, %{
-        command: command,
-        result: result,
-        progress: 0,
-        result_param2: 0,
-        target_system: gcs_sys,
-        target_component: gcs_comp
-      })
+    fields = %{command: command, result: result, progress: 0, result_param2: 0}
+    ack = send(s, sysid, :command_ack, Map.merge(fields, to_station(s)))
 
     s = if result in [@accepted, @in_progress], do: s, else: count(s, :refused)
 
@@ -978,6 +959,12 @@ defmodule Neptunus.GCS.Session do
   end
 
   defp send(_s, sysid, name, fields), do: {:send, sysid, name, fields}
+
+  # the address of a message meant for this session's station (its ids from its first message)
+  defp to_station(s) do
+    {system, component} = s.gcs || {0, 0}
+    %{target_system: system, target_component: component}
+  end
 
   defp statustext(_s, sysid, severity, text), do: [{:text, sysid, severity, text}]
 
